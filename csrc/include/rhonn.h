@@ -1,0 +1,235 @@
+/*
+ * rhonn.h - recurrent high-order neural network identifier trained by a
+ * per-neuron extended Kalman filter (Alanis et al., "Neural identifier for
+ * unknown discrete-time nonlinear delayed systems", eq. 3-12).
+ *
+ * The plant x(k+1) = F(x(k-l), u(k)) (eq. 1) is approximated, one neuron per
+ * state, in series-parallel form (eq. 12):
+ *
+ *     xhat_i(k+1) = w_i^T z_i(x(k), x(k-1), ..., u(k))            (eq. 3)
+ *     z_ij       = prod_{f in I_j} xi_f ^ d_f                       (eq. 4)
+ *     xi         = [S(x_1) .. S(x_n), u_1 .. u_m]                   (eq. 5)
+ *
+ * and each w_i is trained by the EKF of eq. 7-9. The network is linear in its
+ * weights, so H_i = dxhat_i/dw_i = z_i and every neuron's update is a
+ * scalar-measurement Kalman update of its own L_i x L_i covariance:
+ *
+ *     e_i   = x_i(k) - xhat_i(k)                                   (eq. 9)
+ *     M_i   = 1 / (R_i + z_i^T P_i z_i)                              (eq. 8)
+ *     K_i   = P_i z_i M_i                                            (eq. 7)
+ *     w_i  <- w_i + eta_i K_i e_i                                    (eq. 7)
+ *     P_i  <- P_i - K_i z_i^T P_i + Q_i                              (eq. 7)
+ *
+ * ORDER OF ONE STEP (rhonn_step), for the sample k carrying x(k), u(k):
+ *   1. Learn: for every neuron i whose measurement is valid, form
+ *      e_i(k) = x_i(k) - xhat_i(k) and update w_i, P_i using the regressor
+ *      z_i(k-1) that produced xhat_i(k). No learning happens on the first
+ *      step after init/reset (there is no xhat(0) to compare with), nor while
+ *      learning is switched off.
+ *   2. Form the regressor z(k) from x(k), the delayed samples x(k-d) and
+ *      u(k). A state whose measurement is invalid is replaced by its own
+ *      prediction xhat_j(k) (on the very first step: config x0), so a
+ *      dropout neither trains the neuron nor poisons the other regressors.
+ *   3. Predict xhat(k+1) = w(k+1)^T z(k) with the freshly updated weights and
+ *      return it.
+ * Before the first step, every delayed tap reads the first sample: the
+ * history is taken as constant, as for a delay equation's initial function.
+ *
+ * ERRORS. Every function returns rhonn_status. A step that fails leaves the
+ * identifier exactly as it was before the call (weights, covariances,
+ * history, prediction): the new values are computed into the inactive half of
+ * double-buffered storage and committed only when every neuron succeeded.
+ * Nothing in this library allocates, prints, recurses or aborts.
+ *
+ * PRECISION. rhonn_real is double, or float when RHONN_SINGLE is defined.
+ * The same source builds both; the two builds are separate libraries.
+ */
+#ifndef RHONN_H
+#define RHONN_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "rhonn_capacity.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#ifdef RHONN_SINGLE
+typedef float rhonn_real;
+#else
+typedef double rhonn_real;
+#endif
+
+/* Version of this header's API and of rhonn_t's layout. */
+#define RHONN_VERSION_MAJOR 1
+#define RHONN_VERSION_MINOR 0
+
+typedef enum {
+    RHONN_OK = 0,
+    RHONN_E_NULL = 1,           /* a required pointer argument is NULL */
+    RHONN_E_NOT_INIT = 2,       /* rhonn_t was not set up by rhonn_init */
+    RHONN_E_CONFIG = 3,         /* configuration invalid; see rhonn_config_error */
+    RHONN_E_ARGUMENT = 4,       /* index or length argument out of range */
+    RHONN_E_INPUT_NONFINITE = 5,/* a valid x_j(k) or some u_j(k) is NaN/Inf */
+    RHONN_E_INNOVATION = 6,     /* R_i + z^T P_i z is not a positive finite number */
+    RHONN_E_COVARIANCE = 7,     /* the updated P_i would not be finite */
+    RHONN_E_DIVERGED = 8,       /* updated weights or the prediction would not be finite */
+    RHONN_E_VALUE = 9           /* a value given to a setter is invalid (non-finite, P_jj <= 0) */
+} rhonn_status;
+
+/* Factor kinds of a high-order term (eq. 4-5). */
+typedef enum {
+    RHONN_FACTOR_S = 0,   /* S(x_index(k - delay)): activation of a (delayed) state */
+    RHONN_FACTOR_X = 1,   /* x_index(k - delay): the raw (delayed) state */
+    RHONN_FACTOR_U = 2,   /* u_index(k): an input, delay must be 0 */
+    RHONN_FACTOR_ONE = 3  /* the constant 1 (bias); index and delay must be 0 */
+} rhonn_factor_kind;
+
+/* Activation S(.) of one neuron. */
+typedef enum {
+    RHONN_LOGISTIC = 0,   /* S(s) = 1 / (1 + exp(-beta s))                 (eq. 6)  */
+    RHONN_BIPOLAR = 1     /* S(s) = (1 - exp(-beta s)) / (1 + exp(-beta s)) (eq. 19) */
+} rhonn_activation;
+
+typedef struct {
+    uint8_t kind;   /* rhonn_factor_kind */
+    uint8_t index;  /* state index (S, X) or input index (U); 0 for ONE */
+    uint8_t delay;  /* d in x(k - d), 0..RHONN_MAX_DELAY; 0 for U and ONE */
+    uint8_t power;  /* exponent d_ij, 1..RHONN_MAX_POWER */
+} rhonn_factor;
+
+typedef struct {
+    uint8_t n_factors;                          /* 1..RHONN_MAX_FACTORS */
+    rhonn_factor factors[RHONN_MAX_FACTORS];
+} rhonn_term;
+
+typedef struct {
+    uint8_t n_terms;            /* L_i, 1..RHONN_MAX_TERMS */
+    uint8_t activation;         /* rhonn_activation */
+    rhonn_real beta;            /* slope of S, > 0 */
+    rhonn_real eta;             /* learning rate eta_i of eq. 7, > 0 */
+    rhonn_real r;               /* R_i of eq. 8, > 0 */
+    rhonn_real q[RHONN_MAX_TERMS];   /* diag(Q_i), >= 0 */
+    rhonn_real w0[RHONN_MAX_TERMS];  /* w_i(0) */
+    /* P_i(0), packed upper triangle row by row: P00 P01 .. P0L P11 P12 ..
+     * The paper's diagonal P_i(0) has zeros off the diagonal; a full one
+     * (e.g. exported after training) is accepted. Diagonal entries > 0. */
+    rhonn_real p0[RHONN_MAX_PACKED];
+    rhonn_term terms[RHONN_MAX_TERMS];
+} rhonn_neuron_config;
+
+typedef struct {
+    uint8_t n_states;           /* n, 1..RHONN_MAX_STATES */
+    uint8_t n_inputs;           /* m, 0..RHONN_MAX_INPUTS */
+    rhonn_real x0[RHONN_MAX_STATES];  /* xhat(0): stands in for states invalid at k = 0 */
+    rhonn_neuron_config neurons[RHONN_MAX_STATES];
+} rhonn_config;
+
+/* Which field of a configuration was rejected (rhonn_validate_config). */
+typedef enum {
+    RHONN_FIELD_NONE = 0,
+    RHONN_FIELD_N_STATES, RHONN_FIELD_N_INPUTS, RHONN_FIELD_X0,
+    RHONN_FIELD_N_TERMS, RHONN_FIELD_ACTIVATION, RHONN_FIELD_BETA,
+    RHONN_FIELD_ETA, RHONN_FIELD_R, RHONN_FIELD_Q, RHONN_FIELD_W0, RHONN_FIELD_P0,
+    RHONN_FIELD_N_FACTORS, RHONN_FIELD_FACTOR_KIND, RHONN_FIELD_FACTOR_INDEX,
+    RHONN_FIELD_FACTOR_DELAY, RHONN_FIELD_FACTOR_POWER
+} rhonn_field;
+
+typedef struct {
+    uint8_t field;      /* rhonn_field */
+    uint8_t neuron;     /* neuron index, when the field belongs to one */
+    uint8_t term;       /* term index, when the field belongs to one */
+    uint8_t factor;     /* factor index (or P0/Q entry index), likewise */
+} rhonn_config_error;
+
+/* The identifier. Caller-owned; treat the fields as private and use the
+ * functions below. Its size is sizeof(rhonn_t), fixed by the capacities. */
+typedef struct {
+    uint32_t magic;                 /* set by rhonn_init */
+    rhonn_config cfg;               /* validated copy of the configuration */
+
+    /* Neurons that share an activation and beta share their S(x) values. */
+    uint8_t n_groups;
+    uint8_t group_of[RHONN_MAX_STATES];
+    uint8_t group_activation[RHONN_MAX_STATES];
+    rhonn_real group_beta[RHONN_MAX_STATES];
+
+    /* Double-buffered learning state: bank[i] selects the committed half. */
+    uint8_t bank[RHONN_MAX_STATES];
+    rhonn_real w[RHONN_MAX_STATES][2][RHONN_MAX_TERMS];
+    rhonn_real p[RHONN_MAX_STATES][2][RHONN_MAX_PACKED];
+
+    /* Regressor z(k-1) that produced xhat(k), double-buffered by zbank. */
+    uint8_t zbank;
+    rhonn_real z[2][RHONN_MAX_STATES][RHONN_MAX_TERMS];
+    rhonn_real xhat[RHONN_MAX_STATES];        /* xhat(k) */
+
+    /* Ring buffers of the (effective) states and their activations. */
+    uint8_t head;                   /* slot of the newest sample */
+    rhonn_real xh[RHONN_HISTORY_LEN][RHONN_MAX_STATES];
+    rhonn_real sh[RHONN_MAX_STATES][RHONN_HISTORY_LEN][RHONN_MAX_STATES];
+
+    uint8_t started;                /* a step has run since init/reset */
+    uint8_t learning;               /* learning on (1) or frozen (0) */
+    uint32_t steps;                 /* steps since init/reset (wraps) */
+    uint8_t fault_neuron;           /* diagnostics: neuron of the last E_INNOVATION/COVARIANCE/DIVERGED */
+} rhonn_t;
+
+/* Check a configuration against the capacities and the paper's constraints.
+ * On RHONN_E_CONFIG, *where (if not NULL) names the offending field. */
+rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *where);
+
+/* Validate cfg, copy it into net and reset. On error net is left unchanged. */
+rhonn_status rhonn_init(rhonn_t *net, const rhonn_config *cfg, rhonn_config_error *where);
+
+/* Back to w(0), P(0), xhat(0), empty history; learning on. */
+rhonn_status rhonn_reset(rhonn_t *net);
+
+/* One sample; see ORDER OF ONE STEP above. x has n_states entries, u has
+ * n_inputs (may be NULL when n_inputs == 0), valid has n_states flags
+ * (nonzero = measured) or is NULL for all valid. An invalid x_j is ignored
+ * and may be NaN. xhat_next (n_states) receives xhat(k+1); may be NULL. */
+rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
+                        const uint8_t *valid, rhonn_real *xhat_next);
+
+/* A whole trajectory: X is T x n_states, U is T x n_inputs, valid is
+ * T x n_states or NULL, Xhat is T x n_states, all row-major. Row t of Xhat is
+ * the prediction made at sample t (i.e. of x(t+1)). Stops at the first
+ * failing step; *done (may be NULL) receives the number of steps that ran,
+ * and the identifier holds the state after those steps. */
+rhonn_status rhonn_run(rhonn_t *net, size_t T, const rhonn_real *X, const rhonn_real *U,
+                       const uint8_t *valid, rhonn_real *Xhat, size_t *done);
+
+/* Freeze (0) or resume (nonzero) learning; predictions continue either way. */
+rhonn_status rhonn_set_learning(rhonn_t *net, int on);
+
+/* Read or replace one neuron's weights (len must equal L_i) and covariance
+ * (packed upper triangle, len must equal L_i (L_i + 1) / 2). The setters
+ * reject non-finite values and non-positive diagonals with RHONN_E_VALUE. */
+rhonn_status rhonn_get_weights(const rhonn_t *net, size_t neuron, rhonn_real *w, size_t len);
+rhonn_status rhonn_set_weights(rhonn_t *net, size_t neuron, const rhonn_real *w, size_t len);
+rhonn_status rhonn_get_covariance(const rhonn_t *net, size_t neuron, rhonn_real *p, size_t len);
+rhonn_status rhonn_set_covariance(rhonn_t *net, size_t neuron, const rhonn_real *p, size_t len);
+
+/* xhat(k): the last prediction (config x0 before the first step). */
+rhonn_status rhonn_get_prediction(const rhonn_t *net, rhonn_real *xhat, size_t len);
+
+/* Activation S(s) exactly as the core computes it (for tests and tools). */
+rhonn_real rhonn_activate(uint8_t activation, rhonn_real beta, rhonn_real s);
+
+/* exp(-a) for a >= 0, the core's own portable exponential: the same bits on
+ * every IEEE-754 target built with -ffp-contract=off (libm's exp differs
+ * between glibc and newlib). Returns 0 for a beyond the normal range and
+ * 1 for a <= 0 or NaN-free negative input. */
+rhonn_real rhonn_exp_neg(rhonn_real a);
+
+/* Human-readable name of a status code (a static string). */
+const char *rhonn_status_name(rhonn_status status);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* RHONN_H */

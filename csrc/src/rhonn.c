@@ -1,0 +1,718 @@
+/*
+ * rhonn.c - the RHONN identifier and its per-neuron EKF (see rhonn.h).
+ *
+ * Built twice from this one source: double (default) and float
+ * (-DRHONN_SINGLE). Build with -std=c99 -ffp-contract=off so that every
+ * IEEE-754 target rounds the same operations in the same order.
+ */
+#include "rhonn.h"
+
+#define RHONN_MAGIC 0x52484E4EUL /* "RHNN" */
+
+#ifdef RHONN_SINGLE
+#define R(c) c##f
+/* Beyond this, exp(-a) is below the smallest normal float: return 0. */
+#define RHONN_EXP_CUTOFF 87.0f
+#define RHONN_MAX_REAL 3.402823466e38f
+#else
+#define R(c) c
+#define RHONN_EXP_CUTOFF 708.0
+#define RHONN_MAX_REAL 1.7976931348623157e308
+#endif
+
+/* x - x is 0 for finite x and NaN for NaN or +-Inf; portable without
+ * isfinite() (which needs C99 libm macros some freestanding targets lack). */
+static int is_finite(rhonn_real v)
+{
+    return (v - v) == (v - v);
+}
+
+/* ------------------------------------------------------------------------ */
+/* The core's own exp: exp(-a) = 2^-k * exp(-r), a = k ln2 + r, |r| <= ln2/2.
+ * Same bits on glibc and newlib targets, which a libm exp cannot promise. */
+
+rhonn_real rhonn_exp_neg(rhonn_real a)
+{
+    /* ln2 split in a high part with trailing zero bits, so k * LN2_HI is
+     * exact for the k this range reduction produces (Cody-Waite). */
+#ifdef RHONN_SINGLE
+    const float LN2_HI = 6.9314575195e-1f;
+    const float LN2_LO = 1.4286067653e-6f;
+    const float INV_LN2 = 1.4426950409e+0f;
+#else
+    const double LN2_HI = 6.93147180369123816490e-01;
+    const double LN2_LO = 1.90821492927058770002e-10;
+    const double INV_LN2 = 1.44269504088896338700e+00;
+#endif
+    rhonn_real r, p, scale;
+    int k, i;
+
+    if (a != a) {
+        return a;
+    }
+    if (a <= R(0.0)) {
+        return R(1.0);
+    }
+    if (a > RHONN_EXP_CUTOFF) {
+        return R(0.0);
+    }
+    k = (int)(a * INV_LN2 + R(0.5));
+    r = (a - (rhonn_real)k * LN2_HI) - (rhonn_real)k * LN2_LO;  /* exp(-a) = 2^-k exp(-r) */
+    r = -r;
+    /* Taylor polynomial of exp on |r| <= ln2/2 in Horner form; the degree
+     * makes the truncation error below half an ulp. */
+#ifdef RHONN_SINGLE
+    p = R(1.0) + r * (R(1.0) + r * (R(0.5) + r * (R(1.6666667163e-1) + r * (R(4.1666667908e-2)
+        + r * (R(8.3333337680e-3) + r * (R(1.3888889225e-3) + r * R(1.9841270114e-4)))))));
+#else
+    p = R(1.0) + r * (R(1.0) + r * (R(0.5) + r * (1.66666666666666657415e-01
+        + r * (4.16666666666666643537e-02 + r * (8.33333333333333321769e-03
+        + r * (1.38888888888888894189e-03 + r * (1.98412698412698412526e-04
+        + r * (2.48015873015873015658e-05 + r * (2.75573192239858925110e-06
+        + r * (2.75573192239858882740e-07 + r * (2.50521083854417202239e-08
+        + r * (2.08767569878680989792e-09 + r * 1.60590438368216145994e-10))))))))))));
+#endif
+    /* Multiply by 2^-k with exact power-of-two steps (k <= 1022 here, so
+     * no step leaves the normal range). */
+    scale = R(1.0);
+    for (i = 0; i < k / 32; ++i) {
+        scale *= R(2.3283064365386962890625e-10); /* 2^-32 */
+    }
+    {
+        rhonn_real half = R(0.5), s2 = R(1.0);
+        int j;
+        for (j = k % 32; j > 0; j >>= 1) {
+            if (j & 1) {
+                s2 *= half;
+            }
+            half *= half;
+        }
+        scale *= s2;
+    }
+    return p * scale;
+}
+
+rhonn_real rhonn_activate(uint8_t activation, rhonn_real beta, rhonn_real s)
+{
+    /* t = exp(-beta |s|) lies in (0, 1], so neither form can overflow. */
+    rhonn_real bs = beta * s;
+    rhonn_real t = rhonn_exp_neg(bs < R(0.0) ? -bs : bs);
+    if (activation == (uint8_t)RHONN_BIPOLAR) {
+        /* eq. 19: (1 - e^-bs) / (1 + e^-bs) is odd in s */
+        rhonn_real v = (R(1.0) - t) / (R(1.0) + t);
+        return bs < R(0.0) ? -v : v;
+    }
+    /* eq. 6: 1 / (1 + e^-bs), and e^bs / (1 + e^bs) for bs < 0 */
+    return bs < R(0.0) ? t / (R(1.0) + t) : R(1.0) / (R(1.0) + t);
+}
+
+/* ------------------------------------------------------------------------ */
+/* Configuration */
+
+static rhonn_status config_error(rhonn_config_error *where, rhonn_field field, size_t neuron,
+                                 size_t term, size_t factor)
+{
+    if (where != NULL) {
+        where->field = (uint8_t)field;
+        where->neuron = (uint8_t)neuron;
+        where->term = (uint8_t)term;
+        where->factor = (uint8_t)factor;
+    }
+    return RHONN_E_CONFIG;
+}
+
+static size_t packed_size(size_t L)
+{
+    return L * (L + 1u) / 2u;
+}
+
+rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *where)
+{
+    size_t n, m, i, t, f, e;
+
+    if (cfg == NULL) {
+        return RHONN_E_NULL;
+    }
+    n = cfg->n_states;
+    m = cfg->n_inputs;
+    if (n < 1u || n > (size_t)RHONN_MAX_STATES) {
+        return config_error(where, RHONN_FIELD_N_STATES, 0, 0, 0);
+    }
+    if (m > (size_t)RHONN_MAX_INPUTS) {
+        return config_error(where, RHONN_FIELD_N_INPUTS, 0, 0, 0);
+    }
+    for (i = 0; i < n; ++i) {
+        if (!is_finite(cfg->x0[i])) {
+            return config_error(where, RHONN_FIELD_X0, i, 0, i);
+        }
+    }
+    for (i = 0; i < n; ++i) {
+        const rhonn_neuron_config *nc = &cfg->neurons[i];
+        size_t L = nc->n_terms;
+        size_t pi = 0;
+
+        if (L < 1u || L > (size_t)RHONN_MAX_TERMS) {
+            return config_error(where, RHONN_FIELD_N_TERMS, i, 0, 0);
+        }
+        if (nc->activation != (uint8_t)RHONN_LOGISTIC && nc->activation != (uint8_t)RHONN_BIPOLAR) {
+            return config_error(where, RHONN_FIELD_ACTIVATION, i, 0, 0);
+        }
+        if (!is_finite(nc->beta) || !(nc->beta > R(0.0))) {
+            return config_error(where, RHONN_FIELD_BETA, i, 0, 0);
+        }
+        if (!is_finite(nc->eta) || !(nc->eta > R(0.0))) {
+            return config_error(where, RHONN_FIELD_ETA, i, 0, 0);
+        }
+        if (!is_finite(nc->r) || !(nc->r > R(0.0))) {
+            return config_error(where, RHONN_FIELD_R, i, 0, 0);
+        }
+        for (t = 0; t < L; ++t) {
+            if (!is_finite(nc->q[t]) || !(nc->q[t] >= R(0.0))) {
+                return config_error(where, RHONN_FIELD_Q, i, t, t);
+            }
+            if (!is_finite(nc->w0[t])) {
+                return config_error(where, RHONN_FIELD_W0, i, t, t);
+            }
+        }
+        for (t = 0; t < L; ++t) {
+            for (e = t; e < L; ++e, ++pi) {
+                rhonn_real v = nc->p0[pi];
+                if (!is_finite(v) || (e == t && !(v > R(0.0)))) {
+                    return config_error(where, RHONN_FIELD_P0, i, t, e);
+                }
+            }
+        }
+        for (t = 0; t < L; ++t) {
+            const rhonn_term *term = &nc->terms[t];
+            if (term->n_factors < 1u || term->n_factors > (size_t)RHONN_MAX_FACTORS) {
+                return config_error(where, RHONN_FIELD_N_FACTORS, i, t, 0);
+            }
+            for (f = 0; f < term->n_factors; ++f) {
+                const rhonn_factor *fa = &term->factors[f];
+                if (fa->power < 1u || fa->power > (size_t)RHONN_MAX_POWER) {
+                    return config_error(where, RHONN_FIELD_FACTOR_POWER, i, t, f);
+                }
+                switch (fa->kind) {
+                case RHONN_FACTOR_S:
+                case RHONN_FACTOR_X:
+                    if (fa->index >= n) {
+                        return config_error(where, RHONN_FIELD_FACTOR_INDEX, i, t, f);
+                    }
+                    if (fa->delay > (size_t)RHONN_MAX_DELAY) {
+                        return config_error(where, RHONN_FIELD_FACTOR_DELAY, i, t, f);
+                    }
+                    break;
+                case RHONN_FACTOR_U:
+                    if (fa->index >= m) {
+                        return config_error(where, RHONN_FIELD_FACTOR_INDEX, i, t, f);
+                    }
+                    if (fa->delay != 0u) {
+                        return config_error(where, RHONN_FIELD_FACTOR_DELAY, i, t, f);
+                    }
+                    break;
+                case RHONN_FACTOR_ONE:
+                    if (fa->index != 0u) {
+                        return config_error(where, RHONN_FIELD_FACTOR_INDEX, i, t, f);
+                    }
+                    if (fa->delay != 0u) {
+                        return config_error(where, RHONN_FIELD_FACTOR_DELAY, i, t, f);
+                    }
+                    break;
+                default:
+                    return config_error(where, RHONN_FIELD_FACTOR_KIND, i, t, f);
+                }
+            }
+        }
+    }
+    if (where != NULL) {
+        where->field = (uint8_t)RHONN_FIELD_NONE;
+        where->neuron = 0;
+        where->term = 0;
+        where->factor = 0;
+    }
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_init(rhonn_t *net, const rhonn_config *cfg, rhonn_config_error *where)
+{
+    rhonn_status st;
+    size_t i, g;
+
+    if (net == NULL || cfg == NULL) {
+        return RHONN_E_NULL;
+    }
+    st = rhonn_validate_config(cfg, where);
+    if (st != RHONN_OK) {
+        return st;
+    }
+    net->cfg = *cfg;
+    /* Neurons with the same (activation, beta) see the same S(x_j), so the
+     * exps of eq. 6/19 are paid once per group, not once per neuron. */
+    net->n_groups = 0;
+    for (i = 0; i < cfg->n_states; ++i) {
+        const rhonn_neuron_config *nc = &cfg->neurons[i];
+        for (g = 0; g < net->n_groups; ++g) {
+            if (net->group_activation[g] == nc->activation && net->group_beta[g] == nc->beta) {
+                break;
+            }
+        }
+        if (g == net->n_groups) {
+            net->group_activation[g] = nc->activation;
+            net->group_beta[g] = nc->beta;
+            net->n_groups = (uint8_t)(g + 1u);
+        }
+        net->group_of[i] = (uint8_t)g;
+    }
+    net->magic = (uint32_t)RHONN_MAGIC;
+    return rhonn_reset(net);
+}
+
+static rhonn_status check_net(const rhonn_t *net)
+{
+    if (net == NULL) {
+        return RHONN_E_NULL;
+    }
+    /* The bounds re-check guards against a struct overwritten after init
+     * (and lets the compiler see every index below capacity). */
+    if (net->magic != (uint32_t)RHONN_MAGIC || net->cfg.n_states > (uint8_t)RHONN_MAX_STATES ||
+        net->cfg.n_inputs > (uint8_t)RHONN_MAX_INPUTS) {
+        return RHONN_E_NOT_INIT;
+    }
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_reset(rhonn_t *net)
+{
+    rhonn_status st = check_net(net);
+    size_t n, i, t, h, g;
+
+    if (st != RHONN_OK) {
+        return st;
+    }
+    n = net->cfg.n_states;
+    for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
+        const rhonn_neuron_config *nc = &net->cfg.neurons[i];
+        net->bank[i] = 0;
+        for (t = 0; t < (size_t)RHONN_MAX_TERMS; ++t) {
+            net->w[i][0][t] = (i < n && t < nc->n_terms) ? nc->w0[t] : R(0.0);
+            net->w[i][1][t] = R(0.0);
+            net->z[0][i][t] = R(0.0);
+            net->z[1][i][t] = R(0.0);
+        }
+        for (t = 0; t < (size_t)RHONN_MAX_PACKED; ++t) {
+            net->p[i][0][t] = (i < n && t < packed_size(nc->n_terms)) ? nc->p0[t] : R(0.0);
+            net->p[i][1][t] = R(0.0);
+        }
+        net->xhat[i] = i < n ? net->cfg.x0[i] : R(0.0);
+    }
+    for (h = 0; h < (size_t)RHONN_HISTORY_LEN; ++h) {
+        for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
+            net->xh[h][i] = R(0.0);
+            for (g = 0; g < (size_t)RHONN_MAX_STATES; ++g) {
+                net->sh[g][h][i] = R(0.0);
+            }
+        }
+    }
+    net->zbank = 0;
+    net->head = 0;
+    net->started = 0;
+    net->learning = 1;
+    net->steps = 0;
+    net->fault_neuron = 0;
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_set_learning(rhonn_t *net, int on)
+{
+    rhonn_status st = check_net(net);
+    if (st != RHONN_OK) {
+        return st;
+    }
+    net->learning = on ? 1u : 0u;
+    return RHONN_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* One step */
+
+/* r^p by repeated multiplication: exact order, no pow() from libm. */
+static rhonn_real ipow(rhonn_real v, uint8_t p)
+{
+    rhonn_real acc = v;
+    uint8_t k;
+    for (k = 1; k < p; ++k) {
+        acc *= v;
+    }
+    return acc;
+}
+
+/* The scalar-measurement EKF update of eq. 7-8 for one neuron, written into
+ * the inactive bank. H = z (eq. 11: the network is linear in w). */
+static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z)
+{
+    const rhonn_neuron_config *nc = &net->cfg.neurons[i];
+    const size_t L = nc->n_terms;
+    const uint8_t b = net->bank[i];
+    const rhonn_real *P = net->p[i][b];
+    rhonn_real *Pn = net->p[i][b ^ 1u];
+    const rhonn_real *w = net->w[i][b];
+    rhonn_real *wn = net->w[i][b ^ 1u];
+    rhonn_real pz[RHONN_MAX_TERMS];
+    rhonn_real k[RHONN_MAX_TERMS];
+    rhonn_real s, inv_s, ok;
+    size_t r, c, idx;
+
+    /* pz = P z from the packed upper triangle: each off-diagonal entry
+     * serves both (r, c) and (c, r). */
+    for (r = 0; r < L; ++r) {
+        pz[r] = R(0.0);
+    }
+    idx = 0;
+    for (r = 0; r < L; ++r) {
+        rhonn_real zr = z[r];
+        rhonn_real acc = pz[r] + P[idx] * zr;
+        ++idx;
+        for (c = r + 1u; c < L; ++c, ++idx) {
+            acc += P[idx] * z[c];
+            pz[c] += P[idx] * zr;
+        }
+        pz[r] = acc;
+    }
+    /* eq. 8: M = 1 / (R + z^T P z), a scalar: no matrix inversion. */
+    s = nc->r;
+    for (r = 0; r < L; ++r) {
+        s += z[r] * pz[r];
+    }
+    if (!is_finite(s) || !(s > R(0.0))) {
+        net->fault_neuron = (uint8_t)i;
+        return RHONN_E_INNOVATION;
+    }
+    inv_s = R(1.0) / s;
+    /* eq. 7: K = P z M, and w(k+1) = w + eta K e. */
+    ok = R(0.0);
+    for (r = 0; r < L; ++r) {
+        k[r] = pz[r] * inv_s;
+        wn[r] = w[r] + nc->eta * k[r] * e;
+        ok += wn[r] * R(0.0);
+    }
+    if (ok != R(0.0)) { /* some w is NaN or Inf: Inf * 0 and NaN * 0 are NaN */
+        net->fault_neuron = (uint8_t)i;
+        return RHONN_E_DIVERGED;
+    }
+    /* eq. 7: P(k+1) = P - K z^T P + Q = P - K (P z)^T + Q, symmetric, so
+     * only the upper triangle is formed. */
+    ok = R(0.0);
+    idx = 0;
+    for (r = 0; r < L; ++r) {
+        rhonn_real kr = k[r];
+        Pn[idx] = (P[idx] - kr * pz[r]) + nc->q[r];
+        ok += Pn[idx] * R(0.0);
+        ++idx;
+        for (c = r + 1u; c < L; ++c, ++idx) {
+            Pn[idx] = P[idx] - kr * pz[c];
+            ok += Pn[idx] * R(0.0);
+        }
+    }
+    if (ok != R(0.0)) {
+        net->fault_neuron = (uint8_t)i;
+        return RHONN_E_COVARIANCE;
+    }
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
+                        const uint8_t *valid, rhonn_real *xhat_next)
+{
+    rhonn_real xe[RHONN_MAX_STATES];                       /* effective x(k) */
+    rhonn_real se[RHONN_MAX_STATES][RHONN_MAX_STATES];     /* S(x(k)) per group */
+    rhonn_real xnew[RHONN_MAX_STATES];
+    uint8_t updated[RHONN_MAX_STATES];
+    rhonn_status st = check_net(net);
+    size_t n, m, i, j, g, t, f;
+    uint8_t next_head, zb_new;
+    const rhonn_real *zprev;
+
+    if (st != RHONN_OK) {
+        return st;
+    }
+    n = net->cfg.n_states < (uint8_t)RHONN_MAX_STATES ? net->cfg.n_states : (size_t)RHONN_MAX_STATES;
+    m = net->cfg.n_inputs;
+    if (x == NULL || (u == NULL && m > 0u)) {
+        return RHONN_E_NULL;
+    }
+    for (j = 0; j < n; ++j) {
+        if ((valid == NULL || valid[j] != 0u) && !is_finite(x[j])) {
+            return RHONN_E_INPUT_NONFINITE;
+        }
+    }
+    for (j = 0; j < m; ++j) {
+        if (!is_finite(u[j])) {
+            return RHONN_E_INPUT_NONFINITE;
+        }
+    }
+
+    /* 1. Learn from e(k) = x(k) - xhat(k) (eq. 9) with z(k-1), into the
+     *    inactive banks; nothing is committed until every neuron passed. */
+    for (i = 0; i < n; ++i) {
+        int learn = net->started && net->learning && (valid == NULL || valid[i] != 0u);
+        updated[i] = 0;
+        if (learn) {
+            zprev = net->z[net->zbank][i];
+            st = ekf_update(net, i, x[i] - net->xhat[i], zprev);
+            if (st != RHONN_OK) {
+                return st;
+            }
+            updated[i] = 1;
+        }
+    }
+
+    /* 2. Effective state: a missing measurement is replaced by its own
+     *    prediction, then S(x_j(k)) once per activation group. */
+    for (j = 0; j < n; ++j) {
+        xe[j] = (valid == NULL || valid[j] != 0u) ? x[j] : net->xhat[j];
+    }
+    for (g = 0; g < net->n_groups; ++g) {
+        for (j = 0; j < n; ++j) {
+            se[g][j] = rhonn_activate(net->group_activation[g], net->group_beta[g], xe[j]);
+        }
+    }
+
+    /* 3. z(k) (eq. 4-5) and xhat(k+1) = w(k+1)^T z(k) (eq. 3). Delay d reads
+     *    the ring slot d back; before the first sample the history is the
+     *    first sample itself. */
+    next_head = (uint8_t)((net->head + 1u) % (unsigned)RHONN_HISTORY_LEN);
+    zb_new = (uint8_t)(net->zbank ^ 1u);
+    for (i = 0; i < n; ++i) {
+        const rhonn_neuron_config *nc = &net->cfg.neurons[i];
+        const size_t L = nc->n_terms;
+        const size_t gi = net->group_of[i];
+        const rhonn_real *w = net->w[i][net->bank[i] ^ updated[i]];
+        rhonn_real *z = net->z[zb_new][i];
+        rhonn_real acc = R(0.0);
+
+        for (t = 0; t < L; ++t) {
+            const rhonn_term *term = &nc->terms[t];
+            rhonn_real prod = R(1.0);
+            for (f = 0; f < term->n_factors; ++f) {
+                const rhonn_factor *fa = &term->factors[f];
+                rhonn_real v;
+                if (fa->kind == (uint8_t)RHONN_FACTOR_U) {
+                    v = u[fa->index];
+                } else if (fa->kind == (uint8_t)RHONN_FACTOR_ONE) {
+                    v = R(1.0);
+                } else if (fa->delay == 0u || !net->started) {
+                    v = fa->kind == (uint8_t)RHONN_FACTOR_S ? se[gi][fa->index] : xe[fa->index];
+                } else {
+                    /* slot of x(k - d): the newest stored slot is k-1 */
+                    size_t slot = ((size_t)net->head + (size_t)RHONN_HISTORY_LEN + 1u
+                                   - (size_t)fa->delay) % (size_t)RHONN_HISTORY_LEN;
+                    v = fa->kind == (uint8_t)RHONN_FACTOR_S ? net->sh[gi][slot][fa->index]
+                                                            : net->xh[slot][fa->index];
+                }
+                prod *= fa->power == 1u ? v : ipow(v, fa->power);
+            }
+            z[t] = prod;
+            acc += w[t] * prod;
+        }
+        if (!is_finite(acc)) {
+            net->fault_neuron = (uint8_t)i;
+            return RHONN_E_DIVERGED;
+        }
+        xnew[i] = acc;
+    }
+
+    /* Commit. */
+    if (!net->started) {
+        /* Constant initial history: every past slot holds x(0). */
+        size_t h;
+        for (h = 0; h < (size_t)RHONN_HISTORY_LEN; ++h) {
+            for (j = 0; j < n; ++j) {
+                net->xh[h][j] = xe[j];
+                for (g = 0; g < net->n_groups; ++g) {
+                    net->sh[g][h][j] = se[g][j];
+                }
+            }
+        }
+    } else {
+        for (j = 0; j < n; ++j) {
+            net->xh[next_head][j] = xe[j];
+            for (g = 0; g < net->n_groups; ++g) {
+                net->sh[g][next_head][j] = se[g][j];
+            }
+        }
+    }
+    net->head = next_head;
+    for (i = 0; i < n; ++i) {
+        net->bank[i] = (uint8_t)(net->bank[i] ^ updated[i]);
+        net->xhat[i] = xnew[i];
+        if (xhat_next != NULL) {
+            xhat_next[i] = xnew[i];
+        }
+    }
+    net->zbank = zb_new;
+    net->started = 1;
+    net->steps += 1u;
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_run(rhonn_t *net, size_t T, const rhonn_real *X, const rhonn_real *U,
+                       const uint8_t *valid, rhonn_real *Xhat, size_t *done)
+{
+    rhonn_status st = check_net(net);
+    size_t n, m, k;
+
+    if (done != NULL) {
+        *done = 0;
+    }
+    if (st != RHONN_OK) {
+        return st;
+    }
+    n = net->cfg.n_states;
+    m = net->cfg.n_inputs;
+    if (T == 0u) {
+        return RHONN_OK;
+    }
+    if (X == NULL || Xhat == NULL || (U == NULL && m > 0u)) {
+        return RHONN_E_NULL;
+    }
+    for (k = 0; k < T; ++k) {
+        st = rhonn_step(net, X + k * n, m > 0u ? U + k * m : U, valid != NULL ? valid + k * n : NULL,
+                        Xhat + k * n);
+        if (st != RHONN_OK) {
+            return st;
+        }
+        if (done != NULL) {
+            *done = k + 1u;
+        }
+    }
+    return RHONN_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Accessors */
+
+rhonn_status rhonn_get_weights(const rhonn_t *net, size_t neuron, rhonn_real *w, size_t len)
+{
+    rhonn_status st = check_net(net);
+    size_t t;
+    if (st != RHONN_OK) {
+        return st;
+    }
+    if (w == NULL) {
+        return RHONN_E_NULL;
+    }
+    if (neuron >= net->cfg.n_states || len != net->cfg.neurons[neuron].n_terms) {
+        return RHONN_E_ARGUMENT;
+    }
+    for (t = 0; t < len; ++t) {
+        w[t] = net->w[neuron][net->bank[neuron]][t];
+    }
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_set_weights(rhonn_t *net, size_t neuron, const rhonn_real *w, size_t len)
+{
+    rhonn_status st = check_net(net);
+    size_t t;
+    if (st != RHONN_OK) {
+        return st;
+    }
+    if (w == NULL) {
+        return RHONN_E_NULL;
+    }
+    if (neuron >= net->cfg.n_states || len != net->cfg.neurons[neuron].n_terms) {
+        return RHONN_E_ARGUMENT;
+    }
+    for (t = 0; t < len; ++t) {
+        if (!is_finite(w[t])) {
+            return RHONN_E_VALUE;
+        }
+    }
+    for (t = 0; t < len; ++t) {
+        net->w[neuron][net->bank[neuron]][t] = w[t];
+    }
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_get_covariance(const rhonn_t *net, size_t neuron, rhonn_real *p, size_t len)
+{
+    rhonn_status st = check_net(net);
+    size_t t;
+    if (st != RHONN_OK) {
+        return st;
+    }
+    if (p == NULL) {
+        return RHONN_E_NULL;
+    }
+    if (neuron >= net->cfg.n_states || len != packed_size(net->cfg.neurons[neuron].n_terms)) {
+        return RHONN_E_ARGUMENT;
+    }
+    for (t = 0; t < len; ++t) {
+        p[t] = net->p[neuron][net->bank[neuron]][t];
+    }
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_set_covariance(rhonn_t *net, size_t neuron, const rhonn_real *p, size_t len)
+{
+    rhonn_status st = check_net(net);
+    size_t L, r, c, idx;
+    if (st != RHONN_OK) {
+        return st;
+    }
+    if (p == NULL) {
+        return RHONN_E_NULL;
+    }
+    if (neuron >= net->cfg.n_states || len != packed_size(net->cfg.neurons[neuron].n_terms)) {
+        return RHONN_E_ARGUMENT;
+    }
+    L = net->cfg.neurons[neuron].n_terms;
+    idx = 0;
+    for (r = 0; r < L; ++r) {
+        for (c = r; c < L; ++c, ++idx) {
+            if (!is_finite(p[idx]) || (r == c && !(p[idx] > R(0.0)))) {
+                return RHONN_E_VALUE;
+            }
+        }
+    }
+    for (idx = 0; idx < len; ++idx) {
+        net->p[neuron][net->bank[neuron]][idx] = p[idx];
+    }
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_get_prediction(const rhonn_t *net, rhonn_real *xhat, size_t len)
+{
+    rhonn_status st = check_net(net);
+    size_t j;
+    if (st != RHONN_OK) {
+        return st;
+    }
+    if (xhat == NULL) {
+        return RHONN_E_NULL;
+    }
+    if (len != net->cfg.n_states) {
+        return RHONN_E_ARGUMENT;
+    }
+    for (j = 0; j < len; ++j) {
+        xhat[j] = net->xhat[j];
+    }
+    return RHONN_OK;
+}
+
+const char *rhonn_status_name(rhonn_status status)
+{
+    switch (status) {
+    case RHONN_OK: return "RHONN_OK";
+    case RHONN_E_NULL: return "RHONN_E_NULL";
+    case RHONN_E_NOT_INIT: return "RHONN_E_NOT_INIT";
+    case RHONN_E_CONFIG: return "RHONN_E_CONFIG";
+    case RHONN_E_ARGUMENT: return "RHONN_E_ARGUMENT";
+    case RHONN_E_INPUT_NONFINITE: return "RHONN_E_INPUT_NONFINITE";
+    case RHONN_E_INNOVATION: return "RHONN_E_INNOVATION";
+    case RHONN_E_COVARIANCE: return "RHONN_E_COVARIANCE";
+    case RHONN_E_DIVERGED: return "RHONN_E_DIVERGED";
+    case RHONN_E_VALUE: return "RHONN_E_VALUE";
+    default: return "RHONN_E_UNKNOWN";
+    }
+}
