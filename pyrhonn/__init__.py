@@ -1,0 +1,24 @@
+"""pyrhonn: a real-time RHONN identifier trained by a per-neuron EKF.
+
+See README.md for the quick start and ``csrc/include/rhonn.h`` for the C core.
+"""
+from __future__ import annotations
+
+from .config import Activation, Factor, FactorKind, IdentifierConfig, NeuronConfig, Term
+from . import terms
+from .identifier import Identifier, IdentifierError, capacities
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Activation",
+    "Factor",
+    "FactorKind",
+    "Identifier",
+    "IdentifierConfig",
+    "IdentifierError",
+    "capacities",
+    "NeuronConfig",
+    "Term",
+    "terms",
+]

@@ -1,0 +1,446 @@
+"""Identifier configuration: validated, immutable dataclasses.
+
+A configuration says, for each neuron i (one per state, eq. 3), which
+high-order terms z_i it uses (eq. 4), its activation S (eq. 6 or eq. 19) and
+slope beta, and the EKF tuning of eq. 7-8: P_i(0), Q_i, R_i and eta_i.
+
+Every constructor validates its arguments and raises ``ValueError`` whose
+message starts with the path of the offending field, e.g.
+``neurons[2].terms[1][0].index: state index 5 out of range 0..3``. Nothing is
+coerced silently: arrays must already have the documented shape, and numbers
+must be real and finite.
+"""
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Mapping, Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = [
+    "Activation",
+    "DTYPES",
+    "Factor",
+    "FactorKind",
+    "IdentifierConfig",
+    "NeuronConfig",
+    "Term",
+]
+
+DTYPES = ("float64", "float32")
+
+
+class FactorKind(enum.IntEnum):
+    """What one factor of a high-order term reads (values match the C enum)."""
+
+    S = 0  #: S(x_j(k - d)), the activation of a (delayed) state
+    X = 1  #: x_j(k - d), the raw (delayed) state
+    U = 2  #: u_j(k), an external input
+    ONE = 3  #: the constant 1 (a bias term)
+
+
+class Activation(str, enum.Enum):
+    """Activation S of a neuron (values match the C enum by position)."""
+
+    LOGISTIC = "logistic"  #: S(s) = 1 / (1 + exp(-beta s)), eq. 6
+    BIPOLAR = "bipolar"  #: S(s) = (1 - exp(-beta s)) / (1 + exp(-beta s)), eq. 19
+
+    @property
+    def code(self) -> int:
+        return 0 if self is Activation.LOGISTIC else 1
+
+
+def _fail(path: str, message: str) -> ValueError:
+    return ValueError(f"{path}: {message}")
+
+
+def _check_int(path: str, value: object, lo: int, hi: int | None = None) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise _fail(path, f"expected an integer, got {type(value).__name__} {value!r}")
+    v = int(value)
+    if v < lo or (hi is not None and v > hi):
+        rng = f"{lo}..{hi}" if hi is not None else f">= {lo}"
+        raise _fail(path, f"{v} out of range {rng}")
+    return v
+
+
+def _check_real(path: str, value: object, *, positive: bool = False, nonnegative: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise _fail(path, f"expected a real number, got {type(value).__name__} {value!r}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise _fail(path, f"must be finite, got {v!r}")
+    if positive and not v > 0.0:
+        raise _fail(path, f"must be > 0, got {v!r}")
+    if nonnegative and not v >= 0.0:
+        raise _fail(path, f"must be >= 0, got {v!r}")
+    return v
+
+
+def _check_array(path: str, value: object, shape: tuple[int, ...]) -> np.ndarray:
+    if not isinstance(value, np.ndarray):
+        raise _fail(path, f"expected a numpy array of shape {shape}, got {type(value).__name__}")
+    if value.dtype.kind not in "fiu":
+        raise _fail(path, f"expected a real numeric array, got dtype {value.dtype}")
+    if value.shape != shape:
+        raise _fail(path, f"expected shape {shape}, got {value.shape}")
+    arr = np.array(value, dtype=np.float64)  # a private copy: configs are immutable
+    if not np.all(np.isfinite(arr)):
+        bad = tuple(int(i) for i in np.argwhere(~np.isfinite(arr))[0])
+        raise _fail(f"{path}{list(bad)}", "must be finite")
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True)
+class Factor:
+    """One factor xi^d of a high-order term (eq. 4).
+
+    Build factors with the class methods: ``Factor.s(j)`` for S(x_j(k)),
+    ``Factor.s(j, delay=3)`` for S(x_j(k-3)), ``Factor.x(j)`` for the raw
+    state, ``Factor.u(j)`` for an input, ``Factor.one()`` for a bias.
+    Ranges of ``index`` are checked against the identifier by
+    :class:`IdentifierConfig`.
+    """
+
+    kind: FactorKind
+    index: int = 0
+    delay: int = 0
+    power: int = 1
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.kind, FactorKind):
+            raise _fail("kind", f"expected a FactorKind, got {self.kind!r}")
+        _check_int("index", self.index, 0, 254)
+        _check_int("delay", self.delay, 0, 254)
+        _check_int("power", self.power, 1, 255)
+        if self.kind in (FactorKind.U, FactorKind.ONE) and self.delay != 0:
+            raise _fail("delay", f"a {self.kind.name} factor has no delay, got {self.delay}")
+        if self.kind is FactorKind.ONE and self.index != 0:
+            raise _fail("index", f"a ONE factor has index 0, got {self.index}")
+
+    @classmethod
+    def s(cls, state: int, delay: int = 0, power: int = 1) -> "Factor":
+        return cls(FactorKind.S, state, delay, power)
+
+    @classmethod
+    def x(cls, state: int, delay: int = 0, power: int = 1) -> "Factor":
+        return cls(FactorKind.X, state, delay, power)
+
+    @classmethod
+    def u(cls, input_index: int, power: int = 1) -> "Factor":
+        return cls(FactorKind.U, input_index, 0, power)
+
+    @classmethod
+    def one(cls) -> "Factor":
+        return cls(FactorKind.ONE)
+
+    def __str__(self) -> str:
+        if self.kind is FactorKind.ONE:
+            return "1"
+        name = {FactorKind.S: "S(x{j}{d})", FactorKind.X: "x{j}{d}", FactorKind.U: "u{j}{d}"}[self.kind]
+        d = f"(k-{self.delay})" if self.delay else ""
+        text = name.format(j=self.index + 1, d=d)
+        return text if self.power == 1 else f"{text}^{self.power}"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind.name, "index": self.index, "delay": self.delay, "power": self.power}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], path: str = "factor") -> "Factor":
+        if not isinstance(data, Mapping):
+            raise _fail(path, f"expected a table, got {type(data).__name__}")
+        unknown = set(data) - {"kind", "index", "delay", "power"}
+        if unknown:
+            raise _fail(path, f"unknown keys {sorted(unknown)}")
+        kind_name = data.get("kind")
+        if not isinstance(kind_name, str) or kind_name.upper() not in FactorKind.__members__:
+            raise _fail(f"{path}.kind", f"expected one of {list(FactorKind.__members__)}, got {kind_name!r}")
+        try:
+            return cls(FactorKind[kind_name.upper()], data.get("index", 0), data.get("delay", 0), data.get("power", 1))
+        except ValueError as exc:
+            raise _fail(path, str(exc)) from None
+
+
+Term = tuple[Factor, ...]
+"""A high-order term z_ij: the product of its factors (eq. 4)."""
+
+
+@dataclass(frozen=True, eq=False)
+class NeuronConfig:
+    """One neuron: its terms and the EKF tuning of eq. 7-8.
+
+    Parameters
+    ----------
+    terms:
+        The L_i high-order terms, each a non-empty tuple of :class:`Factor`.
+    activation, beta:
+        S of eq. 6 (logistic) or eq. 19 (bipolar) and its slope beta > 0.
+    p0:
+        P_i(0): a scalar (times the identity, as the paper's eq. 20), a
+        vector of L_i diagonal entries, or a full symmetric L_i x L_i matrix.
+    q:
+        Q_i: a scalar (times the identity) or the L_i diagonal entries, >= 0.
+    r:
+        R_i > 0, the scalar measurement-noise variance of eq. 8.
+    eta:
+        eta_i > 0, the learning rate of eq. 7.
+    w0:
+        w_i(0), L_i entries; zeros when None.
+    """
+
+    terms: tuple[Term, ...]
+    activation: Activation = Activation.LOGISTIC
+    beta: float = 1.0
+    p0: float | np.ndarray = 1.0
+    q: float | np.ndarray = 0.0
+    r: float = 1.0
+    eta: float = 1.0
+    w0: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.terms, tuple) or not self.terms:
+            raise _fail("terms", "expected a non-empty tuple of terms")
+        for t, term in enumerate(self.terms):
+            if not isinstance(term, tuple) or not term:
+                raise _fail(f"terms[{t}]", "expected a non-empty tuple of Factor")
+            for f, fac in enumerate(term):
+                if not isinstance(fac, Factor):
+                    raise _fail(f"terms[{t}][{f}]", f"expected a Factor, got {type(fac).__name__}")
+        if not isinstance(self.activation, Activation):
+            raise _fail("activation", f"expected an Activation, got {self.activation!r}")
+        _check_real("beta", self.beta, positive=True)
+        _check_real("r", self.r, positive=True)
+        _check_real("eta", self.eta, positive=True)
+        L = len(self.terms)
+        if isinstance(self.p0, np.ndarray):
+            if self.p0.ndim == 1:
+                d = _check_array("p0", self.p0, (L,))
+                if not np.all(d > 0):
+                    raise _fail(f"p0[{int(np.argmin(d > 0))}]", "diagonal entries must be > 0")
+                object.__setattr__(self, "p0", d)
+            else:
+                full = _check_array("p0", self.p0, (L, L))
+                if not np.array_equal(full, full.T):
+                    raise _fail("p0", "matrix must be symmetric")
+                diag = np.diag(full)
+                if not np.all(diag > 0):
+                    raise _fail(f"p0[{int(np.argmin(diag > 0))}][{int(np.argmin(diag > 0))}]",
+                                "diagonal entries must be > 0")
+                object.__setattr__(self, "p0", full)
+        else:
+            object.__setattr__(self, "p0", _check_real("p0", self.p0, positive=True))
+        if isinstance(self.q, np.ndarray):
+            qd = _check_array("q", self.q, (L,))
+            if not np.all(qd >= 0):
+                raise _fail(f"q[{int(np.argmin(qd >= 0))}]", "entries must be >= 0")
+            object.__setattr__(self, "q", qd)
+        else:
+            object.__setattr__(self, "q", _check_real("q", self.q, nonnegative=True))
+        if self.w0 is not None:
+            object.__setattr__(self, "w0", _check_array("w0", self.w0, (L,)))
+        for name in ("beta", "r", "eta"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, NeuronConfig) and self.to_dict() == other.to_dict()
+
+    __hash__ = None  # type: ignore[assignment]
+
+    @property
+    def n_terms(self) -> int:
+        return len(self.terms)
+
+    def p0_matrix(self) -> np.ndarray:
+        """P_i(0) as a full L_i x L_i float64 matrix."""
+        L = self.n_terms
+        if isinstance(self.p0, np.ndarray):
+            return np.diag(self.p0) if self.p0.ndim == 1 else self.p0.copy()
+        return float(self.p0) * np.eye(L)
+
+    def q_diagonal(self) -> np.ndarray:
+        """diag(Q_i) as a float64 vector of L_i entries."""
+        if isinstance(self.q, np.ndarray):
+            return self.q.copy()
+        return np.full(self.n_terms, float(self.q))
+
+    def w0_vector(self) -> np.ndarray:
+        """w_i(0) as a float64 vector of L_i entries."""
+        return np.zeros(self.n_terms) if self.w0 is None else self.w0.copy()
+
+    def describe(self) -> list[str]:
+        """The terms as readable products, e.g. ``S(x1)*u1^2``."""
+        return ["*".join(str(f) for f in term) for term in self.terms]
+
+    def to_dict(self) -> dict[str, Any]:
+        def arr(v: float | np.ndarray) -> Any:
+            return v.tolist() if isinstance(v, np.ndarray) else v
+
+        return {
+            "terms": [[f.to_dict() for f in term] for term in self.terms],
+            "activation": self.activation.value,
+            "beta": self.beta,
+            "p0": arr(self.p0),
+            "q": arr(self.q),
+            "r": self.r,
+            "eta": self.eta,
+            "w0": None if self.w0 is None else self.w0.tolist(),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], path: str = "neuron") -> "NeuronConfig":
+        if not isinstance(data, Mapping):
+            raise _fail(path, f"expected a table, got {type(data).__name__}")
+        known = {"terms", "activation", "beta", "p0", "q", "r", "eta", "w0"}
+        unknown = set(data) - known
+        if unknown:
+            raise _fail(path, f"unknown keys {sorted(unknown)}")
+        raw_terms = data.get("terms")
+        if not isinstance(raw_terms, Sequence) or isinstance(raw_terms, str):
+            raise _fail(f"{path}.terms", "expected a list of terms")
+        terms = []
+        for t, raw in enumerate(raw_terms):
+            if not isinstance(raw, Sequence) or isinstance(raw, str):
+                raise _fail(f"{path}.terms[{t}]", "expected a list of factors")
+            terms.append(tuple(Factor.from_dict(f, f"{path}.terms[{t}][{i}]") for i, f in enumerate(raw)))
+        act = data.get("activation", Activation.LOGISTIC.value)
+        try:
+            activation = Activation(act)
+        except ValueError:
+            raise _fail(f"{path}.activation", f"expected one of {[a.value for a in Activation]}, got {act!r}") from None
+
+        def num_or_array(key: str, default: Any) -> Any:
+            v = data.get(key, default)
+            if isinstance(v, (list, tuple)):
+                try:
+                    a = np.array(v, dtype=np.float64)
+                except (TypeError, ValueError):
+                    raise _fail(f"{path}.{key}", "expected a list of numbers") from None
+                return a
+            return v
+
+        try:
+            return cls(
+                terms=tuple(terms),
+                activation=activation,
+                beta=data.get("beta", 1.0),
+                p0=num_or_array("p0", 1.0),
+                q=num_or_array("q", 0.0),
+                r=data.get("r", 1.0),
+                eta=data.get("eta", 1.0),
+                w0=num_or_array("w0", None),
+            )
+        except ValueError as exc:
+            raise _fail(path, str(exc)) from None
+
+
+@dataclass(frozen=True, eq=False)
+class IdentifierConfig:
+    """A whole identifier: n neurons for n states, m inputs, one dtype.
+
+    ``x0`` is xhat(0), which stands in for a state whose measurement is
+    invalid on the very first step (zeros when None). ``dtype`` selects the
+    float64 or float32 build of the C core.
+    """
+
+    n_states: int
+    n_inputs: int
+    neurons: tuple[NeuronConfig, ...]
+    dtype: str = "float64"
+    x0: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        n = _check_int("n_states", self.n_states, 1, 255)
+        m = _check_int("n_inputs", self.n_inputs, 0, 255)
+        if self.dtype not in DTYPES:
+            raise _fail("dtype", f"expected one of {DTYPES}, got {self.dtype!r}")
+        if not isinstance(self.neurons, tuple):
+            raise _fail("neurons", f"expected a tuple of NeuronConfig, got {type(self.neurons).__name__}")
+        if len(self.neurons) != n:
+            raise _fail("neurons", f"expected one neuron per state ({n}), got {len(self.neurons)}")
+        for i, neuron in enumerate(self.neurons):
+            if not isinstance(neuron, NeuronConfig):
+                raise _fail(f"neurons[{i}]", f"expected a NeuronConfig, got {type(neuron).__name__}")
+            for t, term in enumerate(neuron.terms):
+                for f, fac in enumerate(term):
+                    where = f"neurons[{i}].terms[{t}][{f}].index"
+                    if fac.kind in (FactorKind.S, FactorKind.X) and fac.index >= n:
+                        raise _fail(where, f"state index {fac.index} out of range 0..{n - 1}")
+                    if fac.kind is FactorKind.U and fac.index >= m:
+                        raise _fail(where, f"input index {fac.index} out of range 0..{m - 1}"
+                                    if m else f"input index {fac.index} but the identifier has no inputs")
+        if self.x0 is not None:
+            object.__setattr__(self, "x0", _check_array("x0", self.x0, (n,)))
+        object.__setattr__(self, "n_states", n)
+        object.__setattr__(self, "n_inputs", m)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, IdentifierConfig) and self.to_dict() == other.to_dict()
+
+    __hash__ = None  # type: ignore[assignment]
+
+    @property
+    def max_delay(self) -> int:
+        return max((f.delay for nr in self.neurons for t in nr.terms for f in t), default=0)
+
+    def x0_vector(self) -> np.ndarray:
+        return np.zeros(self.n_states) if self.x0 is None else self.x0.copy()
+
+    def replace(self, **changes: Any) -> "IdentifierConfig":
+        """A copy with some fields changed (validated again)."""
+        data = {k: getattr(self, k) for k in ("n_states", "n_inputs", "neurons", "dtype", "x0")}
+        data.update(changes)
+        return IdentifierConfig(**data)
+
+    @classmethod
+    def uniform(
+        cls,
+        terms: Sequence[Term] | Sequence[Sequence[Term]],
+        *,
+        n_states: int,
+        n_inputs: int,
+        dtype: str = "float64",
+        **neuron_kwargs: Any,
+    ) -> "IdentifierConfig":
+        """Every neuron with the same tuning. ``terms`` is either one term
+        list shared by all neurons or a list of n_states term lists."""
+        if terms and isinstance(terms[0], tuple) and terms[0] and isinstance(terms[0][0], Factor):
+            per = [tuple(terms)] * n_states  # type: ignore[arg-type]
+        else:
+            per = [tuple(ts) for ts in terms]  # type: ignore[arg-type]
+        neurons = tuple(NeuronConfig(terms=t, **neuron_kwargs) for t in per)  # type: ignore[arg-type]
+        return cls(n_states=n_states, n_inputs=n_inputs, neurons=neurons, dtype=dtype)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "n_states": self.n_states,
+            "n_inputs": self.n_inputs,
+            "dtype": self.dtype,
+            "x0": None if self.x0 is None else self.x0.tolist(),
+            "neurons": [nr.to_dict() for nr in self.neurons],
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "IdentifierConfig":
+        if not isinstance(data, Mapping):
+            raise _fail("config", f"expected a table, got {type(data).__name__}")
+        unknown = set(data) - {"n_states", "n_inputs", "dtype", "x0", "neurons"}
+        if unknown:
+            raise _fail("config", f"unknown keys {sorted(unknown)}")
+        for key in ("n_states", "n_inputs", "neurons"):
+            if key not in data:
+                raise _fail(key, "missing")
+        raw = data["neurons"]
+        if not isinstance(raw, Sequence) or isinstance(raw, str):
+            raise _fail("neurons", "expected a list of neuron tables")
+        neurons = tuple(NeuronConfig.from_dict(nr, f"neurons[{i}]") for i, nr in enumerate(raw))
+        x0 = data.get("x0")
+        if x0 is not None:
+            if not isinstance(x0, (list, tuple)):
+                raise _fail("x0", "expected a list of numbers")
+            x0 = np.array(x0, dtype=np.float64)
+        return cls(n_states=data["n_states"], n_inputs=data["n_inputs"], neurons=neurons,
+                   dtype=data.get("dtype", "float64"), x0=x0)

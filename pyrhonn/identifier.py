@@ -1,0 +1,503 @@
+"""The RHONN identifier, running the C core through cffi.
+
+Math (Alanis et al., eq. 3-9), for neuron i = 1..n with L_i weights:
+
+.. math::
+
+    \\hat x_i(k+1) = w_i^\\top z_i(x(k), x(k-1), \\dots, u(k))          \\quad (3)
+
+    z_{ij} = \\prod_{f \\in I_j} \\xi_f^{d_f}, \\quad
+    \\xi = [S(x_1) \\dots S(x_n), u_1 \\dots u_m]                       \\quad (4, 5)
+
+    e_i(k) = x_i(k) - \\hat x_i(k)                                      \\quad (9)
+
+    M_i = (R_i + H_i^\\top P_i H_i)^{-1}, \\quad K_i = P_i H_i M_i      \\quad (8, 7)
+
+    w_i \\leftarrow w_i + \\eta_i K_i e_i, \\quad
+    P_i \\leftarrow P_i - K_i H_i^\\top P_i + Q_i                      \\quad (7)
+
+with H_i = z_i (eq. 11; the network is linear in its weights). One
+:meth:`Identifier.step` learns from e(k) with the regressor z(k-1) that
+produced x̂(k), then forms z(k) and returns x̂(k+1); see ``csrc/include/rhonn.h``
+for the exact ordering, the dropout rule and the initial history.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from . import _rhonn_f32, _rhonn_f64
+from .config import IdentifierConfig
+
+__all__ = ["Identifier", "IdentifierError", "capacities"]
+
+_BACKENDS: dict[str, ModuleType] = {"float64": _rhonn_f64, "float32": _rhonn_f32}
+
+_FIELD_NAMES = {
+    1: "n_states", 2: "n_inputs", 3: "x0", 4: "terms", 5: "activation", 6: "beta", 7: "eta",
+    8: "r", 9: "q", 10: "w0", 11: "p0", 12: "terms[{t}] factors", 13: "terms[{t}][{f}].kind",
+    14: "terms[{t}][{f}].index", 15: "terms[{t}][{f}].delay", 16: "terms[{t}][{f}].power",
+}
+
+
+class IdentifierError(ValueError):
+    """The C core refused a step: ``status`` is the rhonn_status name.
+
+    A ``ValueError`` so that every rejected input is caught the same way;
+    the identifier's state is unchanged when this is raised.
+    """
+
+    def __init__(self, status: str, message: str) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+def capacities(dtype: str = "float64") -> dict[str, int]:
+    """The compile-time capacities the extension was built with."""
+    lib = _backend(dtype).lib
+    return {
+        name: int(getattr(lib, name))
+        for name in ("RHONN_MAX_STATES", "RHONN_MAX_INPUTS", "RHONN_MAX_TERMS", "RHONN_MAX_FACTORS",
+                     "RHONN_MAX_DELAY", "RHONN_MAX_POWER")
+    }
+
+
+def _backend(dtype: str) -> ModuleType:
+    try:
+        return _BACKENDS[dtype]
+    except KeyError:
+        raise ValueError(f"dtype: expected one of {sorted(_BACKENDS)}, got {dtype!r}") from None
+
+
+def _check_capacity(config: IdentifierConfig, caps: dict[str, int]) -> None:
+    def over(path: str, value: int, cap: str) -> None:
+        if value > caps[cap]:
+            raise ValueError(f"{path}: {value} exceeds the compiled capacity {cap} = {caps[cap]}")
+
+    over("n_states", config.n_states, "RHONN_MAX_STATES")
+    over("n_inputs", config.n_inputs, "RHONN_MAX_INPUTS")
+    for i, neuron in enumerate(config.neurons):
+        over(f"neurons[{i}].terms", neuron.n_terms, "RHONN_MAX_TERMS")
+        for t, term in enumerate(neuron.terms):
+            over(f"neurons[{i}].terms[{t}] (factors)", len(term), "RHONN_MAX_FACTORS")
+            for f, fac in enumerate(term):
+                over(f"neurons[{i}].terms[{t}][{f}].delay", fac.delay, "RHONN_MAX_DELAY")
+                over(f"neurons[{i}].terms[{t}][{f}].power", fac.power, "RHONN_MAX_POWER")
+
+
+def _packed(P: np.ndarray) -> np.ndarray:
+    """Upper triangle of a symmetric matrix, row by row (the core's layout)."""
+    return P[np.triu_indices(P.shape[0])]
+
+
+def _unpacked(p: np.ndarray, L: int) -> np.ndarray:
+    P = np.zeros((L, L), dtype=p.dtype)
+    P[np.triu_indices(L)] = p
+    return P + np.triu(P, 1).T
+
+
+class Identifier:
+    """A RHONN identifier trained online by a per-neuron EKF, in C.
+
+    Parameters
+    ----------
+    config:
+        A validated :class:`~pyrhonn.config.IdentifierConfig`; its ``dtype``
+        selects the float64 or float32 build of the core. A config larger than
+        the compiled capacities raises ``ValueError`` naming the field.
+
+    Arrays in and out have exactly the identifier's dtype; nothing is
+    converted silently. Wrong shapes, dtypes or non-finite measurements raise
+    ``ValueError`` naming the argument, and leave the identifier unchanged.
+    """
+
+    def __init__(self, config: IdentifierConfig) -> None:
+        if not isinstance(config, IdentifierConfig):
+            raise ValueError(f"config: expected an IdentifierConfig, got {type(config).__name__}")
+        backend = _backend(config.dtype)
+        self._ffi = backend.ffi
+        self._lib = backend.lib
+        _check_capacity(config, capacities(config.dtype))
+        self._config = config
+        self._dtype = np.dtype(config.dtype)
+        self._n = config.n_states
+        self._m = config.n_inputs
+        self._xshape = (self._n,)
+        self._ushape = (self._m,)
+        self._real_array = "double[]" if config.dtype == "float64" else "float[]"
+        self._net = self._ffi.new("rhonn_t *")
+        self._cfg = self._c_config(config)
+        where = self._ffi.new("rhonn_config_error *")
+        status = self._lib.rhonn_init(self._net, self._cfg, where)
+        if status != self._lib.RHONN_OK:
+            raise ValueError(self._config_error_message(where))
+        self._out = np.empty(self._n, dtype=self._dtype)
+        self._out_ptr = self._ffi.from_buffer(self._real_array, self._out)
+        self._null = self._ffi.NULL
+        self._no_inputs = self._ffi.from_buffer(self._real_array, np.zeros(1, dtype=self._dtype))
+
+    # -- construction helpers -------------------------------------------------
+
+    def _c_config(self, config: IdentifierConfig) -> Any:
+        cfg = self._ffi.new("rhonn_config *")
+        cfg.n_states = config.n_states
+        cfg.n_inputs = config.n_inputs
+        for j, v in enumerate(config.x0_vector()):
+            cfg.x0[j] = float(v)
+        for i, neuron in enumerate(config.neurons):
+            nc = cfg.neurons[i]
+            nc.n_terms = neuron.n_terms
+            nc.activation = neuron.activation.code
+            nc.beta = neuron.beta
+            nc.eta = neuron.eta
+            nc.r = neuron.r
+            for t, v in enumerate(neuron.q_diagonal()):
+                nc.q[t] = float(v)
+            for t, v in enumerate(neuron.w0_vector()):
+                nc.w0[t] = float(v)
+            for t, v in enumerate(_packed(neuron.p0_matrix())):
+                nc.p0[t] = float(v)
+            for t, term in enumerate(neuron.terms):
+                nc.terms[t].n_factors = len(term)
+                for f, fac in enumerate(term):
+                    cf = nc.terms[t].factors[f]
+                    cf.kind = int(fac.kind)
+                    cf.index = fac.index
+                    cf.delay = fac.delay
+                    cf.power = fac.power
+        return cfg
+
+    def _config_error_message(self, where: Any) -> str:
+        template = _FIELD_NAMES.get(int(where.field), "config")
+        name = template.format(t=int(where.term), f=int(where.factor))
+        if int(where.field) in (1, 2):
+            return f"{name}: rejected by the C core"
+        if int(where.field) == 3:
+            return f"x0[{int(where.factor)}]: rejected by the C core"
+        return f"neurons[{int(where.neuron)}].{name}: rejected by the C core"
+
+    # -- properties -------------------------------------------------------------
+
+    @property
+    def config(self) -> IdentifierConfig:
+        return self._config
+
+    @property
+    def dtype(self) -> np.dtype:
+        return self._dtype
+
+    @property
+    def n_states(self) -> int:
+        return self._n
+
+    @property
+    def n_inputs(self) -> int:
+        return self._m
+
+    @property
+    def steps(self) -> int:
+        """Steps since construction or :meth:`reset` (wraps at 2**32)."""
+        return int(self._net.steps)
+
+    @property
+    def learning(self) -> bool:
+        """Whether steps update the weights (predictions continue either way)."""
+        return bool(self._net.learning)
+
+    @learning.setter
+    def learning(self, on: bool) -> None:
+        if not isinstance(on, (bool, np.bool_)):
+            raise ValueError(f"learning: expected a bool, got {type(on).__name__}")
+        self._check(self._lib.rhonn_set_learning(self._net, 1 if on else 0), "learning")
+
+    @property
+    def prediction(self) -> np.ndarray:
+        """x̂(k): the last prediction (config x0 before the first step)."""
+        out = np.empty(self._n, dtype=self._dtype)
+        self._check(self._lib.rhonn_get_prediction(self._net, self._ffi.from_buffer(self._real_array, out),
+                                                   self._n), "prediction")
+        return out
+
+    @property
+    def weights(self) -> list[np.ndarray]:
+        """w_i for every neuron (copies), shapes (L_i,)."""
+        return [self.get_weights(i) for i in range(self._n)]
+
+    @property
+    def covariances(self) -> list[np.ndarray]:
+        """P_i for every neuron as full symmetric (L_i, L_i) matrices (copies)."""
+        return [self.get_covariance(i) for i in range(self._n)]
+
+    @property
+    def regressors(self) -> list[np.ndarray]:
+        """z_i(k-1), the regressors that produced x̂(k) (copies)."""
+        zb = int(self._net.zbank)
+        return [np.array([self._net.z[zb][i][t] for t in range(nr.n_terms)], dtype=self._dtype)
+                for i, nr in enumerate(self._config.neurons)]
+
+    def _neuron_index(self, neuron: int) -> int:
+        if isinstance(neuron, bool) or not isinstance(neuron, (int, np.integer)) or not 0 <= neuron < self._n:
+            raise ValueError(f"neuron: expected an index in 0..{self._n - 1}, got {neuron!r}")
+        return int(neuron)
+
+    def get_weights(self, neuron: int) -> np.ndarray:
+        i = self._neuron_index(neuron)
+        L = self._config.neurons[i].n_terms
+        out = np.empty(L, dtype=self._dtype)
+        self._check(self._lib.rhonn_get_weights(self._net, i, self._ffi.from_buffer(self._real_array, out), L),
+                    "weights")
+        return out
+
+    def set_weights(self, neuron: int, w: np.ndarray) -> None:
+        """Replace w_i; ``w`` must have shape (L_i,) and the identifier's dtype."""
+        i = self._neuron_index(neuron)
+        L = self._config.neurons[i].n_terms
+        self._require(w, "w", (L,))
+        if not np.all(np.isfinite(w)):
+            raise ValueError(f"w[{int(np.argmin(np.isfinite(w)))}]: not finite")
+        self._check(self._lib.rhonn_set_weights(self._net, i, self._ffi.from_buffer(self._real_array, w), L), "w")
+
+    def get_covariance(self, neuron: int) -> np.ndarray:
+        i = self._neuron_index(neuron)
+        L = self._config.neurons[i].n_terms
+        packed = np.empty(L * (L + 1) // 2, dtype=self._dtype)
+        self._check(self._lib.rhonn_get_covariance(self._net, i, self._ffi.from_buffer(self._real_array, packed),
+                                                   packed.size), "covariance")
+        return _unpacked(packed, L)
+
+    def set_covariance(self, neuron: int, P: np.ndarray) -> None:
+        """Replace P_i with a symmetric (L_i, L_i) matrix with a positive diagonal."""
+        i = self._neuron_index(neuron)
+        L = self._config.neurons[i].n_terms
+        self._require(P, "P", (L, L))
+        if not np.all(np.isfinite(P)):
+            r, c = (int(v) for v in np.argwhere(~np.isfinite(P))[0])
+            raise ValueError(f"P[{r}, {c}]: not finite")
+        if not np.array_equal(P, P.T):
+            raise ValueError("P: not symmetric")
+        if not np.all(np.diag(P) > 0):
+            raise ValueError(f"P[{int(np.argmin(np.diag(P) > 0))}, {int(np.argmin(np.diag(P) > 0))}]: "
+                             "diagonal entries must be > 0")
+        packed = np.ascontiguousarray(_packed(P))
+        self._check(self._lib.rhonn_set_covariance(self._net, i, self._ffi.from_buffer(self._real_array, packed),
+                                                   packed.size), "P")
+
+    # -- running ------------------------------------------------------------------
+
+    def _require(self, a: object, name: str, shape: tuple[int, ...]) -> None:
+        if not isinstance(a, np.ndarray):
+            raise ValueError(f"{name}: expected a numpy array, got {type(a).__name__}")
+        if a.dtype != self._dtype:
+            raise ValueError(f"{name}: expected dtype {self._dtype}, got {a.dtype}")
+        if a.shape != shape:
+            raise ValueError(f"{name}: expected shape {shape}, got {a.shape}")
+
+    def _require_valid(self, valid: object, shape: tuple[int, ...]) -> None:
+        if not isinstance(valid, np.ndarray):
+            raise ValueError(f"valid: expected a numpy bool array, got {type(valid).__name__}")
+        if valid.dtype != np.bool_:
+            raise ValueError(f"valid: expected dtype bool, got {valid.dtype}")
+        if valid.shape != shape:
+            raise ValueError(f"valid: expected shape {shape}, got {valid.shape}")
+
+    def step(self, x: np.ndarray, u: np.ndarray | None = None, valid: np.ndarray | None = None) -> np.ndarray:
+        """One sample: learn from x(k), then return x̂(k+1) (a new array).
+
+        ``x`` has shape (n,), ``u`` shape (m,) (None when m = 0), ``valid`` is
+        None (all measured) or a bool array of shape (n,); an entry of x whose
+        flag is False is ignored (it may be NaN) and replaced by x̂_j(k).
+        """
+        if type(x) is not np.ndarray or x.dtype != self._dtype or x.shape != self._xshape \
+                or not x.flags.c_contiguous:
+            self._require(x, "x", self._xshape)
+            x = np.ascontiguousarray(x)
+        ffi = self._ffi
+        if u is None:
+            if self._m:
+                raise ValueError(f"u: expected an array of shape {self._ushape}, got None")
+            u_ptr = self._no_inputs
+        else:
+            if type(u) is not np.ndarray or u.dtype != self._dtype or u.shape != self._ushape \
+                    or not u.flags.c_contiguous:
+                self._require(u, "u", self._ushape)
+                u = np.ascontiguousarray(u)
+            u_ptr = ffi.from_buffer(self._real_array, u) if self._m else self._no_inputs
+        if valid is None:
+            v_ptr = self._null
+        else:
+            if type(valid) is not np.ndarray or valid.dtype != np.bool_ or valid.shape != self._xshape:
+                self._require_valid(valid, self._xshape)
+            valid = np.ascontiguousarray(valid)
+            v_ptr = ffi.from_buffer("uint8_t[]", valid)
+        status = self._lib.rhonn_step(self._net, ffi.from_buffer(self._real_array, x), u_ptr, v_ptr,
+                                      self._out_ptr)
+        if status:
+            self._raise_step_error(status, x[None, :], None if u is None else u[None, :],
+                                   None if valid is None else valid[None, :], 0, single=True)
+        return self._out.copy()
+
+    def run(self, X: np.ndarray, U: np.ndarray | None = None, valid: np.ndarray | None = None,
+            out: np.ndarray | None = None) -> np.ndarray:
+        """A whole trajectory in one C call.
+
+        ``X`` (T, n), ``U`` (T, m) (None when m = 0), ``valid`` None or bool
+        (T, n). Row t of the result is x̂(t+1), the prediction made at sample
+        t. C-contiguous arrays of the identifier's dtype are passed without
+        copies; ``out`` (T, n), if given, receives the predictions. On any
+        error nothing is applied: the identifier is as it was before the call.
+        """
+        if not isinstance(X, np.ndarray) or X.ndim != 2:
+            raise ValueError(f"X: expected a 2-D numpy array (T, {self._n}), got "
+                             f"{type(X).__name__ if not isinstance(X, np.ndarray) else X.shape}")
+        T = X.shape[0]
+        self._require(X, "X", (T, self._n))
+        if U is None:
+            if self._m:
+                raise ValueError(f"U: expected an array of shape {(T, self._m)}, got None")
+            U = np.zeros((T, 0), dtype=self._dtype)
+        self._require(U, "U", (T, self._m))
+        if valid is not None:
+            self._require_valid(valid, (T, self._n))
+        if out is None:
+            out = np.empty((T, self._n), dtype=self._dtype)
+        else:
+            self._require(out, "out", (T, self._n))
+            if not out.flags.c_contiguous or not out.flags.writeable:
+                raise ValueError("out: must be a writeable C-contiguous array")
+        if T == 0:
+            return out
+        Xc, Uc = np.ascontiguousarray(X), np.ascontiguousarray(U)
+        Vc = None if valid is None else np.ascontiguousarray(valid)
+        # Reject bad measurements before touching the filter.
+        measured = np.isfinite(Xc) if Vc is None else (np.isfinite(Xc) | ~Vc)
+        if not measured.all():
+            t, j = (int(v) for v in np.argwhere(~measured)[0])
+            raise ValueError(f"X[{t}, {j}]: not finite (a measured state must be finite)")
+        if self._m and not np.isfinite(Uc).all():
+            t, j = (int(v) for v in np.argwhere(~np.isfinite(Uc))[0])
+            raise ValueError(f"U[{t}, {j}]: not finite")
+        ffi = self._ffi
+        saved = ffi.new("rhonn_t *")
+        ffi.memmove(saved, self._net, ffi.sizeof("rhonn_t"))
+        done = ffi.new("size_t *")
+        status = self._lib.rhonn_run(
+            self._net, T, ffi.from_buffer(self._real_array, Xc),
+            ffi.from_buffer(self._real_array, Uc) if self._m else self._no_inputs,
+            self._null if Vc is None else ffi.from_buffer("uint8_t[]", Vc),
+            ffi.from_buffer(self._real_array, out), done)
+        if status:
+            ffi.memmove(self._net, saved, ffi.sizeof("rhonn_t"))
+            self._raise_step_error(status, Xc, Uc, Vc, int(done[0]), single=False)
+        return out
+
+    def reset(self) -> None:
+        """Back to w(0), P(0), x̂(0) and an empty history; learning on."""
+        self._check(self._lib.rhonn_reset(self._net), "reset")
+
+    # -- errors ---------------------------------------------------------------------
+
+    def _status_name(self, status: int) -> str:
+        return self._ffi.string(self._lib.rhonn_status_name(status)).decode()
+
+    def _check(self, status: int, what: str) -> None:
+        if status:
+            raise IdentifierError(self._status_name(status), f"{what}: rejected by the C core "
+                                                             f"({self._status_name(status)})")
+
+    def _raise_step_error(self, status: int, X: np.ndarray, U: np.ndarray | None, V: np.ndarray | None,
+                          t: int, single: bool) -> None:
+        name = self._status_name(status)
+        at = "" if single else f" at sample {t} (nothing applied)"
+        lib = self._lib
+        if status == lib.RHONN_E_INPUT_NONFINITE:
+            row_ok = np.isfinite(X[t]) if V is None else (np.isfinite(X[t]) | ~V[t])
+            if not row_ok.all():
+                j = int(np.argmin(row_ok))
+                where = f"x[{j}]" if single else f"X[{t}, {j}]"
+            else:
+                j = int(np.argmin(np.isfinite(U[t]))) if U is not None else 0
+                where = f"u[{j}]" if single else f"U[{t}, {j}]"
+            raise IdentifierError(name, f"{where}: not finite")
+        neuron = int(self._net.fault_neuron)
+        if status == lib.RHONN_E_INNOVATION:
+            msg = (f"neurons[{neuron}]: innovation variance R + z^T P z is not a positive finite number{at}; "
+                   "the covariance has lost positive definiteness (check P0, Q, R)")
+        elif status == lib.RHONN_E_COVARIANCE:
+            msg = f"neurons[{neuron}]: the covariance update overflowed{at} (check P0 and Q)"
+        elif status == lib.RHONN_E_DIVERGED:
+            msg = f"neurons[{neuron}]: weights or prediction would not be finite{at}"
+        else:
+            msg = f"step rejected by the C core{at}"
+        raise IdentifierError(name, f"{msg} [{name}]")
+
+    # -- persistence ------------------------------------------------------------------
+
+    def save(self, path: str | Path) -> None:
+        """Write the full filter state; see :mod:`pyrhonn.statefile`."""
+        from .statefile import save_state
+
+        save_state(self, path)
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Identifier":
+        """Rebuild an identifier, mid-run, from a file written by :meth:`save`."""
+        from .statefile import load_state
+
+        return load_state(path)
+
+    def as_config(self) -> IdentifierConfig:
+        """The config with w0 and P0 taken from the current weights and
+        covariances: a trained identifier as a starting point (e.g. for
+        :func:`pyrhonn.export.export_header`)."""
+        from .config import NeuronConfig
+
+        neurons = []
+        for i, nr in enumerate(self._config.neurons):
+            P = self.get_covariance(i).astype(np.float64)
+            P = (P + P.T) / 2  # exactly symmetric already; keeps the check obvious
+            neurons.append(NeuronConfig(terms=nr.terms, activation=nr.activation, beta=nr.beta, p0=P,
+                                        q=nr.q, r=nr.r, eta=nr.eta,
+                                        w0=self.get_weights(i).astype(np.float64)))
+        return self._config.replace(neurons=tuple(neurons))
+
+    # -- state access for the state file (not public API) --------------------------------
+
+    def _history(self, depth: int) -> np.ndarray:
+        """Effective x(k-d) for d = 0..depth, newest first (after a step)."""
+        net = self._net
+        H = int(self._lib.RHONN_HISTORY_LEN)
+        rows = [[net.xh[(int(net.head) - d) % H][j] for j in range(self._n)] for d in range(depth + 1)]
+        return np.array(rows, dtype=self._dtype)
+
+    def _restore(self, *, weights: list[np.ndarray], packed_cov: list[np.ndarray], regressors: list[np.ndarray],
+                 prediction: np.ndarray, history: np.ndarray, started: bool, learning: bool, steps: int) -> None:
+        """Load a mid-run state. Arguments are validated by the caller."""
+        lib, net = self._lib, self._net
+        self._check(lib.rhonn_reset(net), "reset")
+        for i in range(self._n):
+            w = np.ascontiguousarray(weights[i])
+            self._check(lib.rhonn_set_weights(net, i, self._ffi.from_buffer(self._real_array, w), w.size),
+                        f"w_{i}")
+            p = np.ascontiguousarray(packed_cov[i])
+            self._check(lib.rhonn_set_covariance(net, i, self._ffi.from_buffer(self._real_array, p), p.size),
+                        f"p_{i}")
+            for t, v in enumerate(regressors[i]):
+                net.z[int(net.zbank)][i][t] = float(v)
+        for j in range(self._n):
+            net.xhat[j] = float(prediction[j])
+        H = int(lib.RHONN_HISTORY_LEN)
+        net.head = 0
+        for d in range(H):
+            row = history[min(d, history.shape[0] - 1)]
+            slot = (-d) % H
+            for j in range(self._n):
+                net.xh[slot][j] = float(row[j])
+                for g in range(int(net.n_groups)):
+                    net.sh[g][slot][j] = lib.rhonn_activate(net.group_activation[g], net.group_beta[g],
+                                                            float(row[j]))
+        net.started = 1 if started else 0
+        net.learning = 1 if learning else 0
+        net.steps = steps

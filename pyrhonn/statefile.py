@@ -1,0 +1,155 @@
+"""Save and load an identifier's full filter state.
+
+File format ``pyrhonn-state``, version 1: a NumPy ``.npz`` archive (a zip of
+``.npy`` members, no pickles) holding
+
+============  ===============  ==================================================
+member        shape / dtype    meaning
+============  ===============  ==================================================
+``header``    0-d unicode      JSON: ``format`` = "pyrhonn-state", ``version`` = 1,
+                               ``config`` (IdentifierConfig.to_dict()), ``dtype``,
+                               ``steps``, ``started``, ``learning``
+``w_<i>``     (L_i,) dtype     weights w_i(k) of neuron i
+``p_<i>``     (L_i(L_i+1)/2,)  P_i(k), packed upper triangle, row by row
+``z_<i>``     (L_i,) dtype     regressor z_i(k-1) that produced x̂_i(k)
+``xhat``      (n,) dtype       x̂(k)
+``history``   (D+1, n) dtype   effective x(k-d), d = 0..D, newest first, where
+                               D is the config's deepest delay
+============  ===============  ==================================================
+
+``dtype`` is the identifier's (float64 or float32); the values are stored in
+it exactly, so a loaded identifier continues bit for bit. Readers reject a
+file with another ``format`` or a newer ``version``; every other defect
+(missing member, wrong shape or dtype, non-finite value) raises
+``ValueError`` naming the member.
+"""
+from __future__ import annotations
+
+import json
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .config import IdentifierConfig
+from .identifier import Identifier
+
+__all__ = ["FORMAT", "VERSION", "save_state", "load_state"]
+
+FORMAT = "pyrhonn-state"
+VERSION = 1
+
+
+def save_state(identifier: Identifier, path: str | Path) -> None:
+    """Write ``identifier``'s full state to ``path`` (see module docs)."""
+    if not isinstance(identifier, Identifier):
+        raise ValueError(f"identifier: expected an Identifier, got {type(identifier).__name__}")
+    cfg = identifier.config
+    header = {
+        "format": FORMAT,
+        "version": VERSION,
+        "dtype": cfg.dtype,
+        "config": cfg.to_dict(),
+        "steps": identifier.steps,
+        "started": bool(identifier._net.started),
+        "learning": identifier.learning,
+    }
+    members: dict[str, np.ndarray] = {"header": np.array(json.dumps(header))}
+    regressors = identifier.regressors
+    for i in range(cfg.n_states):
+        L = cfg.neurons[i].n_terms
+        members[f"w_{i}"] = identifier.get_weights(i)
+        members[f"p_{i}"] = identifier.get_covariance(i)[np.triu_indices(L)]
+        members[f"z_{i}"] = regressors[i]
+    members["xhat"] = identifier.prediction
+    members["history"] = identifier._history(cfg.max_delay)
+    path = Path(path)
+    with open(path, "wb") as fh:
+        np.savez(fh, **members)
+
+
+def _fail(path: Path, member: str, message: str) -> ValueError:
+    return ValueError(f"{path}: {member}: {message}")
+
+
+def _member(path: Path, archive: Any, name: str, shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
+    if name not in archive.files:
+        raise _fail(path, name, "missing")
+    try:
+        a = archive[name]
+    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
+        raise _fail(path, name, f"unreadable ({exc})") from None
+    if a.dtype != dtype:
+        raise _fail(path, name, f"expected dtype {dtype}, got {a.dtype}")
+    if a.shape != shape:
+        raise _fail(path, name, f"expected shape {shape}, got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise _fail(path, name, "contains non-finite values")
+    return a
+
+
+def load_state(path: str | Path) -> Identifier:
+    """Rebuild an identifier from a file written by :func:`save_state`."""
+    path = Path(path)
+    try:
+        archive = np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise ValueError(f"{path}: no such file") from None
+    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
+        raise ValueError(f"{path}: not a {FORMAT} file ({exc})") from None
+    if not isinstance(archive, np.lib.npyio.NpzFile):
+        raise ValueError(f"{path}: not a {FORMAT} file (a single .npy array, not an archive)")
+    with archive:
+        if "header" not in archive.files:
+            raise _fail(path, "header", f"missing: not a {FORMAT} file")
+        try:
+            raw = archive["header"]
+            header = json.loads(str(raw[()])) if raw.dtype.kind == "U" and raw.shape == () else None
+        except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
+            raise _fail(path, "header", f"unreadable ({exc})") from None
+        if not isinstance(header, dict):
+            raise _fail(path, "header", "expected a JSON object")
+        if header.get("format") != FORMAT:
+            raise _fail(path, "header.format", f"expected {FORMAT!r}, got {header.get('format')!r}")
+        version = header.get("version")
+        if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+            raise _fail(path, "header.version", f"expected a positive integer, got {version!r}")
+        if version > VERSION:
+            raise _fail(path, "header.version", f"version {version} is newer than this pyrhonn reads ({VERSION})")
+        try:
+            cfg = IdentifierConfig.from_dict(header.get("config"))  # type: ignore[arg-type]
+        except (ValueError, TypeError) as exc:
+            raise _fail(path, "header.config", str(exc)) from None
+        if header.get("dtype") != cfg.dtype:
+            raise _fail(path, "header.dtype", f"{header.get('dtype')!r} does not match config dtype {cfg.dtype!r}")
+        steps = header.get("steps")
+        if not isinstance(steps, int) or isinstance(steps, bool) or not 0 <= steps < 2**32:
+            raise _fail(path, "header.steps", f"expected an integer in 0..2**32-1, got {steps!r}")
+        for key in ("started", "learning"):
+            if not isinstance(header.get(key), bool):
+                raise _fail(path, f"header.{key}", f"expected true or false, got {header.get(key)!r}")
+        try:
+            ident = Identifier(cfg)
+        except ValueError as exc:
+            raise _fail(path, "header.config", str(exc)) from None
+        dt = np.dtype(cfg.dtype)
+        n = cfg.n_states
+        weights, covs, regs = [], [], []
+        for i, nr in enumerate(cfg.neurons):
+            L = nr.n_terms
+            weights.append(_member(path, archive, f"w_{i}", (L,), dt))
+            p = _member(path, archive, f"p_{i}", (L * (L + 1) // 2,), dt)
+            diag = p[np.cumsum(np.r_[0, np.arange(L, 1, -1)])]
+            if not np.all(diag > 0):
+                raise _fail(path, f"p_{i}", "covariance diagonal must be > 0")
+            covs.append(p)
+            regs.append(_member(path, archive, f"z_{i}", (L,), dt))
+        xhat = _member(path, archive, "xhat", (n,), dt)
+        history = _member(path, archive, "history", (cfg.max_delay + 1, n), dt)
+        extra = set(archive.files) - {"header", "xhat", "history"} - {f"{k}_{i}" for k in "wpz" for i in range(n)}
+        if extra:
+            raise _fail(path, "archive", f"unexpected members {sorted(extra)}")
+    ident._restore(weights=weights, packed_cov=covs, regressors=regs, prediction=xhat, history=history,
+                   started=header["started"], learning=header["learning"], steps=steps)
+    return ident
