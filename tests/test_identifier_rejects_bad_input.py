@@ -1,0 +1,218 @@
+"""Every bad input through the Python API: a ValueError naming the field, the
+identifier's state unchanged, and no crash."""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from pyrhonn import (Activation, Factor, Identifier, IdentifierConfig, IdentifierError, NeuronConfig,
+                     capacities, terms)
+
+
+def make(dtype: str = "float64", **kw) -> IdentifierConfig:
+    base = dict(p0=10.0, q=1e-3, r=0.1, beta=0.8)
+    base.update(kw)
+    return IdentifierConfig.uniform(terms.first_order(3, 2) + terms.delayed_taps(0, [2]) + terms.bias(),
+                                    n_states=3, n_inputs=2, dtype=dtype, **base)
+
+
+def warmed(dtype: str = "float64") -> tuple[Identifier, np.ndarray, np.ndarray]:
+    ident = Identifier(make(dtype))
+    t = np.arange(50)[:, None] * 0.1
+    X = np.hstack([np.sin(t), np.cos(t), np.sin(2 * t)]).astype(dtype)
+    U = np.hstack([np.sin(0.3 * t), np.cos(0.7 * t)]).astype(dtype)
+    ident.run(X, U)
+    return ident, X, U
+
+
+def snapshot(ident: Identifier) -> tuple:
+    return (tuple(w.tobytes() for w in ident.weights), tuple(p.tobytes() for p in ident.covariances),
+            ident.prediction.tobytes(), ident.steps, tuple(z.tobytes() for z in ident.regressors))
+
+
+BAD_STEP_ARGS = [
+    ("x", dict(x=[0.1, 0.2, 0.3])),                                 # a list, not an array
+    ("x", dict(x=np.zeros(3, dtype=np.float32))),                   # wrong dtype
+    ("x", dict(x=np.zeros(4))),                                     # wrong shape
+    ("x", dict(x=np.zeros((3, 1)))),
+    ("x[1]", dict(x=np.array([0.0, np.nan, 0.0]))),                 # NaN in a measured state
+    ("x[2]", dict(x=np.array([0.0, 0.0, np.inf]))),
+    ("u", dict(u=np.zeros(3))),
+    ("u", dict(u=np.zeros(2, dtype=np.int64))),
+    ("u", dict(u=None)),
+    ("u[0]", dict(u=np.array([np.nan, 0.0]))),
+    ("valid", dict(valid=np.ones(3, dtype=np.uint8))),              # not bool
+    ("valid", dict(valid=np.ones(2, dtype=bool))),
+]
+
+
+@pytest.mark.parametrize("field,override", BAD_STEP_ARGS, ids=[f"{f}-{i}" for i, (f, _) in enumerate(BAD_STEP_ARGS)])
+def test_bad_step_argument_is_named_and_changes_nothing(field: str, override: dict) -> None:
+    ident, X, U = warmed()
+    twin, _, _ = warmed()
+    before = snapshot(ident)
+    args = dict(x=X[7].copy(), u=U[7].copy(), valid=None)
+    args.update(override)
+    with pytest.raises(ValueError, match="^" + re.escape(field) + "[: ]"):
+        ident.step(args["x"], args["u"], args["valid"])
+    assert snapshot(ident) == before
+    # and it carries on exactly like a twin that never saw the bad call
+    np.testing.assert_array_equal(ident.run(X, U), twin.run(X, U))
+
+
+def test_nan_in_a_dropped_measurement_is_accepted() -> None:
+    ident, X, U = warmed()
+    x = X[3].copy()
+    x[1] = np.nan
+    out = ident.step(x, U[3], np.array([True, False, True]))
+    assert np.all(np.isfinite(out))
+
+
+@pytest.mark.parametrize("field,mutate", [
+    ("X", lambda X, U, V: (X.astype(np.float32), U, V)),
+    ("X", lambda X, U, V: (X[:, :2], U, V)),
+    ("X", lambda X, U, V: (X.tolist(), U, V)),
+    ("U", lambda X, U, V: (X, U[:-1], V)),
+    ("U", lambda X, U, V: (X, None, V)),
+    ("valid", lambda X, U, V: (X, U, V.astype(np.int8))),
+    ("valid", lambda X, U, V: (X, U, V[:, :1])),
+    (r"X\[17, 2\]", lambda X, U, V: (np.where(np.arange(X.shape[0])[:, None] * [0, 0, 1] == 17, np.nan, X), U, V)),
+    (r"U\[5, 1\]", lambda X, U, V: (X, np.where(np.arange(U.shape[0])[:, None] * [0, 1] == 5, np.inf, U), V)),
+])
+def test_bad_run_argument_is_named_and_applies_nothing(field: str, mutate) -> None:
+    ident, X, U = warmed()
+    before = snapshot(ident)
+    V = np.ones(X.shape, dtype=bool)
+    Xb, Ub, Vb = mutate(X.copy(), U.copy(), V)
+    with pytest.raises(ValueError, match=rf"^{field}"):
+        ident.run(Xb, Ub, Vb)
+    assert snapshot(ident) == before
+
+
+def test_numerical_failure_mid_run_rolls_the_whole_run_back() -> None:
+    cfg = IdentifierConfig.uniform(((Factor.x(0, power=8),), (Factor.one(),)), n_states=1, n_inputs=0,
+                                   p0=1.0, q=0.0, r=1.0, w0=np.array([1.0, 0.0]))
+    ident = Identifier(cfg)
+    ident.run(np.full((5, 1), 0.5))
+    before = snapshot(ident)
+    X = np.full((20, 1), 0.5)
+    X[12, 0] = 1e50  # x^8 overflows: the prediction cannot be finite
+    with pytest.raises(IdentifierError, match=r"neurons\[0\].*at sample 12 \(nothing applied\)") as info:
+        ident.run(X)
+    assert info.value.status == "RHONN_E_DIVERGED"
+    assert snapshot(ident) == before
+
+
+def test_indefinite_covariance_is_reported_as_innovation_error_and_state_kept() -> None:
+    ident, X, U = warmed()
+    P = np.eye(7)
+    P[0, 1:] = P[1:, 0] = -40.0
+    ident.set_covariance(0, P)
+    before = snapshot(ident)
+    with pytest.raises(IdentifierError, match=r"^neurons\[0\]: innovation") as info:
+        ident.step(X[3], U[3])
+    assert info.value.status == "RHONN_E_INNOVATION"
+    assert snapshot(ident) == before
+
+
+@pytest.mark.parametrize("kwargs,field", [
+    (dict(neurons=()), "neurons"),
+    (dict(n_states=0), "n_states"),
+    (dict(n_states=True), "n_states"),
+    (dict(dtype="float16"), "dtype"),
+    (dict(x0=np.zeros(2)), "x0"),
+    (dict(x0=np.array([0.0, np.nan, 0.0])), r"x0\[1\]"),
+])
+def test_invalid_identifier_config_names_the_field(kwargs: dict, field: str) -> None:
+    cfg = make()
+    data = dict(n_states=cfg.n_states, n_inputs=cfg.n_inputs, neurons=cfg.neurons, dtype=cfg.dtype, x0=None)
+    data.update(kwargs)
+    with pytest.raises(ValueError, match=rf"^{field}"):
+        IdentifierConfig(**data)
+
+
+@pytest.mark.parametrize("kwargs,field", [
+    (dict(terms=()), "terms"),
+    (dict(terms=((),)), r"terms\[0\]"),
+    (dict(terms=(("S1",),)), r"terms\[0\]\[0\]"),
+    (dict(beta=0.0), "beta"),
+    (dict(beta=float("nan")), "beta"),
+    (dict(r=-1.0), "r"),
+    (dict(eta=0), "eta"),
+    (dict(p0=np.array([1.0, 0.0])), r"p0\[1\]"),
+    (dict(p0=np.array([[1.0, 2.0], [3.0, 1.0]])), "p0"),
+    (dict(p0=np.ones(3)), "p0"),
+    (dict(q=np.array([1.0, -1.0])), r"q\[1\]"),
+    (dict(w0=np.ones(5)), "w0"),
+    (dict(activation="tanh"), "activation"),
+])
+def test_invalid_neuron_config_names_the_field(kwargs: dict, field: str) -> None:
+    base = dict(terms=((Factor.s(0),), (Factor.one(),)))
+    base.update(kwargs)
+    with pytest.raises(ValueError, match=rf"^{field}"):
+        NeuronConfig(**base)
+
+
+def test_factor_index_out_of_range_names_the_factor() -> None:
+    with pytest.raises(ValueError, match=r"^neurons\[1\]\.terms\[3\]\[0\]\.index: state index 3"):
+        IdentifierConfig.uniform([terms.first_order(3), terms.first_order(3) + ((Factor.s(3),),),
+                                  terms.first_order(3)], n_states=3, n_inputs=0)
+    with pytest.raises(ValueError, match=r"^neurons\[0\]\.terms\[0\]\[0\]\.index: input index 2"):
+        IdentifierConfig.uniform(((Factor.u(2),),), n_states=1, n_inputs=2)
+    with pytest.raises(ValueError, match=r"^delay"):
+        Factor(Factor.u(0).kind, 0, 1, 1)
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_config_over_compiled_capacity_is_rejected_by_name(dtype: str) -> None:
+    caps = capacities(dtype)
+    big = tuple((Factor.s(0, power=1),) for _ in range(caps["RHONN_MAX_TERMS"] + 1))
+    with pytest.raises(ValueError, match=r"^neurons\[0\]\.terms: 17 exceeds the compiled capacity RHONN_MAX_TERMS"):
+        Identifier(IdentifierConfig.uniform(big, n_states=1, n_inputs=0, dtype=dtype))
+    n = caps["RHONN_MAX_STATES"] + 1
+    with pytest.raises(ValueError, match=r"^n_states: 9 exceeds"):
+        Identifier(IdentifierConfig.uniform(terms.bias(), n_states=n, n_inputs=0, dtype=dtype))
+    deep = ((Factor.s(0, delay=caps["RHONN_MAX_DELAY"] + 1),),)
+    with pytest.raises(ValueError, match=r"^neurons\[0\]\.terms\[0\]\[0\]\.delay: 9 exceeds"):
+        Identifier(IdentifierConfig.uniform(deep, n_states=1, n_inputs=0, dtype=dtype))
+    many = ((Factor.s(0),) * (caps["RHONN_MAX_FACTORS"] + 1),)
+    with pytest.raises(ValueError, match=r"factors\): 5 exceeds"):
+        Identifier(IdentifierConfig.uniform(many, n_states=1, n_inputs=0, dtype=dtype))
+    high = ((Factor.s(0, power=caps["RHONN_MAX_POWER"] + 1),),)
+    with pytest.raises(ValueError, match=r"power: 9 exceeds"):
+        Identifier(IdentifierConfig.uniform(high, n_states=1, n_inputs=0, dtype=dtype))
+
+
+def test_setters_reject_bad_values_and_keep_state() -> None:
+    ident, _, _ = warmed()
+    before = snapshot(ident)
+    with pytest.raises(ValueError, match=r"^w\[2\]"):
+        ident.set_weights(0, np.array([0, 0, np.nan, 0, 0, 0, 0.0]))
+    with pytest.raises(ValueError, match=r"^w"):
+        ident.set_weights(0, np.zeros(6))
+    with pytest.raises(ValueError, match=r"^neuron"):
+        ident.set_weights(3, np.zeros(7))
+    with pytest.raises(ValueError, match=r"^P: not symmetric"):
+        ident.set_covariance(0, np.triu(np.ones((7, 7))))
+    with pytest.raises(ValueError, match=r"^P\[3, 3\]"):
+        ident.set_covariance(0, np.diag([1, 1, 1, 0, 1, 1, 1.0]))
+    with pytest.raises(ValueError, match=r"^learning"):
+        ident.learning = 1  # type: ignore[assignment]
+    assert snapshot(ident) == before
+
+
+def test_non_contiguous_arrays_are_accepted_without_changing_results() -> None:
+    ident, X, U = warmed()
+    twin, _, _ = warmed()
+    Xf = np.asfortranarray(X)
+    np.testing.assert_array_equal(ident.run(Xf, U[:, ::1]), twin.run(X, U))
+    np.testing.assert_array_equal(ident.step(X[::2][3], U[3]), twin.step(X[6], U[3]))
+
+
+def test_float32_identifier_takes_only_float32_arrays() -> None:
+    ident, X, U = warmed("float32")
+    with pytest.raises(ValueError, match=r"^x: expected dtype float32, got float64"):
+        ident.step(X[0].astype(np.float64), U[0])
+    assert ident.step(X[0], U[0]).dtype == np.float32

@@ -1,0 +1,113 @@
+"""save/load keeps the full filter state: a loaded identifier continues bit
+for bit; corrupt, foreign or tampered files are rejected by name."""
+from __future__ import annotations
+
+import json
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pyrhonn import Identifier, IdentifierConfig, terms
+from pyrhonn.statefile import FORMAT, VERSION
+
+from strategies import trajectory
+
+
+def config(dtype: str) -> IdentifierConfig:
+    return IdentifierConfig.uniform(
+        terms.first_order(3, 1) + terms.pairwise_products(3) + terms.delayed_taps(1, [1, 4], raw=True),
+        n_states=3, n_inputs=1, dtype=dtype, p0=50.0, q=1e-3, r=0.5, beta=0.7)
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+@pytest.mark.parametrize("learning", [True, False])
+def test_loaded_identifier_continues_bit_for_bit(tmp_path: Path, dtype: str, learning: bool) -> None:
+    X, U, valid = trajectory(3, 600, 3, 1, 0.1, dtype)
+    a = Identifier(config(dtype))
+    a.run(X[:300], U[:300], valid[:300])
+    a.learning = learning
+    a.save(tmp_path / "state.npz")
+    b = Identifier.load(tmp_path / "state.npz")
+    assert b.config == a.config and b.steps == a.steps and b.learning == learning
+    np.testing.assert_array_equal(b.prediction, a.prediction)
+    np.testing.assert_array_equal(a.run(X[300:], U[300:], valid[300:]), b.run(X[300:], U[300:], valid[300:]))
+
+
+def test_state_saved_before_the_first_step_loads_as_fresh(tmp_path: Path) -> None:
+    X, U, valid = trajectory(4, 100, 3, 1)
+    a = Identifier(config("float64"))
+    a.save(tmp_path / "s.npz")
+    b = Identifier.load(tmp_path / "s.npz")
+    np.testing.assert_array_equal(a.run(X, U), b.run(X, U))
+
+
+def saved(tmp_path: Path) -> Path:
+    X, U, _ = trajectory(5, 80, 3, 1)
+    ident = Identifier(config("float64"))
+    ident.run(X, U)
+    path = tmp_path / "good.npz"
+    ident.save(path)
+    return path
+
+
+def rewrite(src: Path, dst: Path, change) -> Path:
+    with np.load(src, allow_pickle=False) as z:
+        members = {k: z[k] for k in z.files}
+    change(members)
+    with open(dst, "wb") as fh:
+        np.savez(fh, **members)
+    return dst
+
+
+def header_with(**kw):
+    def change(m):
+        h = json.loads(str(m["header"][()]))
+        h.update(kw)
+        m["header"] = np.array(json.dumps(h))
+    return change
+
+
+@pytest.mark.parametrize("change,message", [
+    (header_with(format="other-tool"), r"header\.format"),
+    (header_with(version=VERSION + 1), r"header\.version: version 2 is newer"),
+    (header_with(version="1"), r"header\.version"),
+    (header_with(dtype="float32"), r"header\.dtype"),
+    (header_with(steps=-1), r"header\.steps"),
+    (header_with(learning="yes"), r"header\.learning"),
+    (header_with(config={"n_states": 3}), r"header\.config"),
+    (lambda m: m.pop("w_1"), r"w_1: missing"),
+    (lambda m: m.update(w_0=m["w_0"][:-1]), r"w_0: expected shape"),
+    (lambda m: m.update(p_2=m["p_2"].astype(np.float32)), r"p_2: expected dtype float64"),
+    (lambda m: m.update(xhat=np.array([0.0, np.nan, 0.0])), r"xhat: contains non-finite"),
+    (lambda m: m.update(history=m["history"][:1]), r"history: expected shape"),
+    (lambda m: m.update(p_0=-np.abs(m["p_0"])), r"p_0: covariance diagonal"),
+    (lambda m: m.update(extra=np.zeros(1)), r"archive: unexpected members"),
+    (lambda m: m.update(header=np.array([1, 2])), r"header: expected a JSON object"),
+])
+def test_tampered_state_file_is_rejected_by_member(tmp_path: Path, change, message: str) -> None:
+    bad = rewrite(saved(tmp_path), tmp_path / "bad.npz", change)
+    with pytest.raises(ValueError, match=message):
+        Identifier.load(bad)
+
+
+def test_corrupt_and_foreign_files_are_rejected(tmp_path: Path) -> None:
+    good = saved(tmp_path)
+    data = good.read_bytes()
+    (tmp_path / "truncated.npz").write_bytes(data[: len(data) // 2])
+    (tmp_path / "text.npz").write_text("hello, not a state file\n")
+    (tmp_path / "empty.npz").write_bytes(b"")
+    np.save(tmp_path / "array.npy", np.zeros(3))
+    with zipfile.ZipFile(tmp_path / "other.zip", "w") as zf:
+        zf.writestr("readme.txt", "a zip from someone else")
+    flipped = bytearray(data)
+    flipped[len(flipped) // 3] ^= 0xFF
+    (tmp_path / "flipped.npz").write_bytes(bytes(flipped))
+    for name in ["truncated.npz", "text.npz", "empty.npz", "array.npy", "other.zip", "flipped.npz", "missing.npz"]:
+        with pytest.raises(ValueError, match=str(tmp_path / name).replace(".", r"\.")):
+            Identifier.load(tmp_path / name)
+
+
+def test_format_is_documented_and_stable() -> None:
+    assert FORMAT == "pyrhonn-state" and VERSION == 1
