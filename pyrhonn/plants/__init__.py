@@ -1,0 +1,17 @@
+"""Plant simulators for the paper's three examples, one module per plant.
+
+- :mod:`pyrhonn.plants.oscillator`: Example 1, the delayed chaotic oscillator (eq. 15), a DDE.
+- :mod:`pyrhonn.plants.robot`: Example 2, the electrically driven differential robot.
+- :mod:`pyrhonn.plants.lim`: Example 3, the linear induction motor.
+
+Each has a validated parameter dataclass and a ``simulate(...)`` returning a
+:class:`Trajectory` (true states, inputs, measured states and the valid mask).
+Sensor effects (noise, quantisation, dropouts, hold windows) are applied in
+one place, :func:`pyrhonn.plants.trajectory.measure`.
+"""
+from __future__ import annotations
+
+from . import lim, oscillator, robot
+from .trajectory import Corruption, HoldWindow, Trajectory, measure, sample_times
+
+__all__ = ["Corruption", "HoldWindow", "Trajectory", "lim", "measure", "oscillator", "robot", "sample_times"]

@@ -1,0 +1,416 @@
+"""Sampled trajectories and the measurement model shared by every plant.
+
+A plant simulator produces the *true* sampled states ``X`` (what the paper's
+tables compare against) and the *measured* states ``X_meas`` (what the
+identifier is fed). The two differ only through the measurement model in this
+module, which is the one place where sensor effects are applied:
+
+1. **Additive Gaussian noise**, per-state standard deviation (``Corruption.noise_std``).
+2. **Encoder-style quantisation** of chosen states, per-state resolution
+   (``Corruption.resolution``; 0 means "not quantised").
+3. **Random dropouts**: each (sample, state) pair independently lost with a
+   given probability (``Corruption.dropout``).
+4. **Hold windows** (:class:`HoldWindow`): state j "is not updated" from
+   ``start`` for ``duration`` seconds. These are the paper's delays in
+   Examples 2 and 3 ("information is not updated for 0.1 s").
+
+Order of operations (fixed, see :func:`measure`): reading = quantise(X + noise);
+then a sample is *invalid* if it is dropped or inside a hold window; an invalid
+sample shows the last valid reading of that state (sample-and-hold), or NaN
+when there is no earlier valid reading (only possible when sample 0 itself is
+invalid; the C core ignores invalid entries and accepts NaN there).
+
+Randomness: one ``numpy.random.SeedSequence(seed)`` is split into two
+independent child streams, one for noise and one for dropouts. So for a fixed
+seed the noise realisation does not change when dropouts are switched on or
+off, and vice versa; the same seed always gives the same trajectory.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+__all__ = ["Corruption", "HoldWindow", "Trajectory", "measure", "sample_times"]
+
+QUANTISERS = ("floor", "round")
+
+
+def _fail(path: str, message: str) -> ValueError:
+    return ValueError(f"{path}: {message}")
+
+
+def check_real(path: str, value: object, *, positive: bool = False, nonnegative: bool = False) -> float:
+    """A finite real number (not bool), optionally > 0 or >= 0; ValueError naming ``path``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise _fail(path, f"expected a real number, got {type(value).__name__} {value!r}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise _fail(path, f"must be finite, got {v!r}")
+    if positive and not v > 0.0:
+        raise _fail(path, f"must be > 0, got {v!r}")
+    if nonnegative and not v >= 0.0:
+        raise _fail(path, f"must be >= 0, got {v!r}")
+    return v
+
+
+def check_int(path: str, value: object, lo: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise _fail(path, f"expected an integer, got {type(value).__name__} {value!r}")
+    if int(value) < lo:
+        raise _fail(path, f"must be >= {lo}, got {int(value)}")
+    return int(value)
+
+
+def check_vector(path: str, value: object, n: int) -> np.ndarray:
+    """A float64 copy of a real, finite numpy vector of exactly shape (n,)."""
+    if not isinstance(value, np.ndarray):
+        raise _fail(path, f"expected a numpy array of shape ({n},), got {type(value).__name__}")
+    if value.dtype.kind not in "fiu":
+        raise _fail(path, f"expected a real numeric array, got dtype {value.dtype}")
+    if value.shape != (n,):
+        raise _fail(path, f"expected shape ({n},), got {value.shape}")
+    arr = np.array(value, dtype=np.float64)
+    if not np.all(np.isfinite(arr)):
+        raise _fail(f"{path}[{int(np.argmin(np.isfinite(arr)))}]", "must be finite")
+    return arr
+
+
+def check_multiple(path: str, value: float, unit: float, unit_name: str) -> int:
+    """``value / unit`` as an int, if it is an integer to 1e-9 relative; else ValueError."""
+    ratio = value / unit
+    k = round(ratio)
+    if k < 1 or abs(ratio - k) > 1e-9 * max(1.0, abs(ratio)):
+        raise _fail(path, f"{value!r} must be a positive integer multiple of {unit_name} = {unit!r}")
+    return int(k)
+
+
+def sample_times(dt: float, horizon: float) -> np.ndarray:
+    """t_k = k*dt for k = 0..K with K = horizon/dt (which must be an integer).
+
+    Both ends are included, as a Simulink log of a fixed-step run from 0 to
+    ``horizon`` would: K + 1 samples.
+    """
+    dt = check_real("dt", dt, positive=True)
+    horizon = check_real("horizon", horizon, positive=True)
+    K = check_multiple("horizon", horizon, dt, "dt")
+    return np.arange(K + 1, dtype=np.float64) * dt
+
+
+@dataclass(frozen=True)
+class HoldWindow:
+    """State ``state`` (0-based) is not updated for ``duration`` seconds from ``start``.
+
+    Every sample with ``start <= t_k < start + duration`` (to a tolerance of
+    1e-6*dt, so that 2.1 s at dt = 1e-4 is sample 21000 despite rounding) is
+    invalid and shows the last valid reading before it. A 0.1 s window at
+    dt = 0.01 therefore covers exactly 10 samples. A window that extends past
+    the end of the trajectory is clipped (the paper's robot windows at 13 s
+    simply vanish in a 10 s run).
+    """
+
+    state: int
+    start: float
+    duration: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "state", check_int("state", self.state, 0))
+        object.__setattr__(self, "start", check_real("start", self.start, nonnegative=True))
+        object.__setattr__(self, "duration", check_real("duration", self.duration, positive=True))
+
+    def mask(self, t: np.ndarray, dt: float) -> np.ndarray:
+        """Boolean (T,) mask of the samples this window covers."""
+        tol = 1e-6 * dt
+        return (t >= self.start - tol) & (t < self.start + self.duration - tol)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"state": self.state, "start": self.start, "duration": self.duration}
+
+
+@dataclass(frozen=True, eq=False)
+class Corruption:
+    """Sensor imperfections beyond the paper's scenarios; all off by default.
+
+    Parameters
+    ----------
+    noise_std:
+        (n,) standard deviation of additive zero-mean Gaussian noise per
+        state, >= 0, in the state's units; None for no noise.
+    resolution:
+        (n,) quantisation step per state, >= 0 (0 = that state is not
+        quantised); None for no quantisation. Models an encoder or ADC.
+    quantiser:
+        ``"floor"`` (default): reading = res * floor(value / res), the count
+        of whole increments passed, as an incremental encoder reports; the
+        error lies in (-res, 0]. ``"round"``: nearest level, error in
+        [-res/2, res/2].
+    dropout:
+        Probability in [0, 1) that a given sample of a given state is lost
+        (scalar for all states, or an (n,) array). A lost sample is invalid
+        and shows the last valid reading.
+    seed:
+        Seed of the numpy Generator streams (noise and dropouts are
+        independent children of ``SeedSequence(seed)``).
+    """
+
+    noise_std: np.ndarray | None = None
+    resolution: np.ndarray | None = None
+    quantiser: str = "floor"
+    dropout: float | np.ndarray = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("noise_std", "resolution"):
+            v = getattr(self, name)
+            if v is None:
+                continue
+            if not isinstance(v, np.ndarray) or v.ndim != 1:
+                raise _fail(name, f"expected a 1-D numpy array (one entry per state) or None, got {v!r}")
+            arr = check_vector(name, v, v.shape[0])
+            if np.any(arr < 0):
+                raise _fail(f"{name}[{int(np.argmax(arr < 0))}]", "must be >= 0")
+            object.__setattr__(self, name, arr)
+        if self.quantiser not in QUANTISERS:
+            raise _fail("quantiser", f"expected one of {QUANTISERS}, got {self.quantiser!r}")
+        if isinstance(self.dropout, np.ndarray):
+            if self.dropout.ndim != 1:
+                raise _fail("dropout", f"expected a scalar or a 1-D array, got shape {self.dropout.shape}")
+            p = check_vector("dropout", self.dropout, self.dropout.shape[0])
+            bad = (p < 0) | (p >= 1)
+            if np.any(bad):
+                raise _fail(f"dropout[{int(np.argmax(bad))}]", "must be in [0, 1)")
+            object.__setattr__(self, "dropout", p)
+        else:
+            p0 = check_real("dropout", self.dropout)
+            if not 0.0 <= p0 < 1.0:
+                raise _fail("dropout", f"must be in [0, 1), got {p0!r}")
+            object.__setattr__(self, "dropout", p0)
+        object.__setattr__(self, "seed", check_int("seed", self.seed, 0))
+
+    @classmethod
+    def by_name(
+        cls,
+        state_names: Sequence[str],
+        *,
+        noise_std: Mapping[str, float] | None = None,
+        resolution: Mapping[str, float] | None = None,
+        quantiser: str = "floor",
+        dropout: float | Mapping[str, float] = 0.0,
+        seed: int = 0,
+    ) -> "Corruption":
+        """Build from per-state mappings keyed by state name; unnamed states get 0.
+
+        ``Corruption.by_name(lim.STATE_NAMES, resolution={"q_m": 5e-6})``
+        """
+        names = list(state_names)
+
+        def vec(field_name: str, mapping: Mapping[str, float] | None) -> np.ndarray | None:
+            if mapping is None:
+                return None
+            out = np.zeros(len(names))
+            for key, value in mapping.items():
+                if key not in names:
+                    raise _fail(field_name, f"unknown state {key!r}; states are {names}")
+                out[names.index(key)] = check_real(f"{field_name}[{key!r}]", value)
+            return out
+
+        drop: float | np.ndarray = dropout if not isinstance(dropout, Mapping) else vec("dropout", dropout)  # type: ignore[assignment]
+        return cls(noise_std=vec("noise_std", noise_std), resolution=vec("resolution", resolution),
+                   quantiser=quantiser, dropout=drop, seed=seed)
+
+    def check_states(self, n: int) -> None:
+        """ValueError unless every per-state array has n entries."""
+        for name in ("noise_std", "resolution", "dropout"):
+            v = getattr(self, name)
+            if isinstance(v, np.ndarray) and v.shape != (n,):
+                raise _fail(f"corruption.{name}", f"expected shape ({n},) for {n} states, got {v.shape}")
+
+    def to_dict(self) -> dict[str, Any]:
+        def arr(v: Any) -> Any:
+            return v.tolist() if isinstance(v, np.ndarray) else v
+
+        return {"noise_std": arr(self.noise_std), "resolution": arr(self.resolution),
+                "quantiser": self.quantiser, "dropout": arr(self.dropout), "seed": self.seed}
+
+
+def measure(
+    t: np.ndarray,
+    X: np.ndarray,
+    *,
+    dt: float,
+    holds: Sequence[HoldWindow] = (),
+    corruption: Corruption | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """What the identifier sees: ``(X_meas, valid)``, both (T, n).
+
+    Steps, in this order:
+
+    1. reading = X + noise (noise drawn for the whole (T, n) array from the
+       noise stream, so a state's noise does not depend on other states' std);
+    2. reading = quantise(reading) for states with resolution > 0;
+    3. valid = not dropped (dropout stream) and not inside any hold window;
+    4. X_meas[k, j] = reading[k', j] with k' the last valid sample <= k of
+       state j (so X_meas equals the reading where valid); NaN if none.
+    """
+    if not isinstance(t, np.ndarray) or t.ndim != 1 or t.dtype != np.float64:
+        raise _fail("t", "expected a float64 numpy array of shape (T,)")
+    if not isinstance(X, np.ndarray) or X.dtype != np.float64 or X.ndim != 2 or X.shape[0] != t.shape[0]:
+        raise _fail("X", f"expected a float64 numpy array of shape ({t.shape[0]}, n)")
+    dt = check_real("dt", dt, positive=True)
+    T, n = X.shape
+    reading = X.copy()
+    valid = np.ones((T, n), dtype=bool)
+    if corruption is not None:
+        if not isinstance(corruption, Corruption):
+            raise _fail("corruption", f"expected a Corruption or None, got {type(corruption).__name__}")
+        corruption.check_states(n)
+        noise_seq, drop_seq = np.random.SeedSequence(corruption.seed).spawn(2)
+        if corruption.noise_std is not None:
+            reading += np.random.default_rng(noise_seq).standard_normal((T, n)) * corruption.noise_std
+        if corruption.resolution is not None:
+            res = corruption.resolution
+            q = res > 0
+            levels = reading[:, q] / res[q]
+            levels = np.floor(levels) if corruption.quantiser == "floor" else np.round(levels)
+            reading[:, q] = levels * res[q]
+        p = corruption.dropout
+        if isinstance(p, np.ndarray) or p > 0.0:
+            valid &= np.random.default_rng(drop_seq).random((T, n)) >= p
+    if not isinstance(holds, (tuple, list)):
+        raise _fail("holds", f"expected a sequence of HoldWindow, got {type(holds).__name__}")
+    for h, window in enumerate(holds):
+        if not isinstance(window, HoldWindow):
+            raise _fail(f"holds[{h}]", f"expected a HoldWindow, got {type(window).__name__}")
+        if window.state >= n:
+            raise _fail(f"holds[{h}].state", f"state index {window.state} out of range 0..{n - 1}")
+        valid[window.mask(t, dt), window.state] = False
+    # sample-and-hold: index of the last valid sample at or before k, per state
+    idx = np.where(valid, np.arange(T)[:, None], -1)
+    np.maximum.accumulate(idx, axis=0, out=idx)
+    X_meas = np.take_along_axis(reading, np.maximum(idx, 0), axis=0)
+    X_meas[idx < 0] = np.nan
+    return X_meas, valid
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """A sampled run of a plant.
+
+    Attributes
+    ----------
+    t:
+        (T,) sample times t_k = k*dt, float64.
+    X:
+        (T, n) true states x(t_k) (the reference for metrics).
+    U:
+        (T, m) inputs u(t_k); u(k) acts on the step from k to k+1.
+    valid:
+        (T, n) bool, False where a state's measurement is not updated (hold
+        window or dropout).
+    X_meas:
+        (T, n) what the identifier sees: the (noisy, quantised) reading where
+        valid, the held last valid reading where not (NaN if none yet).
+    state_names, input_names:
+        n and m names.
+    dt:
+        Sampling period T in seconds.
+    metadata:
+        Plant name, parameters, scenario, measurement model and sources.
+
+    Arrays must already have exactly these shapes and dtypes (float64, bool);
+    nothing is converted.
+    """
+
+    t: np.ndarray
+    X: np.ndarray
+    U: np.ndarray
+    valid: np.ndarray
+    X_meas: np.ndarray
+    state_names: tuple[str, ...]
+    input_names: tuple[str, ...]
+    dt: float
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        check_real("dt", self.dt, positive=True)
+        if not isinstance(self.t, np.ndarray) or self.t.dtype != np.float64 or self.t.ndim != 1:
+            raise _fail("t", "expected a float64 numpy array of shape (T,)")
+        T = self.t.shape[0]
+        if T < 1:
+            raise _fail("t", "needs at least one sample")
+        if T > 1 and not np.allclose(np.diff(self.t), self.dt, rtol=1e-9, atol=1e-12 * self.dt):
+            raise _fail("t", f"samples must be uniformly spaced by dt = {self.dt!r}")
+        if not isinstance(self.state_names, tuple) or not all(isinstance(s, str) for s in self.state_names):
+            raise _fail("state_names", "expected a tuple of str")
+        if not isinstance(self.input_names, tuple) or not all(isinstance(s, str) for s in self.input_names):
+            raise _fail("input_names", "expected a tuple of str")
+        n, m = len(self.state_names), len(self.input_names)
+        for name, shape, dtype in (("X", (T, n), np.float64), ("U", (T, m), np.float64),
+                                   ("X_meas", (T, n), np.float64), ("valid", (T, n), np.bool_)):
+            a = getattr(self, name)
+            if not isinstance(a, np.ndarray) or a.dtype != dtype or a.shape != shape:
+                got = f"{a.dtype} {a.shape}" if isinstance(a, np.ndarray) else type(a).__name__
+                raise _fail(name, f"expected a {np.dtype(dtype).name} array of shape {shape}, got {got}")
+        for name in ("X", "U"):
+            a = getattr(self, name)
+            if not np.all(np.isfinite(a)):
+                k, j = (int(i) for i in np.argwhere(~np.isfinite(a))[0])
+                raise _fail(f"{name}[{k}, {j}]", "must be finite")
+        bad = ~np.isfinite(self.X_meas) & self.valid
+        if np.any(bad):
+            k, j = (int(i) for i in np.argwhere(bad)[0])
+            raise _fail(f"X_meas[{k}, {j}]", "must be finite where valid is True")
+        if not isinstance(self.metadata, dict):
+            raise _fail("metadata", f"expected a dict, got {type(self.metadata).__name__}")
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def n_states(self) -> int:
+        return len(self.state_names)
+
+    @property
+    def n_inputs(self) -> int:
+        return len(self.input_names)
+
+    def state(self, name: str) -> np.ndarray:
+        """The true samples of one state, by name."""
+        if name not in self.state_names:
+            raise _fail("name", f"unknown state {name!r}; states are {list(self.state_names)}")
+        return self.X[:, self.state_names.index(name)]
+
+    def remeasure(self, *, holds: Sequence[HoldWindow] = (), corruption: Corruption | None = None) -> "Trajectory":
+        """The same true run seen through another measurement model (no re-simulation)."""
+        X_meas, valid = measure(self.t, self.X, dt=self.dt, holds=holds, corruption=corruption)
+        meta = dict(self.metadata)
+        meta["holds"] = [h.to_dict() for h in holds]
+        meta["corruption"] = None if corruption is None else corruption.to_dict()
+        return Trajectory(t=self.t, X=self.X, U=self.U, valid=valid, X_meas=X_meas,
+                          state_names=self.state_names, input_names=self.input_names,
+                          dt=self.dt, metadata=meta)
+
+
+def build_trajectory(
+    *,
+    t: np.ndarray,
+    X: np.ndarray,
+    U: np.ndarray,
+    state_names: tuple[str, ...],
+    input_names: tuple[str, ...],
+    dt: float,
+    holds: Sequence[HoldWindow],
+    corruption: Corruption | None,
+    metadata: dict[str, Any],
+) -> Trajectory:
+    """Apply the measurement model and assemble a :class:`Trajectory` (used by every plant)."""
+    holds = tuple(holds)
+    X_meas, valid = measure(t, X, dt=dt, holds=holds, corruption=corruption)
+    meta = dict(metadata)
+    meta["holds"] = [h.to_dict() for h in holds]
+    meta["corruption"] = None if corruption is None else corruption.to_dict()
+    return Trajectory(t=t, X=X, U=U, valid=valid, X_meas=X_meas, state_names=state_names,
+                      input_names=input_names, dt=dt, metadata=meta)
