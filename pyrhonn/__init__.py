@@ -5,7 +5,7 @@ See README.md for the quick start and ``csrc/include/rhonn.h`` for the C core.
 from __future__ import annotations
 
 from .config import Activation, Factor, FactorKind, IdentifierConfig, NeuronConfig, Term
-from . import terms
+from . import presets, terms
 from .identifier import Identifier, IdentifierError, capacities
 
 __version__ = "0.1.0"
@@ -18,6 +18,7 @@ __all__ = [
     "IdentifierConfig",
     "IdentifierError",
     "capacities",
+    "presets",
     "NeuronConfig",
     "Term",
     "terms",

@@ -20,6 +20,12 @@
 #define RHONN_MAX_REAL 1.7976931348623157e308
 #endif
 
+#if defined(__GNUC__) || defined(__clang__)
+#define RHONN_RESTRICT __restrict__
+#else
+#define RHONN_RESTRICT restrict
+#endif
+
 /* x - x is 0 for finite x and NaN for NaN or +-Inf; portable without
  * isfinite() (which needs C99 libm macros some freestanding targets lack). */
 static int is_finite(rhonn_real v)
@@ -39,13 +45,15 @@ rhonn_real rhonn_exp_neg(rhonn_real a)
     const float LN2_HI = 6.9314575195e-1f;
     const float LN2_LO = 1.4286067653e-6f;
     const float INV_LN2 = 1.4426950409e+0f;
+    union { float f; uint32_t u; } scale;
 #else
     const double LN2_HI = 6.93147180369123816490e-01;
     const double LN2_LO = 1.90821492927058770002e-10;
     const double INV_LN2 = 1.44269504088896338700e+00;
+    union { double f; uint64_t u; } scale;
 #endif
-    rhonn_real r, p, scale;
-    int k, i;
+    rhonn_real r, r2, r4, p;
+    int k;
 
     if (a != a) {
         return a;
@@ -57,39 +65,33 @@ rhonn_real rhonn_exp_neg(rhonn_real a)
         return R(0.0);
     }
     k = (int)(a * INV_LN2 + R(0.5));
-    r = (a - (rhonn_real)k * LN2_HI) - (rhonn_real)k * LN2_LO;  /* exp(-a) = 2^-k exp(-r) */
-    r = -r;
-    /* Taylor polynomial of exp on |r| <= ln2/2 in Horner form; the degree
-     * makes the truncation error below half an ulp. */
+    /* exp(-a) = 2^-k exp(r), r = k ln2 - a in [-ln2/2, ln2/2] */
+    r = ((rhonn_real)k * LN2_HI - a) + (rhonn_real)k * LN2_LO;
+    r2 = r * r;
+    r4 = r2 * r2;
+    /* Taylor polynomial of exp(r), degree chosen so the truncation error is
+     * below half an ulp, evaluated in Estrin form: short dependency chains
+     * instead of one long Horner chain. */
 #ifdef RHONN_SINGLE
-    p = R(1.0) + r * (R(1.0) + r * (R(0.5) + r * (R(1.6666667163e-1) + r * (R(4.1666667908e-2)
-        + r * (R(8.3333337680e-3) + r * (R(1.3888889225e-3) + r * R(1.9841270114e-4)))))));
+    p = ((R(1.0) + r) + r2 * (R(0.5) + r * R(1.6666667163e-1)))
+        + r4 * ((R(4.1666667908e-2) + r * R(8.3333337680e-3))
+                + r2 * (R(1.3888889225e-3) + r * R(1.9841270114e-4)));
+    /* 2^-k built from its bits: exact, and k <= 126 keeps it normal */
+    scale.u = (uint32_t)(127 - k) << 23;
 #else
-    p = R(1.0) + r * (R(1.0) + r * (R(0.5) + r * (1.66666666666666657415e-01
-        + r * (4.16666666666666643537e-02 + r * (8.33333333333333321769e-03
-        + r * (1.38888888888888894189e-03 + r * (1.98412698412698412526e-04
-        + r * (2.48015873015873015658e-05 + r * (2.75573192239858925110e-06
-        + r * (2.75573192239858882740e-07 + r * (2.50521083854417202239e-08
-        + r * (2.08767569878680989792e-09 + r * 1.60590438368216145994e-10))))))))))));
-#endif
-    /* Multiply by 2^-k with exact power-of-two steps (k <= 1022 here, so
-     * no step leaves the normal range). */
-    scale = R(1.0);
-    for (i = 0; i < k / 32; ++i) {
-        scale *= R(2.3283064365386962890625e-10); /* 2^-32 */
-    }
     {
-        rhonn_real half = R(0.5), s2 = R(1.0);
-        int j;
-        for (j = k % 32; j > 0; j >>= 1) {
-            if (j & 1) {
-                s2 *= half;
-            }
-            half *= half;
-        }
-        scale *= s2;
+        const rhonn_real r8 = r4 * r4;
+        p = (((R(1.0) + r) + r2 * (R(0.5) + r * 1.66666666666666657415e-01))
+             + r4 * ((4.16666666666666643537e-02 + r * 8.33333333333333321769e-03)
+                     + r2 * (1.38888888888888894189e-03 + r * 1.98412698412698412526e-04)))
+            + r8 * (((2.48015873015873015658e-05 + r * 2.75573192239858925110e-06)
+                     + r2 * (2.75573192239858882740e-07 + r * 2.50521083854417202239e-08))
+                    + r4 * (2.08767569878680989792e-09 + r * 1.60590438368216145994e-10));
     }
-    return p * scale;
+    /* 2^-k built from its bits: exact, and k <= 1022 keeps it normal */
+    scale.u = (uint64_t)(1023 - k) << 52;
+#endif
+    return p * scale.f;
 }
 
 rhonn_real rhonn_activate(uint8_t activation, rhonn_real beta, rhonn_real s)
@@ -346,74 +348,97 @@ static rhonn_real ipow(rhonn_real v, uint8_t p)
     return acc;
 }
 
+/* Dot product with two accumulators: half the floating-point dependency
+ * chain of a single running sum, same operations on every target. */
+static rhonn_real dot(const rhonn_real *RHONN_RESTRICT a, const rhonn_real *RHONN_RESTRICT b, size_t len)
+{
+    rhonn_real s0 = R(0.0), s1 = R(0.0);
+    size_t c;
+    for (c = 0; c + 1u < len; c += 2u) {
+        s0 += a[c] * b[c];
+        s1 += a[c + 1u] * b[c + 1u];
+    }
+    if (c < len) {
+        s0 += a[c] * b[c];
+    }
+    return s0 + s1;
+}
+
+/* 1 if any of v[0..len) is NaN or +-Inf: v - v is 0 exactly for finite v.
+ * An integer OR, so no floating-point chain and no false alarm. */
+static int any_nonfinite(const rhonn_real *v, size_t len)
+{
+    int bad = 0;
+    size_t c;
+    for (c = 0; c < len; ++c) {
+        const rhonn_real d = v[c] - v[c];
+        bad |= d != d;
+    }
+    return bad;
+}
+
 /* The scalar-measurement EKF update of eq. 7-8 for one neuron, written into
- * the inactive bank. H = z (eq. 11: the network is linear in w). */
+ * the inactive bank. H = z (eq. 11: the network is linear in w). P is the
+ * packed upper triangle: row r holds P(r, r..L-1) contiguously. */
 static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z)
 {
     const rhonn_neuron_config *nc = &net->cfg.neurons[i];
     const size_t L = nc->n_terms;
     const uint8_t b = net->bank[i];
-    const rhonn_real *P = net->p[i][b];
-    rhonn_real *Pn = net->p[i][b ^ 1u];
-    const rhonn_real *w = net->w[i][b];
-    rhonn_real *wn = net->w[i][b ^ 1u];
+    const rhonn_real *RHONN_RESTRICT P = net->p[i][b];
+    rhonn_real *RHONN_RESTRICT Pn = net->p[i][b ^ 1u];
+    const rhonn_real *RHONN_RESTRICT w = net->w[i][b];
+    rhonn_real *RHONN_RESTRICT wn = net->w[i][b ^ 1u];
     rhonn_real pz[RHONN_MAX_TERMS];
-    rhonn_real k[RHONN_MAX_TERMS];
-    rhonn_real s, inv_s, ok;
-    size_t r, c, idx;
+    rhonn_real s, inv_s, gain;
+    size_t r, c, len;
+    const rhonn_real *row;
 
-    /* pz = P z from the packed upper triangle: each off-diagonal entry
-     * serves both (r, c) and (c, r). */
+    /* pz = P z: row r of the triangle gives pz[r] its (r, c >= r) part as a
+     * dot product and scatters zr * P(r, c > r) into pz[c], the (c, r) part. */
     for (r = 0; r < L; ++r) {
         pz[r] = R(0.0);
     }
-    idx = 0;
+    row = P;
     for (r = 0; r < L; ++r) {
-        rhonn_real zr = z[r];
-        rhonn_real acc = pz[r] + P[idx] * zr;
-        ++idx;
-        for (c = r + 1u; c < L; ++c, ++idx) {
-            acc += P[idx] * z[c];
-            pz[c] += P[idx] * zr;
+        const rhonn_real zr = z[r];
+        len = L - r;
+        for (c = 1; c < len; ++c) {
+            pz[r + c] += row[c] * zr;
         }
-        pz[r] = acc;
+        pz[r] += dot(row, &z[r], len);
+        row += len;
     }
     /* eq. 8: M = 1 / (R + z^T P z), a scalar: no matrix inversion. */
-    s = nc->r;
-    for (r = 0; r < L; ++r) {
-        s += z[r] * pz[r];
-    }
+    s = nc->r + dot(z, pz, L);
     if (!is_finite(s) || !(s > R(0.0))) {
         net->fault_neuron = (uint8_t)i;
         return RHONN_E_INNOVATION;
     }
     inv_s = R(1.0) / s;
-    /* eq. 7: K = P z M, and w(k+1) = w + eta K e. */
-    ok = R(0.0);
+    /* eq. 7: K = P z M and w(k+1) = w + eta K e, i.e. w + (eta e M) P z. */
+    gain = nc->eta * e * inv_s;
     for (r = 0; r < L; ++r) {
-        k[r] = pz[r] * inv_s;
-        wn[r] = w[r] + nc->eta * k[r] * e;
-        ok += wn[r] * R(0.0);
+        wn[r] = w[r] + gain * pz[r];
     }
-    if (ok != R(0.0)) { /* some w is NaN or Inf: Inf * 0 and NaN * 0 are NaN */
+    if (any_nonfinite(wn, L)) {
         net->fault_neuron = (uint8_t)i;
         return RHONN_E_DIVERGED;
     }
-    /* eq. 7: P(k+1) = P - K z^T P + Q = P - K (P z)^T + Q, symmetric, so
-     * only the upper triangle is formed. */
-    ok = R(0.0);
-    idx = 0;
+    /* eq. 7: P(k+1) = P - K z^T P + Q = P - (P z)(P z)^T M + Q: symmetric,
+     * so only the upper triangle is formed, row by row. */
+    row = P;
     for (r = 0; r < L; ++r) {
-        rhonn_real kr = k[r];
-        Pn[idx] = (P[idx] - kr * pz[r]) + nc->q[r];
-        ok += Pn[idx] * R(0.0);
-        ++idx;
-        for (c = r + 1u; c < L; ++c, ++idx) {
-            Pn[idx] = P[idx] - kr * pz[c];
-            ok += Pn[idx] * R(0.0);
+        const rhonn_real kr = pz[r] * inv_s;
+        rhonn_real *RHONN_RESTRICT out = Pn + (row - P);
+        len = L - r;
+        for (c = 0; c < len; ++c) {
+            out[c] = row[c] - kr * pz[r + c];
         }
+        out[0] += nc->q[r];
+        row += len;
     }
-    if (ok != R(0.0)) {
+    if (any_nonfinite(Pn, (L * (L + 1u)) / 2u)) {
         net->fault_neuron = (uint8_t)i;
         return RHONN_E_COVARIANCE;
     }

@@ -1,0 +1,38 @@
+# The two commands of the README's quick start, and the pieces they use.
+#   make bench   set up .venv, build and install pyrhonn, run the benchmark
+#   make test    set up .venv, run the Python tests, then the C tests under
+#                CTest (plain, then with AddressSanitizer + UBSan)
+PYTHON ?= python3
+VENV   ?= .venv
+BUILD  ?= build
+JOBS   ?= 2
+
+.PHONY: venv bench test test-python test-c test-c-sanitize clean
+
+venv:
+	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
+	$(VENV)/bin/python -m pip install --quiet --upgrade pip
+	$(VENV)/bin/python -m pip install --quiet ".[test]" cmake
+
+bench: venv
+	$(VENV)/bin/python bench/bench_identifier.py
+
+test: venv test-python test-c test-c-sanitize
+
+# Run from tests/ so the source tree's pyrhonn/ (without compiled
+# extensions) cannot shadow the installed package.
+test-python:
+	cd tests && ../$(VENV)/bin/python -m pytest -q -p no:cacheprovider .
+
+test-c:
+	$(VENV)/bin/cmake -S . -B $(BUILD)/release -DCMAKE_BUILD_TYPE=Release -DRHONN_WERROR=ON
+	$(VENV)/bin/cmake --build $(BUILD)/release -j $(JOBS)
+	$(VENV)/bin/ctest --test-dir $(BUILD)/release --output-on-failure
+
+test-c-sanitize:
+	$(VENV)/bin/cmake -S . -B $(BUILD)/sanitize -DCMAKE_BUILD_TYPE=Debug -DRHONN_SANITIZE=ON -DRHONN_WERROR=ON
+	$(VENV)/bin/cmake --build $(BUILD)/sanitize -j $(JOBS)
+	$(VENV)/bin/ctest --test-dir $(BUILD)/sanitize --output-on-failure
+
+clean:
+	rm -rf $(BUILD) $(VENV) pyrhonn/_rhonn_f*.so pyrhonn/_rhonn_f*.c pyrhonn/_rhonn_f*.o
