@@ -7,6 +7,11 @@
  */
 #include "rhonn.h"
 
+/* The non-finite checks rely on IEEE semantics (v - v is NaN for +-Inf). */
+#if defined(__FAST_MATH__) || defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
+#error "rhonn.c must not be built with -ffast-math or -ffinite-math-only"
+#endif
+
 #define RHONN_MAGIC 0x52484E4EUL /* "RHNN" */
 
 #ifdef RHONN_SINGLE
@@ -392,6 +397,7 @@ static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn
     rhonn_real pz[RHONN_MAX_TERMS];
     rhonn_real s, inv_s, gain;
     size_t r, c, len;
+    int bad = 0;
     const rhonn_real *row;
 
     /* pz = P z: row r of the triangle gives pz[r] its (r, c >= r) part as a
@@ -426,19 +432,26 @@ static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn
         return RHONN_E_DIVERGED;
     }
     /* eq. 7: P(k+1) = P - K z^T P + Q = P - (P z)(P z)^T M + Q: symmetric,
-     * so only the upper triangle is formed, row by row. */
+     * so only the upper triangle is formed, row by row. Each row also sums
+     * v * 0 over its entries, which is NaN iff some entry is NaN or +-Inf:
+     * the overflow check rides along with the update, without a second pass. */
     row = P;
     for (r = 0; r < L; ++r) {
         const rhonn_real kr = pz[r] * inv_s;
         rhonn_real *RHONN_RESTRICT out = Pn + (row - P);
+        rhonn_real diag = (row[0] - kr * pz[r]) + nc->q[r];
+        rhonn_real chk = diag * R(0.0);
+        out[0] = diag;
         len = L - r;
-        for (c = 0; c < len; ++c) {
-            out[c] = row[c] - kr * pz[r + c];
+        for (c = 1; c < len; ++c) {
+            const rhonn_real v = row[c] - kr * pz[r + c];
+            out[c] = v;
+            chk += v * R(0.0);
         }
-        out[0] += nc->q[r];
+        bad |= chk != chk;
         row += len;
     }
-    if (any_nonfinite(Pn, (L * (L + 1u)) / 2u)) {
+    if (bad) {
         net->fault_neuron = (uint8_t)i;
         return RHONN_E_COVARIANCE;
     }
