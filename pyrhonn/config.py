@@ -13,12 +13,12 @@ must be real and finite.
 from __future__ import annotations
 
 import enum
-import math
-from dataclasses import dataclass, field
-from typing import Any, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
 
 import numpy as np
-import numpy.typing as npt
+
+from .validation import check_array, check_int, check_real, fail
 
 __all__ = [
     "Activation",
@@ -53,48 +53,6 @@ class Activation(str, enum.Enum):
         return 0 if self is Activation.LOGISTIC else 1
 
 
-def _fail(path: str, message: str) -> ValueError:
-    return ValueError(f"{path}: {message}")
-
-
-def _check_int(path: str, value: object, lo: int, hi: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise _fail(path, f"expected an integer, got {type(value).__name__} {value!r}")
-    v = int(value)
-    if v < lo or (hi is not None and v > hi):
-        rng = f"{lo}..{hi}" if hi is not None else f">= {lo}"
-        raise _fail(path, f"{v} out of range {rng}")
-    return v
-
-
-def _check_real(path: str, value: object, *, positive: bool = False, nonnegative: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise _fail(path, f"expected a real number, got {type(value).__name__} {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise _fail(path, f"must be finite, got {v!r}")
-    if positive and not v > 0.0:
-        raise _fail(path, f"must be > 0, got {v!r}")
-    if nonnegative and not v >= 0.0:
-        raise _fail(path, f"must be >= 0, got {v!r}")
-    return v
-
-
-def _check_array(path: str, value: object, shape: tuple[int, ...]) -> np.ndarray:
-    if not isinstance(value, np.ndarray):
-        raise _fail(path, f"expected a numpy array of shape {shape}, got {type(value).__name__}")
-    if value.dtype.kind not in "fiu":
-        raise _fail(path, f"expected a real numeric array, got dtype {value.dtype}")
-    if value.shape != shape:
-        raise _fail(path, f"expected shape {shape}, got {value.shape}")
-    arr = np.array(value, dtype=np.float64)  # a private copy: configs are immutable
-    if not np.all(np.isfinite(arr)):
-        bad = tuple(int(i) for i in np.argwhere(~np.isfinite(arr))[0])
-        raise _fail(f"{path}{list(bad)}", "must be finite")
-    arr.setflags(write=False)
-    return arr
-
-
 @dataclass(frozen=True)
 class Factor:
     """One factor xi^d of a high-order term (eq. 4).
@@ -113,14 +71,14 @@ class Factor:
 
     def __post_init__(self) -> None:
         if not isinstance(self.kind, FactorKind):
-            raise _fail("kind", f"expected a FactorKind, got {self.kind!r}")
-        _check_int("index", self.index, 0, 254)
-        _check_int("delay", self.delay, 0, 254)
-        _check_int("power", self.power, 1, 255)
+            raise fail("kind", f"expected a FactorKind, got {self.kind!r}")
+        check_int("index", self.index, 0, 254)
+        check_int("delay", self.delay, 0, 254)
+        check_int("power", self.power, 1, 255)
         if self.kind in (FactorKind.U, FactorKind.ONE) and self.delay != 0:
-            raise _fail("delay", f"a {self.kind.name} factor has no delay, got {self.delay}")
+            raise fail("delay", f"a {self.kind.name} factor has no delay, got {self.delay}")
         if self.kind is FactorKind.ONE and self.index != 0:
-            raise _fail("index", f"a ONE factor has index 0, got {self.index}")
+            raise fail("index", f"a ONE factor has index 0, got {self.index}")
 
     @classmethod
     def s(cls, state: int, delay: int = 0, power: int = 1) -> "Factor":
@@ -152,17 +110,17 @@ class Factor:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], path: str = "factor") -> "Factor":
         if not isinstance(data, Mapping):
-            raise _fail(path, f"expected a table, got {type(data).__name__}")
+            raise fail(path, f"expected a table, got {type(data).__name__}")
         unknown = set(data) - {"kind", "index", "delay", "power"}
         if unknown:
-            raise _fail(path, f"unknown keys {sorted(unknown)}")
+            raise fail(path, f"unknown keys {sorted(unknown)}")
         kind_name = data.get("kind")
         if not isinstance(kind_name, str) or kind_name.upper() not in FactorKind.__members__:
-            raise _fail(f"{path}.kind", f"expected one of {list(FactorKind.__members__)}, got {kind_name!r}")
+            raise fail(f"{path}.kind", f"expected one of {list(FactorKind.__members__)}, got {kind_name!r}")
         try:
             return cls(FactorKind[kind_name.upper()], data.get("index", 0), data.get("delay", 0), data.get("power", 1))
         except ValueError as exc:
-            raise _fail(path, str(exc)) from None
+            raise fail(path, str(exc)) from None
 
 
 Term = tuple[Factor, ...]
@@ -203,45 +161,45 @@ class NeuronConfig:
 
     def __post_init__(self) -> None:
         if not isinstance(self.terms, tuple) or not self.terms:
-            raise _fail("terms", "expected a non-empty tuple of terms")
+            raise fail("terms", "expected a non-empty tuple of terms")
         for t, term in enumerate(self.terms):
             if not isinstance(term, tuple) or not term:
-                raise _fail(f"terms[{t}]", "expected a non-empty tuple of Factor")
+                raise fail(f"terms[{t}]", "expected a non-empty tuple of Factor")
             for f, fac in enumerate(term):
                 if not isinstance(fac, Factor):
-                    raise _fail(f"terms[{t}][{f}]", f"expected a Factor, got {type(fac).__name__}")
+                    raise fail(f"terms[{t}][{f}]", f"expected a Factor, got {type(fac).__name__}")
         if not isinstance(self.activation, Activation):
-            raise _fail("activation", f"expected an Activation, got {self.activation!r}")
-        _check_real("beta", self.beta, positive=True)
-        _check_real("r", self.r, positive=True)
-        _check_real("eta", self.eta, positive=True)
+            raise fail("activation", f"expected an Activation, got {self.activation!r}")
+        check_real("beta", self.beta, positive=True)
+        check_real("r", self.r, positive=True)
+        check_real("eta", self.eta, positive=True)
         L = len(self.terms)
         if isinstance(self.p0, np.ndarray):
             if self.p0.ndim == 1:
-                d = _check_array("p0", self.p0, (L,))
+                d = check_array("p0", self.p0, (L,))
                 if not np.all(d > 0):
-                    raise _fail(f"p0[{int(np.argmin(d > 0))}]", "diagonal entries must be > 0")
+                    raise fail(f"p0[{int(np.argmin(d > 0))}]", "diagonal entries must be > 0")
                 object.__setattr__(self, "p0", d)
             else:
-                full = _check_array("p0", self.p0, (L, L))
+                full = check_array("p0", self.p0, (L, L))
                 if not np.array_equal(full, full.T):
-                    raise _fail("p0", "matrix must be symmetric")
+                    raise fail("p0", "matrix must be symmetric")
                 diag = np.diag(full)
                 if not np.all(diag > 0):
-                    raise _fail(f"p0[{int(np.argmin(diag > 0))}][{int(np.argmin(diag > 0))}]",
+                    raise fail(f"p0[{int(np.argmin(diag > 0))}][{int(np.argmin(diag > 0))}]",
                                 "diagonal entries must be > 0")
                 object.__setattr__(self, "p0", full)
         else:
-            object.__setattr__(self, "p0", _check_real("p0", self.p0, positive=True))
+            object.__setattr__(self, "p0", check_real("p0", self.p0, positive=True))
         if isinstance(self.q, np.ndarray):
-            qd = _check_array("q", self.q, (L,))
+            qd = check_array("q", self.q, (L,))
             if not np.all(qd >= 0):
-                raise _fail(f"q[{int(np.argmin(qd >= 0))}]", "entries must be >= 0")
+                raise fail(f"q[{int(np.argmin(qd >= 0))}]", "entries must be >= 0")
             object.__setattr__(self, "q", qd)
         else:
-            object.__setattr__(self, "q", _check_real("q", self.q, nonnegative=True))
+            object.__setattr__(self, "q", check_real("q", self.q, nonnegative=True))
         if self.w0 is not None:
-            object.__setattr__(self, "w0", _check_array("w0", self.w0, (L,)))
+            object.__setattr__(self, "w0", check_array("w0", self.w0, (L,)))
         for name in ("beta", "r", "eta"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
@@ -293,24 +251,24 @@ class NeuronConfig:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], path: str = "neuron") -> "NeuronConfig":
         if not isinstance(data, Mapping):
-            raise _fail(path, f"expected a table, got {type(data).__name__}")
+            raise fail(path, f"expected a table, got {type(data).__name__}")
         known = {"terms", "activation", "beta", "p0", "q", "r", "eta", "w0"}
         unknown = set(data) - known
         if unknown:
-            raise _fail(path, f"unknown keys {sorted(unknown)}")
+            raise fail(path, f"unknown keys {sorted(unknown)}")
         raw_terms = data.get("terms")
         if not isinstance(raw_terms, Sequence) or isinstance(raw_terms, str):
-            raise _fail(f"{path}.terms", "expected a list of terms")
+            raise fail(f"{path}.terms", "expected a list of terms")
         terms = []
         for t, raw in enumerate(raw_terms):
             if not isinstance(raw, Sequence) or isinstance(raw, str):
-                raise _fail(f"{path}.terms[{t}]", "expected a list of factors")
+                raise fail(f"{path}.terms[{t}]", "expected a list of factors")
             terms.append(tuple(Factor.from_dict(f, f"{path}.terms[{t}][{i}]") for i, f in enumerate(raw)))
         act = data.get("activation", Activation.LOGISTIC.value)
         try:
             activation = Activation(act)
         except ValueError:
-            raise _fail(f"{path}.activation", f"expected one of {[a.value for a in Activation]}, got {act!r}") from None
+            raise fail(f"{path}.activation", f"expected one of {[a.value for a in Activation]}, got {act!r}") from None
 
         def num_or_array(key: str, default: Any) -> Any:
             v = data.get(key, default)
@@ -318,7 +276,7 @@ class NeuronConfig:
                 try:
                     a = np.array(v, dtype=np.float64)
                 except (TypeError, ValueError):
-                    raise _fail(f"{path}.{key}", "expected a list of numbers") from None
+                    raise fail(f"{path}.{key}", "expected a list of numbers") from None
                 return a
             return v
 
@@ -334,7 +292,7 @@ class NeuronConfig:
                 w0=num_or_array("w0", None),
             )
         except ValueError as exc:
-            raise _fail(path, str(exc)) from None
+            raise fail(path, str(exc)) from None
 
 
 @dataclass(frozen=True, eq=False)
@@ -353,27 +311,27 @@ class IdentifierConfig:
     x0: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        n = _check_int("n_states", self.n_states, 1, 255)
-        m = _check_int("n_inputs", self.n_inputs, 0, 255)
+        n = check_int("n_states", self.n_states, 1, 255)
+        m = check_int("n_inputs", self.n_inputs, 0, 255)
         if self.dtype not in DTYPES:
-            raise _fail("dtype", f"expected one of {DTYPES}, got {self.dtype!r}")
+            raise fail("dtype", f"expected one of {DTYPES}, got {self.dtype!r}")
         if not isinstance(self.neurons, tuple):
-            raise _fail("neurons", f"expected a tuple of NeuronConfig, got {type(self.neurons).__name__}")
+            raise fail("neurons", f"expected a tuple of NeuronConfig, got {type(self.neurons).__name__}")
         if len(self.neurons) != n:
-            raise _fail("neurons", f"expected one neuron per state ({n}), got {len(self.neurons)}")
+            raise fail("neurons", f"expected one neuron per state ({n}), got {len(self.neurons)}")
         for i, neuron in enumerate(self.neurons):
             if not isinstance(neuron, NeuronConfig):
-                raise _fail(f"neurons[{i}]", f"expected a NeuronConfig, got {type(neuron).__name__}")
+                raise fail(f"neurons[{i}]", f"expected a NeuronConfig, got {type(neuron).__name__}")
             for t, term in enumerate(neuron.terms):
                 for f, fac in enumerate(term):
                     where = f"neurons[{i}].terms[{t}][{f}].index"
                     if fac.kind in (FactorKind.S, FactorKind.X) and fac.index >= n:
-                        raise _fail(where, f"state index {fac.index} out of range 0..{n - 1}")
+                        raise fail(where, f"state index {fac.index} out of range 0..{n - 1}")
                     if fac.kind is FactorKind.U and fac.index >= m:
-                        raise _fail(where, f"input index {fac.index} out of range 0..{m - 1}"
+                        raise fail(where, f"input index {fac.index} out of range 0..{m - 1}"
                                     if m else f"input index {fac.index} but the identifier has no inputs")
         if self.x0 is not None:
-            object.__setattr__(self, "x0", _check_array("x0", self.x0, (n,)))
+            object.__setattr__(self, "x0", check_array("x0", self.x0, (n,)))
         object.__setattr__(self, "n_states", n)
         object.__setattr__(self, "n_inputs", m)
 
@@ -426,21 +384,21 @@ class IdentifierConfig:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "IdentifierConfig":
         if not isinstance(data, Mapping):
-            raise _fail("config", f"expected a table, got {type(data).__name__}")
+            raise fail("config", f"expected a table, got {type(data).__name__}")
         unknown = set(data) - {"n_states", "n_inputs", "dtype", "x0", "neurons"}
         if unknown:
-            raise _fail("config", f"unknown keys {sorted(unknown)}")
+            raise fail("config", f"unknown keys {sorted(unknown)}")
         for key in ("n_states", "n_inputs", "neurons"):
             if key not in data:
-                raise _fail(key, "missing")
+                raise fail(key, "missing")
         raw = data["neurons"]
         if not isinstance(raw, Sequence) or isinstance(raw, str):
-            raise _fail("neurons", "expected a list of neuron tables")
+            raise fail("neurons", "expected a list of neuron tables")
         neurons = tuple(NeuronConfig.from_dict(nr, f"neurons[{i}]") for i, nr in enumerate(raw))
         x0 = data.get("x0")
         if x0 is not None:
             if not isinstance(x0, (list, tuple)):
-                raise _fail("x0", "expected a list of numbers")
+                raise fail("x0", "expected a list of numbers")
             x0 = np.array(x0, dtype=np.float64)
         return cls(n_states=data["n_states"], n_inputs=data["n_inputs"], neurons=neurons,
                    dtype=data.get("dtype", "float64"), x0=x0)

@@ -7,7 +7,7 @@ import re
 import numpy as np
 import pytest
 
-from pyrhonn import (Activation, Factor, Identifier, IdentifierConfig, IdentifierError, NeuronConfig,
+from pyrhonn import (Factor, Identifier, IdentifierConfig, IdentifierError, NeuronConfig,
                      capacities, terms)
 
 

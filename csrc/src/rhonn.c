@@ -629,93 +629,83 @@ rhonn_status rhonn_run(rhonn_t *net, size_t T, const rhonn_real *X, const rhonn_
 /* ------------------------------------------------------------------------ */
 /* Accessors */
 
-rhonn_status rhonn_get_weights(const rhonn_t *net, size_t neuron, rhonn_real *w, size_t len)
+/* Checks shared by the per-neuron accessors: an initialised net, a buffer,
+ * a neuron in range, and exactly the length that neuron's vector (L_i) or
+ * packed covariance (L_i (L_i + 1) / 2) has. */
+static rhonn_status neuron_access(const rhonn_t *net, const void *buf, size_t neuron, size_t len, int packed)
 {
     rhonn_status st = check_net(net);
-    size_t t;
+    size_t L;
     if (st != RHONN_OK) {
         return st;
     }
-    if (w == NULL) {
+    if (buf == NULL) {
         return RHONN_E_NULL;
     }
-    if (neuron >= net->cfg.n_states || len != net->cfg.neurons[neuron].n_terms) {
+    if (neuron >= net->cfg.n_states) {
         return RHONN_E_ARGUMENT;
     }
+    L = net->cfg.neurons[neuron].n_terms;
+    return len == (packed ? packed_size(L) : L) ? RHONN_OK : RHONN_E_ARGUMENT;
+}
+
+static void copy_reals(rhonn_real *dst, const rhonn_real *src, size_t len)
+{
+    size_t t;
     for (t = 0; t < len; ++t) {
-        w[t] = net->w[neuron][net->bank[neuron]][t];
+        dst[t] = src[t];
     }
-    return RHONN_OK;
+}
+
+rhonn_status rhonn_get_weights(const rhonn_t *net, size_t neuron, rhonn_real *w, size_t len)
+{
+    rhonn_status st = neuron_access(net, w, neuron, len, 0);
+    if (st == RHONN_OK) {
+        copy_reals(w, net->w[neuron][net->bank[neuron]], len);
+    }
+    return st;
 }
 
 rhonn_status rhonn_set_weights(rhonn_t *net, size_t neuron, const rhonn_real *w, size_t len)
 {
-    rhonn_status st = check_net(net);
-    size_t t;
+    rhonn_status st = neuron_access(net, w, neuron, len, 0);
     if (st != RHONN_OK) {
         return st;
     }
-    if (w == NULL) {
-        return RHONN_E_NULL;
+    if (any_nonfinite(w, len)) {
+        return RHONN_E_VALUE;
     }
-    if (neuron >= net->cfg.n_states || len != net->cfg.neurons[neuron].n_terms) {
-        return RHONN_E_ARGUMENT;
-    }
-    for (t = 0; t < len; ++t) {
-        if (!is_finite(w[t])) {
-            return RHONN_E_VALUE;
-        }
-    }
-    for (t = 0; t < len; ++t) {
-        net->w[neuron][net->bank[neuron]][t] = w[t];
-    }
+    copy_reals(net->w[neuron][net->bank[neuron]], w, len);
     return RHONN_OK;
 }
 
 rhonn_status rhonn_get_covariance(const rhonn_t *net, size_t neuron, rhonn_real *p, size_t len)
 {
-    rhonn_status st = check_net(net);
-    size_t t;
-    if (st != RHONN_OK) {
-        return st;
+    rhonn_status st = neuron_access(net, p, neuron, len, 1);
+    if (st == RHONN_OK) {
+        copy_reals(p, net->p[neuron][net->bank[neuron]], len);
     }
-    if (p == NULL) {
-        return RHONN_E_NULL;
-    }
-    if (neuron >= net->cfg.n_states || len != packed_size(net->cfg.neurons[neuron].n_terms)) {
-        return RHONN_E_ARGUMENT;
-    }
-    for (t = 0; t < len; ++t) {
-        p[t] = net->p[neuron][net->bank[neuron]][t];
-    }
-    return RHONN_OK;
+    return st;
 }
 
 rhonn_status rhonn_set_covariance(rhonn_t *net, size_t neuron, const rhonn_real *p, size_t len)
 {
-    rhonn_status st = check_net(net);
-    size_t L, r, c, idx;
+    rhonn_status st = neuron_access(net, p, neuron, len, 1);
+    size_t L, r, diag;
     if (st != RHONN_OK) {
         return st;
     }
-    if (p == NULL) {
-        return RHONN_E_NULL;
+    if (any_nonfinite(p, len)) {
+        return RHONN_E_VALUE;
     }
-    if (neuron >= net->cfg.n_states || len != packed_size(net->cfg.neurons[neuron].n_terms)) {
-        return RHONN_E_ARGUMENT;
-    }
+    /* a covariance has a positive diagonal; row r starts at the diagonal */
     L = net->cfg.neurons[neuron].n_terms;
-    idx = 0;
-    for (r = 0; r < L; ++r) {
-        for (c = r; c < L; ++c, ++idx) {
-            if (!is_finite(p[idx]) || (r == c && !(p[idx] > R(0.0)))) {
-                return RHONN_E_VALUE;
-            }
+    for (r = 0, diag = 0; r < L; diag += L - r, ++r) {
+        if (!(p[diag] > R(0.0))) {
+            return RHONN_E_VALUE;
         }
     }
-    for (idx = 0; idx < len; ++idx) {
-        net->p[neuron][net->bank[neuron]][idx] = p[idx];
-    }
+    copy_reals(net->p[neuron][net->bank[neuron]], p, len);
     return RHONN_OK;
 }
 

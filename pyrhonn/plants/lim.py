@@ -57,10 +57,9 @@ from .trajectory import (
     HoldWindow,
     Trajectory,
     build_trajectory,
-    check_real,
-    check_vector,
     sample_times,
 )
+from ..validation import check_array, check_real
 
 __all__ = [
     "INPUT_NAMES",
@@ -198,8 +197,8 @@ def _f(k: LimConstants, n_p: float, F_L: float, x: Sequence[float], ua: float, u
 def rhs(x: np.ndarray, u: np.ndarray, params: LimParams | None = None) -> np.ndarray:
     """The continuous-time vector field f(x, u), (6,) for x (6,) and u (2,)."""
     p = LimParams() if params is None else params
-    x = check_vector("x", x, 6)
-    u = check_vector("u", u, 2)
+    x = check_array("x", x, (6,))
+    u = check_array("u", u, (2,))
     return np.array(_f(p.constants(), p.n_p, p.F_L, tuple(x), float(u[0]), float(u[1])))
 
 
@@ -243,7 +242,7 @@ def simulate(
         input_meta = {"kind": "array"}
     else:
         raise ValueError(f"inputs: expected a LimInput or a numpy array, got {type(inputs).__name__}")
-    x = tuple(check_vector("x0", x0, 6)) if x0 is not None else (0.0,) * 6
+    x = tuple(check_array("x0", x0, (6,))) if x0 is not None else (0.0,) * 6
     k = p.constants()
     h = float(dt)
     rows = [x]

@@ -59,10 +59,9 @@ from .trajectory import (
     HoldWindow,
     Trajectory,
     build_trajectory,
-    check_real,
-    check_vector,
     sample_times,
 )
+from ..validation import check_array, check_real
 
 __all__ = [
     "CONVERGENCE_BOUND",
@@ -104,7 +103,7 @@ class OscillatorParams:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "tau", check_real("tau", self.tau, positive=True))
-        object.__setattr__(self, "x0", check_vector("x0", self.x0, 4))
+        object.__setattr__(self, "x0", check_array("x0", self.x0, (4,)))
         object.__setattr__(self, "input_frequency", check_real("input_frequency", self.input_frequency))
 
     def to_dict(self) -> dict[str, Any]:
@@ -127,8 +126,8 @@ def _f(t: float, x: Sequence[float], xd: Sequence[float], w: float) -> tuple[flo
 def rhs(t: float, x: np.ndarray, x_delayed: np.ndarray, params: OscillatorParams | None = None) -> np.ndarray:
     """dx/dt of eq. 15 at time t, given x(t) (4,) and x(t - tau) (4,)."""
     p = OscillatorParams() if params is None else params
-    x = check_vector("x", x, 4)
-    x_delayed = check_vector("x_delayed", x_delayed, 4)
+    x = check_array("x", x, (4,))
+    x_delayed = check_array("x_delayed", x_delayed, (4,))
     return np.array(_f(float(t), tuple(x), tuple(x_delayed), p.input_frequency))
 
 

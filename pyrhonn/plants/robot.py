@@ -50,10 +50,9 @@ from .trajectory import (
     HoldWindow,
     Trajectory,
     build_trajectory,
-    check_real,
-    check_vector,
     sample_times,
 )
+from ..validation import check_array, check_real
 
 __all__ = [
     "ChirpInput",
@@ -205,8 +204,8 @@ def _f(k: _Coefficients, x: Sequence[float], u1: float, u2: float) -> tuple[floa
 def rhs(x: np.ndarray, u: np.ndarray, params: RobotParams | None = None) -> np.ndarray:
     """The continuous-time vector field f(chi, u), (7,) for x (7,) and u (2,)."""
     p = RobotParams() if params is None else params
-    x = check_vector("x", x, 7)
-    u = check_vector("u", u, 2)
+    x = check_array("x", x, (7,))
+    u = check_array("u", u, (2,))
     return np.array(_f(_Coefficients(p), tuple(x), float(u[0]), float(u[1])))
 
 
@@ -249,7 +248,7 @@ def simulate(
         input_meta = {"kind": "array"}
     else:
         raise ValueError(f"inputs: expected a ChirpInput or a numpy array, got {type(inputs).__name__}")
-    x = tuple(check_vector("x0", x0, 7)) if x0 is not None else (0.0,) * 7
+    x = tuple(check_array("x0", x0, (7,))) if x0 is not None else (0.0,) * 7
     k = _Coefficients(p)
     h = float(dt)
     X = np.empty((T, 7))

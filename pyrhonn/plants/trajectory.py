@@ -27,55 +27,16 @@ off, and vice versa; the same seed always gives the same trajectory.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from ..validation import check_array, check_int, check_real, fail
+
 __all__ = ["Corruption", "HoldWindow", "Trajectory", "measure", "sample_times"]
 
 QUANTISERS = ("floor", "round")
-
-
-def _fail(path: str, message: str) -> ValueError:
-    return ValueError(f"{path}: {message}")
-
-
-def check_real(path: str, value: object, *, positive: bool = False, nonnegative: bool = False) -> float:
-    """A finite real number (not bool), optionally > 0 or >= 0; ValueError naming ``path``."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise _fail(path, f"expected a real number, got {type(value).__name__} {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise _fail(path, f"must be finite, got {v!r}")
-    if positive and not v > 0.0:
-        raise _fail(path, f"must be > 0, got {v!r}")
-    if nonnegative and not v >= 0.0:
-        raise _fail(path, f"must be >= 0, got {v!r}")
-    return v
-
-
-def check_int(path: str, value: object, lo: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise _fail(path, f"expected an integer, got {type(value).__name__} {value!r}")
-    if int(value) < lo:
-        raise _fail(path, f"must be >= {lo}, got {int(value)}")
-    return int(value)
-
-
-def check_vector(path: str, value: object, n: int) -> np.ndarray:
-    """A float64 copy of a real, finite numpy vector of exactly shape (n,)."""
-    if not isinstance(value, np.ndarray):
-        raise _fail(path, f"expected a numpy array of shape ({n},), got {type(value).__name__}")
-    if value.dtype.kind not in "fiu":
-        raise _fail(path, f"expected a real numeric array, got dtype {value.dtype}")
-    if value.shape != (n,):
-        raise _fail(path, f"expected shape ({n},), got {value.shape}")
-    arr = np.array(value, dtype=np.float64)
-    if not np.all(np.isfinite(arr)):
-        raise _fail(f"{path}[{int(np.argmin(np.isfinite(arr)))}]", "must be finite")
-    return arr
 
 
 def check_multiple(path: str, value: float, unit: float, unit_name: str) -> int:
@@ -83,7 +44,7 @@ def check_multiple(path: str, value: float, unit: float, unit_name: str) -> int:
     ratio = value / unit
     k = round(ratio)
     if k < 1 or abs(ratio - k) > 1e-9 * max(1.0, abs(ratio)):
-        raise _fail(path, f"{value!r} must be a positive integer multiple of {unit_name} = {unit!r}")
+        raise fail(path, f"{value!r} must be a positive integer multiple of {unit_name} = {unit!r}")
     return int(k)
 
 
@@ -167,25 +128,25 @@ class Corruption:
             if v is None:
                 continue
             if not isinstance(v, np.ndarray) or v.ndim != 1:
-                raise _fail(name, f"expected a 1-D numpy array (one entry per state) or None, got {v!r}")
-            arr = check_vector(name, v, v.shape[0])
+                raise fail(name, f"expected a 1-D numpy array (one entry per state) or None, got {v!r}")
+            arr = check_array(name, v, (v.shape[0],))
             if np.any(arr < 0):
-                raise _fail(f"{name}[{int(np.argmax(arr < 0))}]", "must be >= 0")
+                raise fail(f"{name}[{int(np.argmax(arr < 0))}]", "must be >= 0")
             object.__setattr__(self, name, arr)
         if self.quantiser not in QUANTISERS:
-            raise _fail("quantiser", f"expected one of {QUANTISERS}, got {self.quantiser!r}")
+            raise fail("quantiser", f"expected one of {QUANTISERS}, got {self.quantiser!r}")
         if isinstance(self.dropout, np.ndarray):
             if self.dropout.ndim != 1:
-                raise _fail("dropout", f"expected a scalar or a 1-D array, got shape {self.dropout.shape}")
-            p = check_vector("dropout", self.dropout, self.dropout.shape[0])
+                raise fail("dropout", f"expected a scalar or a 1-D array, got shape {self.dropout.shape}")
+            p = check_array("dropout", self.dropout, (self.dropout.shape[0],))
             bad = (p < 0) | (p >= 1)
             if np.any(bad):
-                raise _fail(f"dropout[{int(np.argmax(bad))}]", "must be in [0, 1)")
+                raise fail(f"dropout[{int(np.argmax(bad))}]", "must be in [0, 1)")
             object.__setattr__(self, "dropout", p)
         else:
             p0 = check_real("dropout", self.dropout)
             if not 0.0 <= p0 < 1.0:
-                raise _fail("dropout", f"must be in [0, 1), got {p0!r}")
+                raise fail("dropout", f"must be in [0, 1), got {p0!r}")
             object.__setattr__(self, "dropout", p0)
         object.__setattr__(self, "seed", check_int("seed", self.seed, 0))
 
@@ -212,7 +173,7 @@ class Corruption:
             out = np.zeros(len(names))
             for key, value in mapping.items():
                 if key not in names:
-                    raise _fail(field_name, f"unknown state {key!r}; states are {names}")
+                    raise fail(field_name, f"unknown state {key!r}; states are {names}")
                 out[names.index(key)] = check_real(f"{field_name}[{key!r}]", value)
             return out
 
@@ -225,7 +186,7 @@ class Corruption:
         for name in ("noise_std", "resolution", "dropout"):
             v = getattr(self, name)
             if isinstance(v, np.ndarray) and v.shape != (n,):
-                raise _fail(f"corruption.{name}", f"expected shape ({n},) for {n} states, got {v.shape}")
+                raise fail(f"corruption.{name}", f"expected shape ({n},) for {n} states, got {v.shape}")
 
     def to_dict(self) -> dict[str, Any]:
         def arr(v: Any) -> Any:
@@ -255,16 +216,16 @@ def measure(
        state j (so X_meas equals the reading where valid); NaN if none.
     """
     if not isinstance(t, np.ndarray) or t.ndim != 1 or t.dtype != np.float64:
-        raise _fail("t", "expected a float64 numpy array of shape (T,)")
+        raise fail("t", "expected a float64 numpy array of shape (T,)")
     if not isinstance(X, np.ndarray) or X.dtype != np.float64 or X.ndim != 2 or X.shape[0] != t.shape[0]:
-        raise _fail("X", f"expected a float64 numpy array of shape ({t.shape[0]}, n)")
+        raise fail("X", f"expected a float64 numpy array of shape ({t.shape[0]}, n)")
     dt = check_real("dt", dt, positive=True)
     T, n = X.shape
     reading = X.copy()
     valid = np.ones((T, n), dtype=bool)
     if corruption is not None:
         if not isinstance(corruption, Corruption):
-            raise _fail("corruption", f"expected a Corruption or None, got {type(corruption).__name__}")
+            raise fail("corruption", f"expected a Corruption or None, got {type(corruption).__name__}")
         corruption.check_states(n)
         noise_seq, drop_seq = np.random.SeedSequence(corruption.seed).spawn(2)
         if corruption.noise_std is not None:
@@ -279,12 +240,12 @@ def measure(
         if isinstance(p, np.ndarray) or p > 0.0:
             valid &= np.random.default_rng(drop_seq).random((T, n)) >= p
     if not isinstance(holds, (tuple, list)):
-        raise _fail("holds", f"expected a sequence of HoldWindow, got {type(holds).__name__}")
+        raise fail("holds", f"expected a sequence of HoldWindow, got {type(holds).__name__}")
     for h, window in enumerate(holds):
         if not isinstance(window, HoldWindow):
-            raise _fail(f"holds[{h}]", f"expected a HoldWindow, got {type(window).__name__}")
+            raise fail(f"holds[{h}]", f"expected a HoldWindow, got {type(window).__name__}")
         if window.state >= n:
-            raise _fail(f"holds[{h}].state", f"state index {window.state} out of range 0..{n - 1}")
+            raise fail(f"holds[{h}].state", f"state index {window.state} out of range 0..{n - 1}")
         valid[window.mask(t, dt), window.state] = False
     # sample-and-hold: index of the last valid sample at or before k, per state
     idx = np.where(valid, np.arange(T)[:, None], -1)
@@ -336,34 +297,34 @@ class Trajectory:
     def __post_init__(self) -> None:
         check_real("dt", self.dt, positive=True)
         if not isinstance(self.t, np.ndarray) or self.t.dtype != np.float64 or self.t.ndim != 1:
-            raise _fail("t", "expected a float64 numpy array of shape (T,)")
+            raise fail("t", "expected a float64 numpy array of shape (T,)")
         T = self.t.shape[0]
         if T < 1:
-            raise _fail("t", "needs at least one sample")
+            raise fail("t", "needs at least one sample")
         if T > 1 and not np.allclose(np.diff(self.t), self.dt, rtol=1e-9, atol=1e-12 * self.dt):
-            raise _fail("t", f"samples must be uniformly spaced by dt = {self.dt!r}")
+            raise fail("t", f"samples must be uniformly spaced by dt = {self.dt!r}")
         if not isinstance(self.state_names, tuple) or not all(isinstance(s, str) for s in self.state_names):
-            raise _fail("state_names", "expected a tuple of str")
+            raise fail("state_names", "expected a tuple of str")
         if not isinstance(self.input_names, tuple) or not all(isinstance(s, str) for s in self.input_names):
-            raise _fail("input_names", "expected a tuple of str")
+            raise fail("input_names", "expected a tuple of str")
         n, m = len(self.state_names), len(self.input_names)
         for name, shape, dtype in (("X", (T, n), np.float64), ("U", (T, m), np.float64),
                                    ("X_meas", (T, n), np.float64), ("valid", (T, n), np.bool_)):
             a = getattr(self, name)
             if not isinstance(a, np.ndarray) or a.dtype != dtype or a.shape != shape:
                 got = f"{a.dtype} {a.shape}" if isinstance(a, np.ndarray) else type(a).__name__
-                raise _fail(name, f"expected a {np.dtype(dtype).name} array of shape {shape}, got {got}")
+                raise fail(name, f"expected a {np.dtype(dtype).name} array of shape {shape}, got {got}")
         for name in ("X", "U"):
             a = getattr(self, name)
             if not np.all(np.isfinite(a)):
                 k, j = (int(i) for i in np.argwhere(~np.isfinite(a))[0])
-                raise _fail(f"{name}[{k}, {j}]", "must be finite")
+                raise fail(f"{name}[{k}, {j}]", "must be finite")
         bad = ~np.isfinite(self.X_meas) & self.valid
         if np.any(bad):
             k, j = (int(i) for i in np.argwhere(bad)[0])
-            raise _fail(f"X_meas[{k}, {j}]", "must be finite where valid is True")
+            raise fail(f"X_meas[{k}, {j}]", "must be finite where valid is True")
         if not isinstance(self.metadata, dict):
-            raise _fail("metadata", f"expected a dict, got {type(self.metadata).__name__}")
+            raise fail("metadata", f"expected a dict, got {type(self.metadata).__name__}")
 
     @property
     def n_samples(self) -> int:
@@ -380,7 +341,7 @@ class Trajectory:
     def state(self, name: str) -> np.ndarray:
         """The true samples of one state, by name."""
         if name not in self.state_names:
-            raise _fail("name", f"unknown state {name!r}; states are {list(self.state_names)}")
+            raise fail("name", f"unknown state {name!r}; states are {list(self.state_names)}")
         return self.X[:, self.state_names.index(name)]
 
     def remeasure(self, *, holds: Sequence[HoldWindow] = (), corruption: Corruption | None = None) -> "Trajectory":

@@ -1,0 +1,80 @@
+"""Argument checks shared by every public entry of pyrhonn.
+
+Each check raises ``ValueError`` whose message starts with the path of the
+offending field (``neurons[2].beta: must be > 0, got 0.0``) and never
+converts silently: a bool is not an integer, a list is not an array, a
+complex or object array is not real.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["fail", "check_int", "check_real", "check_array", "check_data"]
+
+
+def fail(path: str, message: str) -> ValueError:
+    """The ValueError every check raises: ``"<path>: <message>"``."""
+    return ValueError(f"{path}: {message}")
+
+
+def check_int(path: str, value: object, lo: int, hi: int | None = None) -> int:
+    """An integer (not bool) in ``lo..hi`` (``hi`` None: no upper bound)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise fail(path, f"expected an integer, got {type(value).__name__} {value!r}")
+    v = int(value)
+    if v < lo or (hi is not None and v > hi):
+        rng = f"{lo}..{hi}" if hi is not None else f">= {lo}"
+        raise fail(path, f"{v} out of range {rng}")
+    return v
+
+
+def check_real(path: str, value: object, *, positive: bool = False, nonnegative: bool = False) -> float:
+    """A finite real number (not bool), optionally > 0 or >= 0."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise fail(path, f"expected a real number, got {type(value).__name__} {value!r}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise fail(path, f"must be finite, got {v!r}")
+    if positive and not v > 0.0:
+        raise fail(path, f"must be > 0, got {v!r}")
+    if nonnegative and not v >= 0.0:
+        raise fail(path, f"must be >= 0, got {v!r}")
+    return v
+
+
+def _first_nonfinite(a: np.ndarray) -> str:
+    return ", ".join(str(int(i)) for i in np.argwhere(~np.isfinite(a))[0])
+
+
+def check_array(path: str, value: object, shape: tuple[int, ...]) -> np.ndarray:
+    """Configuration data: a real numpy array of exactly ``shape``, all
+    finite; returns a read-only float64 copy (configs are immutable)."""
+    if not isinstance(value, np.ndarray):
+        raise fail(path, f"expected a numpy array of shape {shape}, got {type(value).__name__}")
+    if value.dtype.kind not in "fiu":
+        raise fail(path, f"expected a real numeric array, got dtype {value.dtype}")
+    if value.shape != shape:
+        raise fail(path, f"expected shape {shape}, got {value.shape}")
+    arr = np.array(value, dtype=np.float64)
+    if not np.all(np.isfinite(arr)):
+        raise fail(f"{path}[{_first_nonfinite(arr)}]", "must be finite")
+    arr.setflags(write=False)
+    return arr
+
+
+def check_data(path: str, value: object, shape: tuple[int, ...], dtype: np.dtype | str = "float64") -> np.ndarray:
+    """Run-time data: exactly ``dtype`` and ``shape``, all finite; returned
+    as is (no copy)."""
+    dt = np.dtype(dtype)
+    if not isinstance(value, np.ndarray):
+        raise fail(path, f"expected a {dt} numpy array of shape {shape}, got {type(value).__name__}")
+    if value.dtype != dt:
+        raise fail(path, f"expected dtype {dt}, got {value.dtype}")
+    if value.shape != shape:
+        raise fail(path, f"expected shape {shape}, got {value.shape}")
+    if not np.all(np.isfinite(value)):
+        idx = _first_nonfinite(value)
+        raise fail(f"{path}[{idx}]", f"must be finite, got {value[tuple(int(i) for i in idx.split(', '))]!r}")
+    return value
