@@ -1,0 +1,29 @@
+"""The ``pyrhonn`` command line: dispatch, exit codes, and the info command."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from pyrhonn.cli import main
+
+
+def test_info_reports_the_compiled_capacities(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["info", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["capacities"]["RHONN_MAX_STATES"] >= 6
+    assert data["sizeof_rhonn_t"]["float64"] > data["sizeof_rhonn_t"]["float32"]
+
+
+def test_missing_or_unknown_command_exits_2_with_usage() -> None:
+    for argv in ([], ["no-such-command"]):
+        with pytest.raises(SystemExit) as info:
+            main(argv)
+        assert info.value.code == 2
+
+
+def test_console_module_runs() -> None:
+    out = subprocess.run([sys.executable, "-m", "pyrhonn.cli", "info"], capture_output=True, text=True, check=True)
+    assert "RHONN_MAX_TERMS" in out.stdout
