@@ -59,7 +59,8 @@ def make_ffi(dtype: str) -> FFI:
         '#include "rhonn.h"',
         sources=["csrc/src/rhonn.c"],
         include_dirs=["csrc/include"],
-        define_macros=[("RHONN_SINGLE", "1")] if dtype == "float32" else [],
+        # The host has room for one unrolled EKF kernel per neuron size.
+        define_macros=[("RHONN_UNROLL", "1")] + ([("RHONN_SINGLE", "1")] if dtype == "float32" else []),
         extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math"],
     )
     return ffi

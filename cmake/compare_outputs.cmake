@@ -1,0 +1,16 @@
+# Runs two programs and fails unless their standard outputs are identical.
+# usage: cmake -DA=<exe> -DB=<exe> -DOUT=<dir> -P compare_outputs.cmake
+file(MAKE_DIRECTORY ${OUT})
+foreach(which A B)
+  execute_process(COMMAND ${${which}} OUTPUT_FILE ${OUT}/${which}.out RESULT_VARIABLE rc)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${${which}} exited with ${rc}")
+  endif()
+endforeach()
+execute_process(COMMAND ${CMAKE_COMMAND} -E compare_files ${OUT}/A.out ${OUT}/B.out RESULT_VARIABLE same)
+if(NOT same EQUAL 0)
+  message(FATAL_ERROR "outputs of ${A} and ${B} differ")
+endif()
+file(STRINGS ${OUT}/A.out lines)
+list(LENGTH lines n)
+message(STATUS "${n} lines identical")
