@@ -1,13 +1,14 @@
 # The two commands of the README's quick start, and the pieces they use.
 #   make bench   set up .venv, build and install pyrhonn, run the benchmark
 #   make test    set up .venv, run the Python tests, then the C tests under
-#                CTest (plain, then with AddressSanitizer + UBSan)
+#                CTest (plain, then with AddressSanitizer + UBSan), then the
+#                SocketCAN tests inside a VM with vcan0 (SKIP_VM=1 skips it)
 PYTHON ?= python3
 VENV   ?= .venv
 BUILD  ?= build
 JOBS   ?= 2
 
-.PHONY: venv bench test test-python test-c test-c-sanitize clean
+.PHONY: venv bench test test-python test-c test-c-sanitize test-vm clean
 
 venv:
 	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
@@ -17,7 +18,7 @@ venv:
 bench: venv
 	$(VENV)/bin/python bench/bench_identifier.py
 
-test: venv test-python test-c test-c-sanitize
+test: venv test-python test-c test-c-sanitize test-vm
 
 # Run from tests/ so the source tree's pyrhonn/ (without compiled
 # extensions) cannot shadow the installed package.
@@ -33,6 +34,16 @@ test-c-sanitize:
 	$(VENV)/bin/cmake -S . -B $(BUILD)/sanitize -DCMAKE_BUILD_TYPE=Debug -DRHONN_SANITIZE=ON -DRHONN_WERROR=ON
 	$(VENV)/bin/cmake --build $(BUILD)/sanitize -j $(JOBS)
 	$(VENV)/bin/ctest --test-dir $(BUILD)/sanitize --output-on-failure
+
+# This kernel may have no CAN: the vcan-marked tests run in a QEMU VM with
+# the host's userspace (hil/vm/run_in_vm.py installs what it needs).
+test-vm:
+ifeq ($(SKIP_VM),1)
+	@echo "test-vm: skipped (SKIP_VM=1)"
+else
+	python3 hil/vm/run_in_vm.py --out $(BUILD)/vm --venv $(BUILD)/virtme-venv -- \
+	  sh -c 'cd tests && ../$(VENV)/bin/python -m pytest -q -p no:cacheprovider -m vcan .'
+endif
 
 clean:
 	rm -rf $(BUILD) $(VENV) pyrhonn/_rhonn_f*.so pyrhonn/_rhonn_f*.c pyrhonn/_rhonn_f*.o
