@@ -8,7 +8,7 @@ VENV   ?= .venv
 BUILD  ?= build
 JOBS   ?= 2
 
-.PHONY: venv bench test test-python test-c test-c-sanitize test-vm clean
+.PHONY: venv bench test test-python test-c test-c-sanitize test-fuzz test-vm clean
 
 venv:
 	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
@@ -18,7 +18,7 @@ venv:
 bench: venv
 	$(VENV)/bin/python bench/bench_identifier.py
 
-test: venv test-python test-c test-c-sanitize test-vm
+test: venv test-python test-c test-c-sanitize test-fuzz test-vm
 
 # Run from tests/ so the source tree's pyrhonn/ (without compiled
 # extensions) cannot shadow the installed package.
@@ -35,6 +35,26 @@ test-c-sanitize:
 	$(VENV)/bin/cmake --build $(BUILD)/sanitize -j $(JOBS)
 	$(VENV)/bin/ctest --test-dir $(BUILD)/sanitize --output-on-failure
 
+# libFuzzer on the firmware's frame-receive entry, with ASan and UBSan, for
+# FUZZ_SECONDS from a seed corpus: a crash, a sanitizer report or a rejected
+# frame that changes the filter fails the run (firmware_sim/fuzz/).
+CLANG ?= clang-14
+FUZZ_SECONDS ?= 60
+FW_FLAGS = -std=c99 -ffp-contract=off -DRHONN_SINGLE -Icsrc/include -Ifirmware_sim/app \
+	-Ifirmware_sim/generated -Ifirmware_sim/config
+FW_SOURCES = firmware_sim/app/fw_app.c firmware_sim/app/fw_protocol.c firmware_sim/app/fw_hal_mem.c \
+	firmware_sim/generated/rhonn_id.c csrc/src/rhonn.c
+test-fuzz:
+	mkdir -p $(BUILD)/fuzz/corpus
+	$(CLANG) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $(FW_FLAGS) \
+	  firmware_sim/fuzz/fuzz_on_frame.c $(FW_SOURCES) -o $(BUILD)/fuzz/fuzz_on_frame
+	cc -Wall -Wextra $(FW_FLAGS) firmware_sim/fuzz/make_seeds.c firmware_sim/generated/rhonn_id.c \
+	  -o $(BUILD)/fuzz/make_seeds
+	$(BUILD)/fuzz/make_seeds $(BUILD)/fuzz/corpus
+	$(BUILD)/fuzz/fuzz_on_frame -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 \
+	  -artifact_prefix=$(BUILD)/fuzz/ $(BUILD)/fuzz/corpus > $(BUILD)/fuzz/log 2>&1; \
+	  rc=$$?; tail -n 8 $(BUILD)/fuzz/log; exit $$rc
+
 # This kernel may have no CAN: the vcan-marked tests run in a QEMU VM with
 # the host's userspace (hil/vm/run_in_vm.py installs what it needs).
 test-vm:
@@ -46,4 +66,4 @@ else
 endif
 
 clean:
-	rm -rf $(BUILD) $(VENV) pyrhonn/_rhonn_f*.so pyrhonn/_rhonn_f*.c pyrhonn/_rhonn_f*.o
+	rm -rf $(BUILD) $(VENV) pyrhonn/_rhonn_f*.so pyrhonn/_rhonn_f*.c pyrhonn/_rhonn_f*.o pyrhonn/_fwapp*

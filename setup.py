@@ -5,4 +5,4 @@ only from setup(), so this file carries that one argument.
 """
 from setuptools import setup
 
-setup(cffi_modules=["pyrhonn/_build.py:ffi_f64", "pyrhonn/_build.py:ffi_f32"])
+setup(cffi_modules=["pyrhonn/_build.py:ffi_f64", "pyrhonn/_build.py:ffi_f32", "pyrhonn/_build.py:ffi_fwapp"])

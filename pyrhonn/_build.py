@@ -1,4 +1,5 @@
-"""cffi (API mode) builders for the C core, one extension per precision.
+"""cffi (API mode) builders for the C core, one extension per precision, and
+for the firmware application of firmware_sim (``pyrhonn._fwapp``).
 
 ``pyrhonn._rhonn_f64`` and ``pyrhonn._rhonn_f32`` are compiled from the very
 same ``csrc/src/rhonn.c`` that firmware links, with the capacities of
@@ -15,6 +16,7 @@ import os
 import re
 import shlex
 import subprocess
+import tempfile
 from pathlib import Path
 
 from cffi import FFI
@@ -66,10 +68,100 @@ def make_ffi(dtype: str) -> FFI:
     return ffi
 
 
+FIRMWARE = ROOT / "firmware_sim"
+FIRMWARE_INCLUDES = ("csrc/include", "firmware_sim/app", "firmware_sim/generated")
+FIRMWARE_SOURCES = ("csrc/src/rhonn.c", "firmware_sim/app/fw_app.c", "firmware_sim/app/fw_protocol.c",
+                    "firmware_sim/app/fw_hal_mem.c", "firmware_sim/generated/rhonn_id.c")
+FIRMWARE_CONSTANTS = CONSTANTS + (
+    "FW_N_STATES", "FW_N_INPUTS", "FW_WEIGHTS_PER_FRAME", "FW_MAX_FRAME_LEN", "FW_MEM_HAL_DEPTH", "FW_FRAME_FD",
+    "FW_FRAME_BRS", "FW_CAN_EFF_FLAG", "FW_CAN_RTR_FLAG", "FW_CAN_ERR_FLAG",
+)
+# Host glue of pyrhonn._fwapp: the in-memory HAL with the host's monotonic
+# clock, and the DBC the extension was built from (so the Python side of the
+# protocol can never read another one).
+FIRMWARE_GLUE = """
+#include <time.h>
+#include "fw_app.h"
+#include "fw_hal_mem.h"
+#include "rhonn_id.h"
+
+uint64_t fwpy_now_ns(void)
+{
+    struct timespec ts;
+    if (clock_gettime(CLOCK_MONOTONIC, &ts) != 0) return 0;
+    return (uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec;
+}
+
+static fw_status fwpy_host_now(void *ctx, uint64_t *ns)
+{
+    (void)ctx;
+    *ns = fwpy_now_ns();
+    return *ns ? FW_OK : FW_E_HAL;
+}
+
+fw_status fwpy_bind_hal(fw_mem_hal *m, fw_hal *hal, int host_clock)
+{
+    fw_status st = fw_mem_hal_init(m, hal);
+    if (st == FW_OK && host_clock) hal->now = fwpy_host_now;
+    return st;
+}
+
+static const unsigned char fwpy_dbc_bytes[] = {%s};
+size_t fwpy_dbc(const unsigned char **text)
+{
+    *text = fwpy_dbc_bytes;
+    return sizeof fwpy_dbc_bytes;
+}
+"""
+FIRMWARE_GLUE_CDEF = """
+uint64_t fwpy_now_ns(void);
+fw_status fwpy_bind_hal(fw_mem_hal *m, fw_hal *hal, int host_clock);
+size_t fwpy_dbc(const unsigned char **text);
+"""
+
+
+def firmware_declarations() -> str:
+    """The firmware application's headers (fw_app.h with rhonn.h and
+    fw_protocol.h, fw_hal_mem.h, and the cantools-generated rhonn_id.h) run
+    through the C preprocessor for the float32 core, with empty stand-ins
+    for the system headers whose types cffi knows itself."""
+    with tempfile.TemporaryDirectory() as stubs:
+        for name in ("stddef.h", "stdint.h", "stdbool.h"):
+            (Path(stubs) / name).write_text("")
+        source = "".join(f'#include "{h}"\n' for h in ("fw_app.h", "fw_hal_mem.h", "rhonn_id.h"))
+        cc = shlex.split(os.environ.get("CC", "cc"))
+        result = subprocess.run([*cc, "-E", "-P", "-nostdinc", "-isystem", stubs, "-x", "c", "-DRHONN_SINGLE",
+                                 *(f"-I{ROOT / d}" for d in FIRMWARE_INCLUDES), "-"], input=source,
+                                capture_output=True, text=True, check=False)
+    if result.returncode != 0:
+        raise RuntimeError(f"preprocessing the firmware headers failed: {result.stderr}")
+    return "".join(f"#define {name} ...\n" for name in FIRMWARE_CONSTANTS) + result.stdout + FIRMWARE_GLUE_CDEF
+
+
+def make_fwapp_ffi() -> FFI:
+    """The builder of pyrhonn._fwapp: firmware_sim's application (fw_app,
+    the generated pack/unpack of rhonn_id.dbc, the in-memory HAL) on the
+    float32 core, the firmware's precision, compiled from the same sources
+    and flags as the CMake targets."""
+    ffi = FFI()
+    ffi.cdef(firmware_declarations())
+    dbc = (FIRMWARE / "rhonn_id.dbc").read_bytes()
+    ffi.set_source(
+        "pyrhonn._fwapp",
+        FIRMWARE_GLUE % ", ".join(str(b) for b in dbc),
+        sources=list(FIRMWARE_SOURCES),
+        include_dirs=list(FIRMWARE_INCLUDES),
+        define_macros=[("RHONN_UNROLL", "1"), ("RHONN_SINGLE", "1")],
+        extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math"],
+    )
+    return ffi
+
+
 ffi_f64 = make_ffi("float64")
 ffi_f32 = make_ffi("float32")
+ffi_fwapp = make_fwapp_ffi()
 
 if __name__ == "__main__":
     os.chdir(ROOT)
-    for builder in (ffi_f64, ffi_f32):
+    for builder in (ffi_f64, ffi_f32, ffi_fwapp):
         builder.compile(tmpdir=str(ROOT), verbose=True)

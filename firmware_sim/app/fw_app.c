@@ -1,0 +1,526 @@
+/*
+ * fw_app.c - the RHONN identifier as a CAN FD application. See fw_app.h.
+ */
+#include "fw_app.h"
+
+#include <string.h>
+
+#include "rhonn_id.h"
+
+#define FW_APP_MAGIC 0x46574150u /* "FWAP" */
+
+/* The status numbers travel in ControlAck.Result and Diagnostics.LastReject:
+ * they must be the DBC's. A mismatch does not compile. */
+#define FW_STATIC_ASSERT(name, cond) typedef char fw_static_assert_##name[(cond) ? 1 : -1]
+FW_STATIC_ASSERT(ok, FW_OK == RHONN_ID_CONTROL_ACK_RESULT_OK_CHOICE);
+FW_STATIC_ASSERT(null, FW_E_NULL == RHONN_ID_CONTROL_ACK_RESULT_NULL_CHOICE);
+FW_STATIC_ASSERT(not_init, FW_E_NOT_INIT == RHONN_ID_CONTROL_ACK_RESULT_NOT_INIT_CHOICE);
+FW_STATIC_ASSERT(config, FW_E_CONFIG == RHONN_ID_CONTROL_ACK_RESULT_CONFIG_CHOICE);
+FW_STATIC_ASSERT(unknown_id, FW_E_UNKNOWN_ID == RHONN_ID_CONTROL_ACK_RESULT_UNKNOWN_ID_CHOICE);
+FW_STATIC_ASSERT(length, FW_E_LENGTH == RHONN_ID_CONTROL_ACK_RESULT_LENGTH_CHOICE);
+FW_STATIC_ASSERT(range, FW_E_RANGE == RHONN_ID_CONTROL_ACK_RESULT_RANGE_CHOICE);
+FW_STATIC_ASSERT(seq_repeat, FW_E_SEQ_REPEAT == RHONN_ID_CONTROL_ACK_RESULT_SEQ_REPEAT_CHOICE);
+FW_STATIC_ASSERT(seq_jump, FW_E_SEQ_JUMP == RHONN_ID_CONTROL_ACK_RESULT_SEQ_JUMP_CHOICE);
+FW_STATIC_ASSERT(state, FW_E_STATE == RHONN_ID_CONTROL_ACK_RESULT_STATE_CHOICE);
+FW_STATIC_ASSERT(weights, FW_E_WEIGHTS == RHONN_ID_CONTROL_ACK_RESULT_WEIGHTS_CHOICE);
+FW_STATIC_ASSERT(step, FW_E_STEP == RHONN_ID_CONTROL_ACK_RESULT_STEP_CHOICE);
+FW_STATIC_ASSERT(hal, FW_E_HAL == RHONN_ID_CONTROL_ACK_RESULT_HAL_CHOICE);
+FW_STATIC_ASSERT(empty, FW_E_EMPTY == RHONN_ID_CONTROL_ACK_RESULT_EMPTY_CHOICE);
+FW_STATIC_ASSERT(diag_table,
+                 RHONN_ID_DIAGNOSTICS_LAST_REJECT_EMPTY_CHOICE == RHONN_ID_CONTROL_ACK_RESULT_EMPTY_CHOICE);
+/* Estimate.StepStatus carries rhonn_status in 4 bits. */
+FW_STATIC_ASSERT(step_status, RHONN_E_VALUE == RHONN_ID_ESTIMATE_STEP_STATUS_VALUE_CHOICE && RHONN_E_VALUE <= 15);
+FW_STATIC_ASSERT(frame_sizes,
+                 RHONN_ID_WEIGHT_LOAD_LENGTH <= FW_MAX_FRAME_LEN && RHONN_ID_MEASUREMENT_LENGTH <= FW_MAX_FRAME_LEN);
+FW_STATIC_ASSERT(missing_fits, RHONN_MAX_STATES * RHONN_MAX_TERMS <= 65535);
+
+static int app_ready(const fw_app *app)
+{
+    return app->magic == FW_APP_MAGIC;
+}
+
+static uint32_t clamp_u32(uint64_t v)
+{
+    return v > 0xFFFFFFFFu ? 0xFFFFFFFFu : (uint32_t)v;
+}
+
+/* ns -> the Diagnostics' 10 ns unit, saturating at 655.35 us. */
+static uint16_t to_10ns(uint32_t ns)
+{
+    uint32_t v = ns / 10u;
+    return v > 0xFFFFu ? (uint16_t)0xFFFFu : (uint16_t)v;
+}
+
+static fw_status reject(fw_app *app, fw_status why)
+{
+    fw_counters *c = &app->counters;
+
+    ++c->rejected;
+    c->last_reject = (uint8_t)why;
+    switch (why) {
+    case FW_E_UNKNOWN_ID: ++c->rejected_unknown_id; break;
+    case FW_E_LENGTH: ++c->rejected_length; break;
+    case FW_E_RANGE: ++c->rejected_range; break;
+    case FW_E_SEQ_REPEAT: ++c->rejected_seq_repeat; break;
+    case FW_E_SEQ_JUMP: ++c->rejected_seq_jump; break;
+    case FW_E_STATE: ++c->rejected_state; break;
+    case FW_E_WEIGHTS: ++c->rejected_weights; break;
+    default: break;
+    }
+    return why;
+}
+
+static fw_status send_frame(fw_app *app, uint32_t id, const uint8_t *data, uint8_t len)
+{
+    fw_frame f;
+
+    memset(&f, 0, sizeof f);
+    f.id = id;
+    f.len = len;
+    f.flags = (uint8_t)(FW_FRAME_FD | FW_FRAME_BRS);
+    memcpy(f.data, data, len);
+    if (app->hal.send(app->hal.ctx, &f) != FW_OK) {
+        ++app->counters.hal_errors;
+        return FW_E_HAL;
+    }
+    ++app->counters.frames_out;
+    return FW_OK;
+}
+
+static void close_weights(fw_app *app)
+{
+    app->weights_open = 0;
+    app->weights_missing = 0;
+    memset(app->w_stage, 0, sizeof app->w_stage);
+    memset(app->w_have, 0, sizeof app->w_have);
+}
+
+static void open_weights(fw_app *app)
+{
+    uint16_t missing = 0;
+    uint8_t i;
+
+    close_weights(app);
+    for (i = 0; i < app->n_states; ++i) {
+        missing = (uint16_t)(missing + app->n_terms[i]);
+    }
+    app->weights_open = 1;
+    app->weights_missing = missing;
+}
+
+/* Back to the configuration: w(0), P(0), x0, empty history, learning on,
+ * sequence counter unanchored, open weight transfer dropped. */
+static fw_status reset_identifier(fw_app *app)
+{
+    if (rhonn_reset(&app->net) != RHONN_OK) {
+        return FW_E_STATE;
+    }
+    app->learning = 1;
+    app->started = 0;
+    app->anchored = 0;
+    app->resync = 1;
+    app->have_last_time = 0;
+    close_weights(app);
+    return FW_OK;
+}
+
+fw_status fw_app_init(fw_app *app, const fw_app_config *cfg, const fw_hal *hal)
+{
+    const rhonn_config *id;
+    uint8_t i;
+
+    if (app == NULL || cfg == NULL || hal == NULL || cfg->identifier == NULL) {
+        return FW_E_NULL;
+    }
+    id = cfg->identifier;
+    if (hal->send == NULL || hal->now == NULL) {
+        return FW_E_CONFIG;
+    }
+    if (id->n_states != FW_N_STATES || id->n_inputs != FW_N_INPUTS) {
+        return FW_E_CONFIG;
+    }
+    /* rhonn_init validates and leaves net untouched when it refuses. */
+    if (rhonn_init(&app->net, id, NULL) != RHONN_OK) {
+        return FW_E_CONFIG;
+    }
+    app->hal = *hal;
+    app->deadline_ns = cfg->deadline_ns;
+    app->diag_period = cfg->diag_period;
+    app->since_diag = 0;
+    app->n_states = id->n_states;
+    memset(app->n_terms, 0, sizeof app->n_terms);
+    for (i = 0; i < id->n_states; ++i) {
+        app->n_terms[i] = id->neurons[i].n_terms;
+    }
+    memset(&app->counters, 0, sizeof app->counters);
+    app->last_seq = 0;
+    app->diag_counter = 0;
+    app->last_time_ns = 0;
+    app->magic = FW_APP_MAGIC;
+    return reset_identifier(app);
+}
+
+static fw_status on_measurement(fw_app *app, const uint8_t *data, size_t len, uint64_t now_ns)
+{
+    fw_measurement m;
+    fw_estimate e;
+    uint8_t frame[RHONN_ID_ESTIMATE_LENGTH];
+    rhonn_status rs;
+    fw_status st;
+    uint64_t t_end;
+    fw_counters *c = &app->counters;
+
+    st = fw_measurement_decode(data, len, &m);
+    if (st != FW_OK) {
+        return reject(app, st);
+    }
+    if (app->anchored) {
+        if (m.seq == app->last_seq) {
+            return reject(app, FW_E_SEQ_REPEAT);
+        }
+        if (m.seq != (uint16_t)(app->last_seq + 1u)) {
+            app->last_seq = m.seq; /* re-anchor: the next consecutive frame is accepted */
+            app->resync = 1;
+            return reject(app, FW_E_SEQ_JUMP);
+        }
+    }
+
+    /* Accepted: exactly one step. */
+    rs = rhonn_step(&app->net, m.x, m.u, m.valid, e.xhat);
+    app->anchored = 1;
+    app->last_seq = m.seq;
+    ++c->measurements;
+    c->last_step_status = (uint8_t)rs;
+    if (rs == RHONN_OK) {
+        app->started = 1;
+    } else {
+        /* The filter is unchanged; send the last good prediction x_hat(k). */
+        ++c->step_errors;
+        (void)rhonn_get_prediction(&app->net, e.xhat, FW_N_STATES);
+    }
+    e.seq = m.seq;
+    e.step_status = (uint8_t)rs;
+    e.learning = app->learning;
+    e.resync = app->resync;
+    app->resync = 0;
+    st = fw_estimate_encode(&e, frame, sizeof frame, NULL);
+    if (st == FW_OK) {
+        st = send_frame(app, RHONN_ID_ESTIMATE_FRAME_ID, frame, (uint8_t)RHONN_ID_ESTIMATE_LENGTH);
+    }
+
+    if (app->have_last_time) {
+        c->cycle_time_ns = now_ns >= app->last_time_ns ? clamp_u32(now_ns - app->last_time_ns) : 0u;
+    }
+    app->last_time_ns = now_ns;
+    app->have_last_time = 1;
+    if (app->hal.now(app->hal.ctx, &t_end) == FW_OK) {
+        uint32_t step = t_end >= now_ns ? clamp_u32(t_end - now_ns) : 0u;
+        c->step_time_ns = step;
+        if (step > c->step_time_max_ns) {
+            c->step_time_max_ns = step;
+        }
+        if (step > c->step_time_worst_ns) {
+            c->step_time_worst_ns = step;
+        }
+        if (app->deadline_ns != 0u && step > app->deadline_ns) {
+            ++c->overruns;
+        }
+    } else {
+        ++c->hal_errors;
+        st = FW_E_HAL;
+    }
+
+    if (app->diag_period != 0u) {
+        ++app->since_diag;
+        if (app->since_diag >= app->diag_period && fw_app_send_diagnostics(app) != FW_OK) {
+            st = FW_E_HAL;
+        }
+    }
+    return rs != RHONN_OK ? FW_E_STEP : st;
+}
+
+static fw_status commit_weights(fw_app *app)
+{
+    rhonn_real saved[RHONN_MAX_STATES][RHONN_MAX_TERMS];
+    uint8_t i, j;
+
+    if (!app->weights_open) {
+        return FW_E_STATE;
+    }
+    if (app->weights_missing != 0u) {
+        return FW_E_WEIGHTS; /* stays open: the missing chunks may still come */
+    }
+    for (i = 0; i < app->n_states; ++i) {
+        if (rhonn_get_weights(&app->net, i, saved[i], app->n_terms[i]) != RHONN_OK) {
+            return FW_E_WEIGHTS;
+        }
+    }
+    /* All or nothing: should the core refuse one neuron, put back the ones
+     * already replaced. (Every staged value is finite, so it does not.) */
+    for (i = 0; i < app->n_states; ++i) {
+        if (rhonn_set_weights(&app->net, i, app->w_stage[i], app->n_terms[i]) != RHONN_OK) {
+            for (j = 0; j < i; ++j) {
+                (void)rhonn_set_weights(&app->net, j, saved[j], app->n_terms[j]);
+            }
+            return FW_E_WEIGHTS;
+        }
+    }
+    close_weights(app);
+    return FW_OK;
+}
+
+static fw_status on_control(fw_app *app, const uint8_t *data, size_t len)
+{
+    struct rhonn_id_control_t f;
+    struct rhonn_id_control_ack_t a;
+    uint8_t frame[RHONN_ID_CONTROL_ACK_LENGTH];
+    fw_status result = FW_OK, sent;
+    int diag = 0;
+
+    if (len != RHONN_ID_CONTROL_LENGTH) {
+        return reject(app, FW_E_LENGTH);
+    }
+    if (rhonn_id_control_unpack(&f, data, len) != 0) {
+        return reject(app, FW_E_LENGTH);
+    }
+    if (!rhonn_id_control_command_is_in_range(f.command)) {
+        return reject(app, FW_E_RANGE);
+    }
+    switch (f.command) {
+    case RHONN_ID_CONTROL_COMMAND_RESET_CHOICE:
+        result = reset_identifier(app);
+        break;
+    case RHONN_ID_CONTROL_COMMAND_LEARNING_OFF_CHOICE:
+    case RHONN_ID_CONTROL_COMMAND_LEARNING_ON_CHOICE: {
+        int on = f.command == RHONN_ID_CONTROL_COMMAND_LEARNING_ON_CHOICE;
+        if (rhonn_set_learning(&app->net, on) == RHONN_OK) {
+            app->learning = (uint8_t)on;
+        } else {
+            result = FW_E_STATE;
+        }
+        break;
+    }
+    case RHONN_ID_CONTROL_COMMAND_WEIGHTS_BEGIN_CHOICE:
+        open_weights(app);
+        break;
+    case RHONN_ID_CONTROL_COMMAND_WEIGHTS_COMMIT_CHOICE:
+        result = commit_weights(app);
+        break;
+    case RHONN_ID_CONTROL_COMMAND_WEIGHTS_ABORT_CHOICE:
+        if (app->weights_open) {
+            close_weights(app);
+        } else {
+            result = FW_E_STATE;
+        }
+        break;
+    case RHONN_ID_CONTROL_COMMAND_DIAG_REQUEST_CHOICE:
+        diag = 1;
+        break;
+    default:
+        return reject(app, FW_E_RANGE); /* not reached: the range check above */
+    }
+
+    (void)rhonn_id_control_ack_init(&a);
+    a.command = f.command;
+    a.token = f.token;
+    a.result = (uint8_t)result;
+    a.missing = app->weights_open ? app->weights_missing : 0u;
+    if (rhonn_id_control_ack_pack(frame, &a, sizeof frame) == (int)RHONN_ID_CONTROL_ACK_LENGTH) {
+        sent = send_frame(app, RHONN_ID_CONTROL_ACK_FRAME_ID, frame, (uint8_t)RHONN_ID_CONTROL_ACK_LENGTH);
+    } else {
+        sent = FW_E_LENGTH; /* not reached: the buffer is the DBC length */
+    }
+    if (result != FW_OK) {
+        return reject(app, result);
+    }
+    ++app->counters.commands;
+    if (diag && fw_app_send_diagnostics(app) != FW_OK) {
+        sent = FW_E_HAL;
+    }
+    return sent;
+}
+
+static fw_status on_weight_load(fw_app *app, const uint8_t *data, size_t len)
+{
+    fw_weight_chunk c;
+    fw_status st;
+    uint8_t k;
+
+    st = fw_weight_chunk_decode(data, len, &c);
+    if (st != FW_OK) {
+        return reject(app, st);
+    }
+    if (!app->weights_open) {
+        return reject(app, FW_E_STATE);
+    }
+    if (c.neuron >= app->n_states || (unsigned)c.first + c.count > app->n_terms[c.neuron]) {
+        return reject(app, FW_E_RANGE);
+    }
+    for (k = 0; k < c.count; ++k) {
+        uint8_t t = (uint8_t)(c.first + k);
+        app->w_stage[c.neuron][t] = (rhonn_real)c.w[k];
+        if (!app->w_have[c.neuron][t]) {
+            app->w_have[c.neuron][t] = 1;
+            --app->weights_missing;
+        }
+    }
+    ++app->counters.weight_chunks;
+    return FW_OK;
+}
+
+fw_status fw_app_on_frame(fw_app *app, uint32_t id, const uint8_t *data, size_t len, uint64_t now_ns)
+{
+    if (app == NULL) {
+        return FW_E_NULL;
+    }
+    if (!app_ready(app)) {
+        return FW_E_NOT_INIT;
+    }
+    if (data == NULL && len != 0u) {
+        return FW_E_NULL;
+    }
+    ++app->counters.frames_in;
+    switch (id) {
+    case RHONN_ID_MEASUREMENT_FRAME_ID:
+        return on_measurement(app, data, len, now_ns);
+    case RHONN_ID_CONTROL_FRAME_ID:
+        return on_control(app, data, len);
+    case RHONN_ID_WEIGHT_LOAD_FRAME_ID:
+        return on_weight_load(app, data, len);
+    default:
+        return reject(app, FW_E_UNKNOWN_ID);
+    }
+}
+
+fw_status fw_app_poll(fw_app *app, uint32_t max_frames, uint32_t *handled)
+{
+    uint32_t n = 0;
+    fw_status st = FW_OK;
+
+    if (app == NULL) {
+        return FW_E_NULL;
+    }
+    if (!app_ready(app)) {
+        return FW_E_NOT_INIT;
+    }
+    if (app->hal.receive == NULL) {
+        return FW_E_CONFIG;
+    }
+    while (n < max_frames) {
+        fw_frame f;
+        uint64_t t = 0;
+        fw_status got = app->hal.receive(app->hal.ctx, &f);
+        if (got == FW_E_EMPTY) {
+            break;
+        }
+        if (got != FW_OK || app->hal.now(app->hal.ctx, &t) != FW_OK) {
+            ++app->counters.hal_errors;
+            st = FW_E_HAL;
+            break;
+        }
+        (void)fw_app_on_frame(app, f.id, f.data, f.len, t);
+        ++n;
+    }
+    if (handled != NULL) {
+        *handled = n;
+    }
+    return st;
+}
+
+fw_status fw_app_send_diagnostics(fw_app *app)
+{
+    struct rhonn_id_diagnostics_t d;
+    uint8_t frame[RHONN_ID_DIAGNOSTICS_LENGTH];
+    const fw_counters *c;
+    fw_status st;
+
+    if (app == NULL) {
+        return FW_E_NULL;
+    }
+    if (!app_ready(app)) {
+        return FW_E_NOT_INIT;
+    }
+    c = &app->counters;
+    (void)rhonn_id_diagnostics_init(&d);
+    d.counter = app->diag_counter;
+    d.last_seq = app->last_seq;
+    d.cycle_time = to_10ns(c->cycle_time_ns);
+    d.step_time = to_10ns(c->step_time_ns);
+    d.step_time_max = to_10ns(c->step_time_max_ns);
+    d.overruns = (uint16_t)(c->overruns & 0xFFFFu);
+    d.rejected = (uint16_t)(c->rejected & 0xFFFFu);
+    d.last_reject = c->last_reject;
+    d.step_errors = (uint16_t)(c->step_errors & 0xFFFFu);
+    d.step_status = (uint8_t)(c->last_step_status & 0x0Fu);
+    d.learning = app->learning;
+    d.started = app->started;
+    d.weights_open = app->weights_open;
+    d.synced = app->anchored;
+    d.measurements = c->measurements;
+    d.seq_errors = (uint16_t)((c->rejected_seq_repeat + c->rejected_seq_jump) & 0xFFFFu);
+    if (rhonn_id_diagnostics_pack(frame, &d, sizeof frame) != (int)RHONN_ID_DIAGNOSTICS_LENGTH) {
+        return FW_E_LENGTH; /* not reached */
+    }
+    st = send_frame(app, RHONN_ID_DIAGNOSTICS_FRAME_ID, frame, (uint8_t)RHONN_ID_DIAGNOSTICS_LENGTH);
+    app->diag_counter = (uint8_t)(app->diag_counter + 1u);
+    app->since_diag = 0;
+    app->counters.step_time_max_ns = 0;
+    return st;
+}
+
+fw_status fw_app_note_overrun(fw_app *app)
+{
+    if (app == NULL) {
+        return FW_E_NULL;
+    }
+    if (!app_ready(app)) {
+        return FW_E_NOT_INIT;
+    }
+    ++app->counters.overruns;
+    return FW_OK;
+}
+
+fw_status fw_app_get_counters(const fw_app *app, fw_counters *out)
+{
+    if (app == NULL || out == NULL) {
+        return FW_E_NULL;
+    }
+    if (!app_ready(app)) {
+        return FW_E_NOT_INIT;
+    }
+    *out = app->counters;
+    return FW_OK;
+}
+
+fw_status fw_app_get_identifier(const fw_app *app, const rhonn_t **net)
+{
+    if (app == NULL || net == NULL) {
+        return FW_E_NULL;
+    }
+    if (!app_ready(app)) {
+        return FW_E_NOT_INIT;
+    }
+    *net = &app->net;
+    return FW_OK;
+}
+
+const char *fw_status_name(fw_status status)
+{
+    switch (status) {
+    case FW_OK: return "FW_OK";
+    case FW_E_NULL: return "FW_E_NULL";
+    case FW_E_NOT_INIT: return "FW_E_NOT_INIT";
+    case FW_E_CONFIG: return "FW_E_CONFIG";
+    case FW_E_UNKNOWN_ID: return "FW_E_UNKNOWN_ID";
+    case FW_E_LENGTH: return "FW_E_LENGTH";
+    case FW_E_RANGE: return "FW_E_RANGE";
+    case FW_E_SEQ_REPEAT: return "FW_E_SEQ_REPEAT";
+    case FW_E_SEQ_JUMP: return "FW_E_SEQ_JUMP";
+    case FW_E_STATE: return "FW_E_STATE";
+    case FW_E_WEIGHTS: return "FW_E_WEIGHTS";
+    case FW_E_STEP: return "FW_E_STEP";
+    case FW_E_HAL: return "FW_E_HAL";
+    case FW_E_EMPTY: return "FW_E_EMPTY";
+    default: return "FW_E_UNKNOWN_STATUS";
+    }
+}

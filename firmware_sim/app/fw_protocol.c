@@ -1,0 +1,232 @@
+/*
+ * fw_protocol.c - Measurement/Estimate/WeightLoad in physical units over the
+ * cantools-generated pack/unpack of rhonn_id.dbc. See fw_protocol.h.
+ */
+#include "fw_protocol.h"
+
+#include <string.h>
+
+#include "rhonn_id.h"
+#include "rhonn_id_limits.h"
+
+/* Round to the nearest integer, ties to even (Python's round()), for
+ * |v| < 2^52 (the caller clips v to the int32 range first). */
+static int64_t round_half_even(double v)
+{
+    int64_t t = (int64_t)v; /* toward zero */
+    double frac = v - (double)t;
+
+    if (frac > 0.5 || (frac == 0.5 && (t & 1) != 0)) {
+        return t + 1;
+    }
+    if (frac < -0.5 || (frac == -0.5 && (t & 1) != 0)) {
+        return t - 1;
+    }
+    return t;
+}
+
+fw_status fw_quantise(double value, double scale, int32_t raw_min, int32_t raw_max, int32_t *raw,
+                      uint8_t *saturated)
+{
+    double v;
+    int64_t r;
+    uint8_t sat = 0;
+
+    if (raw == NULL) {
+        return FW_E_NULL;
+    }
+    if (!(scale > 0.0) || raw_min > raw_max) {
+        return FW_E_RANGE;
+    }
+    v = value / scale; /* as cantools: (value - offset) / scale, offset 0 */
+    if (v != v) {
+        r = 0;
+        sat = 1;
+    } else if (v < (double)raw_min - 1.0) { /* also -inf; keeps the cast below defined */
+        r = raw_min;
+        sat = 1;
+    } else if (v > (double)raw_max + 1.0) {
+        r = raw_max;
+        sat = 1;
+    } else {
+        r = round_half_even(v);
+        if (r < raw_min) {
+            r = raw_min;
+            sat = 1;
+        } else if (r > raw_max) {
+            r = raw_max;
+            sat = 1;
+        }
+    }
+    *raw = (int32_t)r;
+    if (saturated != NULL) {
+        *saturated = sat;
+    }
+    return FW_OK;
+}
+
+fw_status fw_measurement_decode(const uint8_t *data, size_t len, fw_measurement *m)
+{
+    struct rhonn_id_measurement_t f;
+    fw_measurement out;
+    int in_range;
+
+    if (m == NULL) {
+        return FW_E_NULL;
+    }
+    if (len != RHONN_ID_MEASUREMENT_LENGTH) {
+        return FW_E_LENGTH;
+    }
+    if (data == NULL) {
+        return FW_E_NULL;
+    }
+    if (rhonn_id_measurement_unpack(&f, data, len) != 0) {
+        return FW_E_LENGTH;
+    }
+    /* A state flagged invalid is not range-checked: the rig may send a
+     * sentinel there, and the core ignores it. Inputs are always used. */
+    in_range = rhonn_id_measurement_seq_is_in_range(f.seq)
+        && rhonn_id_measurement_valid_qm_is_in_range(f.valid_qm)
+        && rhonn_id_measurement_valid_v_is_in_range(f.valid_v)
+        && rhonn_id_measurement_valid_lambda_a_is_in_range(f.valid_lambda_a)
+        && rhonn_id_measurement_valid_lambda_b_is_in_range(f.valid_lambda_b)
+        && rhonn_id_measurement_valid_ia_is_in_range(f.valid_ia)
+        && rhonn_id_measurement_valid_ib_is_in_range(f.valid_ib)
+        && (!f.valid_qm || rhonn_id_measurement_qm_is_in_range(f.qm))
+        && (!f.valid_v || rhonn_id_measurement_v_is_in_range(f.v))
+        && (!f.valid_lambda_a || rhonn_id_measurement_lambda_a_is_in_range(f.lambda_a))
+        && (!f.valid_lambda_b || rhonn_id_measurement_lambda_b_is_in_range(f.lambda_b))
+        && (!f.valid_ia || rhonn_id_measurement_ia_is_in_range(f.ia))
+        && (!f.valid_ib || rhonn_id_measurement_ib_is_in_range(f.ib))
+        && rhonn_id_measurement_ua_is_in_range(f.ua)
+        && rhonn_id_measurement_ub_is_in_range(f.ub);
+    if (!in_range) {
+        return FW_E_RANGE;
+    }
+    out.seq = f.seq;
+    out.valid[0] = f.valid_qm;
+    out.valid[1] = f.valid_v;
+    out.valid[2] = f.valid_lambda_a;
+    out.valid[3] = f.valid_lambda_b;
+    out.valid[4] = f.valid_ia;
+    out.valid[5] = f.valid_ib;
+    out.x[0] = (rhonn_real)rhonn_id_measurement_qm_decode(f.qm);
+    out.x[1] = (rhonn_real)rhonn_id_measurement_v_decode(f.v);
+    out.x[2] = (rhonn_real)rhonn_id_measurement_lambda_a_decode(f.lambda_a);
+    out.x[3] = (rhonn_real)rhonn_id_measurement_lambda_b_decode(f.lambda_b);
+    out.x[4] = (rhonn_real)rhonn_id_measurement_ia_decode(f.ia);
+    out.x[5] = (rhonn_real)rhonn_id_measurement_ib_decode(f.ib);
+    out.u[0] = (rhonn_real)rhonn_id_measurement_ua_decode(f.ua);
+    out.u[1] = (rhonn_real)rhonn_id_measurement_ub_decode(f.ub);
+    *m = out;
+    return FW_OK;
+}
+
+#define FW_QUANTISE(field, value, SIG)                                                        \
+    do {                                                                                      \
+        int32_t raw_;                                                                         \
+        uint8_t sat_ = 0;                                                                     \
+        (void)fw_quantise((double)(value), SIG##_SCALE, SIG##_RAW_MIN, SIG##_RAW_MAX, &raw_, &sat_); \
+        (field) = raw_;                                                                       \
+        sat |= sat_;                                                                          \
+    } while (0)
+
+#define FW_QUANTISE16(field, value, SIG)                                                      \
+    do {                                                                                      \
+        int32_t raw_;                                                                         \
+        uint8_t sat_ = 0;                                                                     \
+        (void)fw_quantise((double)(value), SIG##_SCALE, SIG##_RAW_MIN, SIG##_RAW_MAX, &raw_, &sat_); \
+        (field) = (int16_t)raw_; /* within the DBC range, which fits the field */             \
+        sat |= sat_;                                                                          \
+    } while (0)
+
+fw_status fw_estimate_encode(const fw_estimate *e, uint8_t *data, size_t size, uint8_t *saturated)
+{
+    struct rhonn_id_estimate_t f;
+    uint8_t sat = 0;
+
+    if (e == NULL || data == NULL) {
+        return FW_E_NULL;
+    }
+    if (size < RHONN_ID_ESTIMATE_LENGTH) {
+        return FW_E_LENGTH;
+    }
+    if (!rhonn_id_estimate_step_status_is_in_range(e->step_status)) {
+        return FW_E_RANGE;
+    }
+    (void)rhonn_id_estimate_init(&f);
+    f.seq = e->seq;
+    f.step_status = e->step_status;
+    f.learning = e->learning ? 1u : 0u;
+    f.resync = e->resync ? 1u : 0u;
+    FW_QUANTISE(f.qm_hat, e->xhat[0], RHONN_ID_ESTIMATE_QM_HAT);
+    FW_QUANTISE16(f.v_hat, e->xhat[1], RHONN_ID_ESTIMATE_V_HAT);
+    FW_QUANTISE16(f.lambda_a_hat, e->xhat[2], RHONN_ID_ESTIMATE_LAMBDA_A_HAT);
+    FW_QUANTISE16(f.lambda_b_hat, e->xhat[3], RHONN_ID_ESTIMATE_LAMBDA_B_HAT);
+    FW_QUANTISE16(f.ia_hat, e->xhat[4], RHONN_ID_ESTIMATE_IA_HAT);
+    FW_QUANTISE16(f.ib_hat, e->xhat[5], RHONN_ID_ESTIMATE_IB_HAT);
+    f.saturated = sat;
+    if (rhonn_id_estimate_pack(data, &f, size) != (int)RHONN_ID_ESTIMATE_LENGTH) {
+        return FW_E_LENGTH;
+    }
+    if (saturated != NULL) {
+        *saturated = sat;
+    }
+    return FW_OK;
+}
+
+fw_status fw_weight_chunk_decode(const uint8_t *data, size_t len, fw_weight_chunk *c)
+{
+    struct rhonn_id_weight_load_t f;
+    fw_weight_chunk out;
+    uint8_t k;
+
+    if (c == NULL) {
+        return FW_E_NULL;
+    }
+    if (len != RHONN_ID_WEIGHT_LOAD_LENGTH) {
+        return FW_E_LENGTH;
+    }
+    if (data == NULL) {
+        return FW_E_NULL;
+    }
+    if (rhonn_id_weight_load_unpack(&f, data, len) != 0) {
+        return FW_E_LENGTH;
+    }
+    if (!rhonn_id_weight_load_neuron_is_in_range(f.neuron) || !rhonn_id_weight_load_first_is_in_range(f.first)
+        || !rhonn_id_weight_load_count_is_in_range(f.count) || f.count > FW_WEIGHTS_PER_FRAME) {
+        return FW_E_RANGE;
+    }
+    memset(&out, 0, sizeof out);
+    out.neuron = f.neuron;
+    out.first = f.first;
+    out.count = f.count;
+    out.w[0] = f.w00;
+    out.w[1] = f.w01;
+    out.w[2] = f.w02;
+    out.w[3] = f.w03;
+    out.w[4] = f.w04;
+    out.w[5] = f.w05;
+    out.w[6] = f.w06;
+    out.w[7] = f.w07;
+    out.w[8] = f.w08;
+    out.w[9] = f.w09;
+    out.w[10] = f.w10;
+    out.w[11] = f.w11;
+    out.w[12] = f.w12;
+    out.w[13] = f.w13;
+    out.w[14] = f.w14;
+    /* The generated range check of a float signal is false for NaN and
+     * for values beyond the DBC's +-3.4e38 (so for +-Inf too). All fifteen
+     * signals share one range; W00's check stands for each. */
+    for (k = 0; k < out.count; ++k) {
+        if (!rhonn_id_weight_load_w00_is_in_range(out.w[k])) {
+            return FW_E_RANGE;
+        }
+    }
+    for (k = out.count; k < FW_WEIGHTS_PER_FRAME; ++k) {
+        out.w[k] = 0.0f; /* past count: ignored */
+    }
+    *c = out;
+    return FW_OK;
+}

@@ -1,0 +1,88 @@
+/*
+ * fw_protocol.h - the identifier's CAN messages in physical units, on top of
+ * the pack/unpack code cantools generates from rhonn_id.dbc
+ * (firmware_sim/generated/rhonn_id.[ch]). This layer maps signals to state
+ * and input indices and fixes the two conversions the generated code leaves
+ * open:
+ *
+ *   decode  physical = (double)raw * scale, then rounded to rhonn_real
+ *           (the generated *_decode(); cantools computes the same double in
+ *           Python, so a float32 build sees exactly np.float32(decoded)).
+ *   encode  raw = (double)value / scale rounded to nearest, ties to even
+ *           (what cantools' encode does in Python: round((v - 0) / scale)),
+ *           then saturated to the signal's DBC range.
+ *
+ * State order is the LIM's, x = [q_m, v, lambda_a, lambda_b, i_a, i_b],
+ * u = [u_a, u_b] (pyrhonn.plants.lim.STATE_NAMES / INPUT_NAMES).
+ */
+#ifndef FW_PROTOCOL_H
+#define FW_PROTOCOL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "fw_hal.h"
+#include "rhonn.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define FW_N_STATES 6u   /* the DBC carries the LIM: 6 states ... */
+#define FW_N_INPUTS 2u   /* ... and 2 inputs */
+#define FW_WEIGHTS_PER_FRAME 15u
+
+/* A decoded Measurement frame. */
+typedef struct {
+    uint16_t seq;
+    uint8_t valid[FW_N_STATES];   /* 1 = measured, 0 = dropped/held */
+    rhonn_real x[FW_N_STATES];    /* decoded even when not valid (then unchecked) */
+    rhonn_real u[FW_N_INPUTS];
+} fw_measurement;
+
+/* The content of an Estimate frame before scaling. */
+typedef struct {
+    uint16_t seq;
+    uint8_t step_status;          /* rhonn_status, 0..15 */
+    uint8_t learning;             /* 0/1 */
+    uint8_t resync;               /* 0/1 */
+    rhonn_real xhat[FW_N_STATES];
+} fw_estimate;
+
+/* A decoded WeightLoad frame (values past count are not filled). */
+typedef struct {
+    uint8_t neuron;
+    uint8_t first;
+    uint8_t count;
+    float w[FW_WEIGHTS_PER_FRAME];
+} fw_weight_chunk;
+
+/* Decode and check a Measurement: FW_E_LENGTH unless len is the DBC length,
+ * FW_E_RANGE when a valid state or any input is outside its DBC range.
+ * *m is written only on FW_OK. */
+fw_status fw_measurement_decode(const uint8_t *data, size_t len, fw_measurement *m);
+
+/* Scale, round (ties to even) and saturate e into an Estimate frame of
+ * size >= 16 bytes. *saturated (may be NULL) receives 1 when some value was
+ * clipped to its range (the frame's Saturated flag says the same). A
+ * non-finite value is sent as 0 and counts as saturated. FW_E_RANGE when
+ * step_status > 15, FW_E_LENGTH when size is too small. */
+fw_status fw_estimate_encode(const fw_estimate *e, uint8_t *data, size_t size, uint8_t *saturated);
+
+/* Decode a WeightLoad frame: FW_E_LENGTH, or FW_E_RANGE when Neuron, First
+ * or Count is outside its DBC range or one of the count values is not a
+ * finite float within the DBC range. (Whether the indices fit the
+ * identifier is the application's check.) *c is written only on FW_OK. */
+fw_status fw_weight_chunk_decode(const uint8_t *data, size_t len, fw_weight_chunk *c);
+
+/* One value through the estimate scaling: raw = round_half_even(value /
+ * scale) clipped to [raw_min, raw_max]; *saturated = 1 when clipped or not
+ * finite (then raw is 0). Exposed for the protocol tests. */
+fw_status fw_quantise(double value, double scale, int32_t raw_min, int32_t raw_max, int32_t *raw,
+                      uint8_t *saturated);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* FW_PROTOCOL_H */

@@ -1,0 +1,437 @@
+"""The firmware application of ``firmware_sim/``, driven from Python frame by frame.
+
+``pyrhonn._fwapp`` is compiled from the very C sources the firmware builds
+from (``firmware_sim/app``, the cantools-generated pack/unpack of
+``firmware_sim/rhonn_id.dbc``, the float32 core), so :class:`FirmwareApp`
+runs the exact firmware logic - validation, sequence counter, one
+``rhonn_step`` per accepted measurement, estimate scaling, control commands,
+weight transfer, diagnostics - on any python-can bus, for instance when
+SocketCAN is absent::
+
+    import can
+    from pyrhonn.firmware import FirmwareApp
+
+    bus = can.Bus(interface="virtual", channel="rig")
+    app = FirmwareApp(bus, config)       # a float32 IdentifierConfig with 6 states, 2 inputs
+    app.serve(n_frames=10_000)           # or until=time.monotonic() + 5.0, or until=callable
+    replies = app.handle(msg)            # one frame in, the frames the firmware sends out
+
+The rig's side of the protocol (encode a measurement, decode an estimate,
+control and weight-transfer frames) is here too, on cantools and the DBC
+embedded in the extension at build time: :func:`database`,
+:func:`measurement_message`, :func:`decode_estimate`,
+:func:`control_message`, :func:`weight_load_messages`. Bit-rate figures of
+the design come from :func:`fd_frame_bits` and :func:`cycle_bus_time`.
+"""
+from __future__ import annotations
+
+import functools
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from types import SimpleNamespace
+from typing import Any
+
+import can
+import numpy as np
+
+from . import _fwapp
+from .config import IdentifierConfig
+from .identifier import Identifier, _check_capacity
+
+__all__ = [
+    "COMMANDS",
+    "ESTIMATE_SIGNALS",
+    "Estimate",
+    "FirmwareApp",
+    "FirmwareError",
+    "INPUT_SIGNALS",
+    "STATE_SIGNALS",
+    "VALID_SIGNALS",
+    "WEIGHTS_PER_FRAME",
+    "control_message",
+    "cycle_bus_time",
+    "database",
+    "decode_estimate",
+    "fd_frame_bits",
+    "measurement_message",
+    "status_name",
+    "weight_load_messages",
+]
+
+_ffi, _lib = _fwapp.ffi, _fwapp.lib
+
+#: Measurement/Estimate signals in the identifier's state and input order
+#: (pyrhonn.plants.lim.STATE_NAMES, INPUT_NAMES).
+STATE_SIGNALS = ("Qm", "V", "LambdaA", "LambdaB", "Ia", "Ib")
+VALID_SIGNALS = tuple(f"Valid{s}" for s in STATE_SIGNALS)
+INPUT_SIGNALS = ("Ua", "Ub")
+ESTIMATE_SIGNALS = tuple(f"{s}Hat" for s in STATE_SIGNALS)
+#: Control.Command values (the DBC's value table).
+COMMANDS = {"Reset": 1, "LearningOff": 2, "LearningOn": 3, "WeightsBegin": 4, "WeightsCommit": 5,
+            "WeightsAbort": 6, "DiagRequest": 7}
+WEIGHTS_PER_FRAME = int(_lib.FW_WEIGHTS_PER_FRAME)
+
+_COUNTERS = ("frames_in", "frames_out", "rejected", "rejected_unknown_id", "rejected_length", "rejected_range",
+             "rejected_seq_repeat", "rejected_seq_jump", "rejected_state", "rejected_weights", "measurements",
+             "step_errors", "commands", "weight_chunks", "hal_errors", "overruns", "cycle_time_ns", "step_time_ns",
+             "step_time_max_ns", "step_time_worst_ns", "last_reject", "last_step_status")
+
+
+class FirmwareError(ValueError):
+    """A call into the firmware application failed (``status`` is the fw_status name)."""
+
+    def __init__(self, status: str, message: str) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+def status_name(status: int) -> str:
+    """The fw_status name of a status code."""
+    return _ffi.string(_lib.fw_status_name(status)).decode()
+
+
+@functools.cache
+def database():
+    """The cantools database of the DBC the extension was built from."""
+    import cantools
+
+    text = _ffi.new("const unsigned char **")
+    n = _lib.fwpy_dbc(text)
+    return cantools.database.load_string(bytes(_ffi.buffer(text[0], n)).decode("utf-8"), database_format="dbc")
+
+
+# -- the rig's side of the protocol -------------------------------------------------
+
+
+def _message(name: str, data: bytes) -> can.Message:
+    msg = database().get_message_by_name(name)
+    return can.Message(arbitration_id=msg.frame_id, is_extended_id=msg.is_extended_frame, data=data,
+                       is_fd=msg.is_fd, bitrate_switch=msg.is_fd)
+
+
+def measurement_message(seq: int, x: Sequence[float], u: Sequence[float], valid: Sequence[bool] | None = None,
+                        *, scaling: bool = True) -> can.Message:
+    """A Measurement frame. ``x`` (6,) and ``u`` (2,) are physical values
+    (rounded to the signals' resolution by cantools, which refuses values
+    outside the DBC ranges), or raw integers with ``scaling=False``."""
+    if len(x) != len(STATE_SIGNALS) or len(u) != len(INPUT_SIGNALS):
+        raise ValueError(f"x, u: expected {len(STATE_SIGNALS)} states and {len(INPUT_SIGNALS)} inputs, "
+                         f"got {len(x)} and {len(u)}")
+    valid = [True] * len(STATE_SIGNALS) if valid is None else list(valid)
+    values: dict[str, Any] = {"Seq": int(seq) & 0xFFFF}
+    for name, flag, value in zip(STATE_SIGNALS, VALID_SIGNALS, x):
+        values[flag] = int(bool(valid[VALID_SIGNALS.index(flag)]))
+        values[name] = float(value) if scaling else int(value)
+    for name, value in zip(INPUT_SIGNALS, u):
+        values[name] = float(value) if scaling else int(value)
+    data = database().encode_message("Measurement", values, scaling=scaling)
+    return _message("Measurement", data)
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A decoded Estimate frame: x̂(k+1) in physical units (float64) or raw."""
+
+    seq: int
+    step_status: int
+    learning: bool
+    saturated: bool
+    resync: bool
+    xhat: np.ndarray
+
+
+def decode_estimate(msg: can.Message, *, scaling: bool = True) -> Estimate:
+    """Decode an Estimate frame (ValueError for any other frame)."""
+    m = database().get_message_by_name("Estimate")
+    if msg.arbitration_id != m.frame_id or msg.is_extended_id:
+        raise ValueError(f"msg: not an Estimate frame (id 0x{msg.arbitration_id:x})")
+    d = m.decode(bytes(msg.data), scaling=scaling, decode_choices=False)
+    return Estimate(seq=int(d["Seq"]), step_status=int(d["StepStatus"]), learning=bool(d["Learning"]),
+                    saturated=bool(d["Saturated"]), resync=bool(d["Resync"]),
+                    xhat=np.array([d[s] for s in ESTIMATE_SIGNALS], dtype=np.float64 if scaling else np.int64))
+
+
+def control_message(command: str | int, token: int = 0) -> can.Message:
+    """A Control frame; ``command`` is a name of :data:`COMMANDS` or a raw number."""
+    cmd = COMMANDS[command] if isinstance(command, str) else int(command)
+    data = database().encode_message("Control", {"Command": cmd, "Token": int(token)}, strict=False)
+    return _message("Control", data)
+
+
+def weight_load_messages(weights: Sequence[np.ndarray]) -> list[can.Message]:
+    """WeightLoad frames carrying w_i of every neuron (float32 on the wire),
+    15 values a frame; send them between WeightsBegin and WeightsCommit."""
+    out = []
+    for i, w in enumerate(weights):
+        w = np.asarray(w, dtype=np.float32)
+        for first in range(0, w.size, WEIGHTS_PER_FRAME):
+            chunk = w[first:first + WEIGHTS_PER_FRAME]
+            values: dict[str, Any] = {"Neuron": i, "First": first, "Count": int(chunk.size)}
+            values.update({f"W{k:02d}": float(chunk[k]) if k < chunk.size else 0.0
+                           for k in range(WEIGHTS_PER_FRAME)})
+            out.append(_message("WeightLoad", database().encode_message("WeightLoad", values)))
+    return out
+
+
+# -- bus timing -------------------------------------------------------------------------
+
+
+def fd_frame_bits(payload: int, *, extended: bool = False) -> tuple[int, int]:
+    """Worst-case length of one CAN FD frame with bit-rate switch (ISO
+    11898-1:2015), as (arbitration-phase bits, data-phase bits).
+
+    Arbitration phase at the nominal rate: SOF, identifier, RRS, IDE, FDF,
+    res, BRS (17 bits with an 11-bit identifier, 36 with a 29-bit one), their
+    worst-case stuff bits, and after the CRC delimiter ACK, ACK delimiter,
+    EOF and intermission (12 bits). Data phase: ESI, DLC, the payload and
+    their worst-case dynamic stuff bits (one per 4 bits after the first 5),
+    the stuff count (4 bits), the CRC (17 bits up to 16 bytes, else 21) with
+    its fixed stuff bits (6 or 7) and the CRC delimiter."""
+    if payload not in (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64):
+        raise ValueError(f"payload: {payload} is not a CAN FD data length")
+    head = 36 if extended else 17
+    dynamic = head + 5 + 8 * payload                   # SOF .. end of data: dynamically stuffed
+    stuff = (dynamic - 1) // 4
+    stuff_head = (head - 1) // 4
+    crc, fixed = (17, 6) if payload <= 16 else (21, 7)
+    arbitration = head + stuff_head + 12
+    data = 5 + 8 * payload + (stuff - stuff_head) + 4 + crc + fixed + 1
+    return arbitration, data
+
+
+def cycle_bus_time(nominal_bps: float, data_bps: float, *, frames: Sequence[str] = ("Measurement", "Estimate")
+                   ) -> float:
+    """Worst-case bus time in seconds of the given messages (one each), at
+    the given arbitration and data bit rates."""
+    total = 0.0
+    for name in frames:
+        a, d = fd_frame_bits(database().get_message_by_name(name).length)
+        total += a / nominal_bps + d / data_bps
+    return total
+
+
+# -- the application ------------------------------------------------------------------------
+
+
+def _make_c_config(config: IdentifierConfig) -> Any:
+    # Identifier._c_config fills a rhonn_config from an IdentifierConfig
+    # through whichever FFI it is handed: reuse it with _fwapp's, so the
+    # Python-to-C mapping of a configuration exists once.
+    return Identifier._c_config(SimpleNamespace(_ffi=_ffi), config)  # type: ignore[arg-type]
+
+
+class FirmwareApp:
+    """The firmware application (fw_app) on a python-can bus.
+
+    Parameters
+    ----------
+    bus:
+        A python-can bus (any interface: virtual, socketcan, pcan, ...), or
+        None to drive the application with :meth:`handle` only.
+    config:
+        The identifier: an :class:`IdentifierConfig` (or an
+        :class:`Identifier`, whose current weights become w0). It must be
+        float32 (the firmware's precision) with 6 states and 2 inputs (the
+        DBC's LIM layout).
+    deadline_ns:
+        StepTime above this counts as an overrun (0: no check).
+    diag_period:
+        Accepted measurements per Diagnostics frame (0: on DiagRequest only).
+    host_clock:
+        True: the firmware's clock is the host's monotonic clock (real step
+        times). False: a simulated clock that only :attr:`clock_ns` moves
+        (deterministic diagnostics).
+    """
+
+    def __init__(self, bus: can.BusABC | None, config: IdentifierConfig | Identifier, *,
+                 deadline_ns: int = 300_000, diag_period: int = 0, host_clock: bool = True) -> None:
+        if isinstance(config, Identifier):
+            config = config.as_config()
+        if not isinstance(config, IdentifierConfig):
+            raise ValueError(f"config: expected an IdentifierConfig or Identifier, got {type(config).__name__}")
+        if config.dtype != "float32":
+            raise ValueError(f"config.dtype: the firmware runs the float32 core, got {config.dtype!r} "
+                             "(use config.replace(dtype='float32'))")
+        n, m = int(_lib.FW_N_STATES), int(_lib.FW_N_INPUTS)
+        if config.n_states != n or config.n_inputs != m:
+            raise ValueError(f"config: the protocol carries {n} states and {m} inputs, got "
+                             f"{config.n_states} states and {config.n_inputs} inputs")
+        _check_capacity(config, {name: int(getattr(_lib, name)) for name in (
+            "RHONN_MAX_STATES", "RHONN_MAX_INPUTS", "RHONN_MAX_TERMS", "RHONN_MAX_FACTORS", "RHONN_MAX_DELAY",
+            "RHONN_MAX_POWER")})
+        for name, value, hi in (("deadline_ns", deadline_ns, 2 ** 32 - 1), ("diag_period", diag_period, 2 ** 16 - 1)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value <= hi:
+                raise ValueError(f"{name}: expected an integer in 0..{hi}, got {value!r}")
+        if bus is not None and not (hasattr(bus, "recv") and hasattr(bus, "send")):
+            raise ValueError(f"bus: expected a python-can bus, got {type(bus).__name__}")
+        self._bus = bus
+        self._config = config
+        self._c_config = _make_c_config(config)  # copied into the identifier by fw_app_init
+        self._app = _ffi.new("fw_app *")
+        self._mem = _ffi.new("fw_mem_hal *")
+        self._hal = _ffi.new("fw_hal *")
+        self._host_clock = bool(host_clock)
+        _lib.fwpy_bind_hal(self._mem, self._hal, 1 if host_clock else 0)
+        app_cfg = _ffi.new("fw_app_config *")
+        app_cfg.identifier = self._c_config
+        app_cfg.deadline_ns = int(deadline_ns)
+        app_cfg.diag_period = int(diag_period)
+        status = _lib.fw_app_init(self._app, app_cfg, self._hal)
+        if status != _lib.FW_OK:
+            raise FirmwareError(status_name(status), f"config: rejected by fw_app_init ({status_name(status)})")
+        self._frame = _ffi.new("fw_frame *")
+        self._data = _ffi.new("uint8_t[]", int(_lib.FW_MAX_FRAME_LEN) + 1)
+        self._net = _ffi.new("const rhonn_t **")
+        _lib.fw_app_get_identifier(self._app, self._net)
+        self.last_status = "FW_OK"
+        self.tx_failures = 0
+
+    # -- driving it ---------------------------------------------------------------------
+
+    @property
+    def config(self) -> IdentifierConfig:
+        return self._config
+
+    @property
+    def bus(self) -> can.BusABC | None:
+        return self._bus
+
+    @property
+    def clock_ns(self) -> int:
+        """The simulated clock (host_clock=False); each firmware read adds :attr:`tick_ns`."""
+        return int(self._mem.now_ns)
+
+    @clock_ns.setter
+    def clock_ns(self, value: int) -> None:
+        self._mem.now_ns = int(value)
+
+    @property
+    def tick_ns(self) -> int:
+        return int(self._mem.tick_ns)
+
+    @tick_ns.setter
+    def tick_ns(self, value: int) -> None:
+        self._mem.tick_ns = int(value)
+
+    def _now(self) -> int:
+        return int(_lib.fwpy_now_ns()) if self._host_clock else int(self._mem.now_ns)
+
+    def handle_frame(self, can_id: int, data: bytes, now_ns: int | None = None) -> list[can.Message]:
+        """One received frame by SocketCAN-style id (with the FW_CAN_*_FLAG
+        bits) and payload; returns what the firmware sends in response.
+        :attr:`last_status` holds fw_app_on_frame's status name."""
+        data = bytes(data)
+        n = min(len(data), int(_lib.FW_MAX_FRAME_LEN) + 1)  # anything longer is rejected alike (FW_E_LENGTH)
+        _ffi.memmove(self._data, data, n)
+        status = _lib.fw_app_on_frame(self._app, int(can_id) & 0xFFFFFFFF, self._data if n else _ffi.NULL, n,
+                                      self._now() if now_ns is None else int(now_ns))
+        self.last_status = status_name(status)
+        return self._drain()
+
+    def handle(self, msg: can.Message) -> list[can.Message]:
+        """One python-can message in, the firmware's replies out (the
+        Estimate of a measurement, the ControlAck of a command, and any
+        Diagnostics frame due)."""
+        can_id = msg.arbitration_id
+        if msg.is_extended_id:
+            can_id |= int(_lib.FW_CAN_EFF_FLAG)
+        if msg.is_remote_frame:
+            can_id |= int(_lib.FW_CAN_RTR_FLAG)
+        if msg.is_error_frame:
+            can_id |= int(_lib.FW_CAN_ERR_FLAG)
+        return self.handle_frame(can_id, bytes(msg.data))
+
+    def _drain(self) -> list[can.Message]:
+        out = []
+        f = self._frame
+        while _lib.fw_mem_hal_pop(self._mem, f) == _lib.FW_OK:
+            out.append(can.Message(
+                arbitration_id=int(f.id) & 0x1FFFFFFF, is_extended_id=bool(f.id & _lib.FW_CAN_EFF_FLAG),
+                data=bytes(_ffi.buffer(f.data, int(f.len))), is_fd=bool(f.flags & _lib.FW_FRAME_FD),
+                bitrate_switch=bool(f.flags & _lib.FW_FRAME_BRS), timestamp=time.time()))
+        return out
+
+    def serve(self, n_frames: int | None = None, *, until: float | Callable[[], bool] | None = None,
+              timeout: float = 0.05) -> int:
+        """Receive from the bus, handle, send the replies; return the number
+        of frames handled. Stops after ``n_frames`` frames, or when ``until``
+        - a ``time.monotonic()`` deadline or a callable returning True - is
+        reached (checked at least every ``timeout`` seconds). A reply the bus
+        refuses (can.CanError) is counted in :attr:`tx_failures`."""
+        if self._bus is None:
+            raise ValueError("serve: this FirmwareApp has no bus (use handle)")
+        if n_frames is None and until is None:
+            raise ValueError("serve: give n_frames, until, or both")
+        if n_frames is not None and (isinstance(n_frames, bool) or not isinstance(n_frames, int) or n_frames < 0):
+            raise ValueError(f"n_frames: expected a non-negative int, got {n_frames!r}")
+        if until is None:
+            stop: Callable[[], bool] = lambda: False  # noqa: E731
+        elif callable(until):
+            stop = until
+        else:
+            deadline = float(until)
+            stop = lambda: time.monotonic() >= deadline  # noqa: E731
+        handled = 0
+        while (n_frames is None or handled < n_frames) and not stop():
+            msg = self._bus.recv(timeout)
+            if msg is None:
+                continue
+            for reply in self.handle(msg):
+                try:
+                    self._bus.send(reply)
+                except can.CanError:
+                    self.tx_failures += 1
+            handled += 1
+        return handled
+
+    def send_diagnostics(self) -> list[can.Message]:
+        """A Diagnostics frame now (returned, not sent)."""
+        self._check(_lib.fw_app_send_diagnostics(self._app), "send_diagnostics")
+        return self._drain()
+
+    def note_overrun(self) -> None:
+        self._check(_lib.fw_app_note_overrun(self._app), "note_overrun")
+
+    # -- looking inside -----------------------------------------------------------------------
+
+    @property
+    def counters(self) -> dict[str, int]:
+        c = _ffi.new("fw_counters *")
+        self._check(_lib.fw_app_get_counters(self._app, c), "counters")
+        return {name: int(getattr(c, name)) for name in _COUNTERS}
+
+    @property
+    def prediction(self) -> np.ndarray:
+        """x̂(k) of the firmware's identifier (float32)."""
+        out = np.empty(self._config.n_states, dtype=np.float32)
+        self._check_core(_lib.rhonn_get_prediction(self._net[0], _ffi.from_buffer("float[]", out), out.size),
+                         "prediction")
+        return out
+
+    def get_weights(self, neuron: int) -> np.ndarray:
+        L = self._config.neurons[neuron].n_terms
+        out = np.empty(L, dtype=np.float32)
+        self._check_core(_lib.rhonn_get_weights(self._net[0], neuron, _ffi.from_buffer("float[]", out), L),
+                         "weights")
+        return out
+
+    def get_covariance(self, neuron: int) -> np.ndarray:
+        """P_i packed (upper triangle row by row), as the core stores it."""
+        L = self._config.neurons[neuron].n_terms
+        out = np.empty(L * (L + 1) // 2, dtype=np.float32)
+        self._check_core(_lib.rhonn_get_covariance(self._net[0], neuron, _ffi.from_buffer("float[]", out),
+                                                   out.size), "covariance")
+        return out
+
+    def identifier_bytes(self) -> bytes:
+        """The whole rhonn_t, byte for byte (for bit-exact comparisons)."""
+        return bytes(_ffi.buffer(self._net[0], _ffi.sizeof("rhonn_t")))
+
+    def _check(self, status: int, what: str) -> None:
+        if status != _lib.FW_OK:
+            raise FirmwareError(status_name(status), f"{what}: {status_name(status)}")
+
+    def _check_core(self, status: int, what: str) -> None:
+        if status != 0:
+            raise FirmwareError("FW_E_STATE", f"{what}: rejected by the core (status {status})")
