@@ -16,7 +16,7 @@ from typing import Sequence
 __all__ = ["main", "COMMANDS"]
 
 # Subcommand modules, in the order ``pyrhonn --help`` lists them.
-COMMANDS = ("info", "show_config", "identify")
+COMMANDS = ("info", "show_config", "identify", "reproduce", "tune")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,395 @@
+"""``pyrhonn tune``: search P0, Q, R, eta and beta of a config on held-out data.
+
+    pyrhonn tune --example example1 --dt 0.2 --config example1 --out tuned.toml --trials 60
+    pyrhonn tune --data run.csv --config base.toml --out tuned.toml --study tune.log --n-jobs 2
+
+The trajectory is either one of the paper's examples, simulated by
+:mod:`pyrhonn.plants` (``--example``; ``--dt`` for example1: 0.2 s by
+default; ``--horizon``: the plant's default), or the user's CSV file
+(``--data``, read exactly as ``pyrhonn identify`` reads it, with the columns
+named by the config). The base config (``--config``: a .toml file or a
+shipped config name) gives the terms and the starting tuning.
+
+The first ``--train-fraction`` of the samples trains, the rest is held out;
+the objective is the mean over states of the held-out one-step-ahead RMSE
+divided by the state's standard deviation over the held-out part, with
+learning on throughout (see :mod:`pyrhonn.tuning` for the exact definition).
+For an example, the reference is the plant's true state at every held-out
+sample (hold windows included, as ``pyrhonn reproduce`` scores); for a data
+file, the measurements at the valid held-out samples.
+
+``--study FILE`` keeps the optuna study in a file (``.log``: an optuna journal
+file, recommended; ``.db``: SQLite, slower per trial) so that running the same command again adds
+``--trials`` more trials to it. ``--per-neuron`` searches one value per
+neuron instead of one shared value; ``--params`` limits the searched
+parameters; ``--range NAME=LOW:HIGH`` (repeatable) replaces a default range.
+
+Progress goes to stderr. The tuned config (``--out``, a .toml path) keeps
+the base config's terms, names and texts, notes the tuning in its
+description, and is accepted by ``pyrhonn identify``, ``pyrhonn reproduce
+--config`` and :func:`pyrhonn.configfile.load_config`. stdout gets the
+base and tuned scores per state and the tuned values. Bad options, files
+or studies exit 2 with one line.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import tempfile
+import textwrap
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from .. import tuning
+from ..config import DTYPES
+from ..configfile import ConfigFile, dumps, is_path, load_named
+
+EXAMPLES = ("example1", "example2", "example3")
+DEFAULT_TRIALS = 50
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "tune", help="search P0, Q, R, eta and beta of a config on held-out data (optuna TPE)",
+        description="Search the EKF tuning (P0, Q, R, eta) and the activation slope beta of a base config: "
+                    "train on the first part of a trajectory (a paper example or a CSV file), score the "
+                    "one-step-ahead RMSE on the rest with learning on, and write the best config as TOML.")
+    source = p.add_argument_group("trajectory (one of)")
+    source.add_argument("--example", metavar="NAME", help="simulate example1, example2 or example3")
+    source.add_argument("--data", metavar="DATA.csv", help="a CSV file as read by pyrhonn identify")
+    p.add_argument("--dt", metavar="SECONDS", help="example1 only: sampling period (default 0.2)")
+    p.add_argument("--horizon", metavar="SECONDS",
+                   help="with --example: simulated time (default: example1 100 s, example2 15 s, example3 5 s)")
+    p.add_argument("--valid-suffix", metavar="SUFFIX", default="_valid",
+                   help="with --data: validity columns are named <state><SUFFIX> (default _valid)")
+    p.add_argument("--config", metavar="BASE", help="base config: a .toml file or a shipped config name")
+    p.add_argument("--out", metavar="TUNED.toml", help="where to write the tuned config")
+    p.add_argument("--trials", metavar="N", default=str(DEFAULT_TRIALS),
+                   help=f"new trials to run (default {DEFAULT_TRIALS})")
+    p.add_argument("--n-jobs", metavar="J", default="1", help="trials run in parallel threads (default 1)")
+    p.add_argument("--study", metavar="FILE",
+                   help="optuna study file to create or resume: .log (optuna journal file, fast) or .db "
+                        "(SQLite)")
+    p.add_argument("--seed", metavar="S", default="0", help="seed of the TPE sampler (default 0)")
+    p.add_argument("--train-fraction", metavar="F", default=str(tuning.DEFAULT_TRAIN_FRACTION),
+                   help=f"share of the samples used for training (default {tuning.DEFAULT_TRAIN_FRACTION})")
+    p.add_argument("--dtype", metavar="DTYPE", help="float64 or float32: build of the C core to tune for "
+                                                    "(default: the config's dtype; written to the output)")
+    p.add_argument("--per-neuron", action="store_true", help="one value per neuron instead of one shared value")
+    p.add_argument("--params", metavar="LIST", default=",".join(tuning.PARAMETERS),
+                   help=f"comma-separated parameters to search (default {','.join(tuning.PARAMETERS)})")
+    p.add_argument("--range", metavar="NAME=LOW:HIGH", action="append", default=[],
+                   help="absolute log-uniform range of a parameter, e.g. p0=1e4:1e10 (repeatable)")
+    p.set_defaults(func=run)
+
+
+# -- options -----------------------------------------------------------------------------------------
+
+
+def _real(option: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"{option}: expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{option}: expected a finite number, got {text!r}")
+    return value
+
+
+def _int(option: str, text: str, low: int) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise ValueError(f"{option}: expected a whole number, got {text!r}") from None
+    if value < low:
+        raise ValueError(f"{option}: must be >= {low}, got {value}")
+    return value
+
+
+@dataclass(frozen=True)
+class Options:
+    trials: int
+    n_jobs: int
+    seed: int
+    train_fraction: float
+    params: tuple[str, ...]
+    ranges: dict[str, tuple[float, float]]
+    dt: float | None
+    horizon: float | None
+    out: Path
+    study: Path | None
+
+
+def _check_out(text: str | None) -> Path:
+    if not text:
+        raise ValueError("--out: missing; give the path of the tuned config file (ending in .toml)")
+    out = Path(text)
+    if out.suffix != ".toml":
+        raise ValueError(f"--out: {text!r} must end in .toml (so that --config reads it as a file)")
+    if out.is_dir():
+        raise ValueError(f"--out: {text!r} is a directory")
+    folder = out.parent
+    if not folder.is_dir():
+        raise ValueError(f"--out: folder {str(folder)!r} does not exist")
+    try:  # a real write: permission bits alone do not say it (e.g. as root, or a read-only mount)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".pyrhonn-tune-", suffix=".tmp"):
+            pass
+    except OSError as exc:
+        raise ValueError(f"--out: cannot write in folder {str(folder)!r} ({exc.strerror or exc})") from None
+    if out.exists() and not os.access(out, os.W_OK):
+        raise ValueError(f"--out: {text!r} is not writable")
+    return out
+
+
+def _parse(args: argparse.Namespace) -> Options:
+    if (args.example is None) == (args.data is None):
+        raise ValueError("give the trajectory as either --example NAME or --data FILE.csv (exactly one)")
+    if args.example is not None and args.example not in EXAMPLES:
+        raise ValueError(f"--example: unknown example {args.example!r}; expected one of {', '.join(EXAMPLES)}")
+    if args.config is None:
+        raise ValueError("--config: missing; give the base config (a .toml file or a shipped name such as "
+                         "example1)")
+    dt = horizon = None
+    if args.dt is not None:
+        if args.example != "example1":
+            raise ValueError("--dt: only example1 has a choice of sampling period; example2 runs at 0.01 s, "
+                             "example3 at 0.0001 s, and a data file at its own rate")
+        dt = _real("--dt", args.dt)
+        if not dt > 0:
+            raise ValueError(f"--dt: must be > 0, got {args.dt!r}")
+    if args.horizon is not None:
+        if args.example is None:
+            raise ValueError("--horizon: only with --example (a data file has its own length)")
+        horizon = _real("--horizon", args.horizon)
+        if not horizon > 0:
+            raise ValueError(f"--horizon: must be > 0, got {args.horizon!r}")
+    if args.data is not None and not Path(args.data).is_file():
+        raise ValueError(f"--data: no such file: {args.data!r}")
+    if args.example is not None and args.valid_suffix != "_valid":
+        raise ValueError("--valid-suffix: only with --data")
+    if is_path(args.config) and not Path(args.config).is_file():
+        raise ValueError(f"--config: no such file: {args.config!r}")
+    fraction = _real("--train-fraction", args.train_fraction)
+    if not 0.0 < fraction < 1.0:
+        raise ValueError(f"--train-fraction: must be between 0 and 1 (exclusive), got {args.train_fraction!r}")
+    trials = _int("--trials", args.trials, 1)
+    n_jobs = _int("--n-jobs", args.n_jobs, 1)
+    seed = _int("--seed", args.seed, 0)
+    if seed >= 2**32:
+        raise ValueError(f"--seed: must be < 2**32, got {seed}")
+    if args.dtype is not None and args.dtype not in DTYPES:
+        raise ValueError(f"--dtype: expected one of {', '.join(DTYPES)}, got {args.dtype!r}")
+    params = tuple(p.strip() for p in args.params.split(","))
+    for p in params:
+        if p not in tuning.PARAMETERS:
+            raise ValueError(f"--params: unknown parameter {p!r}; expected a comma-separated list of "
+                             f"{', '.join(tuning.PARAMETERS)}")
+    if len(set(params)) != len(params):
+        raise ValueError(f"--params: {args.params!r} names a parameter twice")
+    ranges: dict[str, tuple[float, float]] = {}
+    for text in args.range:
+        name, eq, span = text.partition("=")
+        low_text, colon, high_text = span.partition(":")
+        if not eq or not colon:
+            raise ValueError(f"--range: expected NAME=LOW:HIGH (e.g. p0=1e4:1e10), got {text!r}")
+        name = name.strip()
+        if name not in tuning.PARAMETERS:
+            raise ValueError(f"--range: unknown parameter {name!r}; expected one of {', '.join(tuning.PARAMETERS)}")
+        if name not in params:
+            raise ValueError(f"--range: {name} is not searched (--params {args.params})")
+        if name in ranges:
+            raise ValueError(f"--range: {name} given twice")
+        low, high = _real(f"--range {name}", low_text), _real(f"--range {name}", high_text)
+        if not 0 < low < high:
+            raise ValueError(f"--range: {text!r}: expected 0 < LOW < HIGH")
+        ranges[name] = (low, high)
+    out = _check_out(args.out)
+    study = None
+    if args.study is not None:
+        try:
+            study = tuning.check_study_path(args.study)
+        except ValueError as exc:
+            raise ValueError(f"--study: {str(exc).partition(': ')[2]}") from None
+        if study.resolve() == out.resolve():
+            raise ValueError("--study and --out name the same file")
+    if is_path(args.config) and Path(args.config).resolve() == out.resolve():
+        raise ValueError("--out: would overwrite the base config --config; write the tuned config elsewhere")
+    return Options(trials, n_jobs, seed, fraction, params, ranges, dt, horizon, out, study)
+
+
+# -- the trajectory -------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    label: str
+    X: np.ndarray
+    U: np.ndarray
+    valid: np.ndarray
+    truth: np.ndarray | None
+
+
+def _example(name: str, dt: float | None, horizon: float | None, cf: ConfigFile, config_source: str) -> Trajectory:
+    from ..plants import lim, oscillator, robot
+
+    kwargs: dict[str, float] = {} if horizon is None else {"horizon": horizon}
+    if name == "example1":
+        period = 0.2 if dt is None else dt
+        traj = oscillator.simulate(dt=period, **kwargs)
+    elif name == "example2":
+        traj = robot.simulate(**kwargs)
+    else:
+        traj = lim.simulate(**kwargs)
+    cfg = cf.config
+    if (cfg.n_states, cfg.n_inputs) != (traj.n_states, traj.n_inputs):
+        raise ValueError(f"--config {config_source}: has {cfg.n_states} states and {cfg.n_inputs} inputs, but "
+                         f"{name}'s plant has {traj.n_states} ({', '.join(traj.state_names)}) and "
+                         f"{traj.n_inputs} ({', '.join(traj.input_names)})")
+    label = f"{name} (dt {traj.dt:g} s, {traj.t[-1]:g} s, {traj.n_samples} samples)"
+    return Trajectory(label, traj.X_meas, traj.U, traj.valid, traj.X)
+
+
+def _data(path: str, cf: ConfigFile, config_source: str, valid_suffix: str) -> Trajectory:
+    from .identify import _suffix, read_data
+
+    try:
+        suffix = _suffix(valid_suffix)
+    except argparse.ArgumentTypeError as exc:
+        raise ValueError(f"--valid-suffix: {exc}") from None
+    data = read_data(path, cf, valid_suffix=suffix, config_source=config_source)
+    return Trajectory(f"{path} ({data.n_samples} samples)", data.X, data.U, data.valid, None)
+
+
+# -- output ------------------------------------------------------------------------------------------------
+
+
+def _write(out: Path, text: str) -> None:
+    """Write ``text`` to ``out`` atomically (a temporary file in the same folder, then a rename)."""
+    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, out)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _what(result: tuning.TuneResult) -> str:
+    names = ", ".join(dict.fromkeys(d.param for d in result.space))
+    return f"{names} ({'one value per neuron' if result.per_neuron else 'shared by all neurons'})"
+
+
+def _note(result: tuning.TuneResult, config_source: str, label: str) -> str:
+    s = result.split
+    base = "diverged" if result.base is None else f"{result.base.value:.6g}"
+    tuned = f"{result.best.value:.6g}" if result.best is not None else "n/a"
+    head = (f"Tuned by `pyrhonn tune` (pyrhonn {__version__}) from {config_source} on {label}: "
+            f"learning on samples 0..{s.n_train - 1}, scored one step ahead on samples {s.n_train}.."
+            f"{s.n_samples - 1} with learning on; searched {_what(result)} with optuna TPE (seed "
+            f"{result.seed}), {result.counts.total} trials in the study. Held-out score (mean over states "
+            f"of RMSE / std of the held-out targets, pyrhonn.tuning): base {base}, ")
+    text = head + (f"tuned {tuned} (trial {result.best_trial})." if result.improved
+                   else "no trial beat it: the tuning is the base config's.")
+    return textwrap.fill(text, width=90, break_long_words=False, break_on_hyphens=False)
+
+
+def _fmt(v: float | None) -> str:
+    return f"{'-':>11}" if v is None or not math.isfinite(v) else f"{v:>11.5g}"
+
+
+def _report(result: tuning.TuneResult, cf: ConfigFile) -> str:
+    lines = []
+    names = cf.state_names
+    width = max(5, *(len(n) for n in names))
+    base, best = result.base, result.best
+    lines.append("held-out one-step-ahead RMSE (learning on), and RMSE / std of the held-out targets:")
+    lines.append(f"  {'state':<{width}}  {'std':>11}  {'RMSE base':>11}  {'RMSE tuned':>11}  "
+                 f"{'norm. base':>11}  {'norm. tuned':>11}")
+    for j, name in enumerate(names):
+        scale = (best or base).scale[j] if (best or base) is not None else None
+        lines.append(f"  {name:<{width}}  {_fmt(scale)}  {_fmt(None if base is None else base.rmse[j])}  "
+                     f"{_fmt(None if best is None else best.rmse[j])}  "
+                     f"{_fmt(None if base is None else base.normalised[j])}  "
+                     f"{_fmt(None if best is None else best.normalised[j])}")
+    if base is None:
+        lines.append(f"score: base config failed ({result.base_failure}); tuned "
+                     f"{'-' if best is None else f'{best.value:.6g}'}")
+    elif best is not None and result.improved:
+        change = 100.0 * (best.value - base.value) / base.value if base.value > 0 else 0.0
+        lines.append(f"score (mean normalised RMSE): base {base.value:.6g} -> tuned {best.value:.6g} "
+                     f"({change:+.1f} %), trial {result.best_trial}")
+    else:
+        lines.append(f"score (mean normalised RMSE): base {base.value:.6g}; no trial beat it, the base "
+                     "tuning is written")
+    cfg = result.config
+    lines.append("tuned values:" if result.improved else "values (base):")
+    params = list(dict.fromkeys(d.param for d in result.space))
+    if result.per_neuron:
+        lines.append("  " + f"{'neuron':<{width}}" + "".join(f"  {p:>10}" for p in params))
+        for i, nr in enumerate(cfg.neurons):
+            lines.append("  " + f"{names[i]:<{width}}" + "".join(f"  {_value(nr, p):>10}" for p in params))
+    else:
+        lines.append("  " + ", ".join(f"{p} = {_value(cfg.neurons[0], p)}" for p in params))
+    return "\n".join(lines)
+
+
+def _value(neuron: object, param: str) -> str:
+    v = getattr(neuron, param)
+    return "array" if isinstance(v, np.ndarray) else f"{float(v):.3g}"
+
+
+def run(args: argparse.Namespace) -> int:
+    opts = _parse(args)
+    cf = load_named(args.config)
+    config_source = args.config
+    if args.example is not None:
+        traj = _example(args.example, opts.dt, opts.horizon, cf, config_source)
+    else:
+        traj = _data(args.data, cf, config_source, args.valid_suffix)
+    dtype = args.dtype or cf.config.dtype
+    base = cf.config if dtype == cf.config.dtype else cf.config.replace(dtype=dtype)
+
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    start = time.perf_counter()
+
+    def progress(message: str) -> None:
+        print(f"pyrhonn tune: {message} ({time.perf_counter() - start:.1f} s)", file=sys.stderr, flush=True)
+
+    try:
+        N = tuning.split_point(traj.X.shape[0], opts.train_fraction)
+        progress(f"{traj.label}: learning on samples 0..{N - 1}, scoring {N}..{traj.X.shape[0] - 1}; "
+                 f"{opts.trials} trials, {opts.n_jobs} at a time"
+                 + (f", study {opts.study}" if opts.study is not None else ""))
+        result = tuning.tune(
+            base, traj.X, traj.U, traj.valid, truth=traj.truth, train_fraction=opts.train_fraction,
+            n_trials=opts.trials, n_jobs=opts.n_jobs, seed=opts.seed, per_neuron=args.per_neuron,
+            params=opts.params, ranges=opts.ranges or None, study_path=opts.study, progress=progress)
+    except ValueError as exc:
+        field, _, rest = str(exc).partition(": ")
+        option = {"study_path": "--study", "train_fraction": "--train-fraction"}.get(field)
+        raise ValueError(f"{option}: {rest}" if option else str(exc)) from None
+    note = _note(result, config_source, traj.label)
+    description = f"{cf.description.rstrip()}\n\n{note}\n" if cf.description.strip() else f"{note}\n"
+    tuned = ConfigFile(config=result.config, state_names=cf.state_names, input_names=cf.input_names,
+                       description=description, why=cf.why)
+    _write(opts.out, dumps(tuned))
+
+    c = result.counts
+    print(f"tuned {config_source} on {traj.label}, {dtype}")
+    print(f"learning on samples 0..{result.split.n_train - 1}, scored on {result.split.n_train}.."
+          f"{result.split.n_samples - 1}; searched {_what(result)}")
+    print(f"{result.new_trials} new trials; the study has {c.total}: {c.complete} scored, {c.failed} failed "
+          f"(identifier stopped or diverged)" + (f", {c.errored} errored" if c.errored else "")
+          + (f", {c.running} left running" if c.running else ""))
+    print(_report(result, cf))
+    print(f"wrote {opts.out}" + (f"; study in {opts.study} (run again to add trials)" if opts.study else ""))
+    return 0
