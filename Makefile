@@ -62,7 +62,8 @@ ifeq ($(SKIP_VM),1)
 	@echo "test-vm: skipped (SKIP_VM=1)"
 else
 	python3 hil/vm/run_in_vm.py --out $(BUILD)/vm --venv $(BUILD)/virtme-venv -- \
-	  sh -c 'cd tests && ../$(VENV)/bin/python -m pytest -q -p no:cacheprovider -m vcan .'
+	  sh -c 'cd tests && RHONN_RUNNER=$(abspath $(BUILD))/release/firmware_sim/rhonn_runner \
+	    ../$(VENV)/bin/python -m pytest -q -p no:cacheprovider -m vcan .'
 endif
 
 clean:
