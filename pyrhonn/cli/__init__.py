@@ -2,7 +2,10 @@
 
 Each subcommand lives in its own module of this package and provides
 ``register(subparsers)``, which adds its parser and sets ``func`` to a
-function ``(args) -> int`` (the exit code). Errors the user can fix (bad
+function ``(args) -> int`` (the exit code). Packages built on pyrhonn add
+commands the same way through the entry-point group ``pyrhonn.commands``
+(the ``hil`` harness registers ``pyrhonn hil`` so), which keeps the
+dependencies pointing inward: pyrhonn never imports them by name. Errors the user can fix (bad
 files, bad options) are reported as one line on stderr with exit code 2;
 nothing is printed as a traceback.
 """
@@ -11,6 +14,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+from importlib.metadata import entry_points
 from typing import Sequence
 
 __all__ = ["main", "COMMANDS"]
@@ -29,6 +33,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for name in COMMANDS:
         importlib.import_module(f"{__name__}.{name}").register(sub)
+    for ep in sorted(entry_points(group="pyrhonn.commands"), key=lambda e: e.name):
+        ep.load().register(sub)
     return parser
 
 

@@ -5,32 +5,10 @@
 
 Input file
 ----------
-UTF-8 text (a byte-order mark is allowed), comma-separated, first line a
-header naming the columns; one line per sample k = 0..T-1, in time order.
-
-- One column per state and per input, named by the config's ``state_names``
-  and ``input_names`` (``pyrhonn show-config`` prints them). ``--config``
-  also accepts the name of a shipped config (e.g. ``example1``).
-- Optional ``t``: the sample time, finite and strictly increasing; used as
-  the x axis of the plots and copied to the predictions.
-- Optional per-state validity columns ``<state><suffix>`` (suffix
-  ``_valid`` unless ``--valid-suffix`` says otherwise) holding ``0`` or
-  ``1``: 0 marks a measurement that was not updated (a dropout or a delay).
-  The identifier does not learn from it and uses its own prediction in its
-  place (see :meth:`pyrhonn.Identifier.run`); its cell may be empty or NaN.
-  A state without a validity column is valid on every line.
-- Other columns are ignored (and listed on the output).
-- Numbers are decimal (``-1.5``, ``2e-3``); spaces around a cell are allowed.
-  An empty cell or ``nan`` is a missing value, allowed only in a state
-  column whose validity is 0 on that line. Infinities, other text, missing
-  inputs or times are errors.
-
-Every defect (undecodable text, malformed CSV, an empty file, a header
-without data, duplicate or missing columns, a line with the wrong number of
-fields, a non-numeric cell, a missing value in a valid state, a bad
-validity flag) is reported as ``<file>: line <N>: ...`` with N 1-based,
-the header being line 1 (a quoted cell spanning lines counts them all; N is
-the first line of the record), and exit code 2.
+The format of :mod:`pyrhonn.datafile` (a header row naming the columns by
+the config's ``state_names`` and ``input_names``, optional ``t`` and
+``<state><suffix>`` validity columns); every defect is reported with its
+line number and exit code 2.
 
 Outputs (in ``--out``, default ``identify-<file stem>``)
 --------------------------------------------------------
@@ -56,10 +34,8 @@ from __future__ import annotations
 
 import argparse
 import csv
-import io
 import json
 import re
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -67,16 +43,11 @@ import numpy as np
 
 from ..config import DTYPES, IdentifierConfig
 from ..configfile import ConfigFile, load_named
+from ..datafile import Data, TIME_COLUMN, check_suffix, read_data
 from ..identifier import Identifier, IdentifierError
 from ..metrics import absolute_deviation, rmse
 
 __all__ = ["Data", "read_data", "register", "run"]
-
-_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
-_MISSING = ("", "nan", "NaN", "NAN")
-_INFINITE = re.compile(r"[+-]?(?:inf|Inf|INF|infinity|Infinity|INFINITY)\Z")
-TIME_COLUMN = "t"
-
 
 def _nonnegative_int(text: str) -> int:
     try:
@@ -89,9 +60,10 @@ def _nonnegative_int(text: str) -> int:
 
 
 def _suffix(text: str) -> str:
-    if not text or any(c in text for c in ",\"\r\n") or text != text.strip():
-        raise argparse.ArgumentTypeError(f"expected a non-empty column-name suffix, got {text!r}")
-    return text
+    try:
+        return check_suffix(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -110,161 +82,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="leave the first N one-step-ahead pairs out of the metrics (default 0)")
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
     p.set_defaults(func=run)
-
-
-# -- reading ----------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Data:
-    """A data file as read: T samples.
-
-    ``X`` (T, n) float64 with NaN where a state is missing, ``U`` (T, m),
-    ``valid`` (T, n) bool, ``t`` (T,) or None, ``lines`` (T,) the file line
-    of each sample, ``ignored`` the columns not used.
-    """
-
-    X: np.ndarray
-    U: np.ndarray
-    valid: np.ndarray
-    t: np.ndarray | None
-    lines: np.ndarray
-    ignored: tuple[str, ...]
-
-    @property
-    def n_samples(self) -> int:
-        return int(self.X.shape[0])
-
-
-def _decode(raw: bytes, source: str) -> str:
-    try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = raw.count(b"\n", 0, exc.start) + 1
-        raise ValueError(f"{source}: line {line}: not UTF-8 text (byte {exc.start})") from None
-
-
-def _records(text: str, source: str) -> list[tuple[int, list[str]]]:
-    """Every CSV record with the line it starts on; blank lines are kept as []."""
-    reader = csv.reader(io.StringIO(text, newline=""), strict=True)
-    out: list[tuple[int, list[str]]] = []
-    last = 0
-    while True:
-        try:
-            record = next(reader)
-        except StopIteration:
-            return out
-        except csv.Error as exc:
-            hint = " (a quote that is never closed?)" if "end of data" in str(exc) else ""
-            raise ValueError(f"{source}: line {last + 1}: malformed CSV: {exc}{hint}") from None
-        if len(record) == 1 and not record[0].strip():
-            record = []
-        out.append((last + 1, record))
-        last = reader.line_num
-
-
-def _cell(source: str, line: int, column: str, text: str) -> float:
-    """A numeric cell: a float, NaN for a missing value; ValueError otherwise."""
-    s = text.strip()
-    if _NUMBER.match(s):
-        value = float(s)
-        if not np.isfinite(value):
-            raise ValueError(f"{source}: line {line}, column {column!r}: {s!r} is out of the float64 range")
-        return value
-    if s in _MISSING:
-        return float("nan")
-    if _INFINITE.match(s):
-        raise ValueError(f"{source}: line {line}, column {column!r}: not finite: {s!r}")
-    raise ValueError(f"{source}: line {line}, column {column!r}: not a number: {text!r}")
-
-
-def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
-              config_source: str = "the config") -> Data:
-    """Read and check a data file for the config ``cf`` (see the module docs)."""
-    source = str(path)
-    text = _decode(Path(path).read_bytes(), source)
-    if not text.strip():
-        raise ValueError(f"{source}: empty file (expected a header row naming the columns, then the data)")
-    records = _records(text, source)
-    header_line, header = records[0]
-    if not header:
-        raise ValueError(f"{source}: line {header_line}: empty line where the header row was expected")
-    names = [h.strip() for h in header]
-    where: dict[str, int] = {}
-    for c, name in enumerate(names):
-        if not name:
-            raise ValueError(f"{source}: line {header_line}: column {c + 1} has an empty name")
-        if name in where:
-            raise ValueError(f"{source}: line {header_line}: duplicate column {name!r} "
-                             f"(columns {where[name] + 1} and {c + 1})")
-        where[name] = c
-    required = list(cf.state_names) + list(cf.input_names)
-    missing = [name for name in required if name not in where]
-    if missing:
-        raise ValueError(
-            f"{source}: line {header_line}: missing column{'s' if len(missing) > 1 else ''} "
-            + ", ".join(repr(m) for m in missing)
-            + f" ({config_source} names the states {', '.join(cf.state_names)}"
-            + (f" and the inputs {', '.join(cf.input_names)})" if cf.input_names else " and no inputs)"))
-    validity: dict[int, int] = {}
-    for j, name in enumerate(cf.state_names):
-        vname = f"{name}{valid_suffix}"
-        if vname in required or vname == TIME_COLUMN:
-            raise ValueError(f"--valid-suffix: the validity column of state {name!r} would be {vname!r}, "
-                             "which is also a state, input or time column; choose another suffix")
-        if vname in where:
-            validity[j] = where[vname]
-    used = set(required) | {f"{cf.state_names[j]}{valid_suffix}" for j in validity} | {TIME_COLUMN}
-    ignored = tuple(name for name in names if name not in used)
-    body = records[1:]
-    while body and not body[-1][1]:
-        body.pop()  # blank lines at the end of the file
-    if not body:
-        raise ValueError(f"{source}: line {header_line}: header only, no data rows")
-    n, m, T = len(cf.state_names), len(cf.input_names), len(body)
-    X = np.empty((T, n))
-    U = np.empty((T, m))
-    valid = np.ones((T, n), dtype=bool)
-    t = np.empty(T) if TIME_COLUMN in where else None
-    lines = np.empty(T, dtype=np.int64)
-    state_cols = [where[name] for name in cf.state_names]
-    input_cols = [where[name] for name in cf.input_names]
-    width = len(names)
-    for k, (line, record) in enumerate(body):
-        lines[k] = line
-        if not record:
-            raise ValueError(f"{source}: line {line}: empty line inside the data")
-        if len(record) != width:
-            raise ValueError(f"{source}: line {line}: expected {width} fields as in the header, got {len(record)}")
-        if t is not None:
-            value = _cell(source, line, TIME_COLUMN, record[where[TIME_COLUMN]])
-            if np.isnan(value):
-                raise ValueError(f"{source}: line {line}, column 't': missing time")
-            if k and not value > t[k - 1]:
-                raise ValueError(f"{source}: line {line}, column 't': time {value!r} is not after "
-                                 f"{float(t[k - 1])!r} on line {int(lines[k - 1])} (times must increase)")
-            t[k] = value
-        for j, c in validity.items():
-            flag = record[c].strip()
-            if flag not in ("0", "1"):
-                raise ValueError(f"{source}: line {line}, column {names[c]!r}: expected 0 or 1, got {record[c]!r}")
-            valid[k, j] = flag == "1"
-        for j, c in enumerate(state_cols):
-            value = _cell(source, line, names[c], record[c])
-            if np.isnan(value) and valid[k, j]:
-                how = (f"{names[validity[j]]} = 1" if j in validity
-                       else f"no {cf.state_names[j]}{valid_suffix!s} column; add one with 0 on this line "
-                            "to mark a missing measurement")
-                raise ValueError(f"{source}: line {line}, column {names[c]!r}: missing value (empty or NaN) "
-                                 f"but the state is marked valid ({how})")
-            X[k, j] = value
-        for j, c in enumerate(input_cols):
-            value = _cell(source, line, names[c], record[c])
-            if np.isnan(value):
-                raise ValueError(f"{source}: line {line}, column {names[c]!r}: missing input value "
-                                 "(inputs must be given on every line)")
-            U[k, j] = value
-    return Data(X=X, U=U, valid=valid, t=t, lines=lines, ignored=ignored)
 
 
 # -- running ----------------------------------------------------------------------------------------

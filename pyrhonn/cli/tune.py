@@ -49,6 +49,7 @@ from .. import __version__
 from .. import tuning
 from ..config import DTYPES
 from ..configfile import ConfigFile, dumps, is_path, load_named
+from ..datafile import check_suffix, read_data
 
 EXAMPLES = ("example1", "example2", "example3")
 DEFAULT_TRIALS = 50
@@ -256,11 +257,9 @@ def _example(name: str, dt: float | None, horizon: float | None, cf: ConfigFile,
 
 
 def _data(path: str, cf: ConfigFile, config_source: str, valid_suffix: str) -> Trajectory:
-    from .identify import _suffix, read_data
-
     try:
-        suffix = _suffix(valid_suffix)
-    except argparse.ArgumentTypeError as exc:
+        suffix = check_suffix(valid_suffix)
+    except ValueError as exc:
         raise ValueError(f"--valid-suffix: {exc}") from None
     data = read_data(path, cf, valid_suffix=suffix, config_source=config_source)
     return Trajectory(f"{path} ({data.n_samples} samples)", data.X, data.U, data.valid, None)
