@@ -1,5 +1,7 @@
 # The two commands of the README's quick start, and the pieces they use.
-#   make bench   set up .venv, build and install pyrhonn, run the benchmark
+#   make reproduce  set up .venv, build and install pyrhonn, reproduce the
+#                   paper's Tables 1-6 (pyrhonn reproduce all) into reproduce-out/
+#   make bench   set up .venv, build and install pyrhonn, run the benchmarks
 #   make test    set up .venv, run the Python tests, then the C tests under
 #                CTest (plain, then with AddressSanitizer + UBSan), then the
 #                SocketCAN tests inside a VM with vcan0 (SKIP_VM=1 skips it)
@@ -8,15 +10,19 @@ VENV   ?= .venv
 BUILD  ?= build
 JOBS   ?= 2
 
-.PHONY: venv bench test test-python test-c test-c-sanitize test-fuzz test-vm clean
+.PHONY: venv reproduce bench test test-python test-c test-c-sanitize test-fuzz test-vm clean
 
 venv:
 	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install --quiet --upgrade pip
 	$(VENV)/bin/python -m pip install --quiet ".[test]" cmake
 
+reproduce: venv
+	$(VENV)/bin/pyrhonn reproduce all --out reproduce-out
+
 bench: venv
 	$(VENV)/bin/python bench/bench_identifier.py
+	$(VENV)/bin/python bench/bench_cortex_m4.py
 
 test: venv test-python test-c test-c-sanitize test-fuzz test-vm
 
