@@ -23,6 +23,7 @@ reproduce: venv
 bench: venv
 	$(VENV)/bin/python bench/bench_identifier.py
 	$(VENV)/bin/python bench/bench_cortex_m4.py
+	$(VENV)/bin/python bench/bench_linux_runner.py
 
 test: venv test-python test-c test-c-sanitize test-fuzz test-vm
 
