@@ -1,13 +1,15 @@
 # Fails unless OBJECTS, taken together, reference no external symbol other
 # than the freestanding memory functions (and the sanitizer / stack-protector
 # runtimes of instrumented builds): everything one object needs from another
-# must be defined within the set. Used on the firmware application plus the
-# core it links, so the pair is shown to need no allocator, stdio or libm.
+# must be defined within the set. Used on the core alone and on the firmware
+# application plus the core it links, so each is shown to need no allocator,
+# stdio or libm; allocator, stdio and abort/exit references are named as such.
 # usage: cmake -DNM=<nm> -DOBJECTS=<a.o;b.o> -P check_symbols.cmake
 if(NOT NM OR NOT OBJECTS)
   message(FATAL_ERROR "usage: cmake -DNM=<nm> -DOBJECTS=<a.o;b.o> -P check_symbols.cmake")
 endif()
 set(allowed "^(memcpy|memset|memmove|memcmp|__stack_chk_fail|__stack_chk_guard|_GLOBAL_OFFSET_TABLE_|__asan_.*|__ubsan_.*|__sanitizer_.*|__tsan_.*)$")
+set(forbidden "^(malloc|calloc|realloc|free|aligned_alloc|posix_memalign|printf|fprintf|sprintf|snprintf|vprintf|puts|fputs|putchar|fputc|fopen|fwrite|fread|fflush|stdout|stderr|abort|exit|_exit|__assert_fail)$")
 set(defined "")
 foreach(obj IN LISTS OBJECTS)
   execute_process(COMMAND ${NM} -g --defined-only ${obj} OUTPUT_VARIABLE out RESULT_VARIABLE rc)
@@ -33,14 +35,17 @@ foreach(obj IN LISTS OBJECTS)
     string(REGEX REPLACE "^U +" "" sym "${line}")
     string(REGEX REPLACE "@.*$" "" sym "${sym}")
     list(FIND defined "${sym}" found)
-    if(found EQUAL -1 AND NOT sym MATCHES "${allowed}")
+    if(sym MATCHES "${forbidden}")
+      message(SEND_ERROR "${obj}: references forbidden symbol ${sym} (allocator, stdio or process exit)")
+      set(failed TRUE)
+    elseif(found EQUAL -1 AND NOT sym MATCHES "${allowed}")
       message(SEND_ERROR "${obj}: references external symbol ${sym}")
       set(failed TRUE)
     endif()
   endforeach()
 endforeach()
 if(failed)
-  message(FATAL_ERROR "the application references symbols a bare-metal target may not have")
+  message(FATAL_ERROR "the objects reference symbols a bare-metal target may not have")
 endif()
 list(LENGTH OBJECTS n)
 message(STATUS "${n} objects: no external symbols beyond the memory functions")
