@@ -57,6 +57,8 @@ from .trajectory import (
     HoldWindow,
     Trajectory,
     build_trajectory,
+    forward_euler,
+    input_samples,
     sample_times,
 )
 from ..validation import check_array, check_real
@@ -227,33 +229,10 @@ def simulate(
     if not isinstance(p, LimParams):
         raise ValueError(f"params: expected LimParams, got {type(p).__name__}")
     t = sample_times(dt, horizon)
-    T = t.shape[0]
-    if inputs is None:
-        inputs = LimInput()
-    if isinstance(inputs, LimInput):
-        U = inputs(t)
-        input_meta: Any = {"kind": "eq. 21-22", **inputs.to_dict()}
-    elif isinstance(inputs, np.ndarray):
-        if inputs.dtype != np.float64 or inputs.shape != (T, 2):
-            raise ValueError(f"inputs: expected a float64 array of shape ({T}, 2), got {inputs.dtype} {inputs.shape}")
-        if not np.all(np.isfinite(inputs)):
-            raise ValueError("inputs: must be finite")
-        U = inputs.copy()
-        input_meta = {"kind": "array"}
-    else:
-        raise ValueError(f"inputs: expected a LimInput or a numpy array, got {type(inputs).__name__}")
+    U, input_meta = input_samples(LimInput() if inputs is None else inputs, t, 2, LimInput, "eq. 21-22")
     x = tuple(check_array("x0", x0, (6,))) if x0 is not None else (0.0,) * 6
     k = p.constants()
-    h = float(dt)
-    rows = [x]
-    Ul = U.tolist()
-    for n in range(T - 1):
-        f = _f(k, p.n_p, p.F_L, x, Ul[n][0], Ul[n][1])
-        x = tuple(x[i] + h * f[i] for i in range(6))
-        rows.append(x)
-    X = np.array(rows, dtype=np.float64)
-    if not np.all(np.isfinite(X)):
-        raise FloatingPointError("LIM simulation diverged; reduce dt")
+    X = forward_euler(lambda xs, u: _f(k, p.n_p, p.F_L, xs, u[0], u[1]), x, U, dt, "LIM")
     meta = {
         "plant": "lim",
         "example": 3,
@@ -265,5 +244,5 @@ def simulate(
         "sources": "/work/shared/plants.md §1: structure MEDIUM-HIGH, all parameters PROPOSED, "
                    "A = 170 V PROPOSED (LOW), horizon 5 s / zero initial state / F_L = 0 PROPOSED",
     }
-    return build_trajectory(t=t, X=X, U=U, state_names=STATE_NAMES, input_names=INPUT_NAMES, dt=h,
+    return build_trajectory(t=t, X=X, U=U, state_names=STATE_NAMES, input_names=INPUT_NAMES, dt=float(dt),
                             holds=paper_holds() if holds is None else holds, corruption=corruption, metadata=meta)

@@ -50,6 +50,8 @@ from .trajectory import (
     HoldWindow,
     Trajectory,
     build_trajectory,
+    forward_euler,
+    input_samples,
     sample_times,
 )
 from ..validation import check_array, check_real
@@ -233,33 +235,10 @@ def simulate(
     if not isinstance(p, RobotParams):
         raise ValueError(f"params: expected RobotParams, got {type(p).__name__}")
     t = sample_times(dt, horizon)
-    T = t.shape[0]
-    if inputs is None:
-        inputs = ChirpInput()
-    if isinstance(inputs, ChirpInput):
-        U = inputs(t)
-        input_meta: Any = {"kind": "chirp", **inputs.to_dict()}
-    elif isinstance(inputs, np.ndarray):
-        if inputs.dtype != np.float64 or inputs.shape != (T, 2):
-            raise ValueError(f"inputs: expected a float64 array of shape ({T}, 2), got {inputs.dtype} {inputs.shape}")
-        if not np.all(np.isfinite(inputs)):
-            raise ValueError("inputs: must be finite")
-        U = inputs.copy()
-        input_meta = {"kind": "array"}
-    else:
-        raise ValueError(f"inputs: expected a ChirpInput or a numpy array, got {type(inputs).__name__}")
+    U, input_meta = input_samples(ChirpInput() if inputs is None else inputs, t, 2, ChirpInput, "chirp")
     x = tuple(check_array("x0", x0, (7,))) if x0 is not None else (0.0,) * 7
     k = _Coefficients(p)
-    h = float(dt)
-    X = np.empty((T, 7))
-    X[0] = x
-    Ul = U.tolist()
-    for n in range(T - 1):
-        f = _f(k, x, Ul[n][0], Ul[n][1])
-        x = tuple(x[i] + h * f[i] for i in range(7))
-        X[n + 1] = x
-    if not np.all(np.isfinite(X)):
-        raise FloatingPointError("robot simulation diverged; reduce dt")
+    X = forward_euler(lambda xs, u: _f(k, xs, u[0], u[1]), x, U, dt, "robot")
     meta = {
         "plant": "robot",
         "example": 2,
@@ -270,5 +249,5 @@ def simulate(
         "sources": "/work/shared/plants.md §2: model HIGH/MEDIUM, parameters VERIFIED in "
                    "alfredoaguiararce/rhonn-module-python, chirp and zero initial state PROPOSED",
     }
-    return build_trajectory(t=t, X=X, U=U, state_names=STATE_NAMES, input_names=INPUT_NAMES, dt=h,
+    return build_trajectory(t=t, X=X, U=U, state_names=STATE_NAMES, input_names=INPUT_NAMES, dt=float(dt),
                             holds=paper_holds() if holds is None else holds, corruption=corruption, metadata=meta)

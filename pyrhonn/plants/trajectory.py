@@ -28,7 +28,7 @@ off, and vice versa; the same seed always gives the same trajectory.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -58,6 +58,42 @@ def sample_times(dt: float, horizon: float) -> np.ndarray:
     horizon = check_real("horizon", horizon, positive=True)
     K = check_multiple("horizon", horizon, dt, "dt")
     return np.arange(K + 1, dtype=np.float64) * dt
+
+def input_samples(inputs: object, t: np.ndarray, width: int, source: type, kind: str) -> tuple[np.ndarray, dict[str, Any]]:
+    """The (T, width) inputs of a run: ``inputs`` is an input generator of
+    type ``source`` (called on the sample times ``t``) or an explicit float64
+    array of exactly that shape; returns U and a description for metadata."""
+    T = t.shape[0]
+    if isinstance(inputs, source):
+        return inputs(t), {"kind": kind, **inputs.to_dict()}  # type: ignore[operator, attr-defined]
+    if isinstance(inputs, np.ndarray):
+        if inputs.dtype != np.float64 or inputs.shape != (T, width):
+            raise fail("inputs", f"expected a float64 array of shape ({T}, {width}), got {inputs.dtype} {inputs.shape}")
+        if not np.all(np.isfinite(inputs)):
+            raise fail("inputs", "must be finite")
+        return inputs.copy(), {"kind": "array"}
+    raise fail("inputs", f"expected a {source.__name__} or a numpy array, got {type(inputs).__name__}")
+
+
+def forward_euler(f: Callable[[tuple[float, ...], list[float]], tuple[float, ...]], x0: tuple[float, ...],
+                  U: np.ndarray, dt: float, plant: str) -> np.ndarray:
+    """x(k+1) = x(k) + dt f(x(k), u(k)) from x(0) = x0 over the rows of U:
+    the (T, n) states. Plain floats in the loop (this is the hot path of a
+    simulation); a non-finite state raises FloatingPointError."""
+    n = len(x0)
+    X = np.empty((U.shape[0], n))
+    X[0] = x0
+    x = x0
+    h = float(dt)
+    rows = U.tolist()
+    for k in range(U.shape[0] - 1):
+        d = f(x, rows[k])
+        x = tuple(x[i] + h * d[i] for i in range(n))
+        X[k + 1] = x
+    if not np.all(np.isfinite(X)):
+        raise FloatingPointError(f"{plant} simulation diverged; reduce dt")
+    return X
+
 
 
 @dataclass(frozen=True)
