@@ -80,7 +80,8 @@ def main(argv: list[str] | None = None) -> int:
         "ip link set vcan0 mtu 72",  # CAN FD frames
         "ip link set up vcan0",
         f"cd {shlex.quote(str(ROOT))}",
-        f"export PYRHONN_VM_OUT={shlex.quote(str(out))} PYRHONN_REQUIRE_VCAN=1",
+        f"export PYRHONN_VM_OUT={shlex.quote(str(out))} PYRHONN_REQUIRE_VCAN=1 "
+        f"MPLCONFIGDIR={shlex.quote(str(out / 'matplotlib'))}",  # the guest's $HOME is read-only
     ]) + f"; {shlex.join(command)}; echo $? > {shlex.quote(str(status_file))}"
     env = {**os.environ, "PATH": f"{vng.parent}:{os.environ.get('PATH', '')}"}
     try:

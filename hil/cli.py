@@ -1,0 +1,206 @@
+"""``pyrhonn hil``: replay, score and bench (registered through the
+``pyrhonn.commands`` entry point; pyrhonn does not import hil).
+
+    pyrhonn hil replay [--transport virtual|udp_multicast|socketcan] [--channel CH] [--duration S]
+                       [--seed N] [--frame-loss P] [--out DIR] [--log FILE.blf]
+    pyrhonn hil score LOG [--out DIR] [--json]
+    pyrhonn hil bench --cycles N [--transport udp_multicast]
+
+Exit codes: 0 run complete (every frame accounted for, estimates bit-exact),
+1 a run that completed but is not (see the report), 2 bad input or a run that
+could not happen (firmware not answering, a log that cannot be written).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+__all__ = ["register"]
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v < 2:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 2, got {v}")
+    return v
+
+
+def _float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    return v
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("hil", help="hardware-in-the-loop replay of the LIM rig over a CAN bus",
+                       description="Hardware-in-the-loop replay of the paper's real-time LIM test (section 6.3.2) "
+                                   "against the identifier firmware over python-can.")
+    hs = p.add_subparsers(dest="hil_command", metavar="HIL_COMMAND")
+    hs.required = True
+
+    r = hs.add_parser("replay", help="replay the LIM scenario against the firmware, score and report it")
+    _transport_args(r)
+    r.add_argument("--duration", type=_float, default=3.0, help="replayed seconds (default 3.0: 10,000 cycles)")
+    r.add_argument("--start", type=_float, default=0.0, help="trajectory time of the first frame (default 0)")
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--frame-loss", type=_float, default=0.0, help="probability a frame is lost (default 0)")
+    r.add_argument("--delay", type=_float, default=0.0, help="fixed transport delay in seconds (default 0)")
+    r.add_argument("--encoder-resolution", type=_float, default=None,
+                   help="position encoder resolution in m (default 10e-6, SENC 50; 0: none)")
+    r.add_argument("--hold-start", type=_float, default=None, help="measurement hold start, s (default 1.1)")
+    r.add_argument("--hold-duration", type=_float, default=None, help="measurement hold, s (default 1.0; 0: none)")
+    r.add_argument("--out", type=Path, default=None, help="directory for report.json, report.txt and the PNGs")
+    r.add_argument("--log", type=Path, default=None, help="record the run to FILE.blf or FILE.asc (+ FILE.json)")
+    r.add_argument("--json", action="store_true", help="print the JSON report instead of the table")
+    r.set_defaults(func=_replay)
+
+    s = hs.add_parser("score", help="re-score a recorded log offline")
+    s.add_argument("log", type=Path)
+    s.add_argument("--out", type=Path, default=None)
+    s.add_argument("--json", action="store_true")
+    s.set_defaults(func=_score)
+
+    b = hs.add_parser("bench", help="cyclictest-style timing of both sides at 0.3 ms")
+    _transport_args(b, default="udp_multicast")
+    b.add_argument("--cycles", type=_positive_int, required=True)
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=_bench)
+
+
+def _transport_args(p: argparse.ArgumentParser, default: str = "udp_multicast") -> None:
+    from .transport import TRANSPORTS
+
+    p.add_argument("--transport", choices=TRANSPORTS, default=default)
+    p.add_argument("--channel", default=None,
+                   help="virtual: a channel name; udp_multicast: the group (default 239.74.163.2); socketcan: vcan0/can0")
+    p.add_argument("--port", type=int, default=None, help="udp_multicast port (default: a fresh one per run)")
+    p.add_argument("--runner", default=None, help="socketcan: start this rhonn_runner (default: one already runs)")
+    p.add_argument("--timeout", type=_float, default=1.0, help="seconds to wait for the firmware (default 1)")
+    p.add_argument("--drain", type=_float, default=0.3, help="seconds to wait for the last estimates (default 0.3)")
+
+
+def timing_note(transport: str) -> str:
+    vm = bool(os.environ.get("PYRHONN_VM_OUT")) or _dmi().startswith(("qemu", "standard pc"))
+    where = {"virtual": "in-process virtual bus (firmware in a Python thread: timing includes GIL hand-overs)",
+             "udp_multicast": "udp_multicast between two processes on this host (no CAN controller)",
+             "socketcan": "SocketCAN"}[transport]
+    note = f"timing measured over {where}"
+    if vm:
+        note += "; inside an emulated VM timing is NOT meaningful (functional results are)"
+    return note
+
+
+def _dmi() -> str:
+    try:
+        return Path("/sys/class/dmi/id/product_name").read_text().strip().lower()
+    except OSError:
+        return ""
+
+
+def _scenario(args):
+    from .scenario import Scenario
+
+    kw = {"duration": args.duration, "start": args.start, "seed": args.seed, "frame_loss": args.frame_loss,
+          "transport_delay": args.delay}
+    for name in ("encoder_resolution", "hold_start", "hold_duration"):
+        if getattr(args, name) is not None:
+            kw[name] = getattr(args, name)
+    return Scenario(**kw)
+
+
+def _emit(report: dict, args, note: str | None) -> int:
+    from . import report as rep
+
+    if args.json:
+        print(rep.to_json(report))
+    else:
+        print(rep.table(report, timing_note=note), end="")
+    if getattr(args, "out", None) is not None:
+        paths = rep.write(report, args.out, timing_note=note)
+        print(f"wrote {', '.join(str(p) for p in paths)}", file=sys.stderr)
+    ok = report["frames"]["accounted"] and (report.get("bit_exact") or {"equal": True})["equal"]
+    return 0 if ok else 1
+
+
+def _check_log_path(path: Path | None) -> None:
+    if path is not None and path.suffix.lower() not in (".blf", ".asc"):
+        raise ValueError(f"--log: {path.name}: expected a .blf or .asc file name")
+
+
+def _replay(args) -> int:
+    from .rig import write_log
+    from .score import score
+    from .transport import lim_config, run_replay
+
+    _check_log_path(args.log)
+    sc = _scenario(args)
+    rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
+                     reply_timeout=args.timeout, drain=args.drain)
+    report = score(rec, reference=lim_config())
+    report["firmware_side"] = rec.meta.get("firmware_side")
+    code = _emit(report, args, timing_note(args.transport))
+    if args.log is not None:
+        write_log(rec, args.log)  # a LogWriteError (OSError) is reported by pyrhonn's main: exit 2
+        print(f"recorded {len(rec.events)} frames to {args.log} (+ {args.log.name}.json)", file=sys.stderr)
+    return code
+
+
+def _score(args) -> int:
+    from .rig import read_log
+    from .score import score
+    from .transport import lim_config
+
+    rec = read_log(args.log)
+    report = score(rec, reference=lim_config())
+    return _emit(report, args, f"re-scored from {args.log}")
+
+
+def _bench(args) -> int:
+    from . import report as rep
+    from .scenario import Scenario
+    from .score import score
+    from .transport import run_replay
+
+    # the LIM at rest (the input never switches on): any number of cycles stays inside the DBC's
+    # ranges, and the firmware's step costs the same whatever the values
+    duration = args.cycles * 3e-4
+    sc = Scenario(duration=duration, hold_duration=0.0, input_start=duration + 1.0)
+    rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
+                     reply_timeout=args.timeout, drain=args.drain)
+    r = score(rec)
+    side = rec.meta.get("firmware_side") or {}
+    note = timing_note(args.transport)
+    if args.json:
+        r["firmware_side"] = side
+        print(rep.to_json(r))
+        return 0
+
+    def row(name: str, st: dict | None) -> str:
+        if not st or not st.get("n"):
+            return f"{name:<34} (not available)"
+        return (f"{name:<34} n {st['n']:>7}  min {st['min']:8.1f}  avg {st['avg']:8.1f}  p99 {st['p99']:8.1f}  "
+                f"p99.9 {st['p99.9']:8.1f}  max {st.get('max', st.get('max_abs', 0.0)):9.1f}")
+
+    lat = r["latency_us"]
+    print(f"pyrhonn hil bench: {args.cycles} cycles at 0.3 ms over {args.transport} ({r['channel']}), all in us")
+    print(row("rig: wake-up lateness (deadline)", r["rig_lateness_us"]))
+    print(row("rig: period jitter |dt - T|", {**r["rig_period_jitter_us"],
+                                                 "max": r["rig_period_jitter_us"].get("max_abs", 0.0)}))
+    print(row("round trip send -> estimate", lat))
+    print(row("firmware: Measurement interval", side.get("arrival_interval_us")))
+    print(row("firmware: handling per frame", side.get("handling_us")))
+    if r.get("firmware"):
+        print(f"{'firmware: StepTimeMax (Diagnostics)':<34} {r['firmware']['step_time_max_us']:.1f}"
+              f"  overruns {r['firmware']['overruns']}")
+    if lat.get("n"):
+        print(f"estimates within one period: {100 * lat['within_period']:.3f} %  "
+              f"(answered {r['frames']['answered']} of {r['frames']['sent']}, late {r['frames']['late']})")
+    print(f"note: {note}")
+    return 0 if r["frames"]["accounted"] else 1

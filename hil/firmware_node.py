@@ -1,0 +1,94 @@
+"""The firmware as a process on a python-can bus (the udp_multicast transport).
+
+    python -m hil.firmware_node --channel GROUP --port PORT [--interface udp_multicast] [--duration S]
+
+Runs :class:`pyrhonn.firmware.FirmwareApp` (the exact firmware logic) with
+firmware_sim's LIM identifier, prints ``ready`` on stdout once its socket is
+bound, serves until SIGTERM/SIGINT or ``--duration``, then prints one JSON
+line: the firmware's counters and cyclictest-style statistics of its own side
+(interval between Measurement arrivals, handling time per frame).
+udp_multicast hands a sender its own frames back, so frames with the
+firmware's own identifiers (Estimate, ControlAck, Diagnostics) are skipped.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+import time
+
+import numpy as np
+
+
+def _stats(v: list[int]) -> dict:
+    from .score import stats_us
+
+    return stats_us(np.asarray(v, dtype=np.int64))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m hil.firmware_node", description=__doc__.splitlines()[0])
+    ap.add_argument("--interface", default="udp_multicast")
+    ap.add_argument("--channel", required=True)
+    ap.add_argument("--port", type=int, default=None)
+    ap.add_argument("--duration", type=float, default=3600.0)
+    args = ap.parse_args(argv)
+    import can
+
+    from pyrhonn.firmware import FirmwareApp
+
+    from .rig import ids
+    from .transport import lim_config
+
+    kw = {"fd": True}
+    if args.port is not None:
+        kw["port"] = args.port
+    try:
+        bus = can.Bus(interface=args.interface, channel=args.channel, **kw)
+    except (OSError, can.CanError, ValueError) as exc:
+        print(f"firmware_node: cannot open {args.interface} {args.channel}: {exc}", file=sys.stderr)
+        return 2
+    app = FirmwareApp(bus, lim_config())
+    own = {v for k, v in ids().items() if k in ("Estimate", "ControlAck", "Diagnostics")}
+    meas_id = ids()["Measurement"]
+    stop = False
+
+    def _stop(*_):
+        nonlocal stop
+        stop = True
+
+    signal.signal(signal.SIGTERM, _stop)
+    signal.signal(signal.SIGINT, _stop)
+    print("ready", flush=True)
+    end = time.monotonic() + args.duration
+    arrivals: list[int] = []
+    handling: list[int] = []
+    handled = 0
+    clock = time.perf_counter_ns
+    try:
+        while not stop and time.monotonic() < end:
+            msg = bus.recv(timeout=0.05)
+            if msg is None or (msg.arbitration_id in own and not msg.is_extended_id):
+                continue
+            t_in = clock()
+            for reply in app.handle(msg):
+                try:
+                    bus.send(reply)
+                except can.CanError:
+                    app.tx_failures += 1
+            if msg.arbitration_id == meas_id:
+                arrivals.append(t_in)
+                handling.append(clock() - t_in)
+            handled += 1
+    finally:
+        bus.shutdown()
+    gaps = np.diff(np.asarray(arrivals, dtype=np.int64)) if len(arrivals) > 1 else np.zeros(0, dtype=np.int64)
+    report = {"handled": handled, "tx_failures": app.tx_failures, "counters": app.counters,
+              "arrival_interval_us": _stats(gaps.tolist()), "handling_us": _stats(handling)}
+    print(json.dumps(report), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,130 @@
+"""A scored run as a terminal table, JSON, and PNG plots (matplotlib Agg):
+position and velocity real vs identified (as the paper's Fig. 19-20) and a
+latency histogram."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["figures", "table", "to_json", "write"]
+
+
+def _clean(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items() if not k.startswith("_")}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (np.floating, float)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
+
+
+def to_json(report: dict[str, Any]) -> str:
+    return json.dumps(_clean(report), indent=1, sort_keys=True)
+
+
+def _fmt(stats: dict, keys=("min", "avg", "p99", "p99.9", "max")) -> str:
+    if not stats or not stats.get("n"):
+        return "-"
+    return "  ".join(f"{k} {stats[k]:9.1f}" for k in keys if k in stats)
+
+
+def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
+    f = report["frames"]
+    lines = [f"HIL replay over {report['transport']} ({report['channel']}): {report['cycles']} cycles at "
+             f"{report['scenario']['period'] * 1e3:g} ms, seed {report['scenario']['seed']}",
+             "",
+             f"{'frames':<22}sent {f['sent']}  lost (injected) {f['lost_injected']}  answered {f['answered']}  "
+             f"rejected (Seq jump) {f['rejected_seq_jump']}  missing {f['missing']}  late {f['late']}",
+             f"{'':<22}duplicates {f['duplicates']}  unexpected {f['unexpected']}  foreign sent "
+             f"{sum(f['foreign_sent'].values())}  step errors {f['step_errors']}  -> "
+             f"{'all accounted for' if f['accounted'] else 'NOT ACCOUNTED FOR'}"]
+    fw = report.get("firmware")
+    if fw:
+        lines.append(f"{'firmware (Diagnostics)':<22}measurements {fw['measurements']}  rejected {fw['rejected']}  "
+                     f"seq errors {fw['seq_errors']}  overruns {fw['overruns']}  step max {fw['step_time_max_us']:.1f} us")
+    ident = report.get("identification")
+    if ident:
+        lines += ["", f"{'identification':<22}{'RMSE':>12}{'abs. dev.':>12}{'Table 7 RMSE':>14}{'peak |x|':>11}",
+                  *(f"  {name + ' (' + unit + ')':<20}{ident[name]['rmse']:12.4e}{ident[name]['absolute_deviation']:12.4e}"
+                    f"{ident[name]['table7_rmse']:14.4e}{ident[name]['signal_peak']:11.3g}"
+                    for name, unit in (("position", "m"), ("velocity", "m/s"))),
+                  f"  note: {ident['note']}"]
+    be = report.get("bit_exact")
+    if be:
+        lines.append(f"{'bit exact vs offline':<22}{be['checked']} estimates checked against Identifier.run: "
+                     f"{'equal' if be['equal'] else str(be['mismatches']) + ' differ'}")
+    lat = report["latency_us"]
+    lines += ["", f"{'timing (us)':<22}",
+              f"  {'latency send->est.':<20}{_fmt(lat)}",
+              f"  {'':<20}within one period: {100 * lat['within_period']:.2f} %" if lat.get("n") else "",
+              f"  {'rig lateness':<20}{_fmt(report['rig_lateness_us'])}",
+              f"  {'rig period jitter':<20}{_fmt(report['rig_period_jitter_us'], ('avg', 'p99', 'p99.9', 'max_abs'))}"]
+    if timing_note:
+        lines += ["", f"note: {timing_note}"]
+    return "\n".join(ln for ln in lines if ln is not None) + "\n"
+
+
+def figures(report: dict[str, Any], out: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    s = report.get("_series")
+    if s is None:
+        return []
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    k, est, truth, t = s["k"], s["est"], s["truth"], s["t"]
+    T = report["scenario"]["period"]
+    for j, (name, unit, fig_no) in enumerate((("position", "m", 19), ("velocity", "m/s", 20))):
+        fig, ax = plt.subplots(figsize=(8, 3.6))
+        ax.plot(t + T, truth[:, j], lw=1.2, label="real (noise-free)")
+        if len(k):
+            ax.plot(t[k] + T, est[:, j], lw=0.8, ls="--", label="identified (firmware over the bus)")
+        sc = report["scenario"]
+        if sc["hold_duration"] > 0 and j in sc["hold_states"]:
+            ax.axvspan(sc["hold_start"], sc["hold_start"] + sc["hold_duration"], color="0.9", label="measurement held")
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(f"{name} ({unit})")
+        ax.set_title(f"LIM {name}: real vs identified (cf. Fig. {fig_no}), {report['transport']}")
+        ax.legend(loc="best", fontsize=8)
+        fig.tight_layout()
+        p = out / f"{name}.png"
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        paths.append(p)
+    lat = np.asarray(s["latency_ns"], dtype=np.float64) / 1e3
+    if lat.size:
+        fig, ax = plt.subplots(figsize=(7, 3.6))
+        ax.hist(lat, bins=100, log=True)
+        ax.axvline(T * 1e6, color="r", ls="--", label="one period")
+        ax.set_xlabel("latency Measurement sent -> Estimate received (us)")
+        ax.set_ylabel("frames")
+        ax.set_title(f"latency over {report['transport']} (n = {lat.size})")
+        ax.legend()
+        fig.tight_layout()
+        p = out / "latency.png"
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        paths.append(p)
+    return paths
+
+
+def write(report: dict[str, Any], out: str | Path, *, timing_note: str | None = None) -> list[Path]:
+    """report.json, report.txt and the PNGs into ``out``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "report.json").write_text(to_json(report) + "\n")
+    (out / "report.txt").write_text(table(report, timing_note=timing_note))
+    return [out / "report.json", out / "report.txt", *figures(report, out)]

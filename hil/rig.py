@@ -1,0 +1,284 @@
+"""The rig: replays a scenario's Measurement frames on an absolute 0.3 ms
+schedule, receives the firmware's frames, and records everything.
+
+Timing. Frame k is due at the absolute deadline t0 + k*T + delay on
+``time.perf_counter_ns`` (never "sleep T after the previous one", so errors
+do not accumulate). The rig waits by blocking in ``bus.recv`` (which also
+collects the estimates as they arrive, each stamped with perf_counter_ns when
+``recv`` returns) until ``spin_ns`` before the deadline, then polls
+``recv(timeout=0)`` until the deadline (a busy spin: the kernel's timer slack
+makes blocking wake-ups tens of microseconds late). Single-threaded on
+purpose: a second Python thread would wait for the GIL.
+
+Recording. Every frame sent and received is kept in memory during the run
+(with its time relative to t0, the deadline of frame 0) and written to the
+log after it, so the log writer's compression never disturbs the schedule.
+:func:`write_log` writes BLF or ASC through python-can's writers (plus a
+``LOG.json`` sidecar with the scenario and the run's metadata), and
+:func:`read_log` reads a log back into the same :class:`Recording`, which is
+all :mod:`hil.score` needs.
+"""
+from __future__ import annotations
+
+import errno
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import can
+
+from .scenario import Plan, Scenario
+
+__all__ = ["FirmwareTimeout", "LogWriteError", "Recording", "Rig", "ids", "read_log", "write_log"]
+
+
+class FirmwareTimeout(TimeoutError):
+    """The firmware did not answer (not running, wrong channel, bus down)."""
+
+
+class LogWriteError(OSError):
+    """Writing the log failed part way (the partial log is kept)."""
+
+
+def ids() -> dict[str, int]:
+    from pyrhonn.firmware import database
+
+    db = database()
+    return {m.name: m.frame_id for m in db.messages}
+
+
+@dataclass
+class Recording:
+    """A run as frames: ``events`` is a time-ordered list of
+    (t seconds since t0, direction "tx"/"rx", can.Message); ``meta`` holds the
+    transport, the period and anything the rig measured besides frames."""
+
+    scenario: Scenario
+    events: list[tuple[float, str, can.Message]] = field(default_factory=list)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+
+class Rig:
+    """Replays ``plan`` on ``bus``. ``spin_ns``: busy-wait margin before each
+    deadline (0 for the in-process virtual bus, whose firmware thread needs the
+    GIL); ``reply_timeout``: seconds without any answer after the first frame
+    before :class:`FirmwareTimeout`; ``drain``: seconds to wait for the last
+    estimates."""
+
+    def __init__(self, bus: can.BusABC, plan: Plan, *, transport: str = "?", channel: str = "?",
+                 spin_ns: int = 100_000, reply_timeout: float = 1.0, drain: float = 0.5,
+                 extra_frames: Callable[[int], list[can.Message]] | None = None) -> None:
+        self.bus = bus
+        self.plan = plan
+        self.transport = transport
+        self.channel = channel
+        self.spin_ns = int(spin_ns)
+        self.reply_timeout = float(reply_timeout)
+        self.drain = float(drain)
+        self.extra_frames = extra_frames  # fault injection: frames sent right after Measurement k
+        ident = ids()
+        self._accept = {ident["Estimate"], ident["ControlAck"], ident["Diagnostics"]}
+        self._t0 = 0
+        self._events: list[tuple[int, str, can.Message]] = []
+        self._n_rx = 0
+
+    # -- receiving ---------------------------------------------------------------------------
+
+    def _take(self, msg: can.Message | None, now: int) -> None:
+        if msg is None:
+            return
+        # udp_multicast hands a sender its own frames back: keep the firmware's ids only
+        if msg.arbitration_id not in self._accept or msg.is_extended_id or msg.is_error_frame:
+            return
+        msg.is_rx = True
+        self._events.append((now, "rx", msg))
+        self._n_rx += 1
+
+    def _wait_until(self, deadline: int) -> None:
+        bus, spin, clock = self.bus, self.spin_ns, time.perf_counter_ns
+        while True:
+            rem = deadline - clock()
+            if rem <= 0:
+                return
+            if rem > spin:
+                msg = bus.recv(timeout=(rem - spin) / 1e9)
+            else:
+                msg = bus.recv(timeout=0.0)
+            self._take(msg, clock())
+
+    def _send(self, msg: can.Message) -> int:
+        now = time.perf_counter_ns()
+        self.bus.send(msg)
+        self._events.append((now, "tx", msg))
+        return now
+
+    def _control(self, command: str, token: int, timeout: float) -> bool:
+        """Send a Control frame; True when its ControlAck came back."""
+        from pyrhonn.firmware import control_message, database
+
+        ack_id = ids()["ControlAck"]
+        end = time.perf_counter_ns() + int(timeout * 1e9)
+        n0 = len(self._events)
+        resend = 0
+        while time.perf_counter_ns() < end:
+            if time.perf_counter_ns() >= resend:  # again every 0.25 s: the firmware may still be binding
+                self._send(control_message(command, token))
+                resend = time.perf_counter_ns() + 250_000_000
+            self._take(self.bus.recv(timeout=0.02), time.perf_counter_ns())
+            for _, d, m in self._events[n0:]:
+                if d == "rx" and m.arbitration_id == ack_id:
+                    a = database().decode_message("ControlAck", bytes(m.data), decode_choices=False)
+                    if a["Token"] == token and a["Command"] == {"DiagRequest": 7, "Reset": 1}[command]:
+                        # the Diagnostics frame follows the ack: give it a moment
+                        self._wait_until(time.perf_counter_ns() + 20_000_000)
+                        return True
+        return False
+
+    # -- the run -----------------------------------------------------------------------------
+
+    def run(self) -> Recording:
+        sc = self.plan.scenario
+        frames = self.plan.frames()
+        lost = self.plan.lost
+        T = int(round(sc.period * 1e9))
+        delay = int(round(sc.transport_delay * 1e9))
+        where = f"{self.transport} channel {self.channel}"
+        self._t0 = time.perf_counter_ns()
+        # handshake: a DiagRequest answered means a firmware is listening (and gives its counters)
+        if not self._control("DiagRequest", 0xA5, self.reply_timeout):
+            raise FirmwareTimeout(f"no answer from the firmware on {where} within {self.reply_timeout:g} s "
+                                  "(is the firmware running, on this channel/port?)")
+        wall0 = time.time()
+        t0 = time.perf_counter_ns() + 10_000_000
+        start_events = len(self._events)
+        self._t0 = t0
+        n_rx_before = self._n_rx
+        first_tx = None
+        overruns = 0
+        for k in range(self.plan.cycles):
+            deadline = t0 + k * T + delay
+            if time.perf_counter_ns() > deadline + T:
+                overruns += 1  # the rig itself fell a period behind (counted, frame still sent)
+            self._wait_until(deadline)
+            if lost[k]:
+                continue
+            sent = self._send(frames[k])
+            if first_tx is None:
+                first_tx = sent
+            if self.extra_frames is not None:
+                for extra in self.extra_frames(k):
+                    self._send(extra)
+            if self._n_rx == n_rx_before and sent - first_tx > self.reply_timeout * 1e9:
+                raise FirmwareTimeout(f"no estimate from the firmware on {where} within {self.reply_timeout:g} s "
+                                      f"of the first measurement frame ({k} frames sent; did it stop or the bus "
+                                      "go down?)")
+        # the last estimates, then the firmware's counters
+        end = time.perf_counter_ns() + int(self.drain * 1e9)
+        while time.perf_counter_ns() < end:
+            self._take(self.bus.recv(timeout=0.01), time.perf_counter_ns())
+        diag_ok = self._control("DiagRequest", 0x5A, self.reply_timeout)
+        # log time: seconds from the first frame (the handshake), so every timestamp is >= 0 and
+        # BLF keeps it to the nanosecond; t0 (deadline of frame 0, without the delay) is in meta
+        base = self._events[0][0]
+        events = [((ns - base) / 1e9, d, m) for ns, d, m in self._events]
+        for ts, _, m in events:
+            m.timestamp = ts
+            m.channel = None
+        meta = {"transport": self.transport, "channel": self.channel, "period_ns": T, "delay_ns": delay,
+                "t0_ns": t0 - base,
+                "wall_start": wall0, "first_run_event": start_events, "rig_overruns": overruns,
+                "final_diagnostics": diag_ok}
+        return Recording(scenario=sc, events=events, meta=meta)
+
+
+# -- logs ------------------------------------------------------------------------------------------
+
+
+def _writer(path: Path, file: Any = None) -> can.io.generic.MessageWriter:
+    suffix = path.suffix.lower()
+    target = path if file is None else file
+    if suffix == ".blf":
+        return can.BLFWriter(target)
+    if suffix == ".asc":
+        return can.ASCWriter(target)
+    raise ValueError(f"log: {path.name}: expected a .blf or .asc file name")
+
+
+def sidecar(path: Path) -> Path:
+    return Path(str(path) + ".json")
+
+
+def write_log(rec: Recording, path: str | os.PathLike, *, file: Any = None) -> Path:
+    """Write ``rec`` to ``path`` (BLF or ASC) and its sidecar ``path.json``.
+    ``file``: an open binary file to write to instead (tests: a full disk).
+    A failure part way raises :class:`LogWriteError`; what was written stays."""
+    path = Path(path)
+    if path.suffix.lower() not in (".blf", ".asc"):
+        raise ValueError(f"log: {path.name}: expected a .blf or .asc file name")
+    meta = {"format": "pyrhonn-hil-log 1", "scenario": rec.scenario.to_dict(), **rec.meta,
+            "first_timestamp": rec.events[0][0] if rec.events else 0.0, "frames": len(rec.events)}
+    sc_path = sidecar(path)
+    try:
+        sc_path.write_text(json.dumps(meta, indent=1, sort_keys=True) + "\n")
+    except OSError as exc:
+        raise LogWriteError(exc.errno or errno.EIO, f"log: cannot write {sc_path}: {exc.strerror or exc}") from exc
+    written = 0
+    writer = None
+    try:
+        writer = _writer(path, file)
+        nudge = 0.4e-9 if path.suffix.lower() == ".blf" else 0.0  # BLF truncates to whole ns: land on ours
+        for ts, d, m in rec.events:
+            m.timestamp = ts + nudge
+            m.is_rx = d == "rx"
+            writer.on_message_received(m)
+            written += 1
+        writer.stop()
+        writer = None
+    except OSError as exc:
+        if writer is not None:
+            try:
+                writer.stop()
+            except OSError:
+                pass
+        what = "disk full" if exc.errno == errno.ENOSPC else (exc.strerror or str(exc))
+        raise LogWriteError(exc.errno or errno.EIO,
+                            f"log: {path}: {what} after {written} of {len(rec.events)} frames; the partial log "
+                            "is kept (the run's report is complete)") from exc
+    return path
+
+
+def read_log(path: str | os.PathLike) -> Recording:
+    """A log written by :func:`write_log` (with its sidecar) as a Recording."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"log: {path}: no such file")
+    sc_path = sidecar(path)
+    if not sc_path.is_file():
+        raise ValueError(f"log: {path}: no sidecar {sc_path.name} (the scenario it replays)")
+    try:
+        meta = json.loads(sc_path.read_text())
+        scenario = Scenario.from_dict(meta.pop("scenario"))
+    except (json.JSONDecodeError, KeyError, TypeError) as exc:
+        raise ValueError(f"log: {sc_path}: not a hil log sidecar ({exc})") from exc
+    suffix = path.suffix.lower()
+    if suffix == ".blf":
+        reader = can.BLFReader(path)
+    elif suffix == ".asc":
+        reader = can.ASCReader(path)
+    else:
+        raise ValueError(f"log: {path.name}: expected a .blf or .asc file")
+    try:
+        msgs = list(reader)
+    except Exception as exc:  # noqa: BLE001 - any parse failure of a truncated/foreign file
+        raise ValueError(f"log: {path}: cannot read it ({type(exc).__name__}: {exc})") from exc
+    finally:
+        reader.stop()
+    shift = 0.0
+    if msgs:  # ASC stores times from its start, BLF from its (ms-truncated) start: anchor on the first frame
+        shift = float(meta.get("first_timestamp", 0.0)) - msgs[0].timestamp
+    events = [(m.timestamp + shift, "rx" if m.is_rx else "tx", m) for m in msgs]
+    meta["frames_read"] = len(events)
+    return Recording(scenario=scenario, events=events, meta=meta)

@@ -1,0 +1,250 @@
+"""Scoring a run from its frames alone (a live :class:`~hil.rig.Recording` or
+one read back from a log): the same function, so re-scoring a log gives the
+same numbers.
+
+- Matching: each Measurement frame the rig sent is identified as cycle k of
+  the scenario's plan by its Seq (unwrapped past 65535) and its bytes; any
+  other frame the rig sent is *foreign* (fault injection: malformed frames, a
+  sequence jump). Each Estimate is matched to the latest sent cycle with its
+  Seq; an Estimate for no sent cycle is *unexpected*, a second one a
+  *duplicate*.
+- Accounting: cycles = sent + lost (lost: the scenario's injected frame
+  loss, never sent); sent = answered + rejected + missing, where *rejected*
+  are the cycles the protocol must refuse (a Seq jump: the first frame after
+  a loss or after a foreign Measurement); *missing* is anything else
+  unanswered. The firmware's own Diagnostics (requested before and after the
+  run) give its count of rejections, which must equal rejected + foreign.
+- Identification: RMSE and absolute deviation (pyrhonn.metrics) of position
+  and velocity, Estimate k (x̂(k+1), after the DBC's scaling) against the
+  noise-free x(k+1), over the answered cycles; Table 7 alongside.
+- Timing: latency Measurement sent -> Estimate received; the rig's lateness
+  against its absolute deadlines and its period jitter (interval between
+  consecutive frames minus T).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .rig import Recording, ids
+from .scenario import TABLE7
+
+__all__ = ["score", "stats_us"]
+
+
+def stats_us(values_ns: np.ndarray) -> dict[str, float | int]:
+    """min/avg/p50/p99/p99.9/max of nanosecond values, in microseconds."""
+    v = np.asarray(values_ns, dtype=np.float64)
+    if v.size == 0:
+        return {"n": 0}
+    q = np.percentile(v, [50, 99, 99.9])
+    return {"n": int(v.size), "min": float(v.min()) / 1e3, "avg": float(v.mean()) / 1e3, "p50": float(q[0]) / 1e3,
+            "p99": float(q[1]) / 1e3, "p99.9": float(q[2]) / 1e3, "max": float(v.max()) / 1e3}
+
+
+def _ns(t: float) -> int:
+    return int(round(t * 1e9))
+
+
+def _diag(msg) -> dict[str, int]:
+    from pyrhonn.firmware import database
+
+    d = database().decode_message("Diagnostics", bytes(msg.data), decode_choices=False)
+    return {k: (float(v) if k in ("CycleTime", "StepTime", "StepTimeMax") else int(v)) for k, v in d.items()}
+
+
+def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
+    """The report of a run as a JSON-able dict. ``reference``: an
+    IdentifierConfig to also check the estimates bit for bit against
+    ``Identifier.run`` on the accepted Measurement frames (None: skipped)."""
+    from pyrhonn import metrics
+    from pyrhonn.firmware import database, decode_estimate
+
+    sc = rec.scenario
+    plan = sc.build()
+    N = plan.cycles
+    T = int(round(sc.period * 1e9))
+    delay = int(round(sc.transport_delay * 1e9))
+    ident = ids()
+    MEAS, EST, DIAG = ident["Measurement"], ident["Estimate"], ident["Diagnostics"]
+    meas_len = database().get_message_by_name("Measurement").length
+    first_run = int(rec.meta.get("first_run_event", 0))
+
+    sent_ns = np.full(N, -1, dtype=np.int64)
+    recv_ns = np.full(N, -1, dtype=np.int64)
+    raw = np.zeros((N, 6), dtype=np.int64)
+    phys = np.zeros((N, 6), dtype=np.float64)
+    status = np.zeros(N, dtype=np.int64)
+    expect_reject = np.zeros(N, dtype=bool)
+    meas_data: dict[int, bytes] = {}
+    by_seq: dict[int, int] = {}
+    last_k = -1
+    prev_seq: int | None = None
+    foreign: dict[str, int] = {}
+    unexpected = duplicates = mismatched = 0
+    diags: list[dict[str, int]] = []
+    plan_bytes: dict[int, bytes] = {}
+
+    def plan_frame(k: int) -> bytes:
+        if k not in plan_bytes:
+            from pyrhonn.firmware import measurement_message
+
+            plan_bytes[k] = bytes(measurement_message(k & 0xFFFF, plan.X[k], plan.U[k], plan.valid[k]).data)
+        return plan_bytes[k]
+
+    for i, (t, d, m) in enumerate(rec.events):
+        if i < first_run:                       # the handshake before the run
+            if d == "rx" and m.arbitration_id == DIAG:
+                diags.append(_diag(m))
+            continue
+        if d == "tx":
+            if m.arbitration_id == MEAS and not m.is_extended_id and len(m.data) == meas_len:
+                s = int.from_bytes(bytes(m.data[:2]), "little")
+                k = last_k + 1 + ((s - (last_k + 1)) & 0xFFFF)
+                if k < N and bytes(m.data) == plan_frame(k):
+                    sent_ns[k] = _ns(t)
+                    meas_data[k] = bytes(m.data)
+                    by_seq[s] = k
+                    first_accept = prev_seq is None and not (diags and diags[0].get("Synced"))
+                    if prev_seq is None and diags and diags[0].get("Synced"):
+                        prev_seq = diags[0]["LastSeq"]
+                    expect_reject[k] = not first_accept and prev_seq is not None and s != ((prev_seq + 1) & 0xFFFF)
+                    prev_seq = s
+                    last_k = k
+                    continue
+                prev_seq = s if s != prev_seq else prev_seq   # a foreign 20-byte Measurement moves the anchor
+                foreign["measurement, foreign Seq"] = foreign.get("measurement, foreign Seq", 0) + 1
+            elif m.arbitration_id == ident["Control"]:
+                continue
+            else:
+                kind = "measurement, bad length" if m.arbitration_id == MEAS else "unknown id"
+                foreign[kind] = foreign.get(kind, 0) + 1
+            continue
+        if m.arbitration_id == DIAG:
+            diags.append(_diag(m))
+            continue
+        if m.arbitration_id != EST:
+            continue
+        try:
+            e = decode_estimate(m, scaling=False)
+        except ValueError:
+            mismatched += 1
+            continue
+        k = by_seq.get(e.seq)
+        if k is None:
+            unexpected += 1
+        elif recv_ns[k] >= 0:
+            duplicates += 1
+        else:
+            recv_ns[k] = _ns(t)
+            raw[k] = e.xhat
+            phys[k] = decode_estimate(m).xhat
+            status[k] = e.step_status
+
+    lost = np.asarray(plan.lost)
+    was_sent = sent_ns >= 0
+    answered = recv_ns >= 0
+    unanswered = was_sent & ~answered
+    rejected = unanswered & expect_reject
+    missing = unanswered & ~expect_reject
+    latency = recv_ns[answered] - sent_ns[answered]
+    late = int(np.sum(latency > T))
+    deadlines = int(rec.meta.get("t0_ns", 0)) + np.arange(N, dtype=np.int64) * T + delay
+    lateness = sent_ns[was_sent] - deadlines[was_sent]
+    ks = np.flatnonzero(was_sent)
+    consecutive = np.diff(ks) == 1
+    intervals = np.diff(sent_ns[ks])[consecutive] - T
+
+    out: dict[str, Any] = {
+        "transport": rec.meta.get("transport"), "channel": rec.meta.get("channel"),
+        "scenario": sc.to_dict(), "cycles": N,
+        "frames": {"sent": int(was_sent.sum()), "lost_injected": int(lost.sum()),
+                   "lost_unaccounted": int(np.sum(~was_sent & ~lost)), "answered": int(answered.sum()),
+                   "rejected_seq_jump": int(rejected.sum()), "missing": int(missing.sum()), "late": late,
+                   "duplicates": duplicates, "unexpected": unexpected, "undecodable": mismatched,
+                   "foreign_sent": dict(sorted(foreign.items())), "step_errors": int(np.sum(answered & (status != 0))),
+                   "answered_after_expected_reject": int(np.sum(answered & expect_reject))},
+    }
+    f = out["frames"]
+    f["sent_plus_lost_is_cycles"] = f["sent"] + f["lost_injected"] == N and f["lost_unaccounted"] == 0
+    # the firmware's own count, from the Diagnostics before and after the run
+    if len(diags) >= 2:
+        a, b = diags[0], diags[-1]
+        fw = {"rejected": (b["Rejected"] - a["Rejected"]) & 0xFFFF,
+              "seq_errors": (b["SeqErrors"] - a["SeqErrors"]) & 0xFFFF,
+              "measurements": (b["Measurements"] - a["Measurements"]) & 0xFFFFFFFF,
+              "step_errors": (b["StepErrors"] - a["StepErrors"]) & 0xFFFF,
+              "overruns": (b["Overruns"] - a["Overruns"]) & 0xFFFF,
+              "step_time_max_us": b["StepTimeMax"], "last_step_time_us": b["StepTime"]}
+        out["firmware"] = fw
+        n_foreign = sum(foreign.values())
+        f["accounted"] = bool(fw["measurements"] == f["answered"] and fw["rejected"] == f["rejected_seq_jump"]
+                              + n_foreign and f["missing"] == 0 and f["sent_plus_lost_is_cycles"])
+    else:
+        out["firmware"] = None
+        f["accounted"] = bool(f["missing"] == 0 and f["sent_plus_lost_is_cycles"])
+    # identification against the noise-free truth
+    if answered.sum() >= 2:
+        truth = np.asarray(plan.truth_next)[answered][:, :2]
+        est = phys[answered][:, :2]
+        r, ad = metrics.rmse(truth, est), metrics.absolute_deviation(truth, est)
+        out["identification"] = {
+            name: {"rmse": float(r[j]), "absolute_deviation": float(ad[j]), "table7_rmse": TABLE7[name]["rmse"],
+                   "at_or_below_table7": bool(r[j] <= TABLE7[name]["rmse"]),
+                   "signal_peak": float(np.max(np.abs(truth[:, j]))),
+                   "signal_rms": float(np.sqrt(np.mean(truth[:, j] ** 2)))}
+            for j, name in enumerate(("position", "velocity"))}
+        out["identification"]["note"] = (
+            "the LIM parameters are pyrhonn's PROPOSED set (the Lab-Volt table was not found): compare with "
+            "Table 7 through the signals' scale, not as the same motor")
+    else:
+        out["identification"] = None
+    out["latency_us"] = stats_us(latency)
+    out["latency_us"]["within_period"] = float(np.mean(latency <= T)) if latency.size else math.nan
+    out["rig_lateness_us"] = stats_us(lateness)
+    jit = stats_us(np.abs(intervals))
+    jit["max_abs"] = jit.pop("max", 0.0) if jit.get("n") else 0.0
+    out["rig_period_jitter_us"] = jit
+    out["rig_overruns"] = rec.meta.get("rig_overruns")
+    if reference is not None:
+        out["bit_exact"] = _reference_check(reference, meas_data, was_sent & ~expect_reject, answered, raw)
+    out["_series"] = {"k": np.flatnonzero(answered), "est": phys[answered], "truth": np.asarray(plan.truth_next),
+                      "latency_ns": latency, "t": np.asarray(plan.t)}
+    return out
+
+
+def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndarray, answered: np.ndarray,
+                     raw: np.ndarray) -> dict:
+    """Identifier.run (float32) on the decoded frames the firmware accepted
+    (every sent frame but the Seq jumps: it steps on them whether or not
+    their estimate reached the rig), scaled as the DBC, compared on the
+    answered ones."""
+    from pyrhonn import Identifier
+    from pyrhonn.firmware import INPUT_SIGNALS, STATE_SIGNALS, VALID_SIGNALS, database
+
+    db = database()
+    M, E = db.get_message_by_name("Measurement"), db.get_message_by_name("Estimate")
+    ks = np.flatnonzero(accepted)
+    if ks.size == 0 or not answered.any():
+        return {"checked": 0, "mismatches": 0, "equal": False}
+    X = np.empty((ks.size, 6), dtype=np.float32)
+    U = np.empty((ks.size, 2), dtype=np.float32)
+    V = np.empty((ks.size, 6), dtype=bool)
+    for i, k in enumerate(ks):
+        d = M.decode(meas_data[int(k)], decode_choices=False)
+        X[i] = [d[s] for s in STATE_SIGNALS]
+        U[i] = [d[s] for s in INPUT_SIGNALS]
+        V[i] = [bool(d[s]) for s in VALID_SIGNALS]
+    xhat = Identifier(config).run(X, U, V)
+    on = answered[ks]
+    ks, xhat = ks[on], xhat[on]
+    want = np.empty_like(raw[ks])
+    for j, name in enumerate(s + "Hat" for s in STATE_SIGNALS):
+        sig = E.get_signal_by_name(name)
+        lo, hi = int(sig.scaled_to_raw(sig.minimum)), int(sig.scaled_to_raw(sig.maximum))
+        want[:, j] = [min(max(sig.scaled_to_raw(float(v)), lo), hi) for v in xhat[:, j]]
+    bad = np.any(want != raw[ks], axis=1)
+    return {"checked": int(ks.size), "mismatches": int(bad.sum()), "equal": bool(not bad.any()),
+            "first_mismatch_cycle": int(ks[np.argmax(bad)]) if bad.any() else None}

@@ -1,0 +1,258 @@
+"""hil/: the LIM rig replayed against the firmware over python-can (issue 6),
+on the host transports (virtual in-process, udp_multicast between processes).
+
+- The estimates that come back equal, bit for bit after the DBC's scaling,
+  Identifier.run (float32) on the decoded Measurement frames the firmware
+  accepted; injected frame loss is accounted for frame by frame, and agrees
+  with the firmware's own Diagnostics.
+- A recorded log re-scores to the same numbers.
+- Faults: firmware not running, a burst of malformed frames, a sequence
+  jump, a full log disk. Bad CLI input exits 2.
+"""
+from __future__ import annotations
+
+import errno
+import io
+import json
+
+import numpy as np
+import pytest
+
+can = pytest.importorskip("can")
+pytest.importorskip("cantools")
+
+from pyrhonn import Identifier  # noqa: E402
+from pyrhonn import firmware  # noqa: E402
+from pyrhonn.cli import main as pyrhonn_main  # noqa: E402
+
+from hil.rig import FirmwareTimeout, LogWriteError, read_log, write_log  # noqa: E402
+from hil.scenario import ENCODER_SENC50, Scenario  # noqa: E402
+from hil.score import score  # noqa: E402
+from hil.transport import lim_config, run_replay  # noqa: E402
+
+DB = firmware.database()
+MEAS, EST = DB.get_message_by_name("Measurement"), DB.get_message_by_name("Estimate")
+# 0.9 s .. 1.35 s: the input switches on at 1.0 s and the position hold starts at 1.1 s
+SCENARIO = Scenario(duration=0.45, start=0.9, frame_loss=0.02, seed=11)
+
+
+def _independent_bit_exact(rec) -> int:
+    """Not hil.score's check: pair the logged frames by Seq here and run the
+    offline identifier on the Measurements that were answered."""
+    sent, answers = {}, {}
+    for _, d, m in rec.events:
+        if d == "tx" and m.arbitration_id == MEAS.frame_id and len(m.data) == MEAS.length:
+            sent.setdefault(int.from_bytes(bytes(m.data[:2]), "little"), []).append(bytes(m.data))
+        elif d == "rx" and m.arbitration_id == EST.frame_id:
+            e = firmware.decode_estimate(m, scaling=False)
+            answers[e.seq] = e.xhat
+    seqs = [s for s in sent if s in answers]  # insertion order = sending order (no wrap in these runs)
+    X, U, V = [], [], []
+    for s in seqs:
+        d = MEAS.decode(sent[s][-1], decode_choices=False)
+        X.append([d[n] for n in firmware.STATE_SIGNALS])
+        U.append([d[n] for n in firmware.INPUT_SIGNALS])
+        V.append([bool(d[n]) for n in firmware.VALID_SIGNALS])
+    xhat = Identifier(lim_config()).run(np.array(X, np.float32), np.array(U, np.float32), np.array(V, bool))
+    for j, name in enumerate(firmware.ESTIMATE_SIGNALS):
+        sig = EST.get_signal_by_name(name)
+        lo, hi = int(sig.scaled_to_raw(sig.minimum)), int(sig.scaled_to_raw(sig.maximum))
+        want = [min(max(sig.scaled_to_raw(float(v)), lo), hi) for v in xhat[:, j]]
+        assert want == [int(answers[s][j]) for s in seqs], name
+    return len(seqs)
+
+
+def _expected_rejections(lost: np.ndarray) -> int:
+    """A lost frame makes the next sent one a Seq jump (rejected); a run of losses, one."""
+    return int(np.sum(lost[:-1] & ~lost[1:]))
+
+
+# -- the scenario -------------------------------------------------------------------------------
+
+
+def test_the_scenario_is_validated_seeded_and_models_the_rig() -> None:
+    for bad in ({"period": 0}, {"duration": -1}, {"frame_loss": 0.9}, {"quantiser": "ceil"}, {"hold_states": (7,)},
+                {"seed": -1}, {"encoder_resolution": float("nan")}, {"transport_delay": "1"}, {"duration": 3e-4}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            Scenario(**bad)
+    with pytest.raises(ValueError, match="unknown fields"):
+        Scenario.from_dict({"bogus": 1})
+    assert Scenario.from_dict(json.loads(SCENARIO.to_json())) == SCENARIO
+    plan = SCENARIO.build()
+    again = Scenario(**SCENARIO.to_dict() | {"hold_states": (0,)}).build()
+    assert np.array_equal(plan.lost, again.lost) and plan.lost.sum() > 5
+    assert ENCODER_SENC50 == 10e-6
+    q = plan.X[:, 0]
+    assert np.allclose(q / 10e-6, np.round(q / 10e-6), atol=1e-6)  # whole encoder counts
+    moving = slice(400, 600)  # 1.02 s .. 1.08 s: before the hold, the motor moving
+    np.testing.assert_allclose(plan.X[moving, 1][1:], np.diff(plan.X[moving, 0]) / 3e-4, atol=1e-9)
+    counts = plan.X[moving, 1] * 3e-4 / 10e-6  # whole counts per period: 0, 1, ... (the high-frequency content)
+    assert np.allclose(counts, np.round(counts), atol=1e-6) and len(set(np.round(counts))) >= 2
+    held = (plan.t >= 1.1 - 1e-9)
+    assert not plan.valid[held, 0].any() and plan.valid[~held, 0].all() and plan.valid[:, 1:].all()
+    assert np.all(plan.X[held, 0] == plan.X[np.argmax(held) - 1, 0])  # the last valid reading, held
+    assert np.abs(plan.truth_next[:, 0] - plan.X[:, 0]).max() > 1e-3  # the truth is not what was sent
+
+
+# -- end to end -----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("transport", ["virtual", "udp_multicast"])
+def test_estimates_over_the_bus_are_identifier_run_bit_for_bit_and_every_lost_frame_is_accounted(transport) -> None:
+    sc = SCENARIO if transport == "virtual" else SCENARIO.replace(duration=0.3, seed=12)
+    plan = sc.build()
+    rec = run_replay(sc, transport)
+    r = score(rec, reference=lim_config())
+    f = r["frames"]
+    n_lost = int(plan.lost.sum())
+    assert n_lost > 0
+    assert f["lost_injected"] == n_lost and f["sent"] == sc.cycles - n_lost and f["lost_unaccounted"] == 0
+    assert f["rejected_seq_jump"] == _expected_rejections(plan.lost)
+    assert f["answered"] == f["sent"] - f["rejected_seq_jump"] and f["missing"] == 0
+    assert f["duplicates"] == f["unexpected"] == f["step_errors"] == 0
+    assert r["firmware"]["rejected"] == r["firmware"]["seq_errors"] == f["rejected_seq_jump"]
+    assert r["firmware"]["measurements"] == f["answered"]
+    assert f["accounted"]
+    assert r["bit_exact"] == {"checked": f["answered"], "mismatches": 0, "equal": True, "first_mismatch_cycle": None}
+    assert _independent_bit_exact(rec) == f["answered"]
+    ident = r["identification"]
+    assert all(np.isfinite(ident[s]["rmse"]) for s in ("position", "velocity"))
+    assert r["latency_us"]["n"] == f["answered"] and r["latency_us"]["min"] > 0
+    assert r["rig_lateness_us"]["n"] == f["sent"]
+
+
+def test_a_recorded_log_re_scores_to_the_same_numbers(tmp_path) -> None:
+    rec = run_replay(SCENARIO.replace(duration=0.15, seed=3), "virtual")
+    live = score(rec)
+    for name in ("run.blf", "run.asc"):
+        path = write_log(rec, tmp_path / name)
+        again = score(read_log(path))
+        assert again["frames"] == live["frames"] and again["firmware"] == live["firmware"], name
+        assert again["identification"] == live["identification"], name
+        tol = 1e-6 if name.endswith(".blf") else 1.5  # BLF keeps nanoseconds, ASC microseconds
+        for key in ("latency_us", "rig_lateness_us", "rig_period_jitter_us"):
+            for stat, v in live[key].items():
+                assert again[key][stat] == pytest.approx(v, abs=tol), (name, key, stat)
+
+
+# -- faults -----------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("transport", ["virtual", "udp_multicast"])
+def test_firmware_not_running_is_a_clear_timeout(transport) -> None:
+    with pytest.raises(FirmwareTimeout, match="no answer from the firmware .* within 0.3 s .*is the firmware running"):
+        run_replay(SCENARIO.replace(duration=0.03), transport, firmware=False, reply_timeout=0.3)
+
+
+def test_a_burst_of_malformed_frames_is_counted_and_nothing_crashes() -> None:
+    rng = np.random.default_rng(7)
+    own = {EST.frame_id, 0x111, 0x130}
+    burst = []
+    for _ in range(60):
+        if rng.random() < 0.5:  # the Measurement id with a wrong length
+            n = int(rng.choice([0, 1, 8, 12, 16, 24, 32, 48, 64]))
+            burst.append(can.Message(arbitration_id=MEAS.frame_id, is_extended_id=False, is_fd=True,
+                                     data=rng.integers(0, 256, n, dtype=np.uint8).tobytes()))
+        else:  # an id nobody uses, random payload
+            cid = int(rng.choice([i for i in range(0x000, 0x7FF, 7) if i not in own and i != MEAS.frame_id]))
+            burst.append(can.Message(arbitration_id=cid, is_extended_id=False, is_fd=True,
+                                     data=rng.integers(0, 256, 20, dtype=np.uint8).tobytes()))
+    sc = SCENARIO.replace(duration=0.15, frame_loss=0.0)
+    rec = run_replay(sc, "virtual", extra_frames=lambda k: burst if k == 100 else [])
+    r = score(rec, reference=lim_config())
+    f = r["frames"]
+    assert sum(f["foreign_sent"].values()) == 60 and r["firmware"]["rejected"] == 60
+    assert f["answered"] == sc.cycles and f["missing"] == 0 and f["accounted"] and r["bit_exact"]["equal"]
+
+
+def test_a_sequence_counter_jump_costs_one_frame_and_is_accounted() -> None:
+    sc = SCENARIO.replace(duration=0.15, frame_loss=0.0)
+    plan = sc.build()
+
+    def jump(k: int):
+        if k != 200:
+            return []
+        return [firmware.measurement_message(k + 1000, plan.X[k], plan.U[k], plan.valid[k])]
+
+    r = score(run_replay(sc, "virtual", extra_frames=jump), reference=lim_config())
+    f = r["frames"]
+    assert f["foreign_sent"] == {"measurement, foreign Seq": 1}
+    # the jumped frame is rejected and re-anchors; cycle 201 is then a jump too; 202 resynchronises
+    assert f["rejected_seq_jump"] == 1 and f["answered"] == sc.cycles - 1 and f["missing"] == 0
+    assert r["firmware"]["rejected"] == r["firmware"]["seq_errors"] == 2 and f["accounted"]
+    assert r["bit_exact"]["equal"]
+
+
+class _FullDisk(io.RawIOBase):
+    """A file that takes ``limit`` bytes, then fails like a full disk."""
+
+    def __init__(self, path, limit: int) -> None:
+        self._f = open(path, "wb")
+        self._left = limit
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, b) -> int:
+        if self._left <= 0:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        b = bytes(b)[:self._left]
+        self._left -= len(b)
+        return self._f.write(b)
+
+    def seek(self, *a):
+        return self._f.seek(*a)
+
+    def tell(self):
+        return self._f.tell()
+
+    def flush(self):
+        self._f.flush()
+
+    def close(self):
+        if not self._f.closed:
+            self._f.close()
+        super().close()
+
+
+def test_a_full_log_disk_is_a_clear_error_and_the_partial_log_is_kept(tmp_path) -> None:
+    rec = run_replay(SCENARIO.replace(duration=0.6, frame_loss=0.0), "virtual")
+    path = tmp_path / "run.blf"
+    with pytest.raises(LogWriteError, match=r"disk full after \d+ of \d+ frames; the partial log is kept") as info:
+        write_log(rec, path, file=_FullDisk(path, 20_000))
+    assert info.value.errno == errno.ENOSPC
+    assert path.stat().st_size == 20_000 and (tmp_path / "run.blf.json").is_file()
+
+
+# -- the command line -----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("argv", [
+    ["hil"], ["hil", "replay", "--transport", "bogus"], ["hil", "replay", "--duration", "-1"],
+    ["hil", "replay", "--duration", "x"], ["hil", "replay", "--frame-loss", "2"],
+    ["hil", "replay", "--log", "run.txt"], ["hil", "score", "/nonexistent/run.blf"],
+    ["hil", "bench", "--cycles", "0"], ["hil", "bench"], ["hil", "replay", "--seed", "-3"],
+])
+def test_bad_cli_input_exits_2(argv, capsys) -> None:
+    try:
+        code = pyrhonn_main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and err.strip()
+
+
+def test_cli_replay_writes_report_figures_and_a_log_that_scores_again(tmp_path, capsys) -> None:
+    log, out = tmp_path / "run.blf", tmp_path / "report"
+    argv = ["hil", "replay", "--transport", "virtual", "--duration", "0.3", "--start", "0.9", "--frame-loss",
+            "0.01", "--seed", "4", "--out", str(out), "--log", str(log)]
+    assert pyrhonn_main(argv) == 0
+    text = capsys.readouterr().out
+    assert "all accounted for" in text and "Identifier.run: equal" in text and "Table 7" in text
+    for name in ("report.json", "report.txt", "position.png", "velocity.png", "latency.png"):
+        assert (out / name).stat().st_size > 0, name
+    live = json.loads((out / "report.json").read_text())
+    assert pyrhonn_main(["hil", "score", str(log), "--json"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert again["frames"] == live["frames"] and again["identification"] == live["identification"]

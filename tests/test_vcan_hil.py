@@ -1,0 +1,70 @@
+"""hil/ over SocketCAN (vcan0, in the VM tier) against firmware_sim's Linux
+runner: the same scenario as on the host transports, only the channel
+changes. Skipped where there is no vcan0 (see conftest.vcan0)."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+can = pytest.importorskip("can")
+
+from pyrhonn.cli import main as pyrhonn_main  # noqa: E402
+
+from hil.scenario import Scenario  # noqa: E402
+from hil.score import score  # noqa: E402
+from hil.transport import lim_config, run_replay  # noqa: E402
+
+pytestmark = pytest.mark.vcan
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="module")
+def runner(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The runner that `make test-c` built, or one built here with cc (as test_vcan_runner)."""
+    built = Path(os.environ.get("RHONN_RUNNER", ROOT / "build" / "release" / "firmware_sim" / "rhonn_runner"))
+    if built.exists():
+        return built
+    cc = shutil.which("cc")
+    if cc is None:
+        pytest.skip("no rhonn_runner and no C compiler to build one")
+    out = tmp_path_factory.mktemp("runner") / "rhonn_runner"
+    fw = ROOT / "firmware_sim"
+    subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-DRHONN_SINGLE", f"-I{ROOT / 'csrc' / 'include'}",
+                    f"-I{fw / 'app'}", f"-I{fw / 'generated'}", f"-I{fw / 'config'}", str(fw / "linux" / "rhonn_runner.c"),
+                    str(fw / "app" / "fw_app.c"), str(fw / "app" / "fw_protocol.c"), str(fw / "generated" / "rhonn_id.c"),
+                    str(ROOT / "csrc" / "src" / "rhonn.c"), "-lm", "-o", str(out)], check=True)
+    return out
+
+
+def test_replay_over_vcan0_against_the_runner_is_bit_exact_and_accounted(vcan0: str, runner: Path) -> None:
+    sc = Scenario(duration=0.3, start=0.9, frame_loss=0.02, seed=21)
+    plan = sc.build()
+    # the VM is emulated (slow): a generous reply timeout and drain
+    rec = run_replay(sc, "socketcan", vcan0, runner=str(runner), reply_timeout=10.0, drain=3.0)
+    r = score(rec, reference=lim_config())
+    f = r["frames"]
+    assert f["lost_injected"] == int(plan.lost.sum()) > 0
+    assert f["rejected_seq_jump"] == int(np.sum(plan.lost[:-1] & ~plan.lost[1:]))
+    assert f["missing"] == 0 and f["accounted"], f
+    assert r["firmware"]["rejected"] == f["rejected_seq_jump"] and r["firmware"]["measurements"] == f["answered"]
+    assert r["bit_exact"]["equal"] and r["bit_exact"]["checked"] == f["answered"]
+    side = rec.meta["firmware_side"]
+    assert side["returncode"] == 0
+    assert side["stats"]["rejected"] == f["rejected_seq_jump"] and side["stats"]["step_errors"] == 0
+
+
+def test_cli_replay_over_vcan0(vcan0: str, runner: Path, tmp_path: Path, capsys) -> None:
+    out = Path(os.environ.get("PYRHONN_VM_OUT", tmp_path)) / "hil-vcan0"
+    code = pyrhonn_main(["hil", "replay", "--transport", "socketcan", "--channel", vcan0, "--runner", str(runner),
+                         "--duration", "0.3", "--start", "0.9", "--timeout", "10", "--drain", "3", "--out", str(out),
+                         "--log", str(out / "run.blf")])
+    text = capsys.readouterr().out
+    print(text)
+    assert code == 0, text
+    assert "all accounted for" in text and "Identifier.run: equal" in text and "not meaningful" in text.lower()
+    assert pyrhonn_main(["hil", "score", str(out / "run.blf")]) == 0
