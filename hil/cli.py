@@ -135,14 +135,20 @@ def _check_log_path(path: Path | None) -> None:
 
 
 def _replay(args) -> int:
-    from .rig import write_log
+    from .rig import BusLost, write_log
     from .score import score
     from .transport import lim_config, run_replay
 
     _check_log_path(args.log)
     sc = _scenario(args)
-    rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
-                     reply_timeout=args.timeout, drain=args.drain)
+    try:
+        rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
+                         reply_timeout=args.timeout, drain=args.drain)
+    except BusLost as exc:
+        if args.log is not None:  # keep what was recorded up to the loss
+            write_log(exc.recording, args.log)
+            print(f"recorded {len(exc.recording.events)} frames (up to the loss) to {args.log}", file=sys.stderr)
+        raise
     report = score(rec, reference=lim_config())
     report["firmware_side"] = rec.meta.get("firmware_side")
     code = _emit(report, args, timing_note(args.transport))

@@ -32,7 +32,7 @@ import can
 
 from .scenario import Plan, Scenario
 
-__all__ = ["FirmwareTimeout", "LogWriteError", "Recording", "Rig", "ids", "read_log", "write_log"]
+__all__ = ["BusLost", "FirmwareTimeout", "LogWriteError", "Recording", "Rig", "ids", "read_log", "write_log"]
 
 
 class FirmwareTimeout(TimeoutError):
@@ -41,6 +41,16 @@ class FirmwareTimeout(TimeoutError):
 
 class LogWriteError(OSError):
     """Writing the log failed part way (the partial log is kept)."""
+
+
+class BusLost(OSError):
+    """The bus went away mid-run (interface down, bus closed). ``recording``
+    holds every frame sent and received up to that moment, so nothing that
+    happened before is lost: it can be written as a log and scored."""
+
+    def __init__(self, message: str, recording: "Recording") -> None:
+        super().__init__(message)
+        self.recording = recording
 
 
 def ids() -> dict[str, int]:
@@ -84,6 +94,7 @@ class Rig:
         self._t0 = 0
         self._events: list[tuple[int, str, can.Message]] = []
         self._n_rx = 0
+        self._first_run_event = 0
 
     # -- receiving ---------------------------------------------------------------------------
 
@@ -97,23 +108,36 @@ class Rig:
         self._events.append((now, "rx", msg))
         self._n_rx += 1
 
+    def _recv(self, timeout: float) -> can.Message | None:
+        try:
+            return self.bus.recv(timeout=timeout)
+        except (can.CanError, OSError) as exc:
+            raise self._lost("receiving", exc) from exc
+
     def _wait_until(self, deadline: int) -> None:
-        bus, spin, clock = self.bus, self.spin_ns, time.perf_counter_ns
+        spin, clock = self.spin_ns, time.perf_counter_ns
         while True:
             rem = deadline - clock()
             if rem <= 0:
                 return
-            if rem > spin:
-                msg = bus.recv(timeout=(rem - spin) / 1e9)
-            else:
-                msg = bus.recv(timeout=0.0)
+            msg = self._recv((rem - spin) / 1e9 if rem > spin else 0.0)
             self._take(msg, clock())
 
     def _send(self, msg: can.Message) -> int:
         now = time.perf_counter_ns()
-        self.bus.send(msg)
+        try:
+            self.bus.send(msg)
+        except (can.CanError, OSError) as exc:
+            raise self._lost("sending", exc) from exc
         self._events.append((now, "tx", msg))
         return now
+
+    def _lost(self, doing: str, exc: BaseException) -> BusLost:
+        sent = sum(1 for _, d, _m in self._events if d == "tx")
+        received = sum(1 for _, d, _m in self._events if d == "rx")
+        rec = self._recording({"bus_lost": f"{type(exc).__name__}: {exc}"})
+        return BusLost(f"the bus ({self.transport} {self.channel}) went away while {doing} after {sent} frames sent "
+                       f"and {received} received: {exc}", rec)
 
     def _control(self, command: str, token: int, timeout: float) -> bool:
         """Send a Control frame; True when its ControlAck came back."""
@@ -127,7 +151,7 @@ class Rig:
             if time.perf_counter_ns() >= resend:  # again every 0.25 s: the firmware may still be binding
                 self._send(control_message(command, token))
                 resend = time.perf_counter_ns() + 250_000_000
-            self._take(self.bus.recv(timeout=0.02), time.perf_counter_ns())
+            self._take(self._recv(0.02), time.perf_counter_ns())
             for _, d, m in self._events[n0:]:
                 if d == "rx" and m.arbitration_id == ack_id:
                     a = database().decode_message("ControlAck", bytes(m.data), decode_choices=False)
@@ -153,7 +177,7 @@ class Rig:
                                   "(is the firmware running, on this channel/port?)")
         wall0 = time.time()
         t0 = time.perf_counter_ns() + 10_000_000
-        start_events = len(self._events)
+        self._first_run_event = len(self._events)
         self._t0 = t0
         n_rx_before = self._n_rx
         first_tx = None
@@ -178,19 +202,23 @@ class Rig:
         # the last estimates, then the firmware's counters
         end = time.perf_counter_ns() + int(self.drain * 1e9)
         while time.perf_counter_ns() < end:
-            self._take(self.bus.recv(timeout=0.01), time.perf_counter_ns())
+            self._take(self._recv(0.01), time.perf_counter_ns())
         diag_ok = self._control("DiagRequest", 0x5A, self.reply_timeout)
-        # log time: seconds from the first frame (the handshake), so every timestamp is >= 0 and
-        # BLF keeps it to the nanosecond; t0 (deadline of frame 0, without the delay) is in meta
-        base = self._events[0][0]
+        return self._recording({"wall_start": wall0, "rig_overruns": overruns, "final_diagnostics": diag_ok})
+
+    def _recording(self, extra: dict[str, Any]) -> Recording:
+        """The frames so far as a Recording. Log time: seconds from the first
+        frame (the handshake), so every timestamp is >= 0 and BLF keeps it to
+        the nanosecond; t0 (deadline of frame 0, without the delay) is in meta."""
+        sc = self.plan.scenario
+        base = self._events[0][0] if self._events else self._t0
         events = [((ns - base) / 1e9, d, m) for ns, d, m in self._events]
         for ts, _, m in events:
             m.timestamp = ts
             m.channel = None
-        meta = {"transport": self.transport, "channel": self.channel, "period_ns": T, "delay_ns": delay,
-                "t0_ns": t0 - base,
-                "wall_start": wall0, "first_run_event": start_events, "rig_overruns": overruns,
-                "final_diagnostics": diag_ok}
+        meta = {"transport": self.transport, "channel": self.channel, "period_ns": int(round(sc.period * 1e9)),
+                "delay_ns": int(round(sc.transport_delay * 1e9)), "t0_ns": self._t0 - base,
+                "first_run_event": self._first_run_event, **extra}
         return Recording(scenario=sc, events=events, meta=meta)
 
 

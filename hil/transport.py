@@ -13,7 +13,6 @@ the same on each, only the channel changes.
 from __future__ import annotations
 
 import functools
-import importlib.util
 import json
 import os
 import random
@@ -41,15 +40,10 @@ UDP_GROUP = "239.74.163.2"  # python-can's default IPv4 group
 
 @functools.cache
 def lim_config():
-    """firmware_sim's LIM identifier (float32), the network the firmware runs."""
-    path = ROOT / "firmware_sim" / "tools" / "export_config.py"
-    if not path.is_file():
-        raise ValueError(f"firmware config: {path} not found (hil needs the pyrhonn source tree)")
-    spec = importlib.util.spec_from_file_location("_hil_fw_export_config", path)
-    module = importlib.util.module_from_spec(spec)
-    assert spec.loader is not None
-    spec.loader.exec_module(module)
-    return module.lim_config("float32")
+    """The network the firmware runs: the shipped config ``firmware-lim`` (float32)."""
+    from pyrhonn.configfile import load_shipped
+
+    return load_shipped("firmware-lim").config
 
 
 def free_port() -> int:

@@ -25,10 +25,10 @@ from pyrhonn import Identifier  # noqa: E402
 from pyrhonn import firmware  # noqa: E402
 from pyrhonn.cli import main as pyrhonn_main  # noqa: E402
 
-from hil.rig import FirmwareTimeout, LogWriteError, read_log, write_log  # noqa: E402
+from hil.rig import BusLost, FirmwareTimeout, LogWriteError, Rig, read_log, write_log  # noqa: E402
 from hil.scenario import ENCODER_SENC50, Scenario  # noqa: E402
 from hil.score import score  # noqa: E402
-from hil.transport import lim_config, run_replay  # noqa: E402
+from hil.transport import lim_config, open_transport, run_replay  # noqa: E402
 
 DB = firmware.database()
 MEAS, EST = DB.get_message_by_name("Measurement"), DB.get_message_by_name("Estimate")
@@ -142,6 +142,22 @@ def test_a_recorded_log_re_scores_to_the_same_numbers(tmp_path) -> None:
 def test_firmware_not_running_is_a_clear_timeout(transport) -> None:
     with pytest.raises(FirmwareTimeout, match="no answer from the firmware .* within 0.3 s .*is the firmware running"):
         run_replay(SCENARIO.replace(duration=0.03), transport, firmware=False, reply_timeout=0.3)
+
+
+def test_a_bus_that_disappears_mid_run_is_a_clear_error_and_the_frames_so_far_are_kept(tmp_path) -> None:
+    sc = SCENARIO.replace(duration=0.06, frame_loss=0.0)
+    with open_transport("virtual") as (bus, where, _side):
+        # the bus is closed right after measurement frame 40 (what an interface going down does to a socket)
+        rig = Rig(bus, sc.build(), transport="virtual", channel=where, spin_ns=0, reply_timeout=2.0, drain=0.1,
+                  extra_frames=lambda k: (bus.shutdown() or []) if k == 40 else [])
+        with pytest.raises(BusLost, match=r"the bus \(virtual .*\) went away while (sending|receiving) after "
+                                          r"\d+ frames sent") as info:
+            rig.run()
+    rec = info.value.recording
+    sent = [m for _, d, m in rec.events if d == "tx" and m.arbitration_id == MEAS.frame_id]
+    assert len(sent) == 41 and "bus_lost" in rec.meta
+    log = write_log(rec, tmp_path / "lost.blf")
+    assert len(read_log(log).events) == len(rec.events)  # nothing recorded before the loss is lost
 
 
 def test_a_burst_of_malformed_frames_is_counted_and_nothing_crashes() -> None:

@@ -15,25 +15,17 @@ from pathlib import Path
 
 import numpy as np
 
-from pyrhonn import Factor, IdentifierConfig, NeuronConfig
+from pyrhonn import IdentifierConfig
+from pyrhonn.configfile import load_shipped
 from pyrhonn.export import header_text
 from pyrhonn.plants import lim
 
 
 def lim_config() -> IdentifierConfig:
-    """The LIM term sets proposed in plants.md §1.4 (logistic S), float32."""
-    S = Factor.s
-    q, v, la, lb, ia, ib = range(6)
-    sets = [
-        ((S(q),), (S(v),)),
-        ((S(v),), (S(q),), (S(la), S(ib)), (S(lb), S(ia)), (S(la), S(ia)), (S(lb), S(ib))),
-        ((S(la),), (S(ia),), (S(ib),), (S(q), S(ia)), (S(q), S(ib))),
-        ((S(lb),), (S(ia),), (S(ib),), (S(q), S(ia)), (S(q), S(ib))),
-        ((S(ia),), (S(la),), (S(lb),), (S(v), S(la)), (S(v), S(lb)), (Factor.u(0),)),
-        ((S(ib),), (S(la),), (S(lb),), (S(v), S(la)), (S(v), S(lb)), (Factor.u(1),)),
-    ]
-    neurons = tuple(NeuronConfig(terms=t, beta=1.0, p0=1e2, q=1e-3, r=1e-1) for t in sets)
-    return IdentifierConfig(n_states=6, n_inputs=2, neurons=neurons, dtype="float32")
+    """The firmware's LIM identifier, float32: the shipped config
+    ``firmware-lim`` (pyrhonn/configs/firmware-lim.toml), one source for the
+    M4 image, the Linux runner, FirmwareApp and the HIL harness."""
+    return load_shipped("firmware-lim").config
 
 
 def c_array(ctype: str, name: str, values: np.ndarray, fmt) -> str:

@@ -131,6 +131,7 @@ static struct timespec to_timespec(uint64_t ns)
 typedef struct {
     int fd;                 /* raw CAN FD socket, or -1 bus-less */
     uint64_t sent, send_errors;
+    int last_errno;         /* of the last failed socket call */
 } platform;
 
 static fw_status hal_send(void *ctx, const fw_frame *frame)
@@ -150,6 +151,7 @@ static fw_status hal_send(void *ctx, const fw_frame *frame)
     n = write(p->fd, &cf, (frame->flags & FW_FRAME_FD) ? CANFD_MTU : CAN_MTU);
     if (n < 0) {
         p->send_errors += 1u;
+        p->last_errno = errno;
         return FW_E_HAL;
     }
     p->sent += 1u;
@@ -166,7 +168,11 @@ static fw_status hal_receive(void *ctx, fw_frame *frame)
     }
     n = read(p->fd, &cf, sizeof cf);
     if (n < 0) {
-        return (errno == EAGAIN || errno == EWOULDBLOCK) ? FW_E_EMPTY : FW_E_HAL;
+        if (errno == EAGAIN || errno == EWOULDBLOCK) {
+            return FW_E_EMPTY;
+        }
+        p->last_errno = errno; /* e.g. ENETDOWN: the interface went down */
+        return FW_E_HAL;
     }
     if (n != CANFD_MTU && n != CAN_MTU) {
         return FW_E_HAL;
@@ -291,7 +297,8 @@ int main(int argc, char **argv)
     double period_us = 300.0, duration_s = 0.0;
     unsigned long long max_cycles = 0;
     const char *policy = "SCHED_OTHER";
-    platform plat = {-1, 0, 0};
+    platform plat = {-1, 0, 0, 0};
+    int bus_failed = 0;
     fw_hal hal;
     fw_app_config cfg;
     fw_counters c;
@@ -422,7 +429,9 @@ int main(int argc, char **argv)
             uint32_t handled = 0;
             st = fw_app_poll(&app, 64u, &handled);
             if (st == FW_E_HAL) {
-                fprintf(stderr, "rhonn_runner: the CAN interface failed (%s); stopping\n", strerror(errno));
+                fprintf(stderr, "rhonn_runner: the CAN interface %s failed (%s); stopping\n", ifname,
+                        strerror(plat.last_errno));
+                bus_failed = 1;
                 break;
             }
         }
@@ -473,5 +482,5 @@ int main(int argc, char **argv)
     if (plat.fd >= 0) {
         close(plat.fd);
     }
-    return 0;
+    return bus_failed ? 1 : 0;
 }

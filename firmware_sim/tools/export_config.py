@@ -11,16 +11,15 @@ lim_identifier_f32.h, lim_identifier_f64.h
 lim_identifier.h
     includes the one that matches the build (RHONN_SINGLE or not).
 
-The identifier is the one of the Cortex-M4 test vector
-(firmware_sim/cortex_m4/make_vector.py: the LIM term sets of plants.md §1.4),
-so the host application, its Python twin and the M4 image run the same
-network. tests/test_firmware_protocol.py checks the committed headers are
+The identifier is the shipped config ``firmware-lim``
+(pyrhonn/configs/firmware-lim.toml: the LIM term sets of plants.md §1.4), so
+the host application, its Python twin, the M4 image and the HIL harness run
+the same network. tests/test_firmware_protocol.py checks the committed headers are
 what this script writes.
 """
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import sys
 from pathlib import Path
 
@@ -31,12 +30,10 @@ NAME = "LIM_IDENTIFIER"
 
 
 def lim_config(dtype: str = "float32"):
-    """The LIM IdentifierConfig of firmware_sim/cortex_m4/make_vector.py."""
-    spec = importlib.util.spec_from_file_location("_fw_make_vector", FIRMWARE / "cortex_m4" / "make_vector.py")
-    module = importlib.util.module_from_spec(spec)
-    assert spec.loader is not None
-    spec.loader.exec_module(module)
-    config = module.lim_config()
+    """The firmware's LIM IdentifierConfig: the shipped config ``firmware-lim``."""
+    from pyrhonn.configfile import load_shipped
+
+    config = load_shipped("firmware-lim").config
     return config if config.dtype == dtype else config.replace(dtype=dtype)
 
 
