@@ -68,3 +68,42 @@ def test_cli_replay_over_vcan0(vcan0: str, runner: Path, tmp_path: Path, capsys)
     assert code == 0, text
     assert "all accounted for" in text and "Identifier.run: equal" in text and "not meaningful" in text.lower()
     assert pyrhonn_main(["hil", "score", str(out / "run.blf")]) == 0
+
+
+def _set_link(vcan0: str, state: str) -> None:
+    subprocess.run(["ip", "link", "set", vcan0, state], check=True)
+
+
+def test_interface_going_down_mid_run_is_a_clear_error_on_the_rig_side(vcan0: str, runner: Path) -> None:
+    from hil.rig import BusLost
+
+    sc = Scenario(duration=0.3, start=0.9, frame_loss=0.0, seed=5)
+    # right after measurement frame 200 is sent, the interface goes down
+    take_down = lambda k: (_set_link(vcan0, "down") or []) if k == 200 else []  # noqa: E731
+    try:
+        with pytest.raises(BusLost, match=r"went away while (sending|receiving)") as info:
+            run_replay(sc, "socketcan", vcan0, runner=str(runner), reply_timeout=10.0, drain=1.0,
+                       extra_frames=take_down)
+    finally:
+        _set_link(vcan0, "up")
+    rec = info.value.recording
+    sent = [m for _, d, m in rec.events if d == "tx" and m.arbitration_id == 0x100]
+    assert len(sent) == 201 and "bus_lost" in rec.meta  # every frame up to the loss is kept
+
+
+def test_interface_going_down_stops_the_runner_with_a_clear_message(vcan0: str, runner: Path) -> None:
+    import time
+
+    proc = subprocess.Popen([str(runner), "--interface", vcan0, "--duration", "600"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        time.sleep(1.0)
+        _set_link(vcan0, "down")
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        _set_link(vcan0, "up")
+    assert proc.returncode == 1
+    assert f"the CAN interface {vcan0} failed" in err
+    assert "wake-up" in out  # the statistics are still printed
