@@ -4,7 +4,6 @@ changes. Skipped where there is no vcan0 (see conftest.vcan0)."""
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -20,25 +19,6 @@ from hil.score import score  # noqa: E402
 from hil.transport import lim_config, run_replay  # noqa: E402
 
 pytestmark = pytest.mark.vcan
-ROOT = Path(__file__).resolve().parent.parent
-
-
-@pytest.fixture(scope="module")
-def runner(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The runner that `make test-c` built, or one built here with cc (as test_vcan_runner)."""
-    built = Path(os.environ.get("RHONN_RUNNER", ROOT / "build" / "release" / "firmware_sim" / "rhonn_runner"))
-    if built.exists():
-        return built
-    cc = shutil.which("cc")
-    if cc is None:
-        pytest.skip("no rhonn_runner and no C compiler to build one")
-    out = tmp_path_factory.mktemp("runner") / "rhonn_runner"
-    fw = ROOT / "firmware_sim"
-    subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-DRHONN_SINGLE", f"-I{ROOT / 'csrc' / 'include'}",
-                    f"-I{fw / 'app'}", f"-I{fw / 'generated'}", f"-I{fw / 'config'}", str(fw / "linux" / "rhonn_runner.c"),
-                    str(fw / "app" / "fw_app.c"), str(fw / "app" / "fw_protocol.c"), str(fw / "generated" / "rhonn_id.c"),
-                    str(ROOT / "csrc" / "src" / "rhonn.c"), "-lm", "-o", str(out)], check=True)
-    return out
 
 
 def test_replay_over_vcan0_against_the_runner_is_bit_exact_and_accounted(vcan0: str, runner: Path) -> None:

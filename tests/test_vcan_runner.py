@@ -5,10 +5,7 @@ byte-identical to what the same firmware logic gives in Python
 SIGTERM. Skipped where there is no vcan0 (see conftest.vcan0)."""
 from __future__ import annotations
 
-import importlib.util
 import json
-import os
-import shutil
 import signal
 import subprocess
 import time
@@ -20,38 +17,16 @@ import pytest
 can = pytest.importorskip("can")
 
 from pyrhonn import firmware  # noqa: E402
+from pyrhonn.configfile import load_shipped  # noqa: E402
 from pyrhonn.firmware import FirmwareApp  # noqa: E402
 from pyrhonn.plants import lim  # noqa: E402
 
 pytestmark = pytest.mark.vcan
-ROOT = Path(__file__).resolve().parent.parent
 ESTIMATE_ID = firmware.database().get_message_by_name("Estimate").frame_id
 
 
 def lim_config():
-    spec = importlib.util.spec_from_file_location("_fw_export_config",
-                                                  ROOT / "firmware_sim" / "tools" / "export_config.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.lim_config("float32")
-
-
-@pytest.fixture(scope="module")
-def runner(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The runner that `make test-c` built, or one built here with cc."""
-    built = Path(os.environ.get("RHONN_RUNNER", ROOT / "build" / "release" / "firmware_sim" / "rhonn_runner"))
-    if built.exists():
-        return built
-    cc = shutil.which("cc")
-    if cc is None:
-        pytest.skip("no rhonn_runner and no C compiler to build one")
-    out = tmp_path_factory.mktemp("runner") / "rhonn_runner"
-    fw = ROOT / "firmware_sim"
-    subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-DRHONN_SINGLE", f"-I{ROOT / 'csrc' / 'include'}",
-                    f"-I{fw / 'app'}", f"-I{fw / 'generated'}", f"-I{fw / 'config'}", str(fw / "linux" / "rhonn_runner.c"),
-                    str(fw / "app" / "fw_app.c"), str(fw / "app" / "fw_protocol.c"), str(fw / "generated" / "rhonn_id.c"),
-                    str(ROOT / "csrc" / "src" / "rhonn.c"), "-lm", "-o", str(out)], check=True)
-    return out
+    return load_shipped("firmware-lim").config
 
 
 def measurement_frames(n: int) -> list:
