@@ -70,6 +70,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     b = hs.add_parser("bench", help="cyclictest-style timing of both sides at 0.3 ms")
     _transport_args(b, default="udp_multicast")
     b.add_argument("--cycles", type=_positive_int, required=True)
+    b.add_argument("--fifo", type=_fifo_priority, metavar="PRIO",
+                   help="run the rig (and the firmware process it starts) under SCHED_FIFO at PRIO (1..99), "
+                        "as a real-time test would; refused without root / CAP_SYS_NICE (then said so)")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=_bench)
 
@@ -168,11 +171,35 @@ def _score(args) -> int:
     return _emit(report, args, f"re-scored from {args.log}")
 
 
+def _fifo_priority(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a priority 1..99, got {text!r}") from None
+    if not 1 <= value <= 99:
+        raise argparse.ArgumentTypeError(f"expected a priority 1..99, got {value}")
+    return value
+
+
+def _scheduling(priority: int | None) -> str:
+    """Switch this process to SCHED_FIFO (children started later inherit it);
+    the policy in effect, as a line for the report."""
+    if priority is None:
+        return "SCHED_OTHER"
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (OSError, AttributeError) as exc:
+        return f"SCHED_OTHER (SCHED_FIFO {priority} refused: {exc})"
+    return f"SCHED_FIFO {priority}"
+
+
 def _bench(args) -> int:
     from . import report as rep
     from .scenario import Scenario
     from .score import score
     from .transport import run_replay
+
+    policy = _scheduling(args.fifo)
 
     # the LIM at rest (the input never switches on): any number of cycles stays inside the DBC's
     # ranges, and the firmware's step costs the same whatever the values
@@ -185,6 +212,7 @@ def _bench(args) -> int:
     note = timing_note(args.transport)
     if args.json:
         r["firmware_side"] = side
+        r["policy"] = policy
         print(rep.to_json(r))
         return 0
 
@@ -195,7 +223,8 @@ def _bench(args) -> int:
                 f"p99.9 {st['p99.9']:8.1f}  max {st.get('max', st.get('max_abs', 0.0)):9.1f}")
 
     lat = r["latency_us"]
-    print(f"pyrhonn hil bench: {args.cycles} cycles at 0.3 ms over {args.transport} ({r['channel']}), all in us")
+    print(f"pyrhonn hil bench: {args.cycles} cycles at 0.3 ms over {args.transport} ({r['channel']}), {policy}, "
+          "all in us")
     print(row("rig: wake-up lateness (deadline)", r["rig_lateness_us"]))
     print(row("rig: period jitter |dt - T|", {**r["rig_period_jitter_us"],
                                                  "max": r["rig_period_jitter_us"].get("max_abs", 0.0)}))

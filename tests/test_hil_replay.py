@@ -248,6 +248,7 @@ def test_a_full_log_disk_is_a_clear_error_and_the_partial_log_is_kept(tmp_path) 
     ["hil", "replay", "--duration", "x"], ["hil", "replay", "--frame-loss", "2"],
     ["hil", "replay", "--log", "run.txt"], ["hil", "score", "/nonexistent/run.blf"],
     ["hil", "bench", "--cycles", "0"], ["hil", "bench"], ["hil", "replay", "--seed", "-3"],
+    ["hil", "bench", "--cycles", "10", "--fifo", "0"], ["hil", "bench", "--cycles", "10", "--fifo", "x"],
 ])
 def test_bad_cli_input_exits_2(argv, capsys) -> None:
     try:
@@ -272,3 +273,16 @@ def test_cli_replay_writes_report_figures_and_a_log_that_scores_again(tmp_path, 
     assert pyrhonn_main(["hil", "score", str(log), "--json"]) == 0
     again = json.loads(capsys.readouterr().out)
     assert again["frames"] == live["frames"] and again["identification"] == live["identification"]
+
+
+def test_bench_reports_the_scheduling_policy_it_ran_under() -> None:
+    import subprocess
+    import sys
+
+    # in a child process: SCHED_FIFO must not leak into the test session
+    out = subprocess.run([sys.executable, "-m", "pyrhonn.cli", "hil", "bench", "--transport", "virtual",
+                          "--cycles", "300", "--fifo", "10"], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    first = out.stdout.splitlines()[0]
+    assert "SCHED_FIFO 10" in first or "SCHED_FIFO 10 refused" in first
+    assert "estimates within one period" in out.stdout
