@@ -56,6 +56,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="position encoder resolution in m (default 10e-6, SENC 50; 0: none)")
     r.add_argument("--hold-start", type=_float, default=None, help="measurement hold start, s (default 1.1)")
     r.add_argument("--hold-duration", type=_float, default=None, help="measurement hold, s (default 1.0; 0: none)")
+    r.add_argument("--input-start", type=_float, default=None,
+                   help="when the LIM's voltages switch on, s (default 1.0, PROPOSED; eq. 21-22 of the paper: 2.0)")
     r.add_argument("--out", type=Path, default=None, help="directory for report.json, report.txt and the PNGs")
     r.add_argument("--log", type=Path, default=None, help="record the run to FILE.blf or FILE.asc (+ FILE.json)")
     r.add_argument("--json", action="store_true", help="print the JSON report instead of the table")
@@ -112,7 +114,7 @@ def _scenario(args):
 
     kw = {"duration": args.duration, "start": args.start, "seed": args.seed, "frame_loss": args.frame_loss,
           "transport_delay": args.delay}
-    for name in ("encoder_resolution", "hold_start", "hold_duration"):
+    for name in ("encoder_resolution", "hold_start", "hold_duration", "input_start"):
         if getattr(args, name) is not None:
             kw[name] = getattr(args, name)
     return Scenario(**kw)

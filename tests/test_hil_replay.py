@@ -249,6 +249,7 @@ def test_a_full_log_disk_is_a_clear_error_and_the_partial_log_is_kept(tmp_path) 
     ["hil", "replay", "--log", "run.txt"], ["hil", "score", "/nonexistent/run.blf"],
     ["hil", "bench", "--cycles", "0"], ["hil", "bench"], ["hil", "replay", "--seed", "-3"],
     ["hil", "bench", "--cycles", "10", "--fifo", "0"], ["hil", "bench", "--cycles", "10", "--fifo", "x"],
+    ["hil", "replay", "--input-start", "-1"],
 ])
 def test_bad_cli_input_exits_2(argv, capsys) -> None:
     try:
