@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -26,16 +25,13 @@ PERIOD_US = 300.0
 
 
 def build_runner(out: Path) -> Path:
-    cc = shutil.which("cc")
-    if cc is None:
-        raise SystemExit("bench_linux_runner: no C compiler (cc)")
-    fw = ROOT / "firmware_sim"
-    exe = out / "rhonn_runner"
-    subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-DRHONN_SINGLE", f"-I{ROOT / 'csrc' / 'include'}",
-                    f"-I{fw / 'app'}", f"-I{fw / 'generated'}", f"-I{fw / 'config'}", str(fw / "linux" / "rhonn_runner.c"),
-                    str(fw / "app" / "fw_app.c"), str(fw / "app" / "fw_protocol.c"), str(fw / "generated" / "rhonn_id.c"),
-                    str(ROOT / "csrc" / "src" / "rhonn.c"), "-lm", "-o", str(exe)], check=True)
-    return exe
+    sys.path.insert(0, str(ROOT / "firmware_sim" / "linux"))
+    from build_runner import build  # the runner's one build recipe without CMake
+
+    try:
+        return build(out)
+    except RuntimeError as exc:
+        raise SystemExit(f"bench_linux_runner: {exc}") from None
 
 
 def main(argv: list[str] | None = None) -> int:

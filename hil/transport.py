@@ -82,6 +82,17 @@ def _virtual(channel: str | None, firmware: bool) -> Iterator[tuple[can.BusABC, 
         rig.shutdown()
 
 
+def _stop(proc: subprocess.Popen | None) -> None:
+    """End a firmware process still running after the replay: SIGTERM (it
+    prints its statistics), then kill if it does not exit within 30 s."""
+    if proc is not None and proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
 @contextmanager
 def _udp(channel: str | None, port: int | None, firmware: bool) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
     channel = channel or UDP_GROUP
@@ -113,12 +124,7 @@ def _udp(channel: str | None, port: int | None, firmware: bool) -> Iterator[tupl
         yield rig, f"{channel}:{port}", firmware_side
     finally:
         rig.shutdown()
-        if proc is not None and proc.poll() is None:
-            proc.send_signal(signal.SIGTERM)
-            try:
-                proc.communicate(timeout=30)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+        _stop(proc)
 
 
 @contextmanager
@@ -170,12 +176,7 @@ def _socketcan(channel: str | None, runner: str | None) -> Iterator[tuple[can.Bu
         yield rig, channel, firmware_side
     finally:
         rig.shutdown()
-        if proc is not None and proc.poll() is None:
-            proc.send_signal(signal.SIGTERM)
-            try:
-                proc.communicate(timeout=30)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+        _stop(proc)
 
 
 @contextmanager

@@ -456,8 +456,7 @@ class Identifier:
 
         neurons = []
         for i, nr in enumerate(self._config.neurons):
-            P = self.get_covariance(i).astype(np.float64)
-            P = (P + P.T) / 2  # exactly symmetric already; keeps the check obvious
+            P = self.get_covariance(i).astype(np.float64)  # exactly symmetric: packed storage
             neurons.append(NeuronConfig(terms=nr.terms, activation=nr.activation, beta=nr.beta, p0=P,
                                         q=nr.q, r=nr.r, eta=nr.eta,
                                         w0=self.get_weights(i).astype(np.float64)))

@@ -32,20 +32,17 @@ def vcan0() -> str:
 def runner(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """firmware_sim's Linux runner: the one `make test-c` built (RHONN_RUNNER
     or build/release), else one built here with cc."""
-    import shutil
-    import subprocess
+    import importlib.util
 
     root = Path(__file__).resolve().parent.parent
     built = Path(os.environ.get("RHONN_RUNNER", root / "build" / "release" / "firmware_sim" / "rhonn_runner"))
     if built.exists():
         return built
-    cc = shutil.which("cc")
-    if cc is None:
-        pytest.skip("no rhonn_runner and no C compiler to build one")
-    out = tmp_path_factory.mktemp("runner") / "rhonn_runner"
-    fw = root / "firmware_sim"
-    subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-DRHONN_SINGLE", f"-I{root / 'csrc' / 'include'}",
-                    f"-I{fw / 'app'}", f"-I{fw / 'generated'}", f"-I{fw / 'config'}", str(fw / "linux" / "rhonn_runner.c"),
-                    str(fw / "app" / "fw_app.c"), str(fw / "app" / "fw_protocol.c"), str(fw / "generated" / "rhonn_id.c"),
-                    str(root / "csrc" / "src" / "rhonn.c"), "-lm", "-o", str(out)], check=True)
-    return out
+    spec = importlib.util.spec_from_file_location("_build_runner", root / "firmware_sim" / "linux" / "build_runner.py")
+    module = importlib.util.module_from_spec(spec)
+    assert spec.loader is not None
+    spec.loader.exec_module(module)
+    try:
+        return module.build(tmp_path_factory.mktemp("runner"))
+    except RuntimeError as exc:
+        pytest.skip(f"no rhonn_runner and it cannot be built: {exc}")

@@ -12,7 +12,6 @@ driven from Python frame by frame.
 from __future__ import annotations
 
 import functools
-import importlib.util
 import math
 import threading
 import time
@@ -29,6 +28,7 @@ pytest.importorskip("cantools")
 
 from pyrhonn import Identifier, IdentifierConfig, terms  # noqa: E402
 from pyrhonn import firmware  # noqa: E402
+from pyrhonn.configfile import load_shipped  # noqa: E402
 from pyrhonn.firmware import FirmwareApp  # noqa: E402
 from pyrhonn.plants import lim  # noqa: E402
 from pyrhonn.plants.trajectory import Corruption  # noqa: E402
@@ -40,12 +40,9 @@ EST = DB.get_message_by_name("Estimate")
 
 
 def _lim_config(dtype: str = "float32") -> IdentifierConfig:
-    """The LIM identifier firmware_sim ships (firmware_sim/tools/export_config.py)."""
-    path = ROOT / "firmware_sim" / "tools" / "export_config.py"
-    spec = importlib.util.spec_from_file_location("_fw_export_config", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.lim_config(dtype)
+    """The LIM identifier firmware_sim runs: the shipped config firmware-lim."""
+    config = load_shipped("firmware-lim").config
+    return config if config.dtype == dtype else config.replace(dtype=dtype)
 
 
 CONFIG = _lim_config()

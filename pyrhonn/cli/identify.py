@@ -47,7 +47,7 @@ from ..datafile import Data, TIME_COLUMN, check_suffix, read_data
 from ..identifier import Identifier, IdentifierError
 from ..metrics import absolute_deviation, rmse
 
-__all__ = ["Data", "read_data", "register", "run"]
+__all__ = ["register", "run"]
 
 def _nonnegative_int(text: str) -> int:
     try:

@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 
+from .options import real_option
 from .. import reproduce as rp
 
 EXAMPLE_CHOICES = (*rp.EXAMPLES, "all")
@@ -58,26 +58,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _real(option: str, text: str, *, positive: bool = False, nonnegative: bool = False) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise ValueError(f"{option}: expected a number, got {text!r}") from None
-    if not math.isfinite(value):
-        raise ValueError(f"{option}: expected a finite number, got {text!r}")
-    if positive and not value > 0:
-        raise ValueError(f"{option}: must be > 0, got {text!r}")
-    if nonnegative and not value >= 0:
-        raise ValueError(f"{option}: must be >= 0, got {text!r}")
-    return value
-
-
 def _parse(args: argparse.Namespace) -> dict[str, object]:
     if args.example not in EXAMPLE_CHOICES:
         raise ValueError(f"unknown example {args.example!r}; expected one of {', '.join(EXAMPLE_CHOICES)}")
     dt = None
     if args.dt is not None:
-        dt = _real("--dt", args.dt, positive=True)
+        dt = real_option("--dt", args.dt, positive=True)
         if args.example != "example1":
             raise ValueError(f"--dt: only example1 has a choice of sampling period (0.2 or 0.02 s); "
                              f"{args.example} runs at the paper's period")
@@ -91,8 +77,8 @@ def _parse(args: argparse.Namespace) -> dict[str, object]:
         raise ValueError(f"--seed: expected a non-negative integer, got {args.seed!r}") from None
     if seed < 0:
         raise ValueError(f"--seed: expected a non-negative integer, got {args.seed!r}")
-    noise = _real("--noise", args.noise, nonnegative=True)
-    horizon = None if args.horizon is None else _real("--horizon", args.horizon, positive=True)
+    noise = real_option("--noise", args.noise, nonnegative=True)
+    horizon = None if args.horizon is None else real_option("--horizon", args.horizon, positive=True)
     identifiers = None
     if args.config is not None:
         if args.example == "all":

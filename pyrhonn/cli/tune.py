@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .options import real_option
 from .. import __version__
 from .. import tuning
 from ..config import DTYPES
@@ -91,16 +92,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 # -- options -----------------------------------------------------------------------------------------
-
-
-def _real(option: str, text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise ValueError(f"{option}: expected a number, got {text!r}") from None
-    if not math.isfinite(value):
-        raise ValueError(f"{option}: expected a finite number, got {text!r}")
-    return value
 
 
 def _int(option: str, text: str, low: int) -> int:
@@ -161,13 +152,13 @@ def _parse(args: argparse.Namespace) -> Options:
         if args.example != "example1":
             raise ValueError("--dt: only example1 has a choice of sampling period; example2 runs at 0.01 s, "
                              "example3 at 0.0001 s, and a data file at its own rate")
-        dt = _real("--dt", args.dt)
+        dt = real_option("--dt", args.dt)
         if not dt > 0:
             raise ValueError(f"--dt: must be > 0, got {args.dt!r}")
     if args.horizon is not None:
         if args.example is None:
             raise ValueError("--horizon: only with --example (a data file has its own length)")
-        horizon = _real("--horizon", args.horizon)
+        horizon = real_option("--horizon", args.horizon)
         if not horizon > 0:
             raise ValueError(f"--horizon: must be > 0, got {args.horizon!r}")
     if args.data is not None and not Path(args.data).is_file():
@@ -176,7 +167,7 @@ def _parse(args: argparse.Namespace) -> Options:
         raise ValueError("--valid-suffix: only with --data")
     if is_path(args.config) and not Path(args.config).is_file():
         raise ValueError(f"--config: no such file: {args.config!r}")
-    fraction = _real("--train-fraction", args.train_fraction)
+    fraction = real_option("--train-fraction", args.train_fraction)
     if not 0.0 < fraction < 1.0:
         raise ValueError(f"--train-fraction: must be between 0 and 1 (exclusive), got {args.train_fraction!r}")
     trials = _int("--trials", args.trials, 1)
@@ -206,7 +197,7 @@ def _parse(args: argparse.Namespace) -> Options:
             raise ValueError(f"--range: {name} is not searched (--params {args.params})")
         if name in ranges:
             raise ValueError(f"--range: {name} given twice")
-        low, high = _real(f"--range {name}", low_text), _real(f"--range {name}", high_text)
+        low, high = real_option(f"--range {name}", low_text), real_option(f"--range {name}", high_text)
         if not 0 < low < high:
             raise ValueError(f"--range: {text!r}: expected 0 < LOW < HIGH")
         ranges[name] = (low, high)
