@@ -34,6 +34,10 @@ def main() -> int:
         print(f"{name:10} {r['instructions_per_step']:11.0f} {r['instructions_per_step'] / budget:9.3f} "
               f"{r['core_object']['text']:10d}B {r['sizeof_rhonn_t']:7d}B {r['rhonn_step_worst_stack_bytes']:5d}B "
               f"{str(r['bit_identical_to_host_float32']):>9}")
+    for name in ("unrolled", "generic"):
+        im = report[name]["image"]
+        print(f"{name} image (core + test vector + newlib semihosting stdio): .text {im['text']} B, "
+              f".data {im['data']} B, .bss {im['bss']} B")
     print(f"budget = {budget} cycles (0.3 ms at 168 MHz); capacities {report['capacities']}")
     return 0
 
