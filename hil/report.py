@@ -38,6 +38,10 @@ def _fmt(stats: dict, keys=("min", "avg", "p99", "p99.9", "max")) -> str:
     return "  ".join(f"{k} {stats[k]:9.1f}" for k in keys if k in stats)
 
 
+def _e(v: float | None) -> str:
+    return f"{'-':>11}" if v is None else f"{v:11.3e}"
+
+
 def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
     f = report["frames"]
     lines = [f"HIL replay over {report['transport']} ({report['channel']}): {report['cycles']} cycles at "
@@ -54,10 +58,19 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
                      f"seq errors {fw['seq_errors']}  overruns {fw['overruns']}  step max {fw['step_time_max_us']:.1f} us")
     ident = report.get("identification")
     if ident:
-        lines += ["", f"{'identification':<22}{'RMSE':>12}{'abs. dev.':>12}{'Table 7 RMSE':>14}{'peak |x|':>11}",
-                  *(f"  {name + ' (' + unit + ')':<20}{ident[name]['rmse']:12.4e}{ident[name]['absolute_deviation']:12.4e}"
-                    f"{ident[name]['table7_rmse']:14.4e}{ident[name]['signal_peak']:11.3g}"
+        lines += ["", f"{'identification':<22}{'RMSE':>11}{'abs. dev.':>11}{'Table 7':>11}{'Table 7':>11}"
+                      f"{'RMSE':>11}{'RMSE vs':>11}{'sensor':>11}{'peak |x|':>10}",
+                  f"{'':<22}{'(truth)':>11}{'(truth)':>11}{'RMSE':>11}{'abs. dev.':>11}{'no hold':>11}"
+                  f"{'measured':>11}{'RMSE':>11}",
+                  *(f"  {name + ' (' + unit + ')':<20}{_e(ident[name]['rmse'])}{_e(ident[name]['absolute_deviation'])}"
+                    f"{_e(ident[name]['table7_rmse'])}{_e(ident[name]['table7_absolute_deviation'])}"
+                    f"{_e(ident[name]['outside_hold']['rmse'])}{_e(ident[name]['vs_measurement']['rmse'])}"
+                    f"{_e(ident[name]['measurement_vs_truth']['rmse'])}"
+                    f"{ident[name]['signal_peak']:10.3g}"
                     for name, unit in (("position", "m"), ("velocity", "m/s"))),
+                  "  (truth: against the noise-free x(k+1); no hold: the same, the cycles whose target is outside "
+                  "the hold; vs measured: against the next Measurement frame where it is fresh; sensor: that Measurement "
+                  "frame against the truth)",
                   f"  note: {ident['note']}"]
     be = report.get("bit_exact")
     if be:

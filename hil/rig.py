@@ -21,6 +21,7 @@ all :mod:`hil.score` needs.
 from __future__ import annotations
 
 import errno
+import gc
 import json
 import os
 import time
@@ -166,7 +167,6 @@ class Rig:
     def run(self) -> Recording:
         sc = self.plan.scenario
         frames = self.plan.frames()
-        lost = self.plan.lost
         T = int(round(sc.period * 1e9))
         delay = int(round(sc.transport_delay * 1e9))
         where = f"{self.transport} channel {self.channel}"
@@ -179,6 +179,26 @@ class Rig:
         t0 = time.perf_counter_ns() + 10_000_000
         self._first_run_event = len(self._events)
         self._t0 = t0
+        gc_was = gc.isenabled()
+        gc.freeze()
+        gc.disable()
+        try:
+            overruns = self._replay(frames, t0, T, delay, where)
+        finally:
+            if gc_was:
+                gc.enable()
+            gc.unfreeze()
+        # the last estimates, then the firmware's counters
+        end = time.perf_counter_ns() + int(self.drain * 1e9)
+        while time.perf_counter_ns() < end:
+            self._take(self._recv(0.01), time.perf_counter_ns())
+        diag_ok = self._control("DiagRequest", 0x5A, self.reply_timeout)
+        return self._recording({"wall_start": wall0, "rig_overruns": overruns, "final_diagnostics": diag_ok})
+
+    def _replay(self, frames: list[can.Message], t0: int, T: int, delay: int, where: str) -> int:
+        """The timed loop: frame k at its absolute deadline; the count of
+        periods the rig itself overran."""
+        lost = self.plan.lost
         n_rx_before = self._n_rx
         first_tx = None
         overruns = 0
@@ -199,12 +219,7 @@ class Rig:
                 raise FirmwareTimeout(f"no estimate from the firmware on {where} within {self.reply_timeout:g} s "
                                       f"of the first measurement frame ({k} frames sent; did it stop or the bus "
                                       "go down?)")
-        # the last estimates, then the firmware's counters
-        end = time.perf_counter_ns() + int(self.drain * 1e9)
-        while time.perf_counter_ns() < end:
-            self._take(self._recv(0.01), time.perf_counter_ns())
-        diag_ok = self._control("DiagRequest", 0x5A, self.reply_timeout)
-        return self._recording({"wall_start": wall0, "rig_overruns": overruns, "final_diagnostics": diag_ok})
+        return overruns
 
     def _recording(self, extra: dict[str, Any]) -> Recording:
         """The frames so far as a Recording. Log time: seconds from the first

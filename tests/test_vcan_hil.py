@@ -22,7 +22,7 @@ pytestmark = pytest.mark.vcan
 
 
 def test_replay_over_vcan0_against_the_runner_is_bit_exact_and_accounted(vcan0: str, runner: Path) -> None:
-    sc = Scenario(duration=0.3, start=0.9, frame_loss=0.02, seed=21)
+    sc = Scenario(duration=0.3, start=1.95, frame_loss=0.02, seed=21)  # the hold ends, the motor starts
     plan = sc.build()
     # the VM is emulated (slow): a generous reply timeout and drain
     rec = run_replay(sc, "socketcan", vcan0, runner=str(runner), reply_timeout=10.0, drain=3.0)

@@ -5,7 +5,7 @@
 
 #include "rhonn.h"
 
-#if RHONN_MAX_STATES < 6 || RHONN_MAX_INPUTS < 2 || RHONN_MAX_TERMS < 6
+#if RHONN_MAX_STATES < 6 || RHONN_MAX_INPUTS < 2 || RHONN_MAX_TERMS < 7
 #error "LIM_IDENTIFIER: the RHONN_MAX_* capacities are too small for this identifier"
 #endif
 #if RHONN_MAX_FACTORS < 2 || RHONN_MAX_DELAY < 0 || RHONN_MAX_POWER < 1
@@ -20,30 +20,31 @@ static const rhonn_config LIM_IDENTIFIER = {
     .n_inputs = 2,
     .x0 = {0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0},
     .neurons = {
-        [0] = { /* S(x1) + S(x2) */
+        [0] = { /* x1 + x2 */
             .n_terms = 2,
             .activation = RHONN_LOGISTIC,
             .beta = 0x1.0000000000000p+0,
             .eta = 0x1.0000000000000p+0,
-            .r = 0x1.999999999999ap-4,
-            .q = {0x1.0624dd2f1a9fcp-10, 0x1.0624dd2f1a9fcp-10},
+            .r = 0x1.0c6f7a0b5ed8dp-20,
+            .q = {0x1.ad7f29abcaf48p-24, 0x1.ad7f29abcaf48p-24},
             .w0 = {0x0.0p+0, 0x0.0p+0},
-            .p0 = {0x1.9000000000000p+6, 0x0.0p+0, 0x1.9000000000000p+6},
+            .p0 = {0x1.0000000000000p+0, 0x0.0p+0, 0x1.0000000000000p+0},
             .terms = {
-                {1, {{0, 0, 0, 1}}},
-                {1, {{0, 1, 0, 1}}},
+                {1, {{1, 0, 0, 1}}},
+                {1, {{1, 1, 0, 1}}},
             },
         },
-        [1] = { /* S(x2) + S(x1) + S(x3)*S(x6) + S(x4)*S(x5) + S(x3)*S(x5) + S(x4)*S(x6) */
-            .n_terms = 6,
+        [1] = { /* x2 + S(x2) + S(x1) + S(x3)*S(x6) + S(x4)*S(x5) + S(x3)*S(x5) + S(x4)*S(x6) */
+            .n_terms = 7,
             .activation = RHONN_LOGISTIC,
             .beta = 0x1.0000000000000p+0,
             .eta = 0x1.0000000000000p+0,
-            .r = 0x1.999999999999ap-4,
-            .q = {0x1.0624dd2f1a9fcp-10, 0x1.0624dd2f1a9fcp-10, 0x1.0624dd2f1a9fcp-10, 0x1.0624dd2f1a9fcp-10, 0x1.0624dd2f1a9fcp-10, 0x1.0624dd2f1a9fcp-10},
-            .w0 = {0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0},
-            .p0 = {0x1.9000000000000p+6, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x1.9000000000000p+6, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x1.9000000000000p+6, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x1.9000000000000p+6, 0x0.0p+0, 0x0.0p+0, 0x1.9000000000000p+6, 0x0.0p+0, 0x1.9000000000000p+6},
+            .r = 0x1.a36e2eb1c432dp-14,
+            .q = {0x1.0c6f7a0b5ed8dp-20, 0x1.0c6f7a0b5ed8dp-20, 0x1.0c6f7a0b5ed8dp-20, 0x1.0c6f7a0b5ed8dp-20, 0x1.0c6f7a0b5ed8dp-20, 0x1.0c6f7a0b5ed8dp-20, 0x1.0c6f7a0b5ed8dp-20},
+            .w0 = {0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0},
+            .p0 = {0x1.4000000000000p+3, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x1.4000000000000p+3, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x1.4000000000000p+3, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x1.4000000000000p+3, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x1.4000000000000p+3, 0x0.0p+0, 0x0.0p+0, 0x1.4000000000000p+3, 0x0.0p+0, 0x1.4000000000000p+3},
             .terms = {
+                {1, {{1, 1, 0, 1}}},
                 {1, {{0, 1, 0, 1}}},
                 {1, {{0, 0, 0, 1}}},
                 {2, {{0, 2, 0, 1}, {0, 5, 0, 1}}},

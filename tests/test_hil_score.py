@@ -1,0 +1,66 @@
+"""hil.score's identification figures (issue 6, Table 7): each measure is
+recomputed here from the scenario's plan and the estimates, with numpy and
+nothing from hil.score or pyrhonn.metrics."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("can")
+pytest.importorskip("cantools")
+
+from hil import report  # noqa: E402
+from hil.scenario import TABLE7, Scenario  # noqa: E402
+from hil.score import score  # noqa: E402
+from hil.transport import run_replay  # noqa: E402
+
+
+def _rmse(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.sqrt(np.mean((np.asarray(a, np.float64) - np.asarray(b, np.float64)) ** 2)))
+
+
+def _scored(sc: Scenario) -> tuple[dict, object]:
+    r = score(run_replay(sc, "virtual"))
+    assert r["frames"]["answered"] == sc.cycles  # every cycle answered: the series below is complete
+    return r, sc.build()
+
+
+def test_truth_no_hold_measured_and_sensor_errors_are_the_documented_comparisons() -> None:
+    # 1.95 s .. 2.25 s: the hold ends at 2.1 s, the voltages switch on at 2.0 s
+    r, plan = _scored(Scenario(duration=0.3, start=1.95, seed=4))
+    est = r["_series"]["est"]
+    truth = np.asarray(plan.truth_next)
+    X, V = np.asarray(plan.X), np.asarray(plan.valid)
+    fresh_next = np.append(V[1:, 0], True)
+    assert 0 < int((~fresh_next).sum()) < plan.cycles       # the window holds and releases the position
+    for j, name in enumerate(("position", "velocity")):
+        got = r["identification"][name]
+        assert got["rmse"] == pytest.approx(_rmse(truth[:, j], est[:, j]), rel=1e-12)
+        fresh = np.append(V[1:, j], True)
+        assert got["outside_hold"]["cycles"] == int(fresh.sum())
+        assert got["outside_hold"]["rmse"] == pytest.approx(_rmse(truth[fresh, j], est[fresh, j]), rel=1e-12)
+        nxt = fresh[:-1]
+        assert got["vs_measurement"]["cycles"] == int(nxt.sum())
+        assert got["vs_measurement"]["rmse"] == pytest.approx(_rmse(X[1:, j][nxt], est[:-1, j][nxt]), rel=1e-12)
+        assert got["measurement_vs_truth"]["rmse"] == pytest.approx(_rmse(X[1:, j][nxt], truth[:-1, j][nxt]),
+                                                                    rel=1e-12)
+        assert (got["table7_rmse"], got["table7_absolute_deviation"]) == (TABLE7[name]["rmse"],
+                                                                          TABLE7[name]["absolute_deviation"])
+    # the held position is far from the truth once the motor moves: outside the hold is the smaller error
+    pos = r["identification"]["position"]
+    assert pos["outside_hold"]["rmse"] < pos["rmse"]
+    text = report.table(r)
+    assert f"{pos['measurement_vs_truth']['rmse']:.3e}" in text and f"{pos['outside_hold']['rmse']:.3e}" in text
+
+
+def test_the_sensor_error_is_the_encoders_quantisation_and_zero_without_it() -> None:
+    moving = Scenario(duration=0.15, start=2.2, hold_duration=0.0, seed=2)
+    exact, _ = _scored(moving.replace(encoder_resolution=0.0, velocity_from_position=False))
+    for name in ("position", "velocity"):
+        assert exact["identification"][name]["measurement_vs_truth"]["rmse"] == 0.0
+    quantised, _ = _scored(moving)
+    pos = quantised["identification"]["position"]["measurement_vs_truth"]["rmse"]
+    vel = quantised["identification"]["velocity"]["measurement_vs_truth"]["rmse"]
+    count = moving.encoder_resolution
+    assert count / 4 < pos < count                          # floor quantiser: uniform in [0, count)
+    assert count / moving.period / 6 < vel < count / moving.period  # differences of two such errors / T
