@@ -44,9 +44,12 @@ test-c-sanitize:
 
 # libFuzzer on the firmware's frame-receive entry, with ASan and UBSan, for
 # FUZZ_SECONDS from a seed corpus: a crash, a sanitizer report or a rejected
-# frame that changes the filter fails the run (firmware_sim/fuzz/).
+# frame that changes the filter fails the run (firmware_sim/fuzz/). Then the
+# runner's udp_multicast codec for FUZZ_UDP_SECONDS, seeded with python-can's
+# own datagrams: an accepted datagram must re-encode to itself.
 CLANG ?= clang-14
 FUZZ_SECONDS ?= 60
+FUZZ_UDP_SECONDS ?= 30
 FW_FLAGS = -std=c99 -ffp-contract=off -DRHONN_SINGLE -Icsrc/include -Ifirmware_sim/app \
 	-Ifirmware_sim/generated -Ifirmware_sim/config
 FW_SOURCES = firmware_sim/app/fw_app.c firmware_sim/app/fw_protocol.c firmware_sim/app/fw_hal_mem.c \
@@ -61,6 +64,17 @@ test-fuzz:
 	$(BUILD)/fuzz/fuzz_on_frame -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 \
 	  -artifact_prefix=$(BUILD)/fuzz/ $(BUILD)/fuzz/corpus > $(BUILD)/fuzz/log 2>&1; \
 	  rc=$$?; tail -n 8 $(BUILD)/fuzz/log; exit $$rc
+	mkdir -p $(BUILD)/fuzz/udp-corpus
+	$(CLANG) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -std=c99 \
+	  firmware_sim/linux/fuzz_udp_can.c firmware_sim/linux/udp_can.c -o $(BUILD)/fuzz/fuzz_udp_can
+	$(VENV)/bin/python -c 'import can, sys; from can.interfaces.udp_multicast.utils import pack_message as p; \
+	  [open(f"{sys.argv[1]}/seed{i}", "wb").write(p(m)) for i, m in enumerate([can.Message(arbitration_id=0x101, \
+	  data=bytes(20), is_fd=True, is_extended_id=False), can.Message(arbitration_id=0x1ABCDEF, data=b"\x01\x02"), \
+	  can.Message(timestamp=1.5, arbitration_id=0x7FF, data=bytes(range(64)), is_fd=True, bitrate_switch=True, \
+	  is_extended_id=False, channel="vcan0")])]' $(BUILD)/fuzz/udp-corpus
+	$(BUILD)/fuzz/fuzz_udp_can -max_total_time=$(FUZZ_UDP_SECONDS) -print_final_stats=1 \
+	  -artifact_prefix=$(BUILD)/fuzz/udp- $(BUILD)/fuzz/udp-corpus > $(BUILD)/fuzz/udp-log 2>&1; \
+	  rc=$$?; tail -n 8 $(BUILD)/fuzz/udp-log; exit $$rc
 
 # This kernel may have no CAN: the vcan-marked tests run in a QEMU VM with
 # the host's userspace (hil/vm/run_in_vm.py installs what it needs).

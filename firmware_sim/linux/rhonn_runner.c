@@ -2,16 +2,43 @@
  * rhonn_runner - the identifier firmware application on Linux.
  *
  * A periodic loop on an absolute schedule (clock_nanosleep, TIMER_ABSTIME,
- * CLOCK_MONOTONIC) that, every period, takes the frames waiting on a raw
- * SocketCAN CAN FD socket and hands them to the application (fw_app), which
- * answers with estimate frames. On exit (cycle count reached, --duration
- * elapsed, SIGINT or SIGTERM) it prints cyclictest-style statistics: wake-up
- * latency and step time min / avg / p99 / p99.9 / max, overruns, frames in,
- * out and rejected.
+ * CLOCK_MONOTONIC) that takes the frames waiting on its bus and hands them to
+ * the application (fw_app), which answers with estimate frames. On exit
+ * (cycle count reached, --duration elapsed, SIGINT or SIGTERM) it prints
+ * cyclictest-style statistics: wake-up latency and step time min / avg /
+ * p99 / p99.9 / max, overruns, frames in, out and rejected.
  *
  *   rhonn_runner --interface vcan0 [--period-us 300] [--cycles N | --duration S]
- *                [--fifo PRIO] [--json FILE]
+ *                [--fifo PRIO] [--json FILE] [--rx tick|arrival] [--spin-us N] [--diag-period N]
+ *   rhonn_runner --udp-multicast GROUP:PORT ...  python-can's udp_multicast bus
  *   rhonn_runner --bus-less [--cycles N] ...     timing without a bus
+ *
+ * Buses. --interface: a raw SocketCAN CAN FD socket. --udp-multicast: the
+ * wire protocol of python-can's udp_multicast interface (one msgpack map per
+ * datagram, udp_can.h) on an IPv4 group (239.74.163.2:33110) or an IPv6
+ * one ([ff15::1]:33110), with python-can's socket options (SO_REUSEADDR,
+ * SO_REUSEPORT, multicast loop on, hop limit 1), so it shares the port with
+ * python-can processes on the same host. The group hands every member its
+ * own datagrams back: frames carrying the firmware's own identifiers
+ * (Estimate, ControlAck, Diagnostics) are skipped, and malformed datagrams
+ * are counted by reason and dropped (the application never sees them).
+ *
+ * Reception (--rx). tick (the default on --interface): the frames waiting
+ * are taken once per period, right after the wake-up. arrival (the default
+ * on --udp-multicast): between two ticks the runner waits on the bus
+ * (ppoll, up to the next deadline) and handles every frame as it arrives,
+ * so an estimate leaves within the handling time instead of up to a period
+ * later; the ticks still keep the schedule, the wake-up statistics and the
+ * overrun count. --spin-us N (arrival only): from N us before the next
+ * Measurement is due (one period after the last) until it came or N us
+ * after, the runner busy-polls instead of sleeping, so a frame on schedule
+ * is taken without a wake-up latency (what a CAN RX interrupt gives on the
+ * target), for about 2N / period of a CPU at most; 0 (default): never.
+ * With a bus, "listening on ..." is printed (and flushed) once the socket
+ * is ready.
+ *
+ * --diag-period N: a Diagnostics frame every N accepted measurements
+ * (default 1000; 0: only on DiagRequest, as hil's Python firmware node).
  *
  * --bus-less feeds the application one measurement frame per period from a
  * test vector built at start-up (the LIM identifier's six states and two
@@ -23,10 +50,13 @@
  * platform layer: POSIX and Linux calls live here, never in the app.
  */
 #define _GNU_SOURCE
+#include <arpa/inet.h>
 #include <errno.h>
 #include <getopt.h>
 #include <math.h>
 #include <net/if.h>
+#include <netinet/in.h>
+#include <poll.h>
 #include <sched.h>
 #include <signal.h>
 #include <stdint.h>
@@ -46,6 +76,7 @@
 #include "fw_app.h"
 #include "lim_identifier.h"
 #include "rhonn_id.h"
+#include "udp_can.h"
 
 /* ---------------------------------------------------------------- stats */
 
@@ -128,20 +159,161 @@ static struct timespec to_timespec(uint64_t ns)
 
 /* ------------------------------------------------------------------ HAL */
 
+typedef enum { BUS_NONE, BUS_SOCKETCAN, BUS_UDP } bus_kind;
+
+#define UDP_RX_BUFFER 4096u     /* python-can's max_buffer: longer datagrams are malformed here */
+#define UDP_RX_BURST 256u       /* datagrams one hal_receive call may drop before it returns */
+
 typedef struct {
-    int fd;                 /* raw CAN FD socket, or -1 bus-less */
+    bus_kind kind;
+    int fd;                 /* raw CAN FD socket or UDP socket, or -1 bus-less */
     uint64_t sent, send_errors;
     int last_errno;         /* of the last failed socket call */
+    /* udp_multicast */
+    struct sockaddr_storage group;  /* where frames are sent */
+    socklen_t group_len;
+    uint64_t datagrams;             /* datagrams read */
+    uint64_t own_skipped;           /* our own frames, handed back by the group */
+    uint64_t malformed;             /* datagrams rejected by the codec, or longer than UDP_RX_BUFFER */
+    uint64_t oversized;
+    uint64_t malformed_by[UDP_CAN_N_STATUS];
+    uint8_t rx[UDP_RX_BUFFER];
 } platform;
+
+/* Time a datagram waited in the socket before the runner took it (kernel
+ * receive timestamp to hand-over), histogram defined with the others below. */
+static void note_rx_wait(uint64_t ns);
+
+/* The firmware's own identifiers: the group hands them back to us. */
+static int own_frame(const udp_can_msg *m)
+{
+    return !m->is_extended_id && (m->arbitration_id == RHONN_ID_ESTIMATE_FRAME_ID ||
+                                  m->arbitration_id == RHONN_ID_CONTROL_ACK_FRAME_ID ||
+                                  m->arbitration_id == RHONN_ID_DIAGNOSTICS_FRAME_ID);
+}
+
+static uint64_t realtime_ns(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    return (uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec;
+}
+
+static fw_status udp_send(platform *p, const fw_frame *frame)
+{
+    udp_can_msg m;
+    uint8_t out[UDP_CAN_MAX_ENCODED];
+    size_t n = 0;
+    ssize_t w;
+    memset(&m, 0, sizeof m);
+    m.timestamp = (double)realtime_ns() / 1e9;
+    m.is_extended_id = (frame->id & FW_CAN_EFF_FLAG) != 0u;
+    m.is_remote_frame = (frame->id & FW_CAN_RTR_FLAG) != 0u;
+    m.is_error_frame = (frame->id & FW_CAN_ERR_FLAG) != 0u;
+    m.arbitration_id = frame->id & (m.is_extended_id ? CAN_EFF_MASK : CAN_SFF_MASK);
+    m.is_fd = (frame->flags & FW_FRAME_FD) != 0u;
+    m.bitrate_switch = (frame->flags & FW_FRAME_BRS) != 0u;
+    m.dlc = frame->len;
+    m.len = m.is_remote_frame ? 0u : frame->len;
+    memcpy(m.data, frame->data, m.len <= sizeof m.data ? m.len : sizeof m.data);
+    if (udp_can_encode(&m, out, sizeof out, &n) != UDP_CAN_OK) {
+        p->send_errors += 1u;
+        p->last_errno = EINVAL;
+        return FW_E_HAL;
+    }
+    do {
+        w = sendto(p->fd, out, n, 0, (const struct sockaddr *)&p->group, p->group_len);
+    } while (w < 0 && errno == EINTR);
+    if (w != (ssize_t)n) {
+        p->send_errors += 1u;
+        p->last_errno = w < 0 ? errno : EMSGSIZE;
+        return FW_E_HAL;
+    }
+    p->sent += 1u;
+    return FW_OK;
+}
+
+/* The next well-formed datagram that is not our own, as a frame. Malformed
+ * datagrams and our own frames are counted and skipped. */
+static fw_status udp_receive(platform *p, fw_frame *frame)
+{
+    unsigned burst;
+    for (burst = 0; burst < UDP_RX_BURST; ++burst) {
+        union {
+            char buf[CMSG_SPACE(sizeof(struct timespec))];
+            struct cmsghdr align;
+        } ctl;
+        struct iovec iov;
+        struct msghdr mh;
+        struct cmsghdr *cm;
+        udp_can_msg m;
+        udp_can_status st;
+        ssize_t n;
+
+        iov.iov_base = p->rx;
+        iov.iov_len = sizeof p->rx;
+        memset(&mh, 0, sizeof mh);
+        mh.msg_iov = &iov;
+        mh.msg_iovlen = 1;
+        mh.msg_control = ctl.buf;
+        mh.msg_controllen = sizeof ctl.buf;
+        n = recvmsg(p->fd, &mh, MSG_DONTWAIT);
+        if (n < 0) {
+            if (errno == EAGAIN || errno == EWOULDBLOCK) {
+                return FW_E_EMPTY;
+            }
+            if (errno == EINTR) {
+                continue;
+            }
+            p->last_errno = errno;
+            return FW_E_HAL;
+        }
+        p->datagrams += 1u;
+        if (mh.msg_flags & MSG_TRUNC) {
+            p->malformed += 1u;
+            p->oversized += 1u;
+            continue;
+        }
+        st = udp_can_decode(p->rx, (size_t)n, &m);
+        if (st != UDP_CAN_OK) {
+            p->malformed += 1u;
+            p->malformed_by[st] += 1u;
+            continue;
+        }
+        if (own_frame(&m)) {
+            p->own_skipped += 1u;
+            continue;
+        }
+        for (cm = CMSG_FIRSTHDR(&mh); cm != NULL; cm = CMSG_NXTHDR(&mh, cm)) {
+            if (cm->cmsg_level == SOL_SOCKET && cm->cmsg_type == SCM_TIMESTAMPNS) {
+                struct timespec ts;
+                uint64_t at, now = realtime_ns();
+                memcpy(&ts, CMSG_DATA(cm), sizeof ts);
+                at = (uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec;
+                note_rx_wait(now > at ? now - at : 0u);
+            }
+        }
+        frame->id = m.arbitration_id | (m.is_extended_id ? FW_CAN_EFF_FLAG : 0u) |
+                    (m.is_remote_frame ? FW_CAN_RTR_FLAG : 0u) | (m.is_error_frame ? FW_CAN_ERR_FLAG : 0u);
+        frame->len = m.len;
+        frame->flags = (uint8_t)((m.is_fd ? FW_FRAME_FD : 0u) | (m.bitrate_switch ? FW_FRAME_BRS : 0u));
+        memcpy(frame->data, m.data, m.len);
+        return FW_OK;
+    }
+    return FW_E_EMPTY; /* a flood: the rest waits for the next call */
+}
 
 static fw_status hal_send(void *ctx, const fw_frame *frame)
 {
     platform *p = (platform *)ctx;
     struct canfd_frame cf;
     ssize_t n;
-    if (p->fd < 0) {
+    if (p->kind == BUS_NONE) {
         p->sent += 1u; /* bus-less: the estimate is computed, then dropped */
         return FW_OK;
+    }
+    if (p->kind == BUS_UDP) {
+        return udp_send(p, frame);
     }
     memset(&cf, 0, sizeof cf);
     cf.can_id = frame->id;
@@ -163,8 +335,11 @@ static fw_status hal_receive(void *ctx, fw_frame *frame)
     platform *p = (platform *)ctx;
     struct canfd_frame cf;
     ssize_t n;
-    if (p->fd < 0) {
+    if (p->kind == BUS_NONE) {
         return FW_E_EMPTY;
+    }
+    if (p->kind == BUS_UDP) {
+        return udp_receive(p, frame);
     }
     n = read(p->fd, &cf, sizeof cf);
     if (n < 0) {
@@ -239,6 +414,134 @@ static int open_can(const char *ifname)
     return fd;
 }
 
+/* Parse "GROUP:PORT" (IPv4) or "[GROUP]:PORT" (IPv6) into p->group. 0, or
+ * -1 after printing why. */
+static int parse_group(const char *spec, platform *p)
+{
+    char host[INET6_ADDRSTRLEN + 2];
+    const char *colon;
+    size_t hlen;
+    long port;
+    char *endp;
+    int v6 = spec[0] == '[';
+
+    colon = v6 ? strstr(spec, "]:") : strrchr(spec, ':');
+    if (colon == NULL || colon == spec) {
+        fprintf(stderr, "rhonn_runner: --udp-multicast takes GROUP:PORT (e.g. 239.74.163.2:33110 or "
+                        "[ff15::1]:33110), got '%s'\n", spec);
+        return -1;
+    }
+    hlen = (size_t)(colon - spec) - (v6 ? 1u : 0u);
+    if (hlen == 0 || hlen >= sizeof host) {
+        fprintf(stderr, "rhonn_runner: --udp-multicast: no multicast group in '%s'\n", spec);
+        return -1;
+    }
+    memcpy(host, spec + (v6 ? 1 : 0), hlen);
+    host[hlen] = '\0';
+    colon += v6 ? 2 : 1;
+    errno = 0;
+    port = strtol(colon, &endp, 10);
+    if (*colon == '\0' || *endp != '\0' || errno != 0 || port < 1 || port > 65535) {
+        fprintf(stderr, "rhonn_runner: --udp-multicast: port must be 1..65535, got '%s'\n", colon);
+        return -1;
+    }
+    memset(&p->group, 0, sizeof p->group);
+    if (!v6) {
+        struct sockaddr_in *a = (struct sockaddr_in *)&p->group;
+        if (inet_pton(AF_INET, host, &a->sin_addr) != 1 || !IN_MULTICAST(ntohl(a->sin_addr.s_addr))) {
+            fprintf(stderr, "rhonn_runner: --udp-multicast: '%s' is not an IPv4 multicast address "
+                            "(224.0.0.0/4; IPv6 groups go in brackets: [ff15::1]:PORT)\n", host);
+            return -1;
+        }
+        a->sin_family = AF_INET;
+        a->sin_port = htons((uint16_t)port);
+        p->group_len = (socklen_t)sizeof *a;
+    } else {
+        struct sockaddr_in6 *a = (struct sockaddr_in6 *)&p->group;
+        if (inet_pton(AF_INET6, host, &a->sin6_addr) != 1 || !IN6_IS_ADDR_MULTICAST(&a->sin6_addr)) {
+            fprintf(stderr, "rhonn_runner: --udp-multicast: '%s' is not an IPv6 multicast address (ff00::/8)\n",
+                    host);
+            return -1;
+        }
+        a->sin6_family = AF_INET6;
+        a->sin6_port = htons((uint16_t)port);
+        p->group_len = (socklen_t)sizeof *a;
+    }
+    return 0;
+}
+
+/* A UDP socket on p->group's port, member of the group, configured as
+ * python-can configures its own. Returns the fd, or -1 after printing why. */
+static int open_udp(platform *p, const char *spec)
+{
+    const int on = 1, hops = 1, rcvbuf = 4 << 20;
+    int fd, af = p->group.ss_family;
+    const char *step;
+    if (af == AF_INET) {
+        struct sockaddr_in any;
+        struct ip_mreq mreq;
+        const struct sockaddr_in *g = (const struct sockaddr_in *)&p->group;
+        fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+        if (fd < 0) {
+            step = "socket";
+            goto fail;
+        }
+        memset(&any, 0, sizeof any);
+        any.sin_family = AF_INET;
+        any.sin_addr.s_addr = htonl(INADDR_ANY);
+        any.sin_port = g->sin_port;
+        memset(&mreq, 0, sizeof mreq);
+        mreq.imr_multiaddr = g->sin_addr;
+        mreq.imr_interface.s_addr = htonl(INADDR_ANY);
+        if ((step = "IP_MULTICAST_TTL", setsockopt(fd, IPPROTO_IP, IP_MULTICAST_TTL, &hops, sizeof hops)) < 0 ||
+            (step = "IP_MULTICAST_LOOP", setsockopt(fd, IPPROTO_IP, IP_MULTICAST_LOOP, &on, sizeof on)) < 0 ||
+            (step = "SO_REUSEADDR", setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &on, sizeof on)) < 0 ||
+            (step = "SO_REUSEPORT", setsockopt(fd, SOL_SOCKET, SO_REUSEPORT, &on, sizeof on)) < 0 ||
+            (step = "SO_TIMESTAMPNS", setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on)) < 0 ||
+            (step = "bind", bind(fd, (const struct sockaddr *)&any, sizeof any)) < 0 ||
+            (step = "IP_ADD_MEMBERSHIP", setsockopt(fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &mreq, sizeof mreq)) < 0) {
+            goto fail;
+        }
+    } else {
+        struct sockaddr_in6 any;
+        struct ipv6_mreq mreq;
+        const struct sockaddr_in6 *g = (const struct sockaddr_in6 *)&p->group;
+        fd = socket(AF_INET6, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+        if (fd < 0) {
+            step = "socket";
+            goto fail;
+        }
+        memset(&any, 0, sizeof any);
+        any.sin6_family = AF_INET6;
+        any.sin6_addr = in6addr_any;
+        any.sin6_port = g->sin6_port;
+        memset(&mreq, 0, sizeof mreq);
+        mreq.ipv6mr_multiaddr = g->sin6_addr;
+        mreq.ipv6mr_interface = 0;
+        if ((step = "IPV6_MULTICAST_HOPS", setsockopt(fd, IPPROTO_IPV6, IPV6_MULTICAST_HOPS, &hops, sizeof hops)) < 0 ||
+            (step = "IPV6_MULTICAST_LOOP", setsockopt(fd, IPPROTO_IPV6, IPV6_MULTICAST_LOOP, &on, sizeof on)) < 0 ||
+            (step = "SO_REUSEADDR", setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &on, sizeof on)) < 0 ||
+            (step = "SO_REUSEPORT", setsockopt(fd, SOL_SOCKET, SO_REUSEPORT, &on, sizeof on)) < 0 ||
+            (step = "SO_TIMESTAMPNS", setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on)) < 0 ||
+            (step = "bind", bind(fd, (const struct sockaddr *)&any, sizeof any)) < 0 ||
+            (step = "IPV6_JOIN_GROUP", setsockopt(fd, IPPROTO_IPV6, IPV6_JOIN_GROUP, &mreq, sizeof mreq)) < 0) {
+            goto fail;
+        }
+    }
+    /* room for bursts (best effort: capped by net.core.rmem_max) */
+    (void)setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
+    return fd;
+fail:
+    fprintf(stderr, "rhonn_runner: cannot open the udp_multicast group %s (%s: %s)%s\n", spec, step,
+            strerror(errno), errno == ENODEV || errno == ENETUNREACH
+                                  ? "; this host has no multicast route (add one, e.g. 'ip route add 224.0.0.0/4 dev lo')"
+                                  : "");
+    if (fd >= 0) {
+        close(fd);
+    }
+    return -1;
+}
+
 /* ------------------------------------------------------------ bus-less */
 
 /* One Measurement frame of the bus-less test vector: the LIM's states and
@@ -276,41 +579,164 @@ static void on_signal(int sig)
 
 static void usage(FILE *f)
 {
-    fprintf(f, "usage: rhonn_runner (--interface IF | --bus-less) [--period-us US] [--cycles N]\n"
-               "                    [--duration S] [--fifo PRIO] [--json FILE] [--quiet]\n");
+    fprintf(f, "usage: rhonn_runner (--interface IF | --udp-multicast GROUP:PORT | --bus-less)\n"
+               "                    [--period-us US] [--cycles N] [--duration S] [--rx tick|arrival]\n"
+               "                    [--spin-us N] [--diag-period N] [--fifo PRIO] [--json FILE] [--quiet]\n");
 }
 
 static histogram wake_hist = {"wake-up", 0, 0, 0, 0, {0}};
 static histogram step_hist = {"step", 0, 0, 0, 0, {0}};
+static histogram rx_wait_hist = {"rx-wait", 0, 0, 0, 0, {0}};   /* datagram queued -> taken (udp) */
+static histogram interval_hist = {"interval", 0, 0, 0, 0, {0}}; /* between measurement hand-overs */
 static fw_app app;
+static platform plat;
+static uint64_t last_measurement_ns;
+static uint64_t period_ns_now;      /* the loop's period */
+static uint64_t spin_ns;            /* --spin-us: busy-poll margin around the next expected Measurement */
+static uint64_t expect_ns;          /* when the next Measurement is expected (0: not known yet) */
+static uint64_t spin_total_ns;      /* time spent busy-polling */
+
+static void note_rx_wait(uint64_t ns)
+{
+    hist_add(&rx_wait_hist, ns);
+}
+
+/* Take the frames waiting on the bus and hand them to the application;
+ * woke: when the runner started on them. 0, or -1 when the bus failed. */
+static int take_frames(uint64_t woke)
+{
+    fw_counters c;
+    uint32_t before, handled = 0;
+    uint64_t done;
+    fw_status st;
+    (void)fw_app_get_counters(&app, &c);
+    before = c.measurements + c.step_errors;
+    st = fw_app_poll(&app, 64u, &handled);
+    done = now_ns();
+    (void)fw_app_get_counters(&app, &c);
+    if (c.measurements + c.step_errors != before) {
+        hist_add(&step_hist, done - woke);
+        if (last_measurement_ns != 0u) {
+            hist_add(&interval_hist, woke - last_measurement_ns);
+        }
+        last_measurement_ns = woke;
+        expect_ns = woke + period_ns_now; /* the rig sends one per period */
+    }
+    return st == FW_E_HAL ? -1 : 0;
+}
+
+/* --rx arrival: handle frames as they arrive until the deadline (or a
+ * signal). With --spin-us, the runner busy-polls from spin_ns before the
+ * next expected Measurement until it came or spin_ns after (then it blocks
+ * again): no wake-up latency for a frame on schedule, for about
+ * 2 * spin_ns / period of a CPU. 0, or -1 when the bus failed. */
+static int serve_until(uint64_t deadline)
+{
+    for (;;) {
+        struct pollfd pfd;
+        struct timespec rel;
+        uint64_t t = now_ns(), wake = deadline;
+        int rc, spinning;
+        if (t >= deadline || stop_requested) {
+            return 0;
+        }
+        spinning = spin_ns != 0u && expect_ns != 0u && t + spin_ns >= expect_ns && t < expect_ns + spin_ns;
+        if (!spinning && spin_ns != 0u && expect_ns > t + spin_ns && expect_ns - spin_ns < wake) {
+            wake = expect_ns - spin_ns;
+        }
+        rel = to_timespec(spinning ? 0u : wake - t);
+        pfd.fd = plat.fd;
+        pfd.events = POLLIN;
+        pfd.revents = 0;
+        rc = ppoll(&pfd, 1, &rel, NULL);
+        if (rc < 0) {
+            if (errno == EINTR) {
+                continue;
+            }
+            plat.last_errno = errno;
+            return -1;
+        }
+        if (spinning) {
+            spin_total_ns += now_ns() - t;
+        }
+        if (rc > 0 && take_frames(now_ns()) < 0) {
+            return -1;
+        }
+    }
+}
+
+static void json_string(FILE *f, const char *s)
+{
+    fputc('"', f);
+    for (; *s != '\0'; ++s) {
+        if (*s == '"' || *s == '\\') {
+            fputc('\\', f);
+        }
+        if ((unsigned char)*s >= 0x20u) {
+            fputc(*s, f);
+        }
+    }
+    fputc('"', f);
+}
 
 int main(int argc, char **argv)
 {
     static const struct option options[] = {
         {"interface", required_argument, 0, 'i'}, {"bus-less", no_argument, 0, 'b'},
+        {"udp-multicast", required_argument, 0, 'u'}, {"rx", required_argument, 0, 'r'},
+        {"diag-period", required_argument, 0, 'D'}, {"spin-us", required_argument, 0, 'S'},
         {"period-us", required_argument, 0, 'p'}, {"cycles", required_argument, 0, 'n'},
         {"duration", required_argument, 0, 'd'},  {"fifo", required_argument, 0, 'f'},
         {"json", required_argument, 0, 'j'},      {"quiet", no_argument, 0, 'q'},
         {"help", no_argument, 0, 'h'},            {0, 0, 0, 0}};
-    const char *ifname = NULL, *json_path = NULL;
-    int bus_less = 0, fifo = 0, quiet = 0, opt;
+    const char *ifname = NULL, *udp_spec = NULL, *json_path = NULL, *where = "bus-less", *mode = "bus-less";
+    int bus_less = 0, fifo = 0, quiet = 0, opt, rx_arrival = -1;
+    long diag_period = 1000;
+    double spin_us = 0.0;
     double period_us = 300.0, duration_s = 0.0;
     unsigned long long max_cycles = 0;
     const char *policy = "SCHED_OTHER";
-    platform plat = {-1, 0, 0, 0};
     int bus_failed = 0;
     fw_hal hal;
     fw_app_config cfg;
     fw_counters c;
     fw_status st;
-    uint64_t period_ns, start, next, end_at, cycle = 0, overruns = 0, late_ns;
+    uint64_t period_ns, start, next, end_at, cycle = 0, overruns = 0, late_ns, elapsed;
     struct sigaction sa;
     char *endp;
+    unsigned k;
 
-    while ((opt = getopt_long(argc, argv, "i:bp:n:d:f:j:qh", options, NULL)) != -1) {
+    memset(&plat, 0, sizeof plat);
+    plat.kind = BUS_NONE;
+    plat.fd = -1;
+    while ((opt = getopt_long(argc, argv, "i:bu:r:D:S:p:n:d:f:j:qh", options, NULL)) != -1) {
         switch (opt) {
         case 'i': ifname = optarg; break;
         case 'b': bus_less = 1; break;
+        case 'u': udp_spec = optarg; break;
+        case 'r':
+            if (strcmp(optarg, "tick") == 0 || strcmp(optarg, "arrival") == 0) {
+                rx_arrival = optarg[0] == 'a';
+            } else {
+                fprintf(stderr, "rhonn_runner: --rx takes tick or arrival, got '%s'\n", optarg);
+                return 2;
+            }
+            break;
+        case 'D':
+            errno = 0;
+            diag_period = strtol(optarg, &endp, 10);
+            if (*optarg == '\0' || *endp != '\0' || errno != 0 || diag_period < 0 || diag_period > 65535) {
+                fprintf(stderr, "rhonn_runner: --diag-period takes 0..65535 measurements, got '%s'\n", optarg);
+                return 2;
+            }
+            break;
+        case 'S':
+            spin_us = strtod(optarg, &endp);
+            if (*optarg == '\0' || *endp != '\0' || !(spin_us >= 0.0 && spin_us <= 1e5)) {
+                fprintf(stderr, "rhonn_runner: --spin-us takes a number of microseconds, got '%s'\n", optarg);
+                return 2;
+            }
+            break;
         case 'p':
             period_us = strtod(optarg, &endp);
             if (*endp != '\0' || !(period_us >= 10.0 && period_us <= 1e6)) {
@@ -346,16 +772,41 @@ int main(int argc, char **argv)
         default: usage(stderr); return 2;
         }
     }
-    if (optind != argc || (ifname == NULL) == (bus_less == 0)) {
-        fprintf(stderr, "rhonn_runner: give exactly one of --interface IF or --bus-less\n");
+    if (optind != argc || (ifname != NULL) + (udp_spec != NULL) + bus_less != 1) {
+        fprintf(stderr, "rhonn_runner: give exactly one of --interface IF, --udp-multicast GROUP:PORT or --bus-less\n");
         usage(stderr);
         return 2;
     }
-    if (!bus_less) {
+    if (bus_less && rx_arrival == 1) {
+        fprintf(stderr, "rhonn_runner: --rx arrival needs a bus (--interface or --udp-multicast)\n");
+        return 2;
+    }
+    if (udp_spec != NULL && parse_group(udp_spec, &plat) < 0) {
+        return 2;
+    }
+    if (rx_arrival < 0) {
+        rx_arrival = udp_spec != NULL; /* the udp_multicast rig waits for its answer; SocketCAN keeps the tick */
+    }
+    if (spin_us > 0.0 && (rx_arrival == 0 || bus_less || !(2.0 * spin_us < period_us))) {
+        fprintf(stderr, "rhonn_runner: --spin-us needs --rx arrival on a bus, and less than half the period\n");
+        return 2;
+    }
+    if (ifname != NULL) {
         plat.fd = open_can(ifname);
         if (plat.fd < 0) {
             return 1;
         }
+        plat.kind = BUS_SOCKETCAN;
+        where = ifname;
+        mode = "socketcan";
+    } else if (udp_spec != NULL) {
+        plat.fd = open_udp(&plat, udp_spec);
+        if (plat.fd < 0) {
+            return 1;
+        }
+        plat.kind = BUS_UDP;
+        where = udp_spec;
+        mode = "udp_multicast";
     }
 
     hal.ctx = &plat;
@@ -363,9 +814,11 @@ int main(int argc, char **argv)
     hal.receive = hal_receive;
     hal.now = hal_now;
     period_ns = (uint64_t)llround(period_us * 1e3);
+    period_ns_now = period_ns;
+    spin_ns = (uint64_t)llround(spin_us * 1e3);
     cfg.identifier = &LIM_IDENTIFIER;
     cfg.deadline_ns = (uint32_t)period_ns;
-    cfg.diag_period = 1000;
+    cfg.diag_period = (uint16_t)diag_period;
     st = fw_app_init(&app, &cfg, &hal);
     if (st != FW_OK) {
         fprintf(stderr, "rhonn_runner: fw_app_init: %s\n", fw_status_name(st));
@@ -395,50 +848,66 @@ int main(int argc, char **argv)
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
 
+    if (!bus_less && !quiet) {
+        printf("rhonn_runner: listening on %s %s, rx %s\n", mode, where, rx_arrival ? "arrival" : "tick");
+        fflush(stdout);
+    }
+
     start = now_ns();
     next = start;
     end_at = duration_s > 0.0 ? start + (uint64_t)llround(duration_s * 1e9) : UINT64_MAX;
     while (!stop_requested && (max_cycles == 0 || cycle < max_cycles)) {
         struct timespec ts;
         uint64_t woke, done;
-        uint32_t before;
         int rc;
 
         next += period_ns;
         if (next > end_at) {
             break;
         }
-        ts = to_timespec(next);
-        do {
-            rc = clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL);
-        } while (rc == EINTR && !stop_requested);
-        if (stop_requested) {
-            break;
-        }
-        woke = now_ns();
-        hist_add(&wake_hist, woke > next ? woke - next : 0u);
-
-        (void)fw_app_get_counters(&app, &c);
-        before = c.measurements + c.step_errors;
-        if (bus_less) {
-            fw_frame f;
-            vector_frame((uint32_t)cycle, &f);
-            woke = now_ns();
-            (void)fw_app_on_frame(&app, f.id, f.data, f.len, woke);
-        } else {
-            uint32_t handled = 0;
-            st = fw_app_poll(&app, 64u, &handled);
-            if (st == FW_E_HAL) {
-                fprintf(stderr, "rhonn_runner: the CAN interface %s failed (%s); stopping\n", ifname,
-                        strerror(plat.last_errno));
+        if (rx_arrival) {
+            /* frames as they come, up to the deadline; then the tick */
+            if (serve_until(next) < 0) {
                 bus_failed = 1;
                 break;
             }
-        }
-        done = now_ns();
-        (void)fw_app_get_counters(&app, &c);
-        if (c.measurements + c.step_errors != before) {
-            hist_add(&step_hist, done - woke);
+            if (stop_requested) {
+                break;
+            }
+            woke = now_ns();
+            hist_add(&wake_hist, woke > next ? woke - next : 0u);
+            done = woke;
+        } else {
+            ts = to_timespec(next);
+            do {
+                rc = clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL);
+            } while (rc == EINTR && !stop_requested);
+            if (stop_requested) {
+                break;
+            }
+            woke = now_ns();
+            hist_add(&wake_hist, woke > next ? woke - next : 0u);
+
+            if (bus_less) {
+                fw_frame f;
+                uint32_t before;
+                (void)fw_app_get_counters(&app, &c);
+                before = c.measurements + c.step_errors;
+                vector_frame((uint32_t)cycle, &f);
+                woke = now_ns();
+                (void)fw_app_on_frame(&app, f.id, f.data, f.len, woke);
+                done = now_ns();
+                (void)fw_app_get_counters(&app, &c);
+                if (c.measurements + c.step_errors != before) {
+                    hist_add(&step_hist, done - woke);
+                }
+            } else {
+                if (take_frames(woke) < 0) {
+                    bus_failed = 1;
+                    break;
+                }
+                done = now_ns();
+            }
         }
         /* Overrun: this cycle's work ran into the next slot. Slots already
          * missed are skipped, keeping the absolute schedule. */
@@ -450,17 +919,47 @@ int main(int argc, char **argv)
         }
         cycle += 1u;
     }
+    elapsed = now_ns() - start;
+    if (bus_failed) {
+        fprintf(stderr, "rhonn_runner: the %s %s failed (%s); stopping\n",
+                plat.kind == BUS_UDP ? "udp_multicast socket on" : "CAN interface", where,
+                strerror(plat.last_errno));
+    }
 
     (void)fw_app_get_counters(&app, &c);
     if (!quiet) {
-        printf("rhonn_runner: %s, period %.1f us, %llu cycles, %s\n", bus_less ? "bus-less" : ifname, period_us,
+        printf("rhonn_runner: %s, period %.1f us, %llu cycles, %s\n", bus_less ? "bus-less" : where, period_us,
                (unsigned long long)cycle, policy);
         printf("%-9s %10s %10s %10s %10s %10s %12s\n", "(us)", "min", "avg", "p99", "p99.9", "max", "samples");
         hist_print(&wake_hist);
         hist_print(&step_hist);
+        if (plat.kind == BUS_UDP) {
+            hist_print(&rx_wait_hist);
+        }
+        if (rx_arrival) {
+            hist_print(&interval_hist);
+        }
         printf("overruns %llu (%.4f %%), frames in %u, out %u, rejected %u, step errors %u\n",
                (unsigned long long)overruns, cycle ? 100.0 * (double)overruns / (double)cycle : 0.0,
                c.frames_in, c.frames_out, c.rejected, c.step_errors);
+        if (plat.kind == BUS_UDP) {
+            printf("udp: datagrams %llu, own skipped %llu, malformed %llu", (unsigned long long)plat.datagrams,
+                   (unsigned long long)plat.own_skipped, (unsigned long long)plat.malformed);
+            for (k = 0; k < UDP_CAN_N_STATUS; ++k) {
+                if (plat.malformed_by[k] != 0u) {
+                    printf(" %s=%llu", udp_can_status_name((udp_can_status)k),
+                           (unsigned long long)plat.malformed_by[k]);
+                }
+            }
+            if (plat.oversized != 0u) {
+                printf(" oversized=%llu", (unsigned long long)plat.oversized);
+            }
+            printf(", send errors %llu\n", (unsigned long long)plat.send_errors);
+        }
+        if (spin_ns != 0u) {
+            printf("spin: %.1f us around each expected measurement, %.1f %% of the time\n", spin_us,
+                   elapsed ? 100.0 * (double)spin_total_ns / (double)elapsed : 0.0);
+        }
     }
     if (json_path != NULL) {
         FILE *f = fopen(json_path, "w");
@@ -468,15 +967,38 @@ int main(int argc, char **argv)
             fprintf(stderr, "rhonn_runner: cannot write %s: %s\n", json_path, strerror(errno));
             return 1;
         }
-        fprintf(f, "{\"mode\": \"%s\", \"interface\": \"%s\", \"period_us\": %.3f, \"cycles\": %llu, "
-                   "\"policy\": \"%s\", \"overruns\": %llu, ",
-                bus_less ? "bus-less" : "socketcan", bus_less ? "" : ifname, period_us, (unsigned long long)cycle,
-                policy, (unsigned long long)overruns);
+        fprintf(f, "{\"mode\": \"%s\", \"interface\": ", mode);
+        json_string(f, bus_less ? "" : where);
+        fprintf(f, ", \"rx\": \"%s\", \"period_us\": %.3f, \"cycles\": %llu, \"policy\": \"%s\", \"overruns\": %llu, "
+                   "\"spin_us\": %.3f, \"spin_share\": %.6f, ",
+                bus_less ? "vector" : rx_arrival ? "arrival" : "tick", period_us, (unsigned long long)cycle, policy,
+                (unsigned long long)overruns, spin_us,
+                elapsed ? (double)spin_total_ns / (double)elapsed : 0.0);
         hist_json(f, &wake_hist);
         fprintf(f, ", ");
         hist_json(f, &step_hist);
-        fprintf(f, ", \"frames_in\": %u, \"frames_out\": %u, \"rejected\": %u, \"step_errors\": %u}\n",
-                c.frames_in, c.frames_out, c.rejected, c.step_errors);
+        fprintf(f, ", ");
+        hist_json(f, &rx_wait_hist);
+        fprintf(f, ", ");
+        hist_json(f, &interval_hist);
+        fprintf(f, ", \"frames_in\": %u, \"frames_out\": %u, \"rejected\": %u, \"step_errors\": %u, "
+                   "\"send_errors\": %llu, \"bus_failed\": %s",
+                c.frames_in, c.frames_out, c.rejected, c.step_errors, (unsigned long long)plat.send_errors,
+                bus_failed ? "true" : "false");
+        if (plat.kind == BUS_UDP) {
+            fprintf(f, ", \"udp\": {\"datagrams\": %llu, \"own_skipped\": %llu, \"malformed\": %llu, "
+                       "\"oversized\": %llu, \"malformed_by\": {",
+                    (unsigned long long)plat.datagrams, (unsigned long long)plat.own_skipped,
+                    (unsigned long long)plat.malformed, (unsigned long long)plat.oversized);
+            for (k = UDP_CAN_E_TRUNCATED; k < UDP_CAN_N_STATUS; ++k) {
+                if (k != UDP_CAN_E_SPACE) { /* an encoder status: never a decoding outcome */
+                    fprintf(f, "%s\"%s\": %llu", k > UDP_CAN_E_TRUNCATED ? ", " : "",
+                            udp_can_status_name((udp_can_status)k), (unsigned long long)plat.malformed_by[k]);
+                }
+            }
+            fprintf(f, "}}");
+        }
+        fprintf(f, "}\n");
         fclose(f);
     }
     if (plat.fd >= 0) {
