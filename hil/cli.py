@@ -47,7 +47,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     r = hs.add_parser("replay", help="replay the LIM scenario against the firmware, score and report it")
     _transport_args(r)
-    r.add_argument("--duration", type=_float, default=3.0, help="replayed seconds (default 3.0: 10,000 cycles)")
+    r.add_argument("--duration", type=_float, default=4.0, help="replayed seconds (default 4.0: 13,333 cycles)")
     r.add_argument("--start", type=_float, default=0.0, help="trajectory time of the first frame (default 0)")
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--frame-loss", type=_float, default=0.0, help="probability a frame is lost (default 0)")
@@ -57,7 +57,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--hold-start", type=_float, default=None, help="measurement hold start, s (default 1.1)")
     r.add_argument("--hold-duration", type=_float, default=None, help="measurement hold, s (default 1.0; 0: none)")
     r.add_argument("--input-start", type=_float, default=None,
-                   help="when the LIM's voltages switch on, s (default 1.0, PROPOSED; eq. 21-22 of the paper: 2.0)")
+                   help="when the LIM's voltages switch on, s (default 2.0, eq. 21-22 of the paper; 1.0: the "
+                        "motor moves through the whole hold)")
     r.add_argument("--out", type=Path, default=None, help="directory for report.json, report.txt and the PNGs")
     r.add_argument("--log", type=Path, default=None, help="record the run to FILE.blf or FILE.asc (+ FILE.json)")
     r.add_argument("--json", action="store_true", help="print the JSON report instead of the table")
@@ -80,13 +81,19 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _transport_args(p: argparse.ArgumentParser, default: str = "udp_multicast") -> None:
-    from .transport import TRANSPORTS
+    from .transport import FIRMWARES, TRANSPORTS
 
     p.add_argument("--transport", choices=TRANSPORTS, default=default)
     p.add_argument("--channel", default=None,
                    help="virtual: a channel name; udp_multicast: the group (default 239.74.163.2); socketcan: vcan0/can0")
     p.add_argument("--port", type=int, default=None, help="udp_multicast port (default: a fresh one per run)")
-    p.add_argument("--runner", default=None, help="socketcan: start this rhonn_runner (default: one already runs)")
+    p.add_argument("--runner", default=None,
+                   help="the rhonn_runner to start: socketcan (default: one already runs) and udp_multicast "
+                        "(default: built from the source tree; where there is none, the Python node serves)")
+    p.add_argument("--firmware", choices=FIRMWARES, default=None,
+                   help="udp_multicast: the firmware process, runner (rhonn_runner, the C firmware: --runner, else "
+                        "built from the source tree with cc on first use) or python (hil.firmware_node, the same "
+                        "logic through cffi, where there is no C compiler); default runner")
     p.add_argument("--timeout", type=_float, default=1.0, help="seconds to wait for the firmware (default 1)")
     p.add_argument("--drain", type=_float, default=0.3, help="seconds to wait for the last estimates (default 0.3)")
 
@@ -139,6 +146,11 @@ def _check_log_path(path: Path | None) -> None:
         raise ValueError(f"--log: {path.name}: expected a .blf or .asc file name")
 
 
+def _note_fallback(side: dict | None) -> None:
+    if side and side.get("fallback"):
+        print(f"note: {side['fallback']}", file=sys.stderr)
+
+
 def _replay(args) -> int:
     from .rig import BusLost, write_log
     from .score import score
@@ -148,7 +160,7 @@ def _replay(args) -> int:
     sc = _scenario(args)
     try:
         rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
-                         reply_timeout=args.timeout, drain=args.drain)
+                         firmware=args.firmware or True, reply_timeout=args.timeout, drain=args.drain)
     except BusLost as exc:
         if args.log is not None:  # keep what was recorded up to the loss
             write_log(exc.recording, args.log)
@@ -156,6 +168,7 @@ def _replay(args) -> int:
         raise
     report = score(rec, reference=lim_config())
     report["firmware_side"] = rec.meta.get("firmware_side")
+    _note_fallback(report["firmware_side"])
     code = _emit(report, args, timing_note(args.transport))
     if args.log is not None:
         write_log(rec, args.log)  # a LogWriteError (OSError) is reported by pyrhonn's main: exit 2
@@ -208,9 +221,10 @@ def _bench(args) -> int:
     duration = args.cycles * 3e-4
     sc = Scenario(duration=duration, hold_duration=0.0, input_start=duration + 1.0)
     rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
-                     reply_timeout=args.timeout, drain=args.drain)
+                     firmware=args.firmware or True, reply_timeout=args.timeout, drain=args.drain)
     r = score(rec)
     side = rec.meta.get("firmware_side") or {}
+    _note_fallback(side)
     note = timing_note(args.transport)
     if args.json:
         r["firmware_side"] = side
@@ -231,13 +245,18 @@ def _bench(args) -> int:
     print(row("rig: period jitter |dt - T|", {**r["rig_period_jitter_us"],
                                                  "max": r["rig_period_jitter_us"].get("max_abs", 0.0)}))
     print(row("round trip send -> estimate", lat))
+    print(row("rig: pick-up of received frames", r.get("rig_pickup_us")))
     print(row("firmware: Measurement interval", side.get("arrival_interval_us")))
     print(row("firmware: handling per frame", side.get("handling_us")))
     if r.get("firmware"):
         print(f"{'firmware: StepTimeMax (Diagnostics)':<34} {r['firmware']['step_time_max_us']:.1f}"
               f"  overruns {r['firmware']['overruns']}")
     if lat.get("n"):
-        print(f"estimates within one period: {100 * lat['within_period']:.3f} %  "
+        at = "at the rig's socket (kernel receive timestamp)" if lat.get("stamp") == "kernel" else "received"
+        print(f"estimates within one period, {at}: {100 * lat['within_period']:.3f} %  "
               f"(answered {r['frames']['answered']} of {r['frames']['sent']}, late {r['frames']['late']})")
+        if "within_period_picked_up" in lat:
+            print(f"estimates within one period, picked up by the rig process: "
+                  f"{100 * lat['within_period_picked_up']:.3f} %")
     print(f"note: {note}")
     return 0 if r["frames"]["accounted"] else 1

@@ -38,13 +38,20 @@ def _fmt(stats: dict, keys=("min", "avg", "p99", "p99.9", "max")) -> str:
     return "  ".join(f"{k} {stats[k]:9.1f}" for k in keys if k in stats)
 
 
+def _stamp(kind: str | None) -> str:
+    return ("the kernel's receive timestamp (the estimate at the rig's socket)" if kind == "kernel"
+            else "when the rig's recv returned")
+
+
 def _e(v: float | None) -> str:
     return f"{'-':>11}" if v is None else f"{v:11.3e}"
 
 
 def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
     f = report["frames"]
-    lines = [f"HIL replay over {report['transport']} ({report['channel']}): {report['cycles']} cycles at "
+    served = (report.get("firmware_side") or {}).get("firmware")
+    lines = [f"HIL replay over {report['transport']} ({report['channel']}"
+             f"{', firmware ' + served if served else ''}): {report['cycles']} cycles at "
              f"{report['scenario']['period'] * 1e3:g} ms, seed {report['scenario']['seed']}",
              "",
              f"{'frames':<22}sent {f['sent']}  lost (injected) {f['lost_injected']}  answered {f['answered']}  "
@@ -79,7 +86,11 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
     lat = report["latency_us"]
     lines += ["", f"{'timing (us)':<22}",
               f"  {'latency send->est.':<20}{_fmt(lat)}",
-              f"  {'':<20}within one period: {100 * lat['within_period']:.2f} %" if lat.get("n") else "",
+              f"  {'':<20}within one period: {100 * lat['within_period']:.2f} %"
+              + (f" (picked up by the rig process within one period: {100 * lat['within_period_picked_up']:.2f} %)"
+                 if "within_period_picked_up" in lat else "") if lat.get("n") else "",
+              f"  {'(stamped at)':<20}{_stamp(lat.get('stamp'))}",
+              f"  {'rig pick-up':<20}{_fmt(report.get('rig_pickup_us', {}))}",
               f"  {'rig lateness':<20}{_fmt(report['rig_lateness_us'])}",
               f"  {'rig period jitter':<20}{_fmt(report['rig_period_jitter_us'], ('avg', 'p99', 'p99.9', 'max_abs'))}"]
     if timing_note:

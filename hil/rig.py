@@ -4,11 +4,19 @@ schedule, receives the firmware's frames, and records everything.
 Timing. Frame k is due at the absolute deadline t0 + k*T + delay on
 ``time.perf_counter_ns`` (never "sleep T after the previous one", so errors
 do not accumulate). The rig waits by blocking in ``bus.recv`` (which also
-collects the estimates as they arrive, each stamped with perf_counter_ns when
-``recv`` returns) until ``spin_ns`` before the deadline, then polls
+collects the estimates as they arrive) until ``spin_ns`` before the deadline, then polls
 ``recv(timeout=0)`` until the deadline (a busy spin: the kernel's timer slack
 makes blocking wake-ups tens of microseconds late). Single-threaded on
-purpose: a second Python thread would wait for the GIL.
+purpose: a second Python thread would wait for the GIL. The timed loop runs
+with the garbage collector off (no collection pauses; what it allocates is
+freed by reference counting).
+
+Arrival times. On socketcan and udp_multicast python-can gives each received
+frame the kernel's receive timestamp, so an estimate is stamped with the
+moment it reached the rig's socket (on the perf_counter clock), not the
+moment this process got round to ``recv``; that pick-up delay, the rig's own
+scheduling, is kept apart (``meta["rx_pickup_us"]``). On the virtual bus the
+stamp is when ``recv`` returned.
 
 Recording. Every frame sent and received is kept in memory during the run
 (with its time relative to t0, the deadline of frame 0) and written to the
@@ -30,6 +38,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import can
+import numpy as np
 
 from .scenario import Plan, Scenario
 
@@ -93,6 +102,11 @@ class Rig:
         ident = ids()
         self._accept = {ident["Estimate"], ident["ControlAck"], ident["Diagnostics"]}
         self._t0 = 0
+        # socketcan and udp_multicast give each received frame the kernel's receive timestamp: an
+        # estimate counts as back when it reached the rig's socket, not when this process got to it
+        self._kernel_stamps = transport in ("socketcan", "udp_multicast")
+        self._pickup: list[int] = []
+        self._ago: dict[int, int] = {}           # id(received frame) -> its pick-up delay, ns
         self._events: list[tuple[int, str, can.Message]] = []
         self._n_rx = 0
         self._first_run_event = 0
@@ -106,7 +120,16 @@ class Rig:
         if msg.arbitration_id not in self._accept or msg.is_extended_id or msg.is_error_frame:
             return
         msg.is_rx = True
-        self._events.append((now, "rx", msg))
+        ago = 0
+        if self._kernel_stamps and msg.timestamp:
+            # the kernel stamped the frame on arrival (CLOCK_REALTIME): how long ago, in the same clock
+            ago = time.time_ns() - int(round(msg.timestamp * 1e9))
+            if not 0 <= ago < 1_000_000_000:     # a clock step: keep the pick-up time
+                ago = 0
+            else:
+                self._pickup.append(ago)
+        self._events.append((now - ago, "rx", msg))
+        self._ago[id(msg)] = ago
         self._n_rx += 1
 
     def _recv(self, timeout: float) -> can.Message | None:
@@ -225,15 +248,24 @@ class Rig:
         """The frames so far as a Recording. Log time: seconds from the first
         frame (the handshake), so every timestamp is >= 0 and BLF keeps it to
         the nanosecond; t0 (deadline of frame 0, without the delay) is in meta."""
+        from .score import stats_us
+
         sc = self.plan.scenario
-        base = self._events[0][0] if self._events else self._t0
-        events = [((ns - base) / 1e9, d, m) for ns, d, m in self._events]
+        # frames stamped on arrival by the kernel go where they arrived, before frames this process
+        # sent while it had not yet picked them up (the handshake and the run each in their own order)
+        first = self._first_run_event
+        ordered = sorted(self._events[:first], key=lambda e: e[0]) + sorted(self._events[first:], key=lambda e: e[0])
+        base = ordered[0][0] if ordered else self._t0
+        events = [((ns - base) / 1e9, d, m) for ns, d, m in ordered]
+        pickup = [self._ago.get(id(m), 0) if d == "rx" else 0 for _, d, m in ordered]
         for ts, _, m in events:
             m.timestamp = ts
             m.channel = None
         meta = {"transport": self.transport, "channel": self.channel, "period_ns": int(round(sc.period * 1e9)),
                 "delay_ns": int(round(sc.transport_delay * 1e9)), "t0_ns": self._t0 - base,
-                "first_run_event": self._first_run_event, **extra}
+                "first_run_event": self._first_run_event, "rx_stamp": "kernel" if self._kernel_stamps else "recv",
+                "rx_pickup_us": stats_us(np.asarray(self._pickup, dtype=np.int64)) if self._pickup else {"n": 0},
+                "_rx_pickup_ns": pickup, **extra}
         return Recording(scenario=sc, events=events, meta=meta)
 
 
@@ -261,7 +293,8 @@ def write_log(rec: Recording, path: str | os.PathLike, *, file: Any = None) -> P
     path = Path(path)
     if path.suffix.lower() not in (".blf", ".asc"):
         raise ValueError(f"log: {path.name}: expected a .blf or .asc file name")
-    meta = {"format": "pyrhonn-hil-log 1", "scenario": rec.scenario.to_dict(), **rec.meta,
+    meta = {"format": "pyrhonn-hil-log 1", "scenario": rec.scenario.to_dict(),
+            **{k: v for k, v in rec.meta.items() if not k.startswith("_")},
             "first_timestamp": rec.events[0][0] if rec.events else 0.0, "frames": len(rec.events)}
     sc_path = sidecar(path)
     try:

@@ -19,9 +19,11 @@ same numbers.
   noise-free x(k+1), over the answered cycles; Table 7 alongside; the same
   outside the measurement hold, and against the next Measurement frame (see
   :func:`_identification`).
-- Timing: latency Measurement sent -> Estimate received; the rig's lateness
-  against its absolute deadlines and its period jitter (interval between
-  consecutive frames minus T).
+- Timing: latency Measurement sent -> Estimate received (at the rig's
+  socket: the kernel's receive timestamp on socketcan and udp_multicast, see
+  hil.rig), and apart from it the rig process's delay in picking received
+  frames up; the rig's lateness against its absolute deadlines and its
+  period jitter (interval between consecutive frames minus T).
 """
 from __future__ import annotations
 
@@ -75,6 +77,10 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
 
     sent_ns = np.full(N, -1, dtype=np.int64)
     recv_ns = np.full(N, -1, dtype=np.int64)
+    picked_ns = np.full(N, -1, dtype=np.int64)   # when the rig process had it (kernel stamp + pick-up)
+    pickup = rec.meta.get("_rx_pickup_ns")     # live runs only: a log keeps the arrival stamps, not these
+    if pickup is not None and (len(pickup) != len(rec.events) or rec.meta.get("rx_stamp") != "kernel"):
+        pickup = None
     raw = np.zeros((N, 6), dtype=np.int64)
     phys = np.zeros((N, 6), dtype=np.float64)
     status = np.zeros(N, dtype=np.int64)
@@ -140,6 +146,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
             duplicates += 1
         else:
             recv_ns[k] = _ns(t)
+            picked_ns[k] = recv_ns[k] + (int(pickup[i]) if pickup is not None else 0)
             raw[k] = e.xhat
             phys[k] = decode_estimate(m).xhat
             status[k] = e.step_status
@@ -189,6 +196,10 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     out["identification"] = _identification(plan, answered, phys) if answered.sum() >= 2 else None
     out["latency_us"] = stats_us(latency)
     out["latency_us"]["within_period"] = float(np.mean(latency <= T)) if latency.size else math.nan
+    out["latency_us"]["stamp"] = rec.meta.get("rx_stamp", "recv")
+    if pickup is not None and latency.size:
+        out["latency_us"]["within_period_picked_up"] = float(np.mean(picked_ns[answered] - sent_ns[answered] <= T))
+    out["rig_pickup_us"] = rec.meta.get("rx_pickup_us", {"n": 0})
     out["rig_lateness_us"] = stats_us(lateness)
     jit = stats_us(np.abs(intervals))
     jit["max_abs"] = jit.pop("max", 0.0) if jit.get("n") else 0.0

@@ -3,12 +3,21 @@ the same on each, only the channel changes.
 
 - ``virtual``: python-can's in-process bus; the firmware is
   :class:`pyrhonn.firmware.FirmwareApp` serving from a thread.
-- ``udp_multicast``: between processes on one host; the firmware is a
-  ``python -m hil.firmware_node`` process. Each run gets its own UDP port, so
-  parallel runs do not cross.
+- ``udp_multicast``: between processes on one host. The firmware is
+  firmware_sim's Linux runner on python-can's udp_multicast wire protocol
+  (``rhonn_runner --udp-multicast GROUP:PORT``, the C firmware; ``runner``
+  names the executable, else one built from the source tree with cc and
+  cached, see firmware_sim/linux/build_runner.py), or with
+  ``firmware="python"`` a ``python -m hil.firmware_node`` process (the same
+  firmware logic through cffi: where there is no C compiler). Each run gets
+  its own UDP port, so parallel runs do not cross.
 - ``socketcan``: vcan0 or a real can0; the firmware is firmware_sim's Linux
   runner (``rhonn_runner --interface IF``), started here when ``runner`` is
   given, else expected to be running already.
+
+A runner started here runs under SCHED_FIFO (its own ``--fifo``, memory
+locked) when this process does, at the same priority; its report (stdout,
+exit code, its JSON statistics) is the Recording's ``firmware_side``.
 """
 from __future__ import annotations
 
@@ -31,11 +40,15 @@ import can
 from .rig import FirmwareTimeout, Recording, Rig
 from .scenario import Scenario
 
-__all__ = ["TRANSPORTS", "free_port", "lim_config", "run_replay"]
+__all__ = ["FIRMWARES", "TRANSPORTS", "FirmwareUnavailable", "free_port", "lim_config", "run_replay", "udp_runner"]
 
 TRANSPORTS = ("virtual", "udp_multicast", "socketcan")
+FIRMWARES = ("runner", "python")  # udp_multicast: the C runner (default) or the Python node
 ROOT = Path(__file__).resolve().parents[1]
 UDP_GROUP = "239.74.163.2"  # python-can's default IPv4 group
+#: the udp_multicast runner busy-polls this long before (and after) each Measurement is due, so a frame
+#: on schedule is taken without a wake-up latency (about 30 us on average on this VM, hundreds at p99)
+RUNNER_SPIN_US = 50
 
 
 @functools.cache
@@ -82,6 +95,10 @@ def _virtual(channel: str | None, firmware: bool) -> Iterator[tuple[can.BusABC, 
         rig.shutdown()
 
 
+class FirmwareUnavailable(OSError):
+    """The firmware process cannot be had here (no runner and no way to build one)."""
+
+
 def _stop(proc: subprocess.Popen | None) -> None:
     """End a firmware process still running after the replay: SIGTERM (it
     prints its statistics), then kill if it does not exit within 30 s."""
@@ -93,13 +110,98 @@ def _stop(proc: subprocess.Popen | None) -> None:
             proc.kill()
 
 
+def udp_runner(runner: str | os.PathLike | None = None) -> str:
+    """The rhonn_runner to start on udp_multicast: ``runner`` when given, else
+    the one built from this source tree (once per source content, cached;
+    firmware_sim/linux/build_runner.py). FirmwareUnavailable when neither."""
+    if runner is not None:
+        path = Path(runner)
+        if not (path.is_file() and os.access(path, os.X_OK)):
+            raise FirmwareUnavailable(f"rhonn_runner: {runner}: not an executable file")
+        return str(path)
+    script = ROOT / "firmware_sim" / "linux" / "build_runner.py"
+    if not script.is_file():
+        raise FirmwareUnavailable("no rhonn_runner to start: this installation has no firmware_sim sources; give "
+                                  "--runner PATH (CMake target rhonn_runner, or firmware_sim/linux/build_runner.py), "
+                                  "or --firmware python")
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("_pyrhonn_build_runner", script)
+    module = importlib.util.module_from_spec(spec)
+    assert spec.loader is not None
+    spec.loader.exec_module(module)
+    try:
+        return str(module.cached())
+    except (RuntimeError, OSError, subprocess.CalledProcessError) as exc:
+        raise FirmwareUnavailable(f"cannot build rhonn_runner ({exc}); give --runner PATH, or --firmware python "
+                                  "(the same firmware logic in a Python process)") from exc
+
+
+def _fifo_args() -> list[str]:
+    """``--fifo PRIO`` when this process runs under SCHED_FIFO (``hil bench
+    --fifo``): the runner then asks for it itself, and locks its memory."""
+    try:
+        if os.sched_getscheduler(0) == os.SCHED_FIFO:
+            return ["--fifo", str(os.sched_getparam(0).sched_priority)]
+    except (OSError, AttributeError):
+        pass
+    return []
+
+
+def _hist_us(h: dict | None) -> dict:
+    """A runner histogram (count, min_us, ...) in hil.score.stats_us's form."""
+    if not h or not h.get("count"):
+        return {"n": 0}
+    return {"n": int(h["count"]), "min": h["min_us"], "avg": h["avg_us"], "p99": h["p99_us"], "p99.9": h["p999_us"],
+            "max": h["max_us"]}
+
+
+def _runner_side(proc: subprocess.Popen, report: Path, side: dict[str, Any]) -> dict:
+    """Stop the runner (SIGTERM: it prints and writes its statistics) and
+    read its report, once."""
+    if "report" not in side:
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=60)
+        side["report"] = {"stdout": out.strip().splitlines()[-12:], "returncode": proc.returncode}
+        if err.strip():
+            side["report"]["stderr"] = err.strip().splitlines()[-5:]
+        if report.is_file():
+            stats = json.loads(report.read_text())
+            side["report"]["stats"] = stats
+            side["report"]["handling_us"] = _hist_us(stats.get("step"))
+            side["report"]["arrival_interval_us"] = _hist_us(stats.get("interval"))
+            report.unlink()
+    return side["report"]
+
+
+def _start_udp_runner(exe: str, channel: str, port: int, report: Path) -> subprocess.Popen:
+    group = f"[{channel}]" if ":" in channel else channel
+    # Diagnostics on request only, as the Python node (FirmwareApp's default): both firmware choices
+    # put the same frames on the bus, and the last Diagnostics' StepTimeMax covers the whole run
+    proc = subprocess.Popen([exe, "--udp-multicast", f"{group}:{port}", "--diag-period", "0", "--spin-us",
+                             str(RUNNER_SPIN_US), "--duration", "3600", "--json", str(report), *_fifo_args()],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    line = proc.stdout.readline() if proc.stdout else ""  # printed once the socket is in the group
+    if not line.startswith("rhonn_runner: listening"):
+        proc.kill()
+        _, err = proc.communicate()
+        raise FirmwareTimeout(f"rhonn_runner did not start on udp_multicast {group}:{port}: "
+                              f"{err.strip() or line.strip() or 'no output'}")
+    return proc
+
+
 @contextmanager
-def _udp(channel: str | None, port: int | None, firmware: bool) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
+def _udp(channel: str | None, port: int | None, firmware: str | None,
+         runner: str | None = None) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
     channel = channel or UDP_GROUP
     port = port or free_port()
     proc = None
+    report = None
     side: dict[str, Any] = {}
-    if firmware:
+    if firmware == "runner":
+        report = Path(os.environ.get("TMPDIR", "/tmp")) / f"hil-runner-{uuid.uuid4().hex}.json"
+        proc = _start_udp_runner(udp_runner(runner), channel, port, report)
+    elif firmware == "python":
         env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
         proc = subprocess.Popen([sys.executable, "-m", "hil.firmware_node", "--channel", channel, "--port", str(port)],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=str(ROOT))
@@ -108,11 +210,17 @@ def _udp(channel: str | None, port: int | None, firmware: bool) -> Iterator[tupl
             err = proc.stderr.read() if proc.stderr else ""
             proc.kill()
             raise FirmwareTimeout(f"the firmware node did not start: {err.strip().splitlines()[-1:] or line!r}")
-    rig = can.Bus(interface="udp_multicast", channel=channel, port=port, fd=True)
+    try:
+        rig = can.Bus(interface="udp_multicast", channel=channel, port=port, fd=True)
+    except (OSError, can.CanError) as exc:
+        _stop(proc)
+        raise OSError(f"udp_multicast {channel}:{port}: cannot open it ({exc})") from exc
 
     def firmware_side() -> dict:
         if proc is None:
             return {}
+        if report is not None:
+            return _runner_side(proc, report, side)
         if "report" not in side:
             proc.send_signal(signal.SIGTERM)
             out, _ = proc.communicate(timeout=30)
@@ -125,6 +233,8 @@ def _udp(channel: str | None, port: int | None, firmware: bool) -> Iterator[tupl
     finally:
         rig.shutdown()
         _stop(proc)
+        if report is not None and report.is_file():
+            report.unlink()
 
 
 @contextmanager
@@ -137,8 +247,8 @@ def _socketcan(channel: str | None, runner: str | None) -> Iterator[tuple[can.Bu
     side: dict[str, Any] = {}
     if runner:
         report = Path(os.environ.get("TMPDIR", "/tmp")) / f"hil-runner-{uuid.uuid4().hex}.json"
-        proc = subprocess.Popen([str(runner), "--interface", channel, "--duration", "3600", "--json", str(report)],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        proc = subprocess.Popen([str(runner), "--interface", channel, "--duration", "3600", "--json", str(report),
+                                 *_fifo_args()], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         time.sleep(1.0)  # the runner binds its socket
         if proc.poll() is not None:
             _, err = proc.communicate()
@@ -161,16 +271,9 @@ def _socketcan(channel: str | None, runner: str | None) -> Iterator[tuple[can.Bu
             continue
 
     def firmware_side() -> dict:
-        if proc is None:
+        if proc is None or report is None:
             return {}
-        if "report" not in side:
-            proc.send_signal(signal.SIGTERM)
-            out, err = proc.communicate(timeout=60)
-            side["report"] = {"stdout": out.strip().splitlines()[-8:], "returncode": proc.returncode}
-            if report is not None and report.is_file():
-                side["report"]["stats"] = json.loads(report.read_text())
-                report.unlink()
-        return side["report"]
+        return _runner_side(proc, report, side)
 
     try:
         yield rig, channel, firmware_side
@@ -179,29 +282,67 @@ def _socketcan(channel: str | None, runner: str | None) -> Iterator[tuple[can.Bu
         _stop(proc)
 
 
-@contextmanager
-def open_transport(transport: str, channel: str | None = None, *, port: int | None = None, firmware: bool = True,
-                   runner: str | None = None):
-    """(rig bus, channel description, firmware-side report function)."""
+def _firmware_kind(transport: str, firmware: bool | str) -> str | None:
+    """What serves the rig: None (nothing started here), "python" or "runner"."""
+    if firmware is False or firmware is None:
+        return None
+    if firmware is not True and firmware not in FIRMWARES:
+        raise ValueError(f"firmware: expected one of {', '.join(FIRMWARES)} (or True/False), got {firmware!r}")
     if transport == "virtual":
-        with _virtual(channel, firmware) as t:
+        if firmware == "runner":
+            raise ValueError("firmware: the virtual bus lives inside this process; rhonn_runner cannot join it "
+                             "(use udp_multicast or socketcan)")
+        return "python"
+    if transport == "socketcan":
+        if firmware == "python":
+            raise ValueError("firmware: over socketcan the firmware is rhonn_runner (--runner), or one already "
+                             "running")
+        return "runner"
+    return "runner" if firmware is True else str(firmware)
+
+
+@contextmanager
+def open_transport(transport: str, channel: str | None = None, *, port: int | None = None,
+                   firmware: bool | str = True, runner: str | None = None):
+    """(rig bus, channel description, firmware-side report function).
+    ``firmware``: True (the transport's default firmware), False (none: one
+    must be running already), or "runner" / "python" (udp_multicast)."""
+    if transport not in TRANSPORTS:
+        raise ValueError(f"transport: expected one of {', '.join(TRANSPORTS)}, got {transport!r}")
+    kind = _firmware_kind(transport, firmware)
+    if transport == "virtual":
+        with _virtual(channel, kind is not None) as t:
             yield t
     elif transport == "udp_multicast":
-        with _udp(channel, port, firmware) as t:
-            yield t
-    elif transport == "socketcan":
-        with _socketcan(channel, runner if firmware else None) as t:
-            yield t
+        fallback = None
+        if kind == "runner":
+            try:
+                runner = udp_runner(runner)
+            except FirmwareUnavailable as exc:
+                if firmware is not True or runner is not None:
+                    raise                   # the runner was asked for by name
+                kind, fallback = "python", f"rhonn_runner unavailable ({exc}): the firmware is the Python node"
+        with _udp(channel, port, kind, runner) as (bus, where, side):
+            def side_noted() -> dict:
+                report = side()
+                report["firmware"] = {"runner": "rhonn_runner", "python": "hil.firmware_node"}.get(kind or "", None)
+                if fallback is not None:
+                    report["fallback"] = fallback
+                return report
+
+            yield bus, where, side_noted
     else:
-        raise ValueError(f"transport: expected one of {', '.join(TRANSPORTS)}, got {transport!r}")
+        with _socketcan(channel, runner if kind is not None else None) as t:
+            yield t
 
 
 def run_replay(scenario: Scenario, transport: str = "virtual", channel: str | None = None, *,
-               port: int | None = None, firmware: bool = True, runner: str | None = None,
+               port: int | None = None, firmware: bool | str = True, runner: str | None = None,
                spin_ns: int | None = None, reply_timeout: float = 1.0, drain: float = 0.3,
                extra_frames: Callable[[int], list[can.Message]] | None = None) -> Recording:
     """Replay ``scenario`` over ``transport`` against the firmware; the Recording
-    (its meta holds the firmware side's own report)."""
+    (its meta holds the firmware side's own report). ``firmware``/``runner``:
+    see :func:`open_transport` (udp_multicast: the C runner by default)."""
     if not isinstance(scenario, Scenario):
         raise ValueError(f"scenario: expected a Scenario, got {type(scenario).__name__}")
     plan = scenario.build()

@@ -1,0 +1,61 @@
+"""hil.rig's arrival stamps: on socketcan and udp_multicast an estimate is
+stamped when the kernel received it, the rig process's pick-up delay kept
+apart; a missing or implausible kernel stamp falls back to the pick-up time."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+can = pytest.importorskip("can")
+pytest.importorskip("cantools")
+
+from hil.rig import Rig, ids  # noqa: E402
+from hil.scenario import Scenario  # noqa: E402
+from hil.score import score  # noqa: E402
+from hil.transport import run_replay  # noqa: E402
+
+PLAN = Scenario(duration=0.03).build()
+
+
+def _estimate(timestamp: float) -> can.Message:
+    return can.Message(arbitration_id=ids()["Estimate"], data=bytes(20), is_extended_id=False, is_fd=True,
+                       timestamp=timestamp)
+
+
+@pytest.mark.parametrize("transport", ["udp_multicast", "socketcan"])
+def test_a_kernel_stamp_dates_the_arrival_back_to_when_the_socket_got_it(transport) -> None:
+    rig = Rig(None, PLAN, transport=transport)
+    now = time.perf_counter_ns()
+    rig._take(_estimate(time.time() - 0.002), now)
+    arrived, direction, _ = rig._events[-1]
+    assert direction == "rx" and 1_900_000 <= now - arrived <= 50_000_000   # about 2 ms earlier
+    assert rig._pickup == [now - arrived]
+
+
+@pytest.mark.parametrize("stamp", [0.0, time.time() + 5.0, time.time() - 5.0])
+def test_no_or_an_implausible_kernel_stamp_keeps_the_pick_up_time(stamp) -> None:
+    rig = Rig(None, PLAN, transport="udp_multicast")
+    now = time.perf_counter_ns()
+    rig._take(_estimate(stamp), now)
+    assert rig._events[-1][0] == now and rig._pickup == []
+
+
+def test_the_virtual_bus_is_stamped_when_recv_returns() -> None:
+    rig = Rig(None, PLAN, transport="virtual")
+    now = time.perf_counter_ns()
+    rig._take(_estimate(time.time() - 0.002), now)
+    assert rig._events[-1][0] == now and rig._pickup == []
+
+
+def test_a_udp_replay_reports_socket_arrival_and_pick_up_apart_in_time_order() -> None:
+    sc = Scenario(duration=0.15, start=1.95, seed=9)
+    rec = run_replay(sc, "udp_multicast")
+    times = [t for t, _, _ in rec.events[rec.meta["first_run_event"]:]]
+    assert times == sorted(times)
+    r = score(rec)
+    lat = r["latency_us"]
+    assert lat["stamp"] == "kernel" and r["rig_pickup_us"]["n"] >= r["frames"]["answered"]
+    assert lat["within_period"] >= lat["within_period_picked_up"]
+    assert r["frames"]["accounted"] and np.isfinite(lat["p99.9"])
