@@ -112,18 +112,21 @@ def _stop(proc: subprocess.Popen | None) -> None:
 
 def udp_runner(runner: str | os.PathLike | None = None) -> str:
     """The rhonn_runner to start on udp_multicast: ``runner`` when given, else
-    the one built from this source tree (once per source content, cached;
+    the one built from the source tree (beside the package, else the current
+    directory's; once per source content, cached; see
     firmware_sim/linux/build_runner.py). FirmwareUnavailable when neither."""
     if runner is not None:
         path = Path(runner)
         if not (path.is_file() and os.access(path, os.X_OK)):
             raise FirmwareUnavailable(f"rhonn_runner: {runner}: not an executable file")
         return str(path)
-    script = ROOT / "firmware_sim" / "linux" / "build_runner.py"
-    if not script.is_file():
-        raise FirmwareUnavailable("no rhonn_runner to start: this installation has no firmware_sim sources; give "
-                                  "--runner PATH (CMake target rhonn_runner, or firmware_sim/linux/build_runner.py), "
-                                  "or --firmware python")
+    # the sources beside this package (a checkout, an editable install), else a checkout this runs in
+    scripts = [base / "firmware_sim" / "linux" / "build_runner.py" for base in (ROOT, Path.cwd())]
+    script = next((p for p in scripts if p.is_file()), None)
+    if script is None:
+        raise FirmwareUnavailable("no rhonn_runner to start: no firmware_sim sources beside this installation or in "
+                                  "the current directory; give --runner PATH (CMake target rhonn_runner, or "
+                                  "firmware_sim/linux/build_runner.py), or --firmware python")
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("_pyrhonn_build_runner", script)

@@ -517,17 +517,29 @@ def test_without_firmware_sources_the_default_falls_back_to_the_python_node_and_
                                                                                          capsys) -> None:
     import hil.transport as transport
 
-    monkeypatch.setattr(transport, "ROOT", tmp_path)  # an installed hil: no firmware_sim/ beside it
+    monkeypatch.setattr(transport, "ROOT", tmp_path)  # an installed hil: no firmware_sim/ beside it,
+    monkeypatch.chdir(tmp_path)                        # nor in the current directory
     sc = Scenario(duration=0.06, start=1.95, seed=3)
     rec = run_replay(sc, "udp_multicast")
     side = rec.meta["firmware_side"]
     assert side["firmware"] == "hil.firmware_node" and "rhonn_runner unavailable" in side["fallback"]
     assert score(rec)["frames"]["answered"] == sc.cycles
-    with pytest.raises(FirmwareUnavailable, match="no firmware_sim sources"):
+    with pytest.raises(FirmwareUnavailable, match="no firmware_sim sources beside"):
         run_replay(sc, "udp_multicast", firmware="runner")  # asked for by name: no fallback
     assert pyrhonn_main(["hil", "replay", "--transport", "udp_multicast", "--duration", "0.06", "--start", "1.95"]) == 0
     captured = capsys.readouterr()
     assert "note: rhonn_runner unavailable" in captured.err and "firmware hil.firmware_node" in captured.out
+
+
+def test_an_installed_hil_run_from_a_checkout_builds_the_runner_from_it(tmp_path, monkeypatch) -> None:
+    import hil.transport as transport
+
+    _build_runner()                                    # skips without a C compiler
+    monkeypatch.setattr(transport, "ROOT", tmp_path)  # installed: nothing beside the package
+    monkeypatch.chdir(LINUX.parents[1])               # but run from the source tree
+    monkeypatch.setenv("PYRHONN_CACHE_DIR", str(tmp_path / "cache"))
+    exe = Path(transport.udp_runner())
+    assert exe.is_file() and tmp_path / "cache" in exe.parents
 
 
 def test_cli_bench_and_replay_take_the_firmware_choice(runner_exe, capsys) -> None:
