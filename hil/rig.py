@@ -72,9 +72,12 @@ def ids() -> dict[str, int]:
 
 @dataclass
 class Recording:
-    """A run as frames: ``events`` is a time-ordered list of
-    (t seconds since t0, direction "tx"/"rx", can.Message); ``meta`` holds the
-    transport, the period and anything the rig measured besides frames."""
+    """A run as frames: ``events`` is the list of (t seconds, direction
+    "tx"/"rx", can.Message) in the order the rig sent and picked them up (a
+    received frame's t is its arrival at the socket where the bus stamps it,
+    so it may precede a frame the rig sent before picking it up); ``meta``
+    holds the transport, the period and anything the rig measured besides
+    frames."""
 
     scenario: Scenario
     events: list[tuple[float, str, can.Message]] = field(default_factory=list)
@@ -122,12 +125,15 @@ class Rig:
         msg.is_rx = True
         ago = 0
         if self._kernel_stamps and msg.timestamp:
-            # the kernel stamped the frame on arrival (CLOCK_REALTIME): how long ago, in the same clock
-            ago = time.time_ns() - int(round(msg.timestamp * 1e9))
-            if not 0 <= ago < 1_000_000_000:     # a clock step: keep the pick-up time
-                ago = 0
-            else:
+            # the kernel stamped the frame on arrival (CLOCK_REALTIME): how long ago, read in that clock
+            # and at once on the rig's own (perf_counter), so that a stall since ``now`` does not count
+            mono, real = time.perf_counter_ns(), time.time_ns()
+            ago = real - int(round(msg.timestamp * 1e9))
+            if 0 <= ago < 1_000_000_000:         # else a clock step: keep the pick-up time
+                now = mono
                 self._pickup.append(ago)
+            else:
+                ago = 0
         self._events.append((now - ago, "rx", msg))
         self._ago[id(msg)] = ago
         self._n_rx += 1
@@ -251,11 +257,10 @@ class Rig:
         from .score import stats_us
 
         sc = self.plan.scenario
-        # frames stamped on arrival by the kernel go where they arrived, before frames this process
-        # sent while it had not yet picked them up (the handshake and the run each in their own order)
-        first = self._first_run_event
-        ordered = sorted(self._events[:first], key=lambda e: e[0]) + sorted(self._events[first:], key=lambda e: e[0])
-        base = ordered[0][0] if ordered else self._t0
+        # in the order this process saw them (a frame stamped on arrival by the kernel may carry a time
+        # before a frame sent while it waited to be picked up; the order is what matches Seq to cycles)
+        ordered = self._events
+        base = min(e[0] for e in ordered) if ordered else self._t0
         events = [((ns - base) / 1e9, d, m) for ns, d, m in ordered]
         pickup = [self._ago.get(id(m), 0) if d == "rx" else 0 for _, d, m in ordered]
         for ts, _, m in events:

@@ -99,6 +99,22 @@ class FirmwareUnavailable(OSError):
     """The firmware process cannot be had here (no runner and no way to build one)."""
 
 
+def _deep_receive_buffer(sock: Any) -> None:
+    """8 MiB of receive buffer for the rig's socket, so that a stall of the
+    rig process (tens of ms on a busy host) delays frames instead of dropping
+    them: SO_RCVBUFFORCE (root), else SO_RCVBUF up to net.core.rmem_max."""
+    import socket
+
+    if sock is None:
+        return
+    for opt in (33, socket.SO_RCVBUF):
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, opt, 8 << 20)
+            return
+        except (OSError, AttributeError):
+            continue
+
+
 def _stop(proc: subprocess.Popen | None) -> None:
     """End a firmware process still running after the replay: SIGTERM (it
     prints its statistics), then kill if it does not exit within 30 s."""
@@ -218,6 +234,8 @@ def _udp(channel: str | None, port: int | None, firmware: str | None,
     except (OSError, can.CanError) as exc:
         _stop(proc)
         raise OSError(f"udp_multicast {channel}:{port}: cannot open it ({exc})") from exc
+    # the rig's socket also gets its own Measurements back (multicast loop): twice the traffic to buffer
+    _deep_receive_buffer(getattr(getattr(rig, "_multicast", None), "_socket", None))
 
     def firmware_side() -> dict:
         if proc is None:
@@ -263,15 +281,7 @@ def _socketcan(channel: str | None, runner: str | None) -> Iterator[tuple[can.Bu
         if proc is not None:
             proc.kill()
         raise OSError(f"socketcan {channel}: cannot open it ({exc})") from exc
-
-    import socket
-
-    for opt in (33, socket.SO_RCVBUF):  # SO_RCVBUFFORCE (root), else SO_RCVBUF up to rmem_max
-        try:
-            rig.socket.setsockopt(socket.SOL_SOCKET, opt, 8 << 20)
-            break
-        except (OSError, AttributeError):
-            continue
+    _deep_receive_buffer(getattr(rig, "socket", None))
 
     def firmware_side() -> dict:
         if proc is None or report is None:

@@ -147,6 +147,10 @@ def test_a_recorded_log_re_scores_to_the_same_numbers(tmp_path) -> None:
     for name in ("run.blf", "run.asc"):
         path = write_log(rec, tmp_path / name)
         again = score(read_log(path))
+        if name.endswith(".asc"):  # microseconds: a latency within 1 us of the period may land either side
+            near = int(np.sum(np.abs(live["_series"]["latency_ns"] - 300_000) <= 1_000))
+            assert abs(again["frames"].pop("late") - live["frames"]["late"]) <= near, name
+            again["frames"]["late"] = live["frames"]["late"]
         assert again["frames"] == live["frames"] and again["firmware"] == live["firmware"], name
         assert again["identification"] == live["identification"], name
         tol = 1e-6 if name.endswith(".blf") else 1.5  # BLF keeps nanoseconds, ASC microseconds
