@@ -76,6 +76,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--fifo", type=_fifo_priority, metavar="PRIO",
                    help="run the rig (and the firmware process it starts) under SCHED_FIFO at PRIO (1..99), "
                         "as a real-time test would; refused without root / CAP_SYS_NICE (then said so)")
+    b.add_argument("--cpus", type=_cpu_pair, metavar="RIG,FIRMWARE",
+                   help="pin the rig to CPU RIG and the firmware process it starts to CPU FIRMWARE (as "
+                        "cyclictest -a; on a 2-CPU host: 0,1), so neither migrates nor shares a CPU")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=_bench)
 
@@ -196,6 +199,18 @@ def _fifo_priority(text: str) -> int:
     return value
 
 
+def _cpu_pair(text: str) -> tuple[int, int]:
+    parts = text.split(",")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise argparse.ArgumentTypeError(f"expected RIG,FIRMWARE CPU numbers (e.g. 0,1), got {text!r}")
+    allowed = sorted(os.sched_getaffinity(0))
+    cpus = (int(parts[0]), int(parts[1]))
+    bad = [c for c in cpus if c not in allowed]
+    if bad:
+        raise argparse.ArgumentTypeError(f"CPU {bad[0]} is not one this process may use {allowed}")
+    return cpus
+
+
 def _scheduling(priority: int | None) -> str:
     """Switch this process to SCHED_FIFO (children started later inherit it);
     the policy in effect, as a line for the report."""
@@ -215,13 +230,27 @@ def _bench(args) -> int:
     from .transport import run_replay
 
     policy = _scheduling(args.fifo)
+    firmware_cpu = None
+    if args.cpus is not None:
+        if args.transport == "virtual":
+            raise ValueError("--cpus: the virtual bus's firmware is a thread of the rig's process; use "
+                             "udp_multicast or socketcan")
+        firmware_cpu = args.cpus[1]
+        policy += f", rig on CPU {args.cpus[0]}, firmware on CPU {args.cpus[1]}"
 
     # the LIM at rest (the input never switches on): any number of cycles stays inside the DBC's
     # ranges, and the firmware's step costs the same whatever the values
     duration = args.cycles * 3e-4
     sc = Scenario(duration=duration, hold_duration=0.0, input_start=duration + 1.0)
-    rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
-                     firmware=args.firmware or True, reply_timeout=args.timeout, drain=args.drain)
+    cpus_before = os.sched_getaffinity(0)
+    if args.cpus is not None:
+        os.sched_setaffinity(0, {args.cpus[0]})
+    try:
+        rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
+                         firmware=args.firmware or True, reply_timeout=args.timeout, drain=args.drain,
+                         firmware_cpu=firmware_cpu)
+    finally:
+        os.sched_setaffinity(0, cpus_before)
     r = score(rec)
     side = rec.meta.get("firmware_side") or {}
     _note_fallback(side)

@@ -70,6 +70,23 @@ def ids() -> dict[str, int]:
     return {m.name: m.frame_id for m in db.messages}
 
 
+def _paired_clocks() -> tuple[int, int]:
+    """(perf_counter_ns, time_ns) read at one instant: the realtime clock is
+    read either side of the perf_counter, and the tightest of three such
+    brackets is kept, so that a preemption between two reads (tens of us on
+    a busy host) does not shift the pair."""
+    best = None
+    for _ in range(3):
+        r0 = time.time_ns()
+        m = time.perf_counter_ns()
+        r1 = time.time_ns()
+        if best is None or r1 - r0 < best[0]:
+            best = (r1 - r0, m, (r0 + r1) // 2)
+        if r1 - r0 < 2_000:
+            break
+    return best[1], best[2]
+
+
 @dataclass
 class Recording:
     """A run as frames: ``events`` is the list of (t seconds, direction
@@ -127,7 +144,7 @@ class Rig:
         if self._kernel_stamps and msg.timestamp:
             # the kernel stamped the frame on arrival (CLOCK_REALTIME): how long ago, read in that clock
             # and at once on the rig's own (perf_counter), so that a stall since ``now`` does not count
-            mono, real = time.perf_counter_ns(), time.time_ns()
+            mono, real = _paired_clocks()
             ago = real - int(round(msg.timestamp * 1e9))
             if 0 <= ago < 1_000_000_000:         # else a clock step: keep the pick-up time
                 now = mono

@@ -115,6 +115,24 @@ def _deep_receive_buffer(sock: Any) -> None:
             continue
 
 
+def _check_cpu(name: str, cpu: object) -> int:
+    """A CPU of this host (0 .. os.cpu_count() - 1), else ValueError naming ``name``."""
+    n = os.cpu_count() or 1
+    if isinstance(cpu, bool) or not isinstance(cpu, int) or not 0 <= cpu < n:
+        raise ValueError(f"{name}: expected a CPU number 0..{n - 1}, got {cpu!r}")
+    return cpu
+
+
+def _pin(proc: subprocess.Popen, cpu: int | None) -> None:
+    """Pin a firmware process just started to ``cpu`` (it starts on the rig's CPUs, which it inherits)."""
+    if cpu is not None:
+        try:
+            os.sched_setaffinity(proc.pid, {cpu})
+        except OSError as exc:
+            proc.kill()
+            raise OSError(f"cannot pin the firmware process to CPU {cpu}: {exc}") from exc
+
+
 def _stop(proc: subprocess.Popen | None) -> None:
     """End a firmware process still running after the replay: SIGTERM (it
     prints its statistics), then kill if it does not exit within 30 s."""
@@ -193,13 +211,14 @@ def _runner_side(proc: subprocess.Popen, report: Path, side: dict[str, Any]) -> 
     return side["report"]
 
 
-def _start_udp_runner(exe: str, channel: str, port: int, report: Path) -> subprocess.Popen:
+def _start_udp_runner(exe: str, channel: str, port: int, report: Path, cpu: int | None = None) -> subprocess.Popen:
     group = f"[{channel}]" if ":" in channel else channel
     # Diagnostics on request only, as the Python node (FirmwareApp's default): both firmware choices
     # put the same frames on the bus, and the last Diagnostics' StepTimeMax covers the whole run
     proc = subprocess.Popen([exe, "--udp-multicast", f"{group}:{port}", "--diag-period", "0", "--spin-us",
                              str(RUNNER_SPIN_US), "--duration", "3600", "--json", str(report), *_fifo_args()],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    _pin(proc, cpu)
     line = proc.stdout.readline() if proc.stdout else ""  # printed once the socket is in the group
     if not line.startswith("rhonn_runner: listening"):
         proc.kill()
@@ -210,8 +229,8 @@ def _start_udp_runner(exe: str, channel: str, port: int, report: Path) -> subpro
 
 
 @contextmanager
-def _udp(channel: str | None, port: int | None, firmware: str | None,
-         runner: str | None = None) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
+def _udp(channel: str | None, port: int | None, firmware: str | None, runner: str | None = None,
+         cpu: int | None = None) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
     channel = channel or UDP_GROUP
     port = port or free_port()
     proc = None
@@ -219,11 +238,12 @@ def _udp(channel: str | None, port: int | None, firmware: str | None,
     side: dict[str, Any] = {}
     if firmware == "runner":
         report = Path(os.environ.get("TMPDIR", "/tmp")) / f"hil-runner-{uuid.uuid4().hex}.json"
-        proc = _start_udp_runner(udp_runner(runner), channel, port, report)
+        proc = _start_udp_runner(udp_runner(runner), channel, port, report, cpu)
     elif firmware == "python":
         env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
         proc = subprocess.Popen([sys.executable, "-m", "hil.firmware_node", "--channel", channel, "--port", str(port)],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=str(ROOT))
+        _pin(proc, cpu)
         line = proc.stdout.readline() if proc.stdout else ""
         if line.strip() != "ready":
             err = proc.stderr.read() if proc.stderr else ""
@@ -259,7 +279,8 @@ def _udp(channel: str | None, port: int | None, firmware: str | None,
 
 
 @contextmanager
-def _socketcan(channel: str | None, runner: str | None) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
+def _socketcan(channel: str | None, runner: str | None,
+               cpu: int | None = None) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
     from .rig import ids
 
     channel = channel or "vcan0"
@@ -270,6 +291,7 @@ def _socketcan(channel: str | None, runner: str | None) -> Iterator[tuple[can.Bu
         report = Path(os.environ.get("TMPDIR", "/tmp")) / f"hil-runner-{uuid.uuid4().hex}.json"
         proc = subprocess.Popen([str(runner), "--interface", channel, "--duration", "3600", "--json", str(report),
                                  *_fifo_args()], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        _pin(proc, cpu)
         time.sleep(1.0)  # the runner binds its socket
         if proc.poll() is not None:
             _, err = proc.communicate()
@@ -316,13 +338,19 @@ def _firmware_kind(transport: str, firmware: bool | str) -> str | None:
 
 @contextmanager
 def open_transport(transport: str, channel: str | None = None, *, port: int | None = None,
-                   firmware: bool | str = True, runner: str | None = None):
+                   firmware: bool | str = True, runner: str | None = None, firmware_cpu: int | None = None):
     """(rig bus, channel description, firmware-side report function).
     ``firmware``: True (the transport's default firmware), False (none: one
-    must be running already), or "runner" / "python" (udp_multicast)."""
+    must be running already), or "runner" / "python" (udp_multicast).
+    ``firmware_cpu``: pin the firmware process started here to this CPU."""
     if transport not in TRANSPORTS:
         raise ValueError(f"transport: expected one of {', '.join(TRANSPORTS)}, got {transport!r}")
     kind = _firmware_kind(transport, firmware)
+    if firmware_cpu is not None:
+        if transport == "virtual" or kind is None:
+            raise ValueError("firmware_cpu: only a firmware process started here can be pinned (udp_multicast, or "
+                             "socketcan with a runner)")
+        _check_cpu("firmware_cpu", firmware_cpu)
     if transport == "virtual":
         with _virtual(channel, kind is not None) as t:
             yield t
@@ -335,7 +363,7 @@ def open_transport(transport: str, channel: str | None = None, *, port: int | No
                 if firmware is not True or runner is not None:
                     raise                   # the runner was asked for by name
                 kind, fallback = "python", f"rhonn_runner unavailable ({exc}): the firmware is the Python node"
-        with _udp(channel, port, kind, runner) as (bus, where, side):
+        with _udp(channel, port, kind, runner, firmware_cpu) as (bus, where, side):
             def side_noted() -> dict:
                 report = side()
                 report["firmware"] = {"runner": "rhonn_runner", "python": "hil.firmware_node"}.get(kind or "", None)
@@ -345,12 +373,13 @@ def open_transport(transport: str, channel: str | None = None, *, port: int | No
 
             yield bus, where, side_noted
     else:
-        with _socketcan(channel, runner if kind is not None else None) as t:
+        with _socketcan(channel, runner if kind is not None else None, firmware_cpu) as t:
             yield t
 
 
 def run_replay(scenario: Scenario, transport: str = "virtual", channel: str | None = None, *,
                port: int | None = None, firmware: bool | str = True, runner: str | None = None,
+               firmware_cpu: int | None = None,
                spin_ns: int | None = None, reply_timeout: float = 1.0, drain: float = 0.3,
                extra_frames: Callable[[int], list[can.Message]] | None = None) -> Recording:
     """Replay ``scenario`` over ``transport`` against the firmware; the Recording
@@ -361,7 +390,8 @@ def run_replay(scenario: Scenario, transport: str = "virtual", channel: str | No
     plan = scenario.build()
     if spin_ns is None:
         spin_ns = 0 if transport == "virtual" else 150_000
-    with open_transport(transport, channel, port=port, firmware=firmware, runner=runner) as (bus, where, side):
+    with open_transport(transport, channel, port=port, firmware=firmware, runner=runner,
+                        firmware_cpu=firmware_cpu) as (bus, where, side):
         rig = Rig(bus, plan, transport=transport, channel=where, spin_ns=spin_ns, reply_timeout=reply_timeout,
                   drain=drain, extra_frames=extra_frames)
         rec = rig.run()

@@ -3,6 +3,7 @@ stamped when the kernel received it, the rig process's pick-up delay kept
 apart; a missing or implausible kernel stamp falls back to the pick-up time."""
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
@@ -67,3 +68,38 @@ def test_a_udp_replay_reports_socket_arrival_and_pick_up_apart_and_every_estimat
     assert lat["stamp"] == "kernel" and r["rig_pickup_us"]["n"] >= r["frames"]["answered"]
     assert lat["within_period"] >= lat["within_period_picked_up"]
     assert r["frames"]["accounted"] and np.isfinite(lat["p99.9"])
+
+
+def test_a_pinned_firmware_process_runs_on_its_cpu_only() -> None:
+    import subprocess
+
+    from hil.transport import _pin
+
+    proc = subprocess.Popen(["sleep", "5"])
+    try:
+        _pin(proc, 0)
+        assert os.sched_getaffinity(proc.pid) == {0}
+    finally:
+        proc.kill()
+        proc.wait()
+
+
+@pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="needs two CPUs")
+def test_bench_cpus_pins_both_sides_and_gives_the_rig_its_cpus_back(capsys) -> None:
+    from pyrhonn.cli import main as pyrhonn_main
+
+    before = os.sched_getaffinity(0)
+    assert pyrhonn_main(["hil", "bench", "--transport", "udp_multicast", "--cycles", "300", "--cpus", "0,1"]) == 0
+    assert "rig on CPU 0, firmware on CPU 1" in capsys.readouterr().out
+    assert os.sched_getaffinity(0) == before
+    for argv in (["--cpus", "0"], ["--cpus", "a,b"], ["--cpus", f"0,{os.cpu_count()}"],
+                 ["--transport", "virtual", "--cpus", "0,1"]):
+        try:
+            code = pyrhonn_main(["hil", "bench", "--cycles", "10", *argv])
+        except SystemExit as exc:
+            code = exc.code
+        assert code == 2, argv
+        err = capsys.readouterr().err
+        assert "--cpus" in err and "Traceback" not in err, argv
+    with pytest.raises(ValueError, match="firmware_cpu"):
+        run_replay(Scenario(duration=0.03), "virtual", firmware_cpu=0)
