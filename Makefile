@@ -24,6 +24,7 @@ bench: venv
 	$(VENV)/bin/python bench/bench_identifier.py
 	$(VENV)/bin/python bench/bench_cortex_m4.py
 	$(VENV)/bin/python bench/bench_linux_runner.py
+	$(VENV)/bin/python bench/bench_hil_udp.py --fifo 50 --cpus 0,1
 
 test: venv test-python test-c test-c-sanitize test-fuzz test-vm
 

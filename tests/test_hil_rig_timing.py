@@ -103,3 +103,22 @@ def test_bench_cpus_pins_both_sides_and_gives_the_rig_its_cpus_back(capsys) -> N
         assert "--cpus" in err and "Traceback" not in err, argv
     with pytest.raises(ValueError, match="firmware_cpu"):
         run_replay(Scenario(duration=0.03), "virtual", firmware_cpu=0)
+
+
+def test_the_udp_bench_compares_the_runner_with_the_python_node_in_alternating_rounds() -> None:
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "bench" / "bench_hil_udp.py"
+    out = subprocess.run([sys.executable, str(script), "--cycles", "400", "--rounds", "2"], capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert "400 cycles per firmware" in lines[0] and "2 alternating rounds" in lines[0]
+    assert any(ln.startswith("python (hil.firmware_node)") for ln in lines)
+    assert any(ln.startswith("runner (rhonn_runner)") for ln in lines)
+    assert lines[-1].startswith("runner / python node: late share x")
+    bad = subprocess.run([sys.executable, str(script), "--cycles", "3", "--rounds", "2"], capture_output=True,
+                         text=True, timeout=60)
+    assert bad.returncode == 2 and "--rounds" in bad.stderr

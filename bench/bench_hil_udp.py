@@ -1,0 +1,113 @@
+"""The HIL round trip over udp_multicast (issue 6): the rig (python-can)
+replays N measurement frames at 0.3 ms against the C firmware
+(``rhonn_runner --udp-multicast``) and, as the baseline in the same run,
+against the Python firmware node (the same firmware logic through cffi).
+
+    python bench/bench_hil_udp.py [--cycles N] [--rounds R] [--fifo PRIO] [--cpus RIG,FIRMWARE]
+
+For each it reports the share of estimates back within one period (at the
+rig's socket, by the kernel's receive timestamp, and picked up by the rig
+process), the round trip's p50/p99.9 and the firmware's handling time; then
+the ratios runner / Python node of the late share and of the p99.9 round
+trip (target: 99.9 % within one period; the ratios say what the C firmware
+buys on this host, whose scheduling noise moves the absolute figures from
+minute to minute, which is why the two alternate in rounds).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+
+def _cpus(text: str) -> tuple[int, int]:
+    parts = text.split(",")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise argparse.ArgumentTypeError(f"expected RIG,FIRMWARE CPU numbers, got {text!r}")
+    return int(parts[0]), int(parts[1])
+
+
+def measure(firmware: str, cycles: int, firmware_cpu: int | None) -> dict:
+    """One replay of ``cycles`` frames; its latencies (ns) and counts."""
+    import numpy as np
+
+    from hil.scenario import Scenario
+    from hil.score import score
+    from hil.transport import run_replay
+
+    duration = cycles * 3e-4
+    sc = Scenario(duration=duration, hold_duration=0.0, input_start=duration + 1.0)  # the LIM at rest
+    rec = run_replay(sc, "udp_multicast", firmware=firmware, firmware_cpu=firmware_cpu)
+    r = score(rec)
+    side = rec.meta.get("firmware_side") or {}
+    lat = r["latency_us"]
+    n = int(lat.get("n", 0))
+    return {"latency_ns": np.asarray(r["_series"]["latency_ns"], dtype=np.int64),
+            "picked_up": round(lat.get("within_period_picked_up", float("nan")) * n),
+            "handling": (side.get("handling_us") or {}).get("avg"), "accounted": r["frames"]["accounted"],
+            "served_by": side.get("firmware")}
+
+
+def summary(blocks: list[dict]) -> dict:
+    import numpy as np
+
+    lat = np.concatenate([b["latency_ns"] for b in blocks]) / 1e3
+    handling = [b["handling"] for b in blocks if b["handling"] is not None]
+    return {"n": lat.size, "within": float(np.mean(lat <= 300.0)),
+            "picked_up": sum(b["picked_up"] for b in blocks) / max(lat.size, 1),
+            "p50": float(np.percentile(lat, 50)), "p999": float(np.percentile(lat, 99.9)),
+            "handling": float(np.mean(handling)) if handling else None,
+            "accounted": all(b["accounted"] for b in blocks), "served_by": blocks[0]["served_by"]}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cycles", type=int, default=100_000, help="per firmware (default 100000)")
+    ap.add_argument("--rounds", type=int, default=4,
+                    help="alternate the two firmwares this many times, cycles/rounds each, so that the host's "
+                         "minute-to-minute noise falls on both (default 4)")
+    ap.add_argument("--fifo", type=int, default=None, metavar="PRIO")
+    ap.add_argument("--cpus", type=_cpus, default=None, metavar="RIG,FIRMWARE")
+    args = ap.parse_args(argv)
+    policy = "SCHED_OTHER"
+    if args.fifo is not None:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(args.fifo))
+            policy = f"SCHED_FIFO {args.fifo}"
+        except OSError as exc:
+            policy = f"SCHED_OTHER (SCHED_FIFO refused: {exc})"
+    allowed = os.sched_getaffinity(0)
+    if args.cpus is not None and not set(args.cpus) <= allowed:
+        print(f"note: CPUs {args.cpus} are not all available here ({sorted(allowed)}): not pinned")
+        args.cpus = None
+    if args.cpus is not None:
+        os.sched_setaffinity(0, {args.cpus[0]})
+        policy += f", rig on CPU {args.cpus[0]}, firmware on CPU {args.cpus[1]}"
+    fw_cpu = args.cpus[1] if args.cpus else None
+    if args.cycles < 2 * args.rounds or args.rounds < 1:
+        ap.error("--cycles must be at least 2 x --rounds, --rounds at least 1")
+    blocks: dict[str, list[dict]] = {"python": [], "runner": []}
+    for _ in range(args.rounds):
+        for name in blocks:
+            blocks[name].append(measure(name, args.cycles // args.rounds, fw_cpu))
+    rows = {name: summary(b) for name, b in blocks.items()}
+    print(f"hil round trip over udp_multicast, {args.cycles} cycles per firmware at 0.3 ms in {args.rounds} "
+          f"alternating rounds, {policy}")
+    print(f"{'firmware':<28}{'within period':>14}{'picked up':>11}{'p50 us':>9}{'p99.9 us':>10}{'handling us':>13}")
+    for name, r in rows.items():
+        handling = f"{r['handling']:13.1f}" if r["handling"] is not None else f"{'-':>13}"
+        print(f"{name + ' (' + str(r['served_by']) + ')':<28}{100 * r['within']:13.3f}%{100 * r['picked_up']:10.3f}%"
+              f"{r['p50']:9.1f}{r['p999']:10.1f}{handling}")
+    py, c = rows["python"], rows["runner"]
+    late_ratio = (1 - c["within"]) / (1 - py["within"]) if py["within"] < 1 else float("nan")
+    print(f"runner / python node: late share x{late_ratio:.2f}, p99.9 round trip x{c['p999'] / py['p999']:.2f} "
+          f"(target: 99.9 % within one period; runner {100 * c['within']:.3f} %)")
+    return 0 if all(r["accounted"] for r in rows.values()) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
