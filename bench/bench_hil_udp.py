@@ -21,7 +21,22 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+# the installed pyrhonn and hil first (the source tree's pyrhonn/ has no compiled core); the
+# checkout's hil only where none is installed
+sys.path.append(str(ROOT))
+
+
+def build_runner() -> Path:
+    """rhonn_runner from this checkout (firmware_sim/linux/build_runner.py, cached per source)."""
+    sys.path.insert(0, str(ROOT / "firmware_sim" / "linux"))
+    try:
+        from build_runner import cached
+    finally:
+        sys.path.pop(0)
+    try:
+        return cached()
+    except (RuntimeError, OSError) as exc:
+        raise SystemExit(f"bench_hil_udp: cannot build rhonn_runner: {exc}") from None
 
 
 def _cpus(text: str) -> tuple[int, int]:
@@ -31,7 +46,7 @@ def _cpus(text: str) -> tuple[int, int]:
     return int(parts[0]), int(parts[1])
 
 
-def measure(firmware: str, cycles: int, firmware_cpu: int | None) -> dict:
+def measure(firmware: str, cycles: int, firmware_cpu: int | None, runner: Path) -> dict:
     """One replay of ``cycles`` frames; its latencies (ns) and counts."""
     import numpy as np
 
@@ -41,7 +56,8 @@ def measure(firmware: str, cycles: int, firmware_cpu: int | None) -> dict:
 
     duration = cycles * 3e-4
     sc = Scenario(duration=duration, hold_duration=0.0, input_start=duration + 1.0)  # the LIM at rest
-    rec = run_replay(sc, "udp_multicast", firmware=firmware, firmware_cpu=firmware_cpu)
+    rec = run_replay(sc, "udp_multicast", firmware=firmware, firmware_cpu=firmware_cpu,
+                     runner=str(runner) if firmware == "runner" else None)
     r = score(rec)
     side = rec.meta.get("firmware_side") or {}
     lat = r["latency_us"]
@@ -90,10 +106,11 @@ def main(argv: list[str] | None = None) -> int:
     fw_cpu = args.cpus[1] if args.cpus else None
     if args.cycles < 2 * args.rounds or args.rounds < 1:
         ap.error("--cycles must be at least 2 x --rounds, --rounds at least 1")
+    runner = build_runner()
     blocks: dict[str, list[dict]] = {"python": [], "runner": []}
     for _ in range(args.rounds):
         for name in blocks:
-            blocks[name].append(measure(name, args.cycles // args.rounds, fw_cpu))
+            blocks[name].append(measure(name, args.cycles // args.rounds, fw_cpu, runner))
     rows = {name: summary(b) for name, b in blocks.items()}
     print(f"hil round trip over udp_multicast, {args.cycles} cycles per firmware at 0.3 ms in {args.rounds} "
           f"alternating rounds, {policy}")
