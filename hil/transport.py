@@ -347,7 +347,7 @@ def open_transport(transport: str, channel: str | None = None, *, port: int | No
         raise ValueError(f"transport: expected one of {', '.join(TRANSPORTS)}, got {transport!r}")
     kind = _firmware_kind(transport, firmware)
     if firmware_cpu is not None:
-        if transport == "virtual" or kind is None:
+        if transport == "virtual" or kind is None or (transport == "socketcan" and runner is None):
             raise ValueError("firmware_cpu: only a firmware process started here can be pinned (udp_multicast, or "
                              "socketcan with a runner)")
         _check_cpu("firmware_cpu", firmware_cpu)
