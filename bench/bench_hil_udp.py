@@ -25,6 +25,8 @@ ROOT = Path(__file__).resolve().parent.parent
 # checkout's hil only where none is installed
 sys.path.append(str(ROOT))
 
+from hil.transport import parse_cpu_pair, use_fifo  # noqa: E402
+
 
 def build_runner() -> Path:
     """rhonn_runner from this checkout (firmware_sim/linux/build_runner.py, cached per source)."""
@@ -39,13 +41,6 @@ def build_runner() -> Path:
         raise SystemExit(f"bench_hil_udp: cannot build rhonn_runner: {exc}") from None
 
 
-def _cpus(text: str) -> tuple[int, int]:
-    parts = text.split(",")
-    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
-        raise argparse.ArgumentTypeError(f"expected RIG,FIRMWARE CPU numbers, got {text!r}")
-    return int(parts[0]), int(parts[1])
-
-
 def measure(firmware: str, cycles: int, firmware_cpu: int | None, runner: Path) -> dict:
     """One replay of ``cycles`` frames; its latencies (ns) and counts."""
     import numpy as np
@@ -54,9 +49,7 @@ def measure(firmware: str, cycles: int, firmware_cpu: int | None, runner: Path) 
     from hil.score import score
     from hil.transport import run_replay
 
-    duration = cycles * 3e-4
-    sc = Scenario(duration=duration, hold_duration=0.0, input_start=duration + 1.0)  # the LIM at rest
-    rec = run_replay(sc, "udp_multicast", firmware=firmware, firmware_cpu=firmware_cpu,
+    rec = run_replay(Scenario.at_rest(cycles), "udp_multicast", firmware=firmware, firmware_cpu=firmware_cpu,
                      runner=str(runner) if firmware == "runner" else None)
     r = score(rec)
     side = rec.meta.get("firmware_side") or {}
@@ -87,15 +80,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="alternate the two firmwares this many times, cycles/rounds each, so that the host's "
                          "minute-to-minute noise falls on both (default 4)")
     ap.add_argument("--fifo", type=int, default=None, metavar="PRIO")
-    ap.add_argument("--cpus", type=_cpus, default=None, metavar="RIG,FIRMWARE")
+    ap.add_argument("--cpus", type=parse_cpu_pair, default=None, metavar="RIG,FIRMWARE")
     args = ap.parse_args(argv)
-    policy = "SCHED_OTHER"
-    if args.fifo is not None:
-        try:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(args.fifo))
-            policy = f"SCHED_FIFO {args.fifo}"
-        except OSError as exc:
-            policy = f"SCHED_OTHER (SCHED_FIFO refused: {exc})"
+    policy = use_fifo(args.fifo)
     allowed = os.sched_getaffinity(0)
     if args.cpus is not None and not set(args.cpus) <= allowed:
         print(f"note: CPUs {args.cpus} are not all available here ({sorted(allowed)}): not pinned")

@@ -200,36 +200,26 @@ def _fifo_priority(text: str) -> int:
 
 
 def _cpu_pair(text: str) -> tuple[int, int]:
-    parts = text.split(",")
-    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
-        raise argparse.ArgumentTypeError(f"expected RIG,FIRMWARE CPU numbers (e.g. 0,1), got {text!r}")
+    from .transport import parse_cpu_pair
+
+    try:
+        cpus = parse_cpu_pair(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
     allowed = sorted(os.sched_getaffinity(0))
-    cpus = (int(parts[0]), int(parts[1]))
     bad = [c for c in cpus if c not in allowed]
     if bad:
         raise argparse.ArgumentTypeError(f"CPU {bad[0]} is not one this process may use {allowed}")
     return cpus
 
 
-def _scheduling(priority: int | None) -> str:
-    """Switch this process to SCHED_FIFO (children started later inherit it);
-    the policy in effect, as a line for the report."""
-    if priority is None:
-        return "SCHED_OTHER"
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except (OSError, AttributeError) as exc:
-        return f"SCHED_OTHER (SCHED_FIFO {priority} refused: {exc})"
-    return f"SCHED_FIFO {priority}"
-
-
 def _bench(args) -> int:
     from . import report as rep
     from .scenario import Scenario
     from .score import score
-    from .transport import run_replay
+    from .transport import run_replay, use_fifo
 
-    policy = _scheduling(args.fifo)
+    policy = use_fifo(args.fifo)
     firmware_cpu = None
     if args.cpus is not None:
         if args.transport == "virtual":
@@ -238,10 +228,7 @@ def _bench(args) -> int:
         firmware_cpu = args.cpus[1]
         policy += f", rig on CPU {args.cpus[0]}, firmware on CPU {args.cpus[1]}"
 
-    # the LIM at rest (the input never switches on): any number of cycles stays inside the DBC's
-    # ranges, and the firmware's step costs the same whatever the values
-    duration = args.cycles * 3e-4
-    sc = Scenario(duration=duration, hold_duration=0.0, input_start=duration + 1.0)
+    sc = Scenario.at_rest(args.cycles)
     cpus_before = os.sched_getaffinity(0)
     if args.cpus is not None:
         os.sched_setaffinity(0, {args.cpus[0]})

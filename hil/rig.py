@@ -125,13 +125,17 @@ class Rig:
         # socketcan and udp_multicast give each received frame the kernel's receive timestamp: an
         # estimate counts as back when it reached the rig's socket, not when this process got to it
         self._kernel_stamps = transport in ("socketcan", "udp_multicast")
-        self._pickup: list[int] = []
-        self._ago: dict[int, int] = {}           # id(received frame) -> its pick-up delay, ns
+        self._ago: dict[int, int] = {}           # id(kernel-stamped frame) -> its pick-up delay, ns
         self._events: list[tuple[int, str, can.Message]] = []
         self._n_rx = 0
         self._first_run_event = 0
 
     # -- receiving ---------------------------------------------------------------------------
+
+    @property
+    def _pickup(self) -> list[int]:
+        """The pick-up delays (ns) of the kernel-stamped frames received so far."""
+        return list(self._ago.values())
 
     def _take(self, msg: can.Message | None, now: int) -> None:
         if msg is None:
@@ -148,11 +152,10 @@ class Rig:
             ago = real - int(round(msg.timestamp * 1e9))
             if 0 <= ago < 1_000_000_000:         # else a clock step: keep the pick-up time
                 now = mono
-                self._pickup.append(ago)
+                self._ago[id(msg)] = ago
             else:
                 ago = 0
         self._events.append((now - ago, "rx", msg))
-        self._ago[id(msg)] = ago
         self._n_rx += 1
 
     def _recv(self, timeout: float) -> can.Message | None:
@@ -268,7 +271,7 @@ class Rig:
         return overruns
 
     def _recording(self, extra: dict[str, Any]) -> Recording:
-        """The frames so far as a Recording. Log time: seconds from the first
+        """The frames so far as a Recording. Log time: seconds from the earliest
         frame (the handshake), so every timestamp is >= 0 and BLF keeps it to
         the nanosecond; t0 (deadline of frame 0, without the delay) is in meta."""
         from .score import stats_us
@@ -276,17 +279,16 @@ class Rig:
         sc = self.plan.scenario
         # in the order this process saw them (a frame stamped on arrival by the kernel may carry a time
         # before a frame sent while it waited to be picked up; the order is what matches Seq to cycles)
-        ordered = self._events
-        base = min(e[0] for e in ordered) if ordered else self._t0
-        events = [((ns - base) / 1e9, d, m) for ns, d, m in ordered]
-        pickup = [self._ago.get(id(m), 0) if d == "rx" else 0 for _, d, m in ordered]
+        base = min(e[0] for e in self._events) if self._events else self._t0
+        events = [((ns - base) / 1e9, d, m) for ns, d, m in self._events]
+        pickup = [self._ago.get(id(m), 0) if d == "rx" else 0 for _, d, m in self._events]
         for ts, _, m in events:
             m.timestamp = ts
             m.channel = None
         meta = {"transport": self.transport, "channel": self.channel, "period_ns": int(round(sc.period * 1e9)),
                 "delay_ns": int(round(sc.transport_delay * 1e9)), "t0_ns": self._t0 - base,
                 "first_run_event": self._first_run_event, "rx_stamp": "kernel" if self._kernel_stamps else "recv",
-                "rx_pickup_us": stats_us(np.asarray(self._pickup, dtype=np.int64)) if self._pickup else {"n": 0},
+                "rx_pickup_us": stats_us(np.asarray(self._pickup, dtype=np.int64)) if self._ago else {"n": 0},
                 "_rx_pickup_ns": pickup, **extra}
         return Recording(scenario=sc, events=events, meta=meta)
 

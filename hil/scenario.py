@@ -125,6 +125,14 @@ class Scenario:
     def cycles(self) -> int:
         return int(round(self.duration / self.period))
 
+    @classmethod
+    def at_rest(cls, cycles: int, **fields_: Any) -> "Scenario":
+        """``cycles`` periods of the LIM at rest (its voltages never switch on,
+        no hold) for timing runs: any number of cycles stays inside the DBC's
+        ranges, and the firmware's step costs the same whatever the values."""
+        duration = cycles * fields_.get("period", 3e-4)
+        return cls(duration=duration, hold_duration=0.0, input_start=duration + 1.0, **fields_)
+
     def replace(self, **changes: Any) -> "Scenario":
         return Scenario(**{**asdict(self), **changes})
 

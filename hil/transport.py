@@ -40,7 +40,8 @@ import can
 from .rig import FirmwareTimeout, Recording, Rig
 from .scenario import Scenario
 
-__all__ = ["FIRMWARES", "TRANSPORTS", "FirmwareUnavailable", "free_port", "lim_config", "run_replay", "udp_runner"]
+__all__ = ["FIRMWARES", "TRANSPORTS", "FirmwareUnavailable", "free_port", "lim_config", "parse_cpu_pair", "run_replay",
+           "udp_runner", "use_fifo"]
 
 TRANSPORTS = ("virtual", "udp_multicast", "socketcan")
 FIRMWARES = ("runner", "python")  # udp_multicast: the C runner (default) or the Python node
@@ -174,6 +175,27 @@ def udp_runner(runner: str | os.PathLike | None = None) -> str:
                                   "(the same firmware logic in a Python process)") from exc
 
 
+def use_fifo(priority: int | None) -> str:
+    """Switch this process to SCHED_FIFO at ``priority`` (None: leave it);
+    the policy in effect, as a line for a report. A firmware process started
+    afterwards runs under SCHED_FIFO too (see _fifo_args)."""
+    if priority is None:
+        return "SCHED_OTHER"
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (OSError, AttributeError) as exc:
+        return f"SCHED_OTHER (SCHED_FIFO {priority} refused: {exc})"
+    return f"SCHED_FIFO {priority}"
+
+
+def parse_cpu_pair(text: str) -> tuple[int, int]:
+    """"RIG,FIRMWARE" CPU numbers, e.g. "0,1" (ValueError otherwise)."""
+    parts = text.split(",")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise ValueError(f"expected RIG,FIRMWARE CPU numbers (e.g. 0,1), got {text!r}")
+    return int(parts[0]), int(parts[1])
+
+
 def _fifo_args() -> list[str]:
     """``--fifo PRIO`` when this process runs under SCHED_FIFO (``hil bench
     --fifo``): the runner then asks for it itself, and locks its memory."""
@@ -231,6 +253,8 @@ def _start_udp_runner(exe: str, channel: str, port: int, report: Path, cpu: int 
 @contextmanager
 def _udp(channel: str | None, port: int | None, firmware: str | None, runner: str | None = None,
          cpu: int | None = None) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
+    """The udp_multicast bus; ``firmware`` "runner" starts ``runner`` (a path
+    udp_runner resolved), "python" the Python node, None nothing."""
     channel = channel or UDP_GROUP
     port = port or free_port()
     proc = None
@@ -238,7 +262,8 @@ def _udp(channel: str | None, port: int | None, firmware: str | None, runner: st
     side: dict[str, Any] = {}
     if firmware == "runner":
         report = Path(os.environ.get("TMPDIR", "/tmp")) / f"hil-runner-{uuid.uuid4().hex}.json"
-        proc = _start_udp_runner(udp_runner(runner), channel, port, report, cpu)
+        assert runner is not None, "open_transport resolves the runner"
+        proc = _start_udp_runner(runner, channel, port, report, cpu)
     elif firmware == "python":
         env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
         proc = subprocess.Popen([sys.executable, "-m", "hil.firmware_node", "--channel", channel, "--port", str(port)],
