@@ -89,7 +89,7 @@ import numpy as np
 import tomli_w
 
 from .config import DTYPES, Activation, Factor, FactorKind, IdentifierConfig, NeuronConfig, Term
-from .validation import check_int, check_real, fail
+from .validation import check_int, check_real, decode_text, fail
 
 __all__ = [
     "FORMAT",
@@ -521,19 +521,11 @@ def loads(text: str, source: str = "<string>") -> ConfigFile:
         raise ValueError(f"{source}: {exc}") from None
 
 
-def _decode(data: bytes, source: str) -> str:
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        raise ValueError(f"{source}: line {line}: not UTF-8 text (byte {exc.start})") from None
-
-
 def load_config(path: str | Path) -> ConfigFile:
     """Read a config file; every defect raises ``ValueError`` naming the file
     and the key (``OSError`` if it cannot be read)."""
     p = Path(path)
-    return loads(_decode(p.read_bytes(), str(path)), source=str(path))
+    return loads(decode_text(p.read_bytes(), str(path)), source=str(path))
 
 
 # -- writing --------------------------------------------------------------------------------------
@@ -627,7 +619,7 @@ def shipped_text(name: str) -> str:
     """The text of the shipped config ``name`` (ValueError listing the names if unknown)."""
     if not isinstance(name, str) or not _SHIPPED_NAME_RE.match(name) or name not in shipped_names():
         raise _unknown(str(name))
-    return _decode(_shipped_dir().joinpath(f"{name}.toml").read_bytes(), f"pyrhonn/configs/{name}.toml")
+    return decode_text(_shipped_dir().joinpath(f"{name}.toml").read_bytes(), f"pyrhonn/configs/{name}.toml")
 
 
 def load_shipped(name: str) -> ConfigFile:
@@ -644,7 +636,7 @@ def is_path(name_or_path: str) -> bool:
 def read_named(name_or_path: str) -> tuple[str, str]:
     """``(source, text)`` for a shipped config name or a file path (see :func:`is_path`)."""
     if is_path(name_or_path):
-        return name_or_path, _decode(Path(name_or_path).read_bytes(), name_or_path)
+        return name_or_path, decode_text(Path(name_or_path).read_bytes(), name_or_path)
     return f"pyrhonn/configs/{name_or_path}.toml", shipped_text(name_or_path)
 
 

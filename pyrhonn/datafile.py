@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from .configfile import ConfigFile
+from .validation import decode_text
 
 __all__ = ["Data", "TIME_COLUMN", "check_suffix", "read_data"]
 
@@ -78,14 +79,6 @@ class Data:
     @property
     def n_samples(self) -> int:
         return int(self.X.shape[0])
-
-
-def _decode(raw: bytes, source: str) -> str:
-    try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = raw.count(b"\n", 0, exc.start) + 1
-        raise ValueError(f"{source}: line {line}: not UTF-8 text (byte {exc.start})") from None
 
 
 def _records(text: str, source: str) -> list[tuple[int, list[str]]]:
@@ -126,7 +119,7 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
               config_source: str = "the config") -> Data:
     """Read and check a data file for the config ``cf`` (see the module docs)."""
     source = str(path)
-    text = _decode(Path(path).read_bytes(), source)
+    text = decode_text(Path(path).read_bytes(), source, bom=True)  # spreadsheets write a BOM
     if not text.strip():
         raise ValueError(f"{source}: empty file (expected a header row naming the columns, then the data)")
     records = _records(text, source)

@@ -19,6 +19,17 @@ def fail(path: str, message: str) -> ValueError:
     return ValueError(f"{path}: {message}")
 
 
+def decode_text(data: bytes, source: str, *, bom: bool = False) -> str:
+    """``data`` as UTF-8 text (``bom``: a leading byte-order mark allowed and
+    dropped); a ValueError naming ``source`` and the line of the first byte
+    that is not UTF-8."""
+    try:
+        return data.decode("utf-8-sig" if bom else "utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise ValueError(f"{source}: line {line}: not UTF-8 text (byte {exc.start})") from None
+
+
 def check_int(path: str, value: object, lo: int, hi: int | None = None) -> int:
     """An integer (not bool) in ``lo..hi`` (``hi`` None: no upper bound)."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
