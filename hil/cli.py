@@ -71,7 +71,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     s.set_defaults(func=_score)
 
     b = hs.add_parser("bench", help="cyclictest-style timing of both sides at 0.3 ms")
-    _transport_args(b, default="udp_multicast")
+    _transport_args(b, default="udp_multicast", bench=True)
     b.add_argument("--cycles", type=_positive_int, required=True)
     b.add_argument("--fifo", type=_fifo_priority, metavar="PRIO",
                    help="run the rig (and the firmware process it starts) under SCHED_FIFO at PRIO (1..99), "
@@ -83,8 +83,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.set_defaults(func=_bench)
 
 
-def _transport_args(p: argparse.ArgumentParser, default: str = "udp_multicast") -> None:
-    from .transport import FIRMWARES, TRANSPORTS
+def _transport_args(p: argparse.ArgumentParser, default: str = "udp_multicast", *, bench: bool = False) -> None:
+    from .transport import FIRMWARES, RUNNER_SPIN_MAX_US, RUNNER_SPIN_US, TRANSPORTS
 
     p.add_argument("--transport", choices=TRANSPORTS, default=default)
     p.add_argument("--channel", default=None,
@@ -97,6 +97,12 @@ def _transport_args(p: argparse.ArgumentParser, default: str = "udp_multicast") 
                    help="udp_multicast: the firmware process, runner (rhonn_runner, the C firmware: --runner, else "
                         "built from the source tree with cc on first use) or python (hil.firmware_node, the same "
                         "logic through cffi, where there is no C compiler); default runner")
+    spin = RUNNER_SPIN_MAX_US if bench else RUNNER_SPIN_US
+    p.add_argument("--runner-spin-us", type=_float, default=spin, metavar="US",
+                   help="udp_multicast: how long rhonn_runner busy-polls either side of each expected Measurement "
+                        f"instead of sleeping, 0..{RUNNER_SPIN_MAX_US:g} (default {spin:g}"
+                        + (": it never sleeps, as a real-time task that owns its CPU; costs that CPU)" if bench
+                           else ")"))
     p.add_argument("--timeout", type=_float, default=1.0, help="seconds to wait for the firmware (default 1)")
     p.add_argument("--drain", type=_float, default=0.3, help="seconds to wait for the last estimates (default 0.3)")
 
@@ -163,7 +169,8 @@ def _replay(args) -> int:
     sc = _scenario(args)
     try:
         rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
-                         firmware=args.firmware or True, reply_timeout=args.timeout, drain=args.drain)
+                         firmware=args.firmware or True, runner_spin_us=args.runner_spin_us,
+                         reply_timeout=args.timeout, drain=args.drain)
     except BusLost as exc:
         if args.log is not None:  # keep what was recorded up to the loss
             write_log(exc.recording, args.log)
@@ -215,6 +222,7 @@ def _cpu_pair(text: str) -> tuple[int, int]:
 
 def _bench(args) -> int:
     from . import report as rep
+    from .host import StealMeter, steal_line
     from .scenario import Scenario
     from .score import score
     from .transport import run_replay, use_fifo
@@ -232,13 +240,18 @@ def _bench(args) -> int:
     cpus_before = os.sched_getaffinity(0)
     if args.cpus is not None:
         os.sched_setaffinity(0, {args.cpus[0]})
+    steal = StealMeter()
+    steal.start()
     try:
         rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
-                         firmware=args.firmware or True, reply_timeout=args.timeout, drain=args.drain,
-                         firmware_cpu=firmware_cpu)
+                         firmware=args.firmware or True, runner_spin_us=args.runner_spin_us,
+                         reply_timeout=args.timeout, drain=args.drain, firmware_cpu=firmware_cpu)
     finally:
         os.sched_setaffinity(0, cpus_before)
     r = score(rec)
+    r["host_steal"] = steal.stop()
+    if args.transport == "udp_multicast" and (rec.meta.get("firmware_side") or {}).get("firmware") == "rhonn_runner":
+        policy += f", runner busy-polls {args.runner_spin_us:g} us either side of each frame"
     side = rec.meta.get("firmware_side") or {}
     _note_fallback(side)
     note = timing_note(args.transport)
@@ -274,5 +287,6 @@ def _bench(args) -> int:
         if "within_period_picked_up" in lat:
             print(f"estimates within one period, picked up by the rig process: "
                   f"{100 * lat['within_period_picked_up']:.3f} %")
+    print(steal_line(r["host_steal"], args.cpus))
     print(f"note: {note}")
     return 0 if r["frames"]["accounted"] else 1

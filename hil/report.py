@@ -15,7 +15,8 @@ __all__ = ["figures", "table", "to_json", "write"]
 
 def _clean(obj: Any) -> Any:
     if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items() if not k.startswith("_")}
+        # keys as JSON has them (str); "_"-prefixed ones are in-memory series, not for the report
+        return {str(k): _clean(v) for k, v in obj.items() if not str(k).startswith("_")}
     if isinstance(obj, (list, tuple)):
         return [_clean(v) for v in obj]
     if isinstance(obj, (np.integer,)):

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import os
 import random
 import signal
@@ -49,7 +50,20 @@ ROOT = Path(__file__).resolve().parents[1]
 UDP_GROUP = "239.74.163.2"  # python-can's default IPv4 group
 #: the udp_multicast runner busy-polls this long before (and after) each Measurement is due, so a frame
 #: on schedule is taken without a wake-up latency (about 30 us on average on this VM, hundreds at p99)
-RUNNER_SPIN_US = 50
+RUNNER_SPIN_US = 50.0
+#: the most the runner accepts (less than half the 0.3 ms period): it then sleeps 2 us a period, i.e.
+#: busy-polls as a real-time task that owns its CPU (``hil bench``'s default)
+RUNNER_SPIN_MAX_US = 149.0
+
+
+def check_runner_spin(value: object) -> float:
+    """The runner's busy-poll margin in us, 0 <= value <= RUNNER_SPIN_MAX_US
+    (ValueError naming runner_spin_us otherwise)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or not 0.0 <= value <= RUNNER_SPIN_MAX_US:
+        raise ValueError(f"runner_spin_us: expected microseconds in [0, {RUNNER_SPIN_MAX_US:g}] (less than half "
+                         f"the 0.3 ms period), got {value!r}")
+    return float(value)
 
 
 @functools.cache
@@ -233,12 +247,13 @@ def _runner_side(proc: subprocess.Popen, report: Path, side: dict[str, Any]) -> 
     return side["report"]
 
 
-def _start_udp_runner(exe: str, channel: str, port: int, report: Path, cpu: int | None = None) -> subprocess.Popen:
+def _start_udp_runner(exe: str, channel: str, port: int, report: Path, cpu: int | None = None,
+                      spin_us: float = RUNNER_SPIN_US) -> subprocess.Popen:
     group = f"[{channel}]" if ":" in channel else channel
     # Diagnostics on request only, as the Python node (FirmwareApp's default): both firmware choices
     # put the same frames on the bus, and the last Diagnostics' StepTimeMax covers the whole run
     proc = subprocess.Popen([exe, "--udp-multicast", f"{group}:{port}", "--diag-period", "0", "--spin-us",
-                             str(RUNNER_SPIN_US), "--duration", "3600", "--json", str(report), *_fifo_args()],
+                             f"{spin_us:g}", "--duration", "3600", "--json", str(report), *_fifo_args()],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     _pin(proc, cpu)
     line = proc.stdout.readline() if proc.stdout else ""  # printed once the socket is in the group
@@ -252,7 +267,8 @@ def _start_udp_runner(exe: str, channel: str, port: int, report: Path, cpu: int 
 
 @contextmanager
 def _udp(channel: str | None, port: int | None, firmware: str | None, runner: str | None = None,
-         cpu: int | None = None) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
+         cpu: int | None = None,
+         spin_us: float = RUNNER_SPIN_US) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
     """The udp_multicast bus; ``firmware`` "runner" starts ``runner`` (a path
     udp_runner resolved), "python" the Python node, None nothing."""
     channel = channel or UDP_GROUP
@@ -263,7 +279,7 @@ def _udp(channel: str | None, port: int | None, firmware: str | None, runner: st
     if firmware == "runner":
         report = Path(os.environ.get("TMPDIR", "/tmp")) / f"hil-runner-{uuid.uuid4().hex}.json"
         assert runner is not None, "open_transport resolves the runner"
-        proc = _start_udp_runner(runner, channel, port, report, cpu)
+        proc = _start_udp_runner(runner, channel, port, report, cpu, spin_us)
     elif firmware == "python":
         env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
         proc = subprocess.Popen([sys.executable, "-m", "hil.firmware_node", "--channel", channel, "--port", str(port)],
@@ -363,13 +379,17 @@ def _firmware_kind(transport: str, firmware: bool | str) -> str | None:
 
 @contextmanager
 def open_transport(transport: str, channel: str | None = None, *, port: int | None = None,
-                   firmware: bool | str = True, runner: str | None = None, firmware_cpu: int | None = None):
+                   firmware: bool | str = True, runner: str | None = None, firmware_cpu: int | None = None,
+                   runner_spin_us: float = RUNNER_SPIN_US):
     """(rig bus, channel description, firmware-side report function).
     ``firmware``: True (the transport's default firmware), False (none: one
     must be running already), or "runner" / "python" (udp_multicast).
-    ``firmware_cpu``: pin the firmware process started here to this CPU."""
+    ``firmware_cpu``: pin the firmware process started here to this CPU.
+    ``runner_spin_us``: how long the udp_multicast runner busy-polls either
+    side of each expected Measurement (``rhonn_runner --spin-us``)."""
     if transport not in TRANSPORTS:
         raise ValueError(f"transport: expected one of {', '.join(TRANSPORTS)}, got {transport!r}")
+    runner_spin_us = check_runner_spin(runner_spin_us)
     kind = _firmware_kind(transport, firmware)
     if firmware_cpu is not None:
         if transport == "virtual" or kind is None or (transport == "socketcan" and runner is None):
@@ -388,7 +408,7 @@ def open_transport(transport: str, channel: str | None = None, *, port: int | No
                 if firmware is not True or runner is not None:
                     raise                   # the runner was asked for by name
                 kind, fallback = "python", f"rhonn_runner unavailable ({exc}): the firmware is the Python node"
-        with _udp(channel, port, kind, runner, firmware_cpu) as (bus, where, side):
+        with _udp(channel, port, kind, runner, firmware_cpu, runner_spin_us) as (bus, where, side):
             def side_noted() -> dict:
                 report = side()
                 report["firmware"] = {"runner": "rhonn_runner", "python": "hil.firmware_node"}.get(kind or "", None)
@@ -404,19 +424,20 @@ def open_transport(transport: str, channel: str | None = None, *, port: int | No
 
 def run_replay(scenario: Scenario, transport: str = "virtual", channel: str | None = None, *,
                port: int | None = None, firmware: bool | str = True, runner: str | None = None,
-               firmware_cpu: int | None = None,
+               firmware_cpu: int | None = None, runner_spin_us: float = RUNNER_SPIN_US,
                spin_ns: int | None = None, reply_timeout: float = 1.0, drain: float = 0.3,
                extra_frames: Callable[[int], list[can.Message]] | None = None) -> Recording:
     """Replay ``scenario`` over ``transport`` against the firmware; the Recording
-    (its meta holds the firmware side's own report). ``firmware``/``runner``:
-    see :func:`open_transport` (udp_multicast: the C runner by default)."""
+    (its meta holds the firmware side's own report). ``firmware``, ``runner``,
+    ``firmware_cpu``, ``runner_spin_us``: see :func:`open_transport`
+    (udp_multicast: the C runner by default)."""
     if not isinstance(scenario, Scenario):
         raise ValueError(f"scenario: expected a Scenario, got {type(scenario).__name__}")
     plan = scenario.build()
     if spin_ns is None:
         spin_ns = 0 if transport == "virtual" else 150_000
     with open_transport(transport, channel, port=port, firmware=firmware, runner=runner,
-                        firmware_cpu=firmware_cpu) as (bus, where, side):
+                        firmware_cpu=firmware_cpu, runner_spin_us=runner_spin_us) as (bus, where, side):
         rig = Rig(bus, plan, transport=transport, channel=where, spin_ns=spin_ns, reply_timeout=reply_timeout,
                   drain=drain, extra_frames=extra_frames)
         rec = rig.run()

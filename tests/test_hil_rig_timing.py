@@ -106,7 +106,7 @@ def test_bench_cpus_pins_both_sides_and_gives_the_rig_its_cpus_back(capsys) -> N
             run_replay(Scenario(duration=0.03), transport, firmware_cpu=0)
 
 
-def test_the_udp_bench_compares_the_runner_with_the_python_node_in_alternating_rounds() -> None:
+def test_the_udp_bench_compares_the_runner_asleep_and_busy_polling_with_the_python_node_in_rounds() -> None:
     import subprocess
     import sys
     from pathlib import Path
@@ -116,10 +116,12 @@ def test_the_udp_bench_compares_the_runner_with_the_python_node_in_alternating_r
                          text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     lines = out.stdout.splitlines()
-    assert "400 cycles per firmware" in lines[0] and "2 alternating rounds" in lines[0]
-    assert any(ln.startswith("python (hil.firmware_node)") for ln in lines)
-    assert any(ln.startswith("runner (rhonn_runner)") for ln in lines)
-    assert lines[-1].startswith("runner / python node: late share x")
+    assert "400 cycles per variant" in lines[0] and "2 alternating rounds" in lines[0]
+    for row in ("python node (hil.firmware_node)", "runner (rhonn_runner)", "runner busy-poll (rhonn_runner)"):
+        assert any(ln.startswith(row) for ln in lines), row
+    assert any(ln.startswith("runner / python node: late share x") for ln in lines)
+    assert any(ln.startswith("runner busy-poll / python node: late share x") for ln in lines)
+    assert lines[-1].startswith("(target: 99.9 % within one period; best here: ")
     bad = subprocess.run([sys.executable, str(script), "--cycles", "3", "--rounds", "2"], capture_output=True,
                          text=True, timeout=60)
     assert bad.returncode == 2 and "--rounds" in bad.stderr

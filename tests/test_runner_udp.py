@@ -44,6 +44,7 @@ from pyrhonn.firmware import FirmwareApp  # noqa: E402
 
 from hil.scenario import Scenario  # noqa: E402
 from hil.score import score  # noqa: E402
+from hil import transport  # noqa: E402
 from hil.transport import FirmwareUnavailable, UDP_GROUP, free_port, lim_config, run_replay, udp_runner  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -554,13 +555,19 @@ def test_cli_bench_and_replay_take_the_firmware_choice(runner_exe, capsys) -> No
     for argv in (["hil", "bench", "--cycles", "10", "--firmware", "matlab"],
                  ["hil", "replay", "--transport", "virtual", "--firmware", "runner", "--duration", "0.03"],
                  ["hil", "replay", "--firmware", "runner", "--runner", "/nonexistent", "--duration", "0.03"]):
-        try:
-            code = pyrhonn_main(argv)
-        except SystemExit as exc:
-            code = exc.code
-        assert code == 2, argv
-        err = capsys.readouterr().err
-        assert "Traceback" not in err and err.strip()
+        assert _usage_error(argv, capsys)
+
+
+def _usage_error(argv: list[str], capsys) -> str:
+    """The CLI's stderr for ``argv``, which must exit 2 with a message and no traceback."""
+    try:
+        code = pyrhonn_main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    assert code == 2, argv
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and err.strip(), argv
+    return err
 
 
 def test_bench_fifo_reaches_the_runner(runner_exe) -> None:
@@ -571,11 +578,28 @@ def test_bench_fifo_reaches_the_runner(runner_exe) -> None:
     assert out.returncode == 0, out.stderr
     r = json.loads(out.stdout)
     runner_policy = r["firmware_side"]["stats"]["policy"]
-    if r["policy"] == "SCHED_FIFO 10":
+    if r["policy"].startswith("SCHED_FIFO 10,"):
         assert runner_policy == "SCHED_FIFO"
     else:  # refused here (no CAP_SYS_NICE): the runner did not get it either
         assert runner_policy == "SCHED_OTHER"
     assert np.isfinite(r["latency_us"]["avg"])
+    assert r["firmware_side"]["stats"]["spin_us"] == 149  # the bench busy-polls: the runner never sleeps
+    assert "runner busy-polls 149 us" in r["policy"]
+    assert r["host_steal"]["available"] in (True, False)
+
+
+def test_the_runner_busy_poll_margin_is_passed_on_and_checked(runner_exe, capsys) -> None:
+    rec = run_replay(Scenario(duration=0.03, start=0.9), "udp_multicast", runner=str(runner_exe),
+                     runner_spin_us=20)
+    assert rec.meta["firmware_side"]["stats"]["spin_us"] == 20
+    rec = run_replay(Scenario(duration=0.03, start=0.9), "udp_multicast", runner=str(runner_exe))
+    assert rec.meta["firmware_side"]["stats"]["spin_us"] == transport.RUNNER_SPIN_US  # hil replay's default
+    for bad in (-1, 150, float("nan"), True, "50"):
+        with pytest.raises(ValueError, match="runner_spin_us"):
+            run_replay(Scenario(duration=0.03), "udp_multicast", runner=str(runner_exe), runner_spin_us=bad)
+    for argv in (["hil", "bench", "--cycles", "10", "--runner-spin-us", "150"],
+                 ["hil", "replay", "--runner-spin-us", "x", "--duration", "0.03"]):
+        assert "spin" in _usage_error(argv, capsys), argv
 
 
 def test_the_runner_build_is_cached_per_source_content(tmp_path) -> None:
