@@ -79,6 +79,11 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
                   "  (truth: against the noise-free x(k+1); no hold: the same, the cycles whose target is outside "
                   "the hold; vs measured: against the next Measurement frame where it is fresh; sensor: that Measurement "
                   "frame against the truth)",
+                  *(f"  hold: {name} held for {ident[name]['hold']['cycles']} cycles, in which it moved up to "
+                    f"{ident[name]['hold']['travel_max']:.3g} {unit} unobserved; the frames themselves, held values "
+                    f"included, are {ident[name]['hold']['frames_rmse']:.3e} {unit} RMSE off the truth (Table 7: "
+                    f"{ident[name]['table7_rmse']:.3e})"
+                    for name, unit in (("position", "m"), ("velocity", "m/s")) if ident[name]["hold"]["cycles"]),
                   f"  note: {ident['note']}"]
     be = report.get("bit_exact")
     if be:

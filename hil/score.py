@@ -238,7 +238,12 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
     - and, as the yardstick for all three, the Measurement frames' own error
       against the truth (the encoder's quantisation, the differencing noise
       of the velocity): an identifier fed these signals beats that figure
-      only by filtering.
+      only by filtering;
+    - ``hold``: how far the state moved while its measurement was held (the
+      largest gap between the held value and the truth) and the RMSE of the
+      frames themselves against the truth over the answered cycles, held
+      ones included: what following the rig's signal scores in this
+      scenario, the scale against which to read Table 7's figure.
     """
     truth_all = np.asarray(plan.truth_next)
     X, V = np.asarray(plan.X), np.asarray(plan.valid)
@@ -260,12 +265,22 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
             "outside_hold": _errors(truth[out_hold], est[out_hold]),
             "vs_measurement": _errors(X[1:, j][vs_meas], phys[:-1, j][vs_meas]),
             "measurement_vs_truth": _errors(truth_all[:-1, j][sensed], X[1:, j][sensed]),
-            "signal_peak": float(np.max(np.abs(truth))), "signal_rms": float(np.sqrt(np.mean(truth ** 2)))}
+            "signal_peak": float(np.max(np.abs(truth))), "signal_rms": float(np.sqrt(np.mean(truth ** 2))),
+            "hold": _hold(truth_all[:-1, j], X[1:, j], next_fresh[:-1, j], answered[:-1])}
         ident[name]["at_or_below_table7"] = bool(ident[name]["rmse"] <= t7["rmse"])
     ident["note"] = (
         "the LIM parameters are pyrhonn's PROPOSED set (the Lab-Volt table was not found): compare with "
         "Table 7 through the signals' scale, not as the same motor")
     return ident
+
+
+def _hold(truth: np.ndarray, frame: np.ndarray, fresh: np.ndarray, answered: np.ndarray) -> dict[str, Any]:
+    """For cycles k = 0..N-2: the next frame's value ``frame`` (held or
+    fresh) against the truth x(k+1); see :func:`_identification`."""
+    held = answered & ~fresh
+    gap = np.abs(frame - truth)
+    return {"cycles": int(held.sum()), "travel_max": float(gap[held].max()) if held.any() else 0.0,
+            "frames_rmse": float(np.sqrt(np.mean(gap[answered] ** 2))) if answered.any() else math.nan}
 
 
 def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndarray, answered: np.ndarray,

@@ -51,6 +51,17 @@ def test_truth_no_hold_measured_and_sensor_errors_are_the_documented_comparisons
     assert pos["outside_hold"]["rmse"] < pos["rmse"]
     text = report.table(r)
     assert f"{pos['measurement_vs_truth']['rmse']:.3e}" in text and f"{pos['outside_hold']['rmse']:.3e}" in text
+    # the hold's scale: how far the truth ran from the held value, and the frames' own error, held ones included
+    held = ~fresh_next[:-1]
+    gap = np.abs(X[1:, 0] - truth[:-1, 0])
+    assert pos["hold"]["cycles"] == int(held.sum())
+    assert pos["hold"]["travel_max"] == pytest.approx(float(gap[held].max()), rel=1e-12)
+    assert pos["hold"]["travel_max"] > 1e-3                 # the motor moves from 2.0 s, the hold ends at 2.1 s
+    assert pos["hold"]["frames_rmse"] == pytest.approx(_rmse(X[1:, 0], truth[:-1, 0]), rel=1e-12)
+    assert f"position held for {int(held.sum())} cycles" in text and f"{pos['hold']['frames_rmse']:.3e}" in text
+    assert r["identification"]["velocity"]["hold"] == {"cycles": 0, "travel_max": 0.0, "frames_rmse": pytest.approx(
+        _rmse(X[1:, 1], truth[:-1, 1]), rel=1e-12)}
+    assert "velocity held" not in text
 
 
 def test_the_sensor_error_is_the_encoders_quantisation_and_zero_without_it() -> None:
