@@ -97,12 +97,13 @@ def _transport_args(p: argparse.ArgumentParser, default: str = "udp_multicast", 
                    help="udp_multicast: the firmware process, runner (rhonn_runner, the C firmware: --runner, else "
                         "built from the source tree with cc on first use) or python (hil.firmware_node, the same "
                         "logic through cffi, where there is no C compiler); default runner")
-    spin = RUNNER_SPIN_MAX_US if bench else RUNNER_SPIN_US
+    # the bench busy-polls where the runner can have a CPU of its own: on one CPU it would take the rig's
+    spin = RUNNER_SPIN_MAX_US if bench and len(os.sched_getaffinity(0)) >= 2 else RUNNER_SPIN_US
     p.add_argument("--runner-spin-us", type=_float, default=spin, metavar="US",
                    help="udp_multicast: how long rhonn_runner busy-polls either side of each expected Measurement "
-                        f"instead of sleeping, 0..{RUNNER_SPIN_MAX_US:g} (default {spin:g}"
-                        + (": it never sleeps, as a real-time task that owns its CPU; costs that CPU)" if bench
-                           else ")"))
+                        f"instead of sleeping, 0..{RUNNER_SPIN_MAX_US:g} (default here {spin:g}"
+                        + (f"; {RUNNER_SPIN_MAX_US:g} on two or more CPUs: it never sleeps, as a real-time task that "
+                           f"owns its CPU, and costs that CPU; else {RUNNER_SPIN_US:g})" if bench else ")"))
     p.add_argument("--timeout", type=_float, default=1.0, help="seconds to wait for the firmware (default 1)")
     p.add_argument("--drain", type=_float, default=0.3, help="seconds to wait for the last estimates (default 0.3)")
 
