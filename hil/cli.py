@@ -59,10 +59,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--input-start", type=_float, default=None,
                    help="when the LIM's voltages switch on, s (default 2.0, eq. 21-22 of the paper; 1.0: the "
                         "motor moves through the whole hold)")
+    r.add_argument("--trajectory", type=Path, default=None, metavar="FILE.csv",
+                   help="replay a recorded LIM trajectory instead of simulating the plant: a CSV with columns t, "
+                        "q_m, v, lambda_a, lambda_b, i_a, i_b, u_a, u_b, sampled at the period or an integer "
+                        "fraction of it (`pyrhonn hil trajectory` writes one); --start and --hold-start are on "
+                        "its time axis")
     r.add_argument("--out", type=Path, default=None, help="directory for report.json, report.txt and the PNGs")
     r.add_argument("--log", type=Path, default=None, help="record the run to FILE.blf or FILE.asc (+ FILE.json)")
     r.add_argument("--json", action="store_true", help="print the JSON report instead of the table")
     r.set_defaults(func=_replay)
+
+    t = hs.add_parser("trajectory", help="write the simulated LIM trajectory as a CSV (the --trajectory format)")
+    t.add_argument("out", type=Path, metavar="OUT.csv")
+    t.add_argument("--duration", type=_float, default=4.0, help="seconds (default 4.0)")
+    t.add_argument("--step", type=_float, default=3e-4,
+                   help="sampling step, s, dividing the rig's 0.3 ms period (default 3e-4)")
+    t.add_argument("--input-start", type=_float, default=2.0,
+                   help="when the LIM's voltages switch on, s (default 2.0)")
+    t.set_defaults(func=_trajectory)
 
     s = hs.add_parser("score", help="re-score a recorded log offline")
     s.add_argument("log", type=Path)
@@ -134,7 +148,34 @@ def _scenario(args):
     for name in ("encoder_resolution", "hold_start", "hold_duration", "input_start"):
         if getattr(args, name) is not None:
             kw[name] = getattr(args, name)
+    if args.trajectory is not None:
+        if args.input_start is not None:
+            raise ValueError("--input-start: applies to the simulated plant, not to a --trajectory file")
+        kw["trajectory"] = str(args.trajectory)
     return Scenario(**kw)
+
+
+def _trajectory(args) -> int:
+    from pyrhonn.plants import lim
+
+    from .scenario import Scenario
+    from .trajectory import write_trajectory
+
+    period = Scenario().period
+    if not args.step > 0 or abs(period / args.step - round(period / args.step)) > 1e-6 * period / args.step:
+        raise ValueError(f"--step: must divide the rig's period {period:g} s, got {args.step!r}")
+    if not 0 < args.duration <= 3600:
+        raise ValueError(f"--duration: expected seconds in (0, 3600], got {args.duration!r}")
+    if not args.input_start >= 0:
+        raise ValueError(f"--input-start: expected seconds >= 0, got {args.input_start!r}")
+    K = int(round(args.duration / args.step))
+    if K < 2:
+        raise ValueError(f"--duration: must cover at least 2 steps of {args.step:g} s, got {args.duration!r}")
+    traj = lim.simulate(dt=args.step, horizon=K * args.step, inputs=lim.LimInput(start=args.input_start), holds=())
+    write_trajectory(args.out, traj.t, traj.X, traj.U)
+    print(f"wrote {traj.t.size} samples (t = 0..{traj.t[-1]:g} s, step {args.step:g} s) of the simulated LIM "
+          f"(PROPOSED parameters, voltages from {args.input_start:g} s) to {args.out}")
+    return 0
 
 
 def _emit(report: dict, args, note: str | None) -> int:

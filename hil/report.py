@@ -53,7 +53,9 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
     served = (report.get("firmware_side") or {}).get("firmware")
     lines = [f"HIL replay over {report['transport']} ({report['channel']}"
              f"{', firmware ' + served if served else ''}): {report['cycles']} cycles at "
-             f"{report['scenario']['period'] * 1e3:g} ms, seed {report['scenario']['seed']}",
+             f"{report['scenario']['period'] * 1e3:g} ms, seed {report['scenario']['seed']}"
+             + (f", trajectory {report['scenario']['trajectory']}" if report['scenario'].get('trajectory') else
+                ", the simulated LIM"),
              "",
              f"{'frames':<22}sent {f['sent']}  lost (injected) {f['lost_injected']}  answered {f['answered']}  "
              f"rejected (Seq jump) {f['rejected_seq_jump']}  missing {f['missing']}  late {f['late']}",
@@ -76,7 +78,7 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
                     f"{_e(ident[name]['measurement_vs_truth']['rmse'])}"
                     f"{ident[name]['signal_peak']:10.3g}"
                     for name, unit in (("position", "m"), ("velocity", "m/s"))),
-                  "  (truth: against the noise-free x(k+1); no hold: the same, the cycles whose target is outside "
+                  f"  (truth: against {ident.get('truth', 'the noise-free x(k+1)')}; no hold: the same, the cycles whose target is outside "
                   "the hold; vs measured: against the next Measurement frame where it is fresh; sensor: that Measurement "
                   "frame against the truth)",
                   *(f"  hold: {name} held for {ident[name]['hold']['cycles']} cycles, in which it moved up to "

@@ -35,6 +35,14 @@ The plant's parameters are pyrhonn's PROPOSED
 Table 7's figures are a yardstick, not a target of the same motor: the report
 states the signals' scale next to them.
 
+**A recorded trajectory** replaces the plant with ``trajectory`` (the path
+of a CSV of the LIM's states and inputs, :mod:`hil.trajectory`): the same
+rig model is applied to it and the replay is scored against it. Times
+(``start``, ``hold_start``) are then on the file's time axis, and
+``input_start`` does not apply. The scenario pins the file's SHA-256
+(``trajectory_sha256``, computed when not given): a logged run re-scores
+only against the very file it was replayed from.
+
 Everything derives from the scenario's fields and ``seed``: the same
 scenario always gives the same frames, which is what lets a logged run be
 re-scored offline from the log and the scenario alone.
@@ -45,6 +53,7 @@ import functools
 import json
 import math
 from dataclasses import asdict, dataclass, fields
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -94,6 +103,8 @@ class Scenario:
     frame_loss: float = 0.0           #: probability a Measurement frame is lost
     transport_delay: float = 0.0      #: fixed delay from sampling instant to sending
     seed: int = 0
+    trajectory: str = ""              #: "" = the plant; else a trajectory CSV (hil.trajectory), absolute path
+    trajectory_sha256: str = ""       #: the file's SHA-256; computed when "", checked when given
 
     def __post_init__(self) -> None:
         set_ = functools.partial(object.__setattr__, self)
@@ -120,6 +131,30 @@ class Scenario:
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or not 0 <= self.seed < 2 ** 63:
             raise _fail("seed", f"expected a non-negative integer, got {self.seed!r}")
         set_("seed", int(self.seed))
+        self._check_trajectory(set_)
+
+    def _check_trajectory(self, set_) -> None:
+        from .trajectory import file_sha256
+
+        path, pinned = self.trajectory, self.trajectory_sha256
+        if not isinstance(path, str):
+            raise _fail("trajectory", f"expected a file path (str), got {path!r}")
+        if not isinstance(pinned, str):
+            raise _fail("trajectory_sha256", f"expected a hex string, got {pinned!r}")
+        if not path:
+            if pinned:
+                raise _fail("trajectory_sha256", "given without a trajectory")
+            return
+        absolute = str(Path(path).expanduser().resolve())
+        try:
+            digest = file_sha256(absolute)
+        except OSError as exc:
+            raise _fail("trajectory", f"cannot read {absolute}: {exc.strerror or exc}") from None
+        if pinned and pinned != digest:
+            raise _fail("trajectory", f"{absolute} has changed since this scenario was made (SHA-256 {pinned[:12]}..., "
+                                      f"now {digest[:12]}...): a run re-scores only against the file it replayed")
+        set_("trajectory", absolute)
+        set_("trajectory_sha256", digest)
 
     @property
     def cycles(self) -> int:
@@ -134,6 +169,8 @@ class Scenario:
         return cls(duration=duration, hold_duration=0.0, input_start=duration + 1.0, **fields_)
 
     def replace(self, **changes: Any) -> "Scenario":
+        if "trajectory" in changes and "trajectory_sha256" not in changes:
+            changes["trajectory_sha256"] = ""   # another file: pin its own content
         return Scenario(**{**asdict(self), **changes})
 
     def to_dict(self) -> dict[str, Any]:
@@ -190,6 +227,23 @@ class Plan:
         return [measurement_message(k & 0xFFFF, self.X[k], self.U[k], self.valid[k]) for k in range(self.cycles)]
 
 
+def _recorded(sc: Scenario, cycles: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """(X, U, t, k0) of the scenario's trajectory file: its samples at the
+    period, and the index of the first replayed one (t = start)."""
+    from .trajectory import file_sha256, read_trajectory
+
+    if file_sha256(sc.trajectory) != sc.trajectory_sha256:
+        raise _fail("trajectory", f"{sc.trajectory} has changed since this scenario was made")
+    rt = read_trajectory(sc.trajectory, sc.period)
+    t = rt.t
+    k0 = int(round((sc.start - t[0]) / sc.period))
+    need = k0 + cycles + 1                       # x(k+1) of the last frame included
+    if sc.start < t[0] - 1e-6 * sc.period or need > t.size:
+        raise _fail("trajectory", f"{sc.trajectory} covers t = {t[0]:g}..{t[-1]:g} s at {sc.period:g} s; the "
+                                  f"scenario needs {sc.start:g}..{sc.start + cycles * sc.period:g} s (start, duration)")
+    return rt.X, rt.U, t, k0
+
+
 @functools.lru_cache(maxsize=8)
 def _build(sc: Scenario) -> Plan:
     from pyrhonn.firmware import INPUT_SIGNALS, STATE_SIGNALS, database
@@ -197,10 +251,13 @@ def _build(sc: Scenario) -> Plan:
     from pyrhonn.plants.trajectory import HoldWindow
 
     N = sc.cycles
-    k0 = int(round(sc.start / sc.period))
-    horizon = (k0 + N) * sc.period          # samples 0 .. k0+N: x(k+1) of the last frame included
-    traj = lim.simulate(dt=sc.period, horizon=horizon, inputs=lim.LimInput(start=sc.input_start), holds=())
-    Xtrue, U, t = traj.X, traj.U, traj.t
+    if sc.trajectory:
+        Xtrue, U, t, k0 = _recorded(sc, N)
+    else:
+        k0 = int(round(sc.start / sc.period))
+        horizon = (k0 + N) * sc.period          # samples 0 .. k0+N: x(k+1) of the last frame included
+        traj = lim.simulate(dt=sc.period, horizon=horizon, inputs=lim.LimInput(start=sc.input_start), holds=())
+        Xtrue, U, t = traj.X, traj.U, traj.t
     reading = Xtrue.copy()
     if sc.encoder_resolution > 0:
         levels = Xtrue[:, 0] / sc.encoder_resolution

@@ -268,9 +268,15 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
             "signal_peak": float(np.max(np.abs(truth))), "signal_rms": float(np.sqrt(np.mean(truth ** 2))),
             "hold": _hold(truth_all[:-1, j], X[1:, j], next_fresh[:-1, j], answered[:-1])}
         ident[name]["at_or_below_table7"] = bool(ident[name]["rmse"] <= t7["rmse"])
-    ident["note"] = (
-        "the LIM parameters are pyrhonn's PROPOSED set (the Lab-Volt table was not found): compare with "
-        "Table 7 through the signals' scale, not as the same motor")
+    if plan.scenario.trajectory:
+        ident["truth"] = "the trajectory file's x(k+1)"
+        ident["note"] = (f"truth: the recorded trajectory {plan.scenario.trajectory}; compare with Table 7 through "
+                         "the signals' scale")
+    else:
+        ident["truth"] = "the noise-free x(k+1)"
+        ident["note"] = (
+            "the LIM parameters are pyrhonn's PROPOSED set (the Lab-Volt table was not found): compare with "
+            "Table 7 through the signals' scale, not as the same motor")
     return ident
 
 

@@ -46,3 +46,22 @@ def runner(tmp_path_factory: pytest.TempPathFactory) -> Path:
         return module.build(tmp_path_factory.mktemp("runner"))
     except RuntimeError as exc:
         pytest.skip(f"no rhonn_runner and it cannot be built: {exc}")
+
+
+@pytest.fixture
+def cli_error(capsys):
+    """``cli_error(argv)``: run ``pyrhonn argv``, require exit code 2 with a
+    message on stderr and no traceback; return that stderr."""
+    from pyrhonn.cli import main
+
+    def run(argv: list[str]) -> str:
+        try:
+            code = main(argv)
+        except SystemExit as exc:
+            code = exc.code
+        assert code == 2, argv
+        err = capsys.readouterr().err
+        assert "Traceback" not in err and err.strip(), argv
+        return err
+
+    return run

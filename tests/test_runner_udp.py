@@ -544,7 +544,7 @@ def test_an_installed_hil_run_from_a_checkout_builds_the_runner_from_it(tmp_path
     assert exe.is_file() and tmp_path / "cache" in exe.parents
 
 
-def test_cli_bench_and_replay_take_the_firmware_choice(runner_exe, capsys) -> None:
+def test_cli_bench_and_replay_take_the_firmware_choice(runner_exe, capsys, cli_error) -> None:
     assert pyrhonn_main(["hil", "bench", "--transport", "udp_multicast", "--cycles", "400",
                          "--runner", str(runner_exe)]) == 0
     out = capsys.readouterr().out
@@ -556,19 +556,7 @@ def test_cli_bench_and_replay_take_the_firmware_choice(runner_exe, capsys) -> No
     for argv in (["hil", "bench", "--cycles", "10", "--firmware", "matlab"],
                  ["hil", "replay", "--transport", "virtual", "--firmware", "runner", "--duration", "0.03"],
                  ["hil", "replay", "--firmware", "runner", "--runner", "/nonexistent", "--duration", "0.03"]):
-        assert _usage_error(argv, capsys)
-
-
-def _usage_error(argv: list[str], capsys) -> str:
-    """The CLI's stderr for ``argv``, which must exit 2 with a message and no traceback."""
-    try:
-        code = pyrhonn_main(argv)
-    except SystemExit as exc:
-        code = exc.code
-    assert code == 2, argv
-    err = capsys.readouterr().err
-    assert "Traceback" not in err and err.strip(), argv
-    return err
+        cli_error(argv)
 
 
 def test_bench_fifo_reaches_the_runner(runner_exe) -> None:
@@ -591,7 +579,7 @@ def test_bench_fifo_reaches_the_runner(runner_exe) -> None:
     assert r["host_steal"]["available"] in (True, False)
 
 
-def test_the_runner_busy_poll_margin_is_passed_on_and_checked(runner_exe, capsys) -> None:
+def test_the_runner_busy_poll_margin_is_passed_on_and_checked(runner_exe, cli_error) -> None:
     rec = run_replay(Scenario(duration=0.03, start=0.9), "udp_multicast", runner=str(runner_exe),
                      runner_spin_us=20)
     assert rec.meta["firmware_side"]["stats"]["spin_us"] == 20
@@ -602,7 +590,7 @@ def test_the_runner_busy_poll_margin_is_passed_on_and_checked(runner_exe, capsys
             run_replay(Scenario(duration=0.03), "udp_multicast", runner=str(runner_exe), runner_spin_us=bad)
     for argv in (["hil", "bench", "--cycles", "10", "--runner-spin-us", "150"],
                  ["hil", "replay", "--runner-spin-us", "x", "--duration", "0.03"]):
-        assert "spin" in _usage_error(argv, capsys), argv
+        assert "spin" in cli_error(argv), argv
 
 
 def test_the_runner_build_is_cached_per_source_content(tmp_path) -> None:
