@@ -47,11 +47,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     r = hs.add_parser("replay", help="replay the LIM scenario against the firmware, score and report it")
     _transport_args(r)
-    r.add_argument("--duration", type=_float, default=4.0, help="replayed seconds (default 4.0: 13,333 cycles)")
-    r.add_argument("--start", type=_float, default=0.0, help="trajectory time of the first frame (default 0)")
-    r.add_argument("--seed", type=int, default=0)
-    r.add_argument("--frame-loss", type=_float, default=0.0, help="probability a frame is lost (default 0)")
-    r.add_argument("--delay", type=_float, default=0.0, help="fixed transport delay in seconds (default 0)")
+    # scenario options default to None: Scenario's own defaults apply, and --from-log can refuse them
+    r.add_argument("--duration", type=_float, default=None, help="replayed seconds (default 4.0: 13,333 cycles)")
+    r.add_argument("--start", type=_float, default=None, help="trajectory time of the first frame (default 0)")
+    r.add_argument("--seed", type=int, default=None, help="(default 0)")
+    r.add_argument("--frame-loss", type=_float, default=None, help="probability a frame is lost (default 0)")
+    r.add_argument("--delay", type=_float, default=None, help="fixed transport delay in seconds (default 0)")
     r.add_argument("--encoder-resolution", type=_float, default=None,
                    help="position encoder resolution in m (default 10e-6, SENC 50; 0: none)")
     r.add_argument("--hold-start", type=_float, default=None, help="measurement hold start, s (default 1.1)")
@@ -64,6 +65,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "q_m, v, lambda_a, lambda_b, i_a, i_b, u_a, u_b, sampled at the period or an integer "
                         "fraction of it (`pyrhonn hil trajectory` writes one); --start and --hold-start are on "
                         "its time axis")
+    r.add_argument("--from-log", type=Path, default=None, metavar="RUN.blf",
+                   help="replay the scenario of a recorded run (from its sidecar) and compare every estimate with "
+                        "the recorded one: a regression check of a firmware build (exit 1 when any differs); "
+                        "the scenario options above are then refused")
     r.add_argument("--out", type=Path, default=None, help="directory for report.json, report.txt and the PNGs")
     r.add_argument("--log", type=Path, default=None, help="record the run to FILE.blf or FILE.asc (+ FILE.json)")
     r.add_argument("--json", action="store_true", help="print the JSON report instead of the table")
@@ -140,14 +145,24 @@ def _dmi() -> str:
         return ""
 
 
+#: replay options that make the scenario: argparse dest -> Scenario field
+SCENARIO_OPTIONS = {"duration": "duration", "start": "start", "seed": "seed", "frame_loss": "frame_loss",
+                    "delay": "transport_delay", "encoder_resolution": "encoder_resolution",
+                    "hold_start": "hold_start", "hold_duration": "hold_duration", "input_start": "input_start",
+                    "trajectory": "trajectory"}
+
+
 def _scenario(args):
+    from .rig import read_log
     from .scenario import Scenario
 
-    kw = {"duration": args.duration, "start": args.start, "seed": args.seed, "frame_loss": args.frame_loss,
-          "transport_delay": args.delay}
-    for name in ("encoder_resolution", "hold_start", "hold_duration", "input_start"):
-        if getattr(args, name) is not None:
-            kw[name] = getattr(args, name)
+    given = [dest for dest in SCENARIO_OPTIONS if getattr(args, dest) is not None]
+    if args.from_log is not None:
+        if given:
+            raise ValueError(f"--from-log: replays the recorded run's own scenario; drop "
+                             f"{', '.join('--' + d.replace('_', '-') for d in given)}")
+        return read_log(args.from_log).scenario
+    kw = {SCENARIO_OPTIONS[dest]: getattr(args, dest) for dest in given if dest != "trajectory"}
     if args.trajectory is not None:
         if args.input_start is not None:
             raise ValueError("--input-start: applies to the simulated plant, not to a --trajectory file")
@@ -188,7 +203,8 @@ def _emit(report: dict, args, note: str | None) -> int:
     if getattr(args, "out", None) is not None:
         paths = rep.write(report, args.out, timing_note=note)
         print(f"wrote {', '.join(str(p) for p in paths)}", file=sys.stderr)
-    ok = report["frames"]["accounted"] and (report.get("bit_exact") or {"equal": True})["equal"]
+    ok = (report["frames"]["accounted"] and (report.get("bit_exact") or {"equal": True})["equal"]
+          and (report.get("regression") or {"equal": True})["equal"])
     return 0 if ok else 1
 
 
@@ -209,6 +225,8 @@ def _replay(args) -> int:
 
     _check_log_path(args.log)
     sc = _scenario(args)
+    if args.from_log is not None and args.log is not None and args.log.resolve() == args.from_log.resolve():
+        raise ValueError("--log: would overwrite the --from-log run it is compared with; choose another file")
     try:
         rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
                          firmware=args.firmware or True, runner_spin_us=args.runner_spin_us,
@@ -219,6 +237,11 @@ def _replay(args) -> int:
             print(f"recorded {len(exc.recording.events)} frames (up to the loss) to {args.log}", file=sys.stderr)
         raise
     report = score(rec, reference=lim_config())
+    if args.from_log is not None:
+        from .rig import read_log
+        from .score import compare_runs
+
+        report["regression"] = compare_runs(score(read_log(args.from_log)), report, str(args.from_log))
     report["firmware_side"] = rec.meta.get("firmware_side")
     _note_fallback(report["firmware_side"])
     code = _emit(report, args, timing_note(args.transport))

@@ -91,6 +91,19 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
     if be:
         lines.append(f"{'bit exact vs offline':<22}{be['checked']} estimates checked against Identifier.run: "
                      f"{'equal' if be['equal'] else str(be['mismatches']) + ' differ'}")
+    reg = report.get("regression")
+    if reg:
+        if reg["equal"]:
+            verdict = "equal"
+        elif not reg["compared"]:
+            verdict = "NO CYCLE ANSWERED IN BOTH"
+        else:
+            worst = max(reg["max_abs_diff"], key=reg["max_abs_diff"].get)
+            verdict = (f"{reg['differ']} DIFFER (first at cycle {reg['first_difference']['cycle']}; largest "
+                       f"|difference| {reg['max_abs_diff'][worst]:.3g} in {worst})")
+        extra = "" if not (reg["only_recorded"] or reg["only_replayed"]) else (
+            f" ({reg['only_recorded']} answered in the recorded run only, {reg['only_replayed']} in this one only)")
+        lines.append(f"{'vs recorded run':<22}{reg['compared']} estimates compared with {reg['log']}: {verdict}{extra}")
     lat = report["latency_us"]
     lines += ["", f"{'timing (us)':<22}",
               f"  {'latency send->est.':<20}{_fmt(lat)}",

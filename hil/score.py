@@ -289,6 +289,33 @@ def _hold(truth: np.ndarray, frame: np.ndarray, fresh: np.ndarray, answered: np.
             "frames_rmse": float(np.sqrt(np.mean(gap[answered] ** 2))) if answered.any() else math.nan}
 
 
+def compare_runs(recorded: dict[str, Any], replayed: dict[str, Any], log: str) -> dict[str, Any]:
+    """Every estimate of a replay against the recorded run it replayed (both
+    :func:`score` results of the same scenario), cycle by cycle over the
+    cycles answered in both: ``equal`` when every state of every such
+    estimate is the same value (the regression check of ``hil replay
+    --from-log``); the largest difference per state, the first differing
+    cycle, and the cycles answered in one run only (lost or missing in the
+    other, which the accounting of each run already explains)."""
+    from pyrhonn.firmware import STATE_SIGNALS
+
+    ka, ea = recorded["_series"]["k"], np.asarray(recorded["_series"]["est"])
+    kb, eb = replayed["_series"]["k"], np.asarray(replayed["_series"]["est"])
+    common, ia, ib = np.intersect1d(ka, kb, assume_unique=True, return_indices=True)
+    a, b = ea[ia], eb[ib]
+    same = np.all((a == b) | (np.isnan(a) & np.isnan(b)), axis=1)
+    diff = np.where(np.isnan(a) & np.isnan(b), 0.0, np.abs(a - b))
+    first = None
+    if not same.all():
+        i = int(np.argmin(same))
+        first = {"cycle": int(common[i]), "recorded": a[i].tolist(), "replayed": b[i].tolist()}
+    return {"log": log, "compared": int(common.size), "differ": int((~same).sum()),
+            "only_recorded": int(np.setdiff1d(ka, kb).size), "only_replayed": int(np.setdiff1d(kb, ka).size),
+            "max_abs_diff": {name: float(diff[:, j].max()) if common.size else 0.0
+                             for j, name in enumerate(STATE_SIGNALS)},
+            "first_difference": first, "equal": bool(common.size > 0 and same.all())}
+
+
 def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndarray, answered: np.ndarray,
                      raw: np.ndarray) -> dict:
     """Identifier.run (float32) on the decoded frames the firmware accepted

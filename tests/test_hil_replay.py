@@ -159,6 +159,38 @@ def test_a_recorded_log_re_scores_to_the_same_numbers(tmp_path) -> None:
                 assert again[key][stat] == pytest.approx(v, abs=tol), (name, key, stat)
 
 
+def test_a_replay_from_a_recorded_run_compares_every_estimate_with_it(tmp_path, capsys, cli_error) -> None:
+    log = tmp_path / "reference.blf"
+    assert pyrhonn_main(["hil", "replay", "--transport", "virtual", "--duration", "0.15", "--start", "1.98",
+                         "--frame-loss", "0.02", "--seed", "6", "--log", str(log)]) == 0
+    capsys.readouterr()
+    assert pyrhonn_main(["hil", "replay", "--transport", "virtual", "--from-log", str(log), "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert r["scenario"] == read_log(log).scenario.to_dict()         # the recorded run's own scenario
+    reg = r["regression"]
+    assert reg["equal"] and reg["differ"] == 0 and reg["compared"] == r["frames"]["answered"] > 400
+    assert set(reg["max_abs_diff"].values()) == {0.0} and reg["first_difference"] is None
+
+    # one estimate of the recorded run altered: the replay names its cycle and exits 1
+    rec = read_log(log)
+    est_id = firmware.database().get_message_by_name("Estimate")
+    estimates = [m for _, d, m in rec.events if d == "rx" and m.arbitration_id == est_id.frame_id]
+    victim = estimates[100]
+    fields_ = est_id.decode(bytes(victim.data), decode_choices=False)
+    cycle = int(fields_["Seq"])
+    fields_["QmHat"] += 0.001
+    victim.data = bytearray(est_id.encode(fields_))
+    altered = write_log(rec, tmp_path / "altered.blf")
+    assert pyrhonn_main(["hil", "replay", "--transport", "virtual", "--from-log", str(altered)]) == 1
+    text = capsys.readouterr().out
+    assert f"1 DIFFER (first at cycle {cycle}; largest |difference| 0.001 in Qm)" in text
+
+    assert "--duration, --seed" in cli_error(["hil", "replay", "--from-log", str(log), "--duration", "1",
+                                              "--seed", "2"])
+    assert "no such file" in cli_error(["hil", "replay", "--from-log", str(tmp_path / "none.blf")])
+    assert "would overwrite" in cli_error(["hil", "replay", "--from-log", str(log), "--log", str(log)])
+
+
 # -- faults -----------------------------------------------------------------------------------------
 
 
