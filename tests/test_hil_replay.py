@@ -141,6 +141,24 @@ def test_estimates_over_the_bus_are_identifier_run_bit_for_bit_and_every_lost_fr
     assert r["rig_lateness_us"]["n"] == f["sent"]
 
 
+@pytest.mark.parametrize("transport, fw", [("virtual", True), ("udp_multicast", "python"), ("udp_multicast", "runner")])
+def test_a_full_replay_of_the_paper_scenario_is_bit_exact_and_accounted_on_every_host_transport(
+        transport, fw, request) -> None:
+    # the whole default scenario (4 s, 13,333 cycles: rest, the 1.1-2.1 s hold, the motor from 2.0 s), with losses
+    sc = Scenario(frame_loss=0.005, seed=31)
+    assert sc.cycles == 13333 and sc.hold_start == 1.1 and sc.input_start == 2.0
+    runner = str(request.getfixturevalue("udp_runner_exe")) if fw == "runner" else None
+    plan = sc.build()
+    rec = run_replay(sc, transport, firmware=fw, runner=runner)
+    r = score(rec, reference=lim_config())
+    f = r["frames"]
+    assert f["lost_injected"] == int(plan.lost.sum()) > 20 and f["lost_unaccounted"] == 0
+    assert f["rejected_seq_jump"] == _expected_rejections(plan.lost)
+    assert f["answered"] == f["sent"] - f["rejected_seq_jump"] and f["missing"] == 0 and f["accounted"]
+    assert r["bit_exact"]["equal"] and r["bit_exact"]["checked"] == f["answered"]
+    assert _independent_bit_exact(rec) == f["answered"]
+
+
 def test_a_recorded_log_re_scores_to_the_same_numbers(tmp_path) -> None:
     rec = run_replay(SCENARIO.replace(duration=0.15, seed=3), "virtual")
     live = score(rec)

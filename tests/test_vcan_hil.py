@@ -50,6 +50,19 @@ def test_cli_replay_over_vcan0(vcan0: str, runner: Path, tmp_path: Path, capsys)
     assert pyrhonn_main(["hil", "score", str(out / "run.blf")]) == 0
 
 
+def test_a_full_replay_of_the_paper_scenario_over_vcan0_is_bit_exact_and_accounted(vcan0: str, runner: Path) -> None:
+    # the whole default scenario (4 s, 13,333 cycles), with injected losses, against the C runner over vcan0
+    sc = Scenario(frame_loss=0.005, seed=31)
+    plan = sc.build()
+    rec = run_replay(sc, "socketcan", vcan0, runner=str(runner), reply_timeout=10.0, drain=5.0)
+    r = score(rec, reference=lim_config())
+    f = r["frames"]
+    assert f["lost_injected"] == int(plan.lost.sum()) > 20 and f["lost_unaccounted"] == 0
+    assert f["rejected_seq_jump"] == int(np.sum(plan.lost[:-1] & ~plan.lost[1:]))
+    assert f["missing"] == 0 and f["accounted"], f
+    assert r["bit_exact"]["equal"] and r["bit_exact"]["checked"] == f["answered"] == f["sent"] - f["rejected_seq_jump"]
+
+
 def _set_link(vcan0: str, state: str) -> None:
     subprocess.run(["ip", "link", "set", vcan0, state], check=True)
 
