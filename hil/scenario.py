@@ -285,7 +285,7 @@ def _build(sc: Scenario) -> Plan:
         bad = (col < s.minimum) | (col > s.maximum)
         if bad.any():
             k = int(np.argmax(bad))
-            raise ValueError(f"scenario: {name} = {col[k]!r} at t = {t[k0 + k]:.4f} s is outside the DBC range "
+            raise ValueError(f"scenario: {name} = {float(col[k]):.6g} at t = {t[k0 + k]:.4f} s is outside the DBC range "
                              f"[{s.minimum}, {s.maximum}]")
     rng = np.random.default_rng(np.random.SeedSequence([sc.seed, 0x4811]))
     lost = rng.random(N) < sc.frame_loss if sc.frame_loss > 0 else np.zeros(N, dtype=bool)

@@ -118,6 +118,10 @@ def test_a_trajectory_too_short_or_missing_is_refused_by_the_scenario(tmp_path, 
         Scenario(trajectory_sha256="ab")
     with pytest.raises(ValueError, match="trajectory: expected a file path"):
         Scenario(trajectory=3)
+    far = tmp_path / "far.csv"                    # 99 m: more than the Measurement frame can carry
+    _write_rows(far, [_row(0.0), _row(T, "0").replace(",0,", ",99,", 1), _row(2 * T)])
+    with pytest.raises(ValueError, match=r"Qm = 99 at t = 0\.0003 s is outside the DBC range \[-8, 8\]"):
+        Scenario(duration=2 * T, hold_duration=0.0, trajectory=str(far)).build()
 
 
 def test_the_scenario_pins_the_file_and_a_replaced_file_pins_its_own(tmp_path, plant_file) -> None:
