@@ -102,6 +102,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.set_defaults(func=_bench)
 
 
+def _runner_spin(args, bench: bool) -> float:
+    """--runner-spin-us, defaulted: the bench busy-polls where the runner can have a CPU of its own (on one
+    it would take the rig's); refused where no udp_multicast runner starts (it would be ignored)."""
+    from .transport import RUNNER_SPIN_MAX_US, RUNNER_SPIN_US
+
+    if args.transport != "udp_multicast":
+        if args.runner_spin_us is not None:
+            raise ValueError("--runner-spin-us: applies to the udp_multicast runner only (over socketcan the runner "
+                             "takes the frames once per tick)")
+        return RUNNER_SPIN_US
+    if args.runner_spin_us is not None:
+        return args.runner_spin_us
+    return RUNNER_SPIN_MAX_US if bench and len(os.sched_getaffinity(0)) >= 2 else RUNNER_SPIN_US
+
+
 def _transport_args(p: argparse.ArgumentParser, default: str = "udp_multicast", *, bench: bool = False) -> None:
     from .transport import FIRMWARES, RUNNER_SPIN_MAX_US, RUNNER_SPIN_US, TRANSPORTS
 
@@ -116,13 +131,12 @@ def _transport_args(p: argparse.ArgumentParser, default: str = "udp_multicast", 
                    help="udp_multicast: the firmware process, runner (rhonn_runner, the C firmware: --runner, else "
                         "built from the source tree with cc on first use) or python (hil.firmware_node, the same "
                         "logic through cffi, where there is no C compiler); default runner")
-    # the bench busy-polls where the runner can have a CPU of its own: on one CPU it would take the rig's
-    spin = RUNNER_SPIN_MAX_US if bench and len(os.sched_getaffinity(0)) >= 2 else RUNNER_SPIN_US
-    p.add_argument("--runner-spin-us", type=_float, default=spin, metavar="US",
-                   help="udp_multicast: how long rhonn_runner busy-polls either side of each expected Measurement "
-                        f"instead of sleeping, 0..{RUNNER_SPIN_MAX_US:g} (default here {spin:g}"
-                        + (f"; {RUNNER_SPIN_MAX_US:g} on two or more CPUs: it never sleeps, as a real-time task that "
-                           f"owns its CPU, and costs that CPU; else {RUNNER_SPIN_US:g})" if bench else ")"))
+    p.add_argument("--runner-spin-us", type=_float, default=None, metavar="US",
+                   help="udp_multicast only: how long rhonn_runner busy-polls either side of each expected "
+                        f"Measurement instead of sleeping, 0..{RUNNER_SPIN_MAX_US:g} (default "
+                        + (f"{RUNNER_SPIN_MAX_US:g} on a host with two or more CPUs: it never sleeps, as a "
+                           f"real-time task that owns its CPU, and costs that CPU; else {RUNNER_SPIN_US:g})"
+                           if bench else f"{RUNNER_SPIN_US:g})"))
     p.add_argument("--timeout", type=_float, default=1.0, help="seconds to wait for the firmware (default 1)")
     p.add_argument("--drain", type=_float, default=0.3, help="seconds to wait for the last estimates (default 0.3)")
 
@@ -229,7 +243,7 @@ def _replay(args) -> int:
         raise ValueError("--log: would overwrite the --from-log run it is compared with; choose another file")
     try:
         rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
-                         firmware=args.firmware or True, runner_spin_us=args.runner_spin_us,
+                         firmware=args.firmware or True, runner_spin_us=_runner_spin(args, bench=False),
                          reply_timeout=args.timeout, drain=args.drain)
     except BusLost as exc:
         if args.log is not None:  # keep what was recorded up to the loss
@@ -302,6 +316,7 @@ def _bench(args) -> int:
         policy += f", rig on CPU {args.cpus[0]}, firmware on CPU {args.cpus[1]}"
 
     sc = Scenario.at_rest(args.cycles)
+    spin = _runner_spin(args, bench=True)
     cpus_before = os.sched_getaffinity(0)
     if args.cpus is not None:
         os.sched_setaffinity(0, {args.cpus[0]})
@@ -309,14 +324,14 @@ def _bench(args) -> int:
     steal.start()
     try:
         rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
-                         firmware=args.firmware or True, runner_spin_us=args.runner_spin_us,
+                         firmware=args.firmware or True, runner_spin_us=spin,
                          reply_timeout=args.timeout, drain=args.drain, firmware_cpu=firmware_cpu)
     finally:
         os.sched_setaffinity(0, cpus_before)
     r = score(rec)
     r["host_steal"] = steal.stop()
     if args.transport == "udp_multicast" and (rec.meta.get("firmware_side") or {}).get("firmware") == "rhonn_runner":
-        policy += f", runner busy-polls {args.runner_spin_us:g} us either side of each frame"
+        policy += f", runner busy-polls {spin:g} us either side of each frame"
     side = rec.meta.get("firmware_side") or {}
     _note_fallback(side)
     note = timing_note(args.transport)
