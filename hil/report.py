@@ -134,7 +134,8 @@ def figures(report: dict[str, Any], out: Path) -> list[Path]:
     T = report["scenario"]["period"]
     for j, (name, unit, fig_no) in enumerate((("position", "m", 19), ("velocity", "m/s", 20))):
         fig, ax = plt.subplots(figsize=(8, 3.6))
-        ax.plot(t + T, truth[:, j], lw=1.2, label="real (noise-free)")
+        real = "real (trajectory file)" if report["scenario"].get("trajectory") else "real (noise-free)"
+        ax.plot(t + T, truth[:, j], lw=1.2, label=real)
         if len(k):
             ax.plot(t[k] + T, est[:, j], lw=0.8, ls="--", label="identified (firmware over the bus)")
         sc = report["scenario"]
