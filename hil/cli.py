@@ -104,13 +104,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _runner_spin(args, bench: bool) -> float:
     """--runner-spin-us, defaulted: the bench busy-polls where the runner can have a CPU of its own (on one
-    it would take the rig's); refused where no udp_multicast runner starts (it would be ignored)."""
+    it would take the rig's); refused where no runner is started here to take it (it would be ignored)."""
     from .transport import RUNNER_SPIN_MAX_US, RUNNER_SPIN_US
 
-    if args.transport != "udp_multicast":
+    starts_runner = (args.transport == "udp_multicast" and args.firmware != "python") or (
+        args.transport == "socketcan" and args.runner is not None)
+    if not starts_runner:
         if args.runner_spin_us is not None:
-            raise ValueError("--runner-spin-us: applies to the udp_multicast runner only (over socketcan the runner "
-                             "takes the frames once per tick)")
+            raise ValueError("--runner-spin-us: only for a rhonn_runner started here (udp_multicast, or socketcan "
+                             "with --runner)")
         return RUNNER_SPIN_US
     if args.runner_spin_us is not None:
         return args.runner_spin_us
@@ -132,8 +134,9 @@ def _transport_args(p: argparse.ArgumentParser, default: str = "udp_multicast", 
                         "built from the source tree with cc on first use) or python (hil.firmware_node, the same "
                         "logic through cffi, where there is no C compiler); default runner")
     p.add_argument("--runner-spin-us", type=_float, default=None, metavar="US",
-                   help="udp_multicast only: how long rhonn_runner busy-polls either side of each expected "
-                        f"Measurement instead of sleeping, 0..{RUNNER_SPIN_MAX_US:g} (default "
+                   help="a rhonn_runner started here (udp_multicast, socketcan with --runner): how long it "
+                        "busy-polls either side of each expected Measurement instead of sleeping, "
+                        f"0..{RUNNER_SPIN_MAX_US:g} (default "
                         + (f"{RUNNER_SPIN_MAX_US:g} on a host with two or more CPUs: it never sleeps, as a "
                            f"real-time task that owns its CPU, and costs that CPU; else {RUNNER_SPIN_US:g})"
                            if bench else f"{RUNNER_SPIN_US:g})"))
@@ -330,7 +333,7 @@ def _bench(args) -> int:
         os.sched_setaffinity(0, cpus_before)
     r = score(rec)
     r["host_steal"] = steal.stop()
-    if args.transport == "udp_multicast" and (rec.meta.get("firmware_side") or {}).get("firmware") == "rhonn_runner":
+    if (rec.meta.get("firmware_side") or {}).get("stats", {}).get("spin_us") is not None:  # a runner started here
         policy += f", runner busy-polls {spin:g} us either side of each frame"
     side = rec.meta.get("firmware_side") or {}
     _note_fallback(side)

@@ -30,7 +30,6 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 import uuid
 from contextlib import contextmanager
 from pathlib import Path
@@ -247,22 +246,30 @@ def _runner_side(proc: subprocess.Popen, report: Path, side: dict[str, Any]) -> 
     return side["report"]
 
 
+def _start_runner(exe: str, bus_args: list[str], where: str, report: Path, cpu: int | None,
+                  spin_us: float) -> subprocess.Popen:
+    """Start rhonn_runner on a bus, taking each frame as it arrives (--rx arrival) and busy-polling
+    ``spin_us`` either side of each expected one; return once its socket is ready (it prints
+    "listening"), FirmwareTimeout with its message when it exits instead."""
+    proc = subprocess.Popen([exe, *bus_args, "--rx", "arrival", "--spin-us", f"{spin_us:g}", "--duration", "3600",
+                             "--json", str(report), *_fifo_args()],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    _pin(proc, cpu)
+    line = proc.stdout.readline() if proc.stdout else ""  # printed once the socket is ready
+    if not line.startswith("rhonn_runner: listening"):
+        proc.kill()
+        _, err = proc.communicate()
+        raise FirmwareTimeout(f"rhonn_runner did not start on {where}: {err.strip() or line.strip() or 'no output'}")
+    return proc
+
+
 def _start_udp_runner(exe: str, channel: str, port: int, report: Path, cpu: int | None = None,
                       spin_us: float = RUNNER_SPIN_US) -> subprocess.Popen:
     group = f"[{channel}]" if ":" in channel else channel
     # Diagnostics on request only, as the Python node (FirmwareApp's default): both firmware choices
     # put the same frames on the bus, and the last Diagnostics' StepTimeMax covers the whole run
-    proc = subprocess.Popen([exe, "--udp-multicast", f"{group}:{port}", "--diag-period", "0", "--spin-us",
-                             f"{spin_us:g}", "--duration", "3600", "--json", str(report), *_fifo_args()],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    _pin(proc, cpu)
-    line = proc.stdout.readline() if proc.stdout else ""  # printed once the socket is in the group
-    if not line.startswith("rhonn_runner: listening"):
-        proc.kill()
-        _, err = proc.communicate()
-        raise FirmwareTimeout(f"rhonn_runner did not start on udp_multicast {group}:{port}: "
-                              f"{err.strip() or line.strip() or 'no output'}")
-    return proc
+    return _start_runner(exe, ["--udp-multicast", f"{group}:{port}", "--diag-period", "0"],
+                         f"udp_multicast {group}:{port}", report, cpu, spin_us)
 
 
 @contextmanager
@@ -320,8 +327,8 @@ def _udp(channel: str | None, port: int | None, firmware: str | None, runner: st
 
 
 @contextmanager
-def _socketcan(channel: str | None, runner: str | None,
-               cpu: int | None = None) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
+def _socketcan(channel: str | None, runner: str | None, cpu: int | None = None,
+               spin_us: float = RUNNER_SPIN_US) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
     from .rig import ids
 
     channel = channel or "vcan0"
@@ -330,13 +337,8 @@ def _socketcan(channel: str | None, runner: str | None,
     side: dict[str, Any] = {}
     if runner:
         report = Path(os.environ.get("TMPDIR", "/tmp")) / f"hil-runner-{uuid.uuid4().hex}.json"
-        proc = subprocess.Popen([str(runner), "--interface", channel, "--duration", "3600", "--json", str(report),
-                                 *_fifo_args()], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        _pin(proc, cpu)
-        time.sleep(1.0)  # the runner binds its socket
-        if proc.poll() is not None:
-            _, err = proc.communicate()
-            raise FirmwareTimeout(f"rhonn_runner exited at start: {err.strip()}")
+        # each frame as it arrives (the runner's SocketCAN default is once per tick: up to a period late)
+        proc = _start_runner(str(runner), ["--interface", channel], f"socketcan {channel}", report, cpu, spin_us)
     wanted = [{"can_id": ids()[n], "can_mask": 0x7FF} for n in ("Estimate", "ControlAck", "Diagnostics")]
     try:
         rig = can.Bus(interface="socketcan", channel=channel, fd=True, can_filters=wanted)
@@ -385,8 +387,9 @@ def open_transport(transport: str, channel: str | None = None, *, port: int | No
     ``firmware``: True (the transport's default firmware), False (none: one
     must be running already), or "runner" / "python" (udp_multicast).
     ``firmware_cpu``: pin the firmware process started here to this CPU.
-    ``runner_spin_us``: how long the udp_multicast runner busy-polls either
-    side of each expected Measurement (``rhonn_runner --spin-us``)."""
+    ``runner_spin_us``: how long a runner started here (udp_multicast, or
+    socketcan with ``runner``) busy-polls either side of each expected
+    Measurement (``rhonn_runner --rx arrival --spin-us``)."""
     if transport not in TRANSPORTS:
         raise ValueError(f"transport: expected one of {', '.join(TRANSPORTS)}, got {transport!r}")
     runner_spin_us = check_runner_spin(runner_spin_us)
@@ -418,7 +421,7 @@ def open_transport(transport: str, channel: str | None = None, *, port: int | No
 
             yield bus, where, side_noted
     else:
-        with _socketcan(channel, runner if kind is not None else None, firmware_cpu) as t:
+        with _socketcan(channel, runner if kind is not None else None, firmware_cpu, runner_spin_us) as t:
             yield t
 
 

@@ -591,10 +591,11 @@ def test_the_runner_busy_poll_margin_is_passed_on_and_checked(runner_exe, cli_er
     for argv in (["hil", "bench", "--cycles", "10", "--runner-spin-us", "150"],
                  ["hil", "replay", "--runner-spin-us", "x", "--duration", "0.03"]):
         assert "spin" in cli_error(argv), argv
-    for bus in ("virtual", "socketcan"):  # no udp runner to take it: refused, not ignored
+    # no runner started here to take it (virtual, socketcan without --runner, the Python node): refused
+    for bus in (["--transport", "virtual"], ["--transport", "socketcan"], ["--firmware", "python"]):
         for command in (["replay", "--duration", "0.03"], ["bench", "--cycles", "10"]):
-            err = cli_error(["hil", *command, "--transport", bus, "--runner-spin-us", "20"])
-            assert "--runner-spin-us: applies to the udp_multicast runner only" in err, (bus, command)
+            err = cli_error(["hil", *command, *bus, "--runner-spin-us", "20"])
+            assert "--runner-spin-us: only for a rhonn_runner started here" in err, (bus, command)
 
 
 def test_the_runner_build_is_cached_per_source_content(tmp_path) -> None:
