@@ -169,16 +169,16 @@ SCENARIO_OPTIONS = {"duration": "duration", "start": "start", "seed": "seed", "f
                     "trajectory": "trajectory"}
 
 
-def _scenario(args):
-    from .rig import read_log
+def _scenario(args, recorded=None):
+    """The replay's Scenario: ``recorded``'s (the --from-log run) or the one the options make."""
     from .scenario import Scenario
 
     given = [dest for dest in SCENARIO_OPTIONS if getattr(args, dest) is not None]
-    if args.from_log is not None:
+    if recorded is not None:
         if given:
             raise ValueError(f"--from-log: replays the recorded run's own scenario; drop "
                              f"{', '.join('--' + d.replace('_', '-') for d in given)}")
-        return read_log(args.from_log).scenario
+        return recorded.scenario
     kw = {SCENARIO_OPTIONS[dest]: getattr(args, dest) for dest in given if dest != "trajectory"}
     if args.trajectory is not None:
         if args.input_start is not None:
@@ -191,11 +191,12 @@ def _trajectory(args) -> int:
     from pyrhonn.plants import lim
 
     from .scenario import Scenario
-    from .trajectory import write_trajectory
+    from .trajectory import samples_per_period, write_trajectory
 
-    period = Scenario().period
-    if not args.step > 0 or abs(period / args.step - round(period / args.step)) > 1e-6 * period / args.step:
-        raise ValueError(f"--step: must divide the rig's period {period:g} s, got {args.step!r}")
+    try:
+        samples_per_period(args.step, Scenario().period)
+    except ValueError as exc:
+        raise ValueError(f"--step: {exc}") from None
     if not 0 < args.duration <= 3600:
         raise ValueError(f"--duration: expected seconds in (0, 3600], got {args.duration!r}")
     if not args.input_start >= 0:
@@ -236,13 +237,14 @@ def _note_fallback(side: dict | None) -> None:
 
 
 def _replay(args) -> int:
-    from .rig import BusLost, write_log
-    from .score import score
+    from .rig import BusLost, read_log, write_log
+    from .score import compare_runs, score
     from .transport import lim_config, run_replay
 
     _check_log_path(args.log)
-    sc = _scenario(args)
-    if args.from_log is not None and args.log is not None and args.log.resolve() == args.from_log.resolve():
+    recorded = read_log(args.from_log) if args.from_log is not None else None
+    sc = _scenario(args, recorded)
+    if recorded is not None and args.log is not None and args.log.resolve() == args.from_log.resolve():
         raise ValueError("--log: would overwrite the --from-log run it is compared with; choose another file")
     try:
         rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
@@ -254,11 +256,8 @@ def _replay(args) -> int:
             print(f"recorded {len(exc.recording.events)} frames (up to the loss) to {args.log}", file=sys.stderr)
         raise
     report = score(rec, reference=lim_config())
-    if args.from_log is not None:
-        from .rig import read_log
-        from .score import compare_runs
-
-        report["regression"] = compare_runs(score(read_log(args.from_log)), report, str(args.from_log))
+    if recorded is not None:
+        report["regression"] = compare_runs(score(recorded), report, str(args.from_log))
     report["firmware_side"] = rec.meta.get("firmware_side")
     _note_fallback(report["firmware_side"])
     code = _emit(report, args, timing_note(args.transport))
@@ -333,9 +332,9 @@ def _bench(args) -> int:
         os.sched_setaffinity(0, cpus_before)
     r = score(rec)
     r["host_steal"] = steal.stop()
-    if (rec.meta.get("firmware_side") or {}).get("stats", {}).get("spin_us") is not None:  # a runner started here
-        policy += f", runner busy-polls {spin:g} us either side of each frame"
     side = rec.meta.get("firmware_side") or {}
+    if "spin_us" in side.get("stats", {}):  # a runner started here
+        policy += f", runner busy-polls {spin:g} us either side of each frame"
     _note_fallback(side)
     note = timing_note(args.transport)
     if args.json:

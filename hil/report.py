@@ -78,7 +78,7 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
                     f"{_e(ident[name]['measurement_vs_truth']['rmse'])}"
                     f"{ident[name]['signal_peak']:10.3g}"
                     for name, unit in (("position", "m"), ("velocity", "m/s"))),
-                  f"  (truth: against {ident.get('truth', 'the noise-free x(k+1)')}; no hold: the same, the cycles whose target is outside "
+                  f"  (truth: against {ident['truth']}; no hold: the same, the cycles whose target is outside "
                   "the hold; vs measured: against the next Measurement frame where it is fresh; sensor: that Measurement "
                   "frame against the truth)",
                   *(f"  hold: {name} held for {ident[name]['hold']['cycles']} cycles, in which it moved up to "

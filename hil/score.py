@@ -302,9 +302,9 @@ def compare_runs(recorded: dict[str, Any], replayed: dict[str, Any], log: str) -
     ka, ea = recorded["_series"]["k"], np.asarray(recorded["_series"]["est"])
     kb, eb = replayed["_series"]["k"], np.asarray(replayed["_series"]["est"])
     common, ia, ib = np.intersect1d(ka, kb, assume_unique=True, return_indices=True)
-    a, b = ea[ia], eb[ib]
-    same = np.all((a == b) | (np.isnan(a) & np.isnan(b)), axis=1)
-    diff = np.where(np.isnan(a) & np.isnan(b), 0.0, np.abs(a - b))
+    a, b = ea[ia], eb[ib]                  # decoded from Estimate frames: always finite
+    diff = np.abs(a - b)
+    same = np.all(diff == 0.0, axis=1)
     first = None
     if not same.all():
         i = int(np.argmin(same))

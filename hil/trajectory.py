@@ -36,10 +36,13 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["COLUMNS", "RecordedTrajectory", "file_sha256", "read_trajectory", "write_trajectory"]
+from pyrhonn.plants.lim import INPUT_NAMES, STATE_NAMES
+
+__all__ = ["COLUMNS", "RecordedTrajectory", "file_sha256", "read_trajectory", "samples_per_period",
+           "write_trajectory"]
 
 #: the columns a trajectory file must have, in the order write_trajectory writes them
-COLUMNS = ("t", "q_m", "v", "lambda_a", "lambda_b", "i_a", "i_b", "u_a", "u_b")
+COLUMNS = ("t", *STATE_NAMES, *INPUT_NAMES)
 #: the relative tolerance on the uniformity of t and on step dividing the period
 STEP_TOLERANCE = 1e-6
 
@@ -56,6 +59,17 @@ class RecordedTrajectory:
     U: np.ndarray
     step: float
     every: int
+
+
+def samples_per_period(step: float, period: float) -> int:
+    """How many samples of ``step`` make one ``period``; ValueError when
+    ``step`` is not positive or does not divide ``period``."""
+    ratio = period / step if step > 0 else 0.0
+    every = int(round(ratio))
+    if every < 1 or abs(ratio - every) > STEP_TOLERANCE * ratio:
+        raise ValueError(f"sampling step {step!r} s does not divide the rig's period {period!r} s "
+                         "(use a step of the period or of an integer fraction of it)")
+    return every
 
 
 def file_sha256(path: str | Path) -> str:
@@ -81,7 +95,7 @@ def read_trajectory(path: str | Path, period: float) -> RecordedTrajectory:
     source = str(path)
     cf = _lim_file_config()
     if tuple(cf.state_names) + tuple(cf.input_names) != COLUMNS[1:]:  # the DBC's order, guarded
-        raise RuntimeError("firmware-lim's state/input names no longer match hil.trajectory.COLUMNS")
+        raise RuntimeError("firmware-lim's state/input names no longer match the LIM's (hil.trajectory.COLUMNS)")
     data = read_data(path, cf, config_source="a LIM trajectory")
     if data.t is None:
         raise ValueError(f"{source}: line 1: missing column 't' (a trajectory needs its sample times, in s)")
@@ -99,11 +113,10 @@ def read_trajectory(path: str | Path, period: float) -> RecordedTrajectory:
         k = int(off[0]) + 1
         raise ValueError(f"{source}: line {int(data.lines[k])}: time step {float(steps[k - 1])!r} s differs from the "
                          f"first, {step!r} s (the samples must be uniform)")
-    ratio = period / step
-    every = int(round(ratio))
-    if every < 1 or abs(ratio - every) > STEP_TOLERANCE * ratio:
-        raise ValueError(f"{source}: sampling step {step!r} s does not divide the rig's period {period!r} s "
-                         "(use a log sampled at the period or at an integer fraction of it)")
+    try:
+        every = samples_per_period(step, period)
+    except ValueError as exc:
+        raise ValueError(f"{source}: {exc}") from None
     keep = slice(0, None, every)
     return RecordedTrajectory(path=source, t=t[keep].copy(), X=data.X[keep].copy(), U=data.U[keep].copy(),
                               step=step, every=every)

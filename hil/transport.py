@@ -246,11 +246,13 @@ def _runner_side(proc: subprocess.Popen, report: Path, side: dict[str, Any]) -> 
     return side["report"]
 
 
-def _start_runner(exe: str, bus_args: list[str], where: str, report: Path, cpu: int | None,
-                  spin_us: float) -> subprocess.Popen:
+def _start_runner(exe: str, bus_args: list[str], where: str, cpu: int | None,
+                  spin_us: float) -> tuple[subprocess.Popen, Path]:
     """Start rhonn_runner on a bus, taking each frame as it arrives (--rx arrival) and busy-polling
-    ``spin_us`` either side of each expected one; return once its socket is ready (it prints
-    "listening"), FirmwareTimeout with its message when it exits instead."""
+    ``spin_us`` either side of each expected one; (the process, the path of the JSON statistics it
+    writes on exit) once its socket is ready (it prints "listening"), FirmwareTimeout with its message
+    when it exits instead."""
+    report = Path(os.environ.get("TMPDIR", "/tmp")) / f"hil-runner-{uuid.uuid4().hex}.json"
     proc = subprocess.Popen([exe, *bus_args, "--rx", "arrival", "--spin-us", f"{spin_us:g}", "--duration", "3600",
                              "--json", str(report), *_fifo_args()],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -260,16 +262,14 @@ def _start_runner(exe: str, bus_args: list[str], where: str, report: Path, cpu: 
         proc.kill()
         _, err = proc.communicate()
         raise FirmwareTimeout(f"rhonn_runner did not start on {where}: {err.strip() or line.strip() or 'no output'}")
-    return proc
+    return proc, report
 
 
-def _start_udp_runner(exe: str, channel: str, port: int, report: Path, cpu: int | None = None,
-                      spin_us: float = RUNNER_SPIN_US) -> subprocess.Popen:
-    group = f"[{channel}]" if ":" in channel else channel
-    # Diagnostics on request only, as the Python node (FirmwareApp's default): both firmware choices
-    # put the same frames on the bus, and the last Diagnostics' StepTimeMax covers the whole run
-    return _start_runner(exe, ["--udp-multicast", f"{group}:{port}", "--diag-period", "0"],
-                         f"udp_multicast {group}:{port}", report, cpu, spin_us)
+def _stop_runner(proc: subprocess.Popen | None, report: Path | None) -> None:
+    """_stop, and the runner's statistics file removed if nobody read it."""
+    _stop(proc)
+    if report is not None and report.is_file():
+        report.unlink()
 
 
 @contextmanager
@@ -284,9 +284,12 @@ def _udp(channel: str | None, port: int | None, firmware: str | None, runner: st
     report = None
     side: dict[str, Any] = {}
     if firmware == "runner":
-        report = Path(os.environ.get("TMPDIR", "/tmp")) / f"hil-runner-{uuid.uuid4().hex}.json"
         assert runner is not None, "open_transport resolves the runner"
-        proc = _start_udp_runner(runner, channel, port, report, cpu, spin_us)
+        group = f"[{channel}]" if ":" in channel else channel
+        # Diagnostics on request only, as the Python node (FirmwareApp's default): both firmware choices
+        # put the same frames on the bus, and the last Diagnostics' StepTimeMax covers the whole run
+        proc, report = _start_runner(runner, ["--udp-multicast", f"{group}:{port}", "--diag-period", "0"],
+                                     f"udp_multicast {group}:{port}", cpu, spin_us)
     elif firmware == "python":
         env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
         proc = subprocess.Popen([sys.executable, "-m", "hil.firmware_node", "--channel", channel, "--port", str(port)],
@@ -300,7 +303,7 @@ def _udp(channel: str | None, port: int | None, firmware: str | None, runner: st
     try:
         rig = can.Bus(interface="udp_multicast", channel=channel, port=port, fd=True)
     except (OSError, can.CanError) as exc:
-        _stop(proc)
+        _stop_runner(proc, report)
         raise OSError(f"udp_multicast {channel}:{port}: cannot open it ({exc})") from exc
     # the rig's socket also gets its own Measurements back (multicast loop): twice the traffic to buffer
     _deep_receive_buffer(getattr(getattr(rig, "_multicast", None), "_socket", None))
@@ -321,9 +324,7 @@ def _udp(channel: str | None, port: int | None, firmware: str | None, runner: st
         yield rig, f"{channel}:{port}", firmware_side
     finally:
         rig.shutdown()
-        _stop(proc)
-        if report is not None and report.is_file():
-            report.unlink()
+        _stop_runner(proc, report)
 
 
 @contextmanager
@@ -336,15 +337,13 @@ def _socketcan(channel: str | None, runner: str | None, cpu: int | None = None,
     report = None
     side: dict[str, Any] = {}
     if runner:
-        report = Path(os.environ.get("TMPDIR", "/tmp")) / f"hil-runner-{uuid.uuid4().hex}.json"
         # each frame as it arrives (the runner's SocketCAN default is once per tick: up to a period late)
-        proc = _start_runner(str(runner), ["--interface", channel], f"socketcan {channel}", report, cpu, spin_us)
+        proc, report = _start_runner(str(runner), ["--interface", channel], f"socketcan {channel}", cpu, spin_us)
     wanted = [{"can_id": ids()[n], "can_mask": 0x7FF} for n in ("Estimate", "ControlAck", "Diagnostics")]
     try:
         rig = can.Bus(interface="socketcan", channel=channel, fd=True, can_filters=wanted)
     except (OSError, can.CanError) as exc:
-        if proc is not None:
-            proc.kill()
+        _stop_runner(proc, report)
         raise OSError(f"socketcan {channel}: cannot open it ({exc})") from exc
     _deep_receive_buffer(getattr(rig, "socket", None))
 
@@ -357,7 +356,7 @@ def _socketcan(channel: str | None, runner: str | None, cpu: int | None = None,
         yield rig, channel, firmware_side
     finally:
         rig.shutdown()
-        _stop(proc)
+        _stop_runner(proc, report)
 
 
 def _firmware_kind(transport: str, firmware: bool | str) -> str | None:
