@@ -95,7 +95,7 @@ __all__ = [
 ]
 
 EXAMPLES = ("example1", "example2", "example3")
-HORIZONS = (50.0, 100.0, 150.0)  #: horizons of the Example 1 study (plants.md §4)
+HORIZONS = (10.0, 20.0, 50.0, 100.0, 150.0)  #: horizons of the Example 1 study (plants.md §4; 10 s: before x4's first spike)
 DIAGNOSTIC_WARMUP = 10  #: samples skipped by the ``rmse_after_warmup`` diagnostic
 EXAMPLE1_PERIODS = (0.2, 0.02)
 RMSE_TARGET = {"example1": 1.0, "example2": 2.0, "example3": 2.0}  #: issue 4: identifier RMSE / paper

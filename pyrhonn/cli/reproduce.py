@@ -51,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--horizon", metavar="SECONDS",
                    help="simulated time (default: example1 100 s, example2 15 s, example3 5 s)")
     p.add_argument("--no-horizon-study", action="store_true",
-                   help="skip example1's horizon study (50, 100, 150 s)")
+                   help="skip example1's horizon study (" + ", ".join(f"{h:g}" for h in rp.HORIZONS) + " s)")
     p.add_argument("--no-hold-mask", action="store_true",
                    help="feed held (not updated) samples to the identifier as if they were fresh")
     p.add_argument("--json", action="store_true", help="print the results as JSON instead of tables")
