@@ -16,6 +16,7 @@ import argparse
 import os
 import sys
 from pathlib import Path
+from typing import Callable
 
 __all__ = ["register"]
 
@@ -36,6 +37,18 @@ def _float(text: str) -> float:
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
     return v
+
+
+def _seconds(*, zero: bool) -> Callable[[str], float]:
+    """An argparse type for a wait in seconds (hil.rig.check_seconds)."""
+    def parse(text: str) -> float:
+        from .rig import check_seconds
+
+        try:
+            return check_seconds("value", _float(text), zero=zero)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc).removeprefix("value: ")) from None
+    return parse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -140,8 +153,11 @@ def _transport_args(p: argparse.ArgumentParser, default: str = "udp_multicast", 
                         + (f"{RUNNER_SPIN_MAX_US:g} on a host with two or more CPUs: it never sleeps, as a "
                            f"real-time task that owns its CPU, and costs that CPU; else {RUNNER_SPIN_US:g})"
                            if bench else f"{RUNNER_SPIN_US:g})"))
-    p.add_argument("--timeout", type=_float, default=1.0, help="seconds to wait for the firmware (default 1)")
-    p.add_argument("--drain", type=_float, default=0.3, help="seconds to wait for the last estimates (default 0.3)")
+    p.add_argument("--timeout", type=_seconds(zero=False), default=1.0,
+                   help="seconds to wait for the firmware (default 1)")
+    p.add_argument("--drain", type=_seconds(zero=True), default=0.3,
+                   help="after the replay, read estimates until none has come for this many seconds "
+                        "(at most 20 times as long; default 0.3)")
 
 
 def timing_note(transport: str) -> str:

@@ -62,6 +62,10 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
              f"{'':<22}duplicates {f['duplicates']}  unexpected {f['unexpected']}  foreign sent "
              f"{sum(f['foreign_sent'].values())}  step errors {f['step_errors']}  -> "
              f"{'all accounted for' if f['accounted'] else 'NOT ACCOUNTED FOR'}"]
+    drain = report.get("drain") or {}
+    if drain.get("capped"):
+        lines.append(f"{'':<22}the drain stopped after {drain['s']:.1f} s with estimates still coming in: "
+                     "the missing ones may have been queued unread (a larger --drain reads them)")
     fw = report.get("firmware")
     if fw:
         lines.append(f"{'firmware (Diagnostics)':<22}measurements {fw['measurements']}  rejected {fw['rejected']}  "

@@ -45,6 +45,21 @@ from .scenario import Plan, Scenario
 __all__ = ["BusLost", "FirmwareTimeout", "LogWriteError", "Recording", "Rig", "ids", "read_log", "write_log"]
 
 
+DRAIN_CAP = 20  #: the drain after the replay reads for at most this many times ``drain``
+MAX_WAIT_S = 3600.0  #: the longest ``reply_timeout`` or ``drain`` a Rig takes
+
+
+def check_seconds(name: str, value: object, *, zero: bool) -> float:
+    """A wait in seconds: finite, > 0 (``zero``: >= 0) and <= MAX_WAIT_S; else
+    a ValueError naming ``name``."""
+    from pyrhonn.validation import check_real, fail
+
+    v = check_real(name, value, positive=not zero, nonnegative=zero)
+    if v > MAX_WAIT_S:
+        raise fail(name, f"must be <= {MAX_WAIT_S:g} s, got {v!r}")
+    return v
+
+
 class FirmwareTimeout(TimeoutError):
     """The firmware did not answer (not running, wrong channel, bus down)."""
 
@@ -106,7 +121,9 @@ class Rig:
     deadline (0 for the in-process virtual bus, whose firmware thread needs the
     GIL); ``reply_timeout``: seconds without any answer after the first frame
     before :class:`FirmwareTimeout`; ``drain``: seconds to wait for the last
-    estimates."""
+    estimates: the rig keeps reading until no frame has come for that long
+    (a slow rig may still be reading a deep receive queue long after the
+    firmware answered), at most :data:`DRAIN_CAP` times as long."""
 
     def __init__(self, bus: can.BusABC, plan: Plan, *, transport: str = "?", channel: str = "?",
                  spin_ns: int = 100_000, reply_timeout: float = 1.0, drain: float = 0.5,
@@ -116,8 +133,8 @@ class Rig:
         self.transport = transport
         self.channel = channel
         self.spin_ns = int(spin_ns)
-        self.reply_timeout = float(reply_timeout)
-        self.drain = float(drain)
+        self.reply_timeout = check_seconds("reply_timeout", reply_timeout, zero=False)
+        self.drain = check_seconds("drain", drain, zero=True)
         self.extra_frames = extra_frames  # fault injection: frames sent right after Measurement k
         ident = ids()
         self._accept = {ident["Estimate"], ident["ControlAck"], ident["Diagnostics"]}
@@ -237,12 +254,26 @@ class Rig:
             if gc_was:
                 gc.enable()
             gc.unfreeze()
-        # the last estimates, then the firmware's counters
-        end = time.perf_counter_ns() + int(self.drain * 1e9)
-        while time.perf_counter_ns() < end:
-            self._take(self._recv(0.01), time.perf_counter_ns())
+        drain_s, drain_capped = self._drain_estimates()
         diag_ok = self._control("DiagRequest", 0x5A, self.reply_timeout)
-        return self._recording({"wall_start": wall0, "rig_overruns": overruns, "final_diagnostics": diag_ok})
+        return self._recording({"wall_start": wall0, "rig_overruns": overruns, "final_diagnostics": diag_ok,
+                                "drain_s": drain_s, "drain_capped": drain_capped})
+
+    def _drain_estimates(self) -> tuple[float, bool]:
+        """The last estimates: read until the bus has been quiet for ``drain``
+        seconds, at most DRAIN_CAP x ``drain``. The time it took, and whether
+        the cap cut it short (frames may then still be queued: counted missing)."""
+        clock, quiet = time.perf_counter_ns, int(self.drain * 1e9)
+        start = clock()
+        cap, quiet_end = start + DRAIN_CAP * quiet, start + quiet
+        while True:
+            now = clock()
+            if now >= quiet_end or now >= cap:
+                return (now - start) / 1e9, quiet_end > now
+            n = self._n_rx
+            self._take(self._recv(min(0.01, (quiet_end - now) / 1e9)), clock())
+            if self._n_rx != n:
+                quiet_end = clock() + quiet
 
     def _replay(self, frames: list[can.Message], t0: int, T: int, delay: int, where: str) -> int:
         """The timed loop: frame k at its absolute deadline; the count of

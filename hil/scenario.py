@@ -51,7 +51,6 @@ from __future__ import annotations
 
 import functools
 import json
-import math
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -74,11 +73,9 @@ def _fail(name: str, why: str) -> ValueError:
 
 def _real(name: str, value: Any, *, lo: float | None = None, lo_open: bool = False, hi: float | None = None,
           hi_open: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise _fail(name, f"expected a number, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise _fail(name, f"must be finite, got {value!r}")
+    from pyrhonn.validation import check_real
+
+    v = check_real(name, value)  # a real, finite number (a huge JSON integer included)
     if lo is not None and (v <= lo if lo_open else v < lo):
         raise _fail(name, f"must be {'>' if lo_open else '>='} {lo}, got {value!r}")
     if hi is not None and (v >= hi if hi_open else v > hi):

@@ -205,6 +205,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     jit["max_abs"] = jit.pop("max", 0.0) if jit.get("n") else 0.0
     out["rig_period_jitter_us"] = jit
     out["rig_overruns"] = rec.meta.get("rig_overruns")
+    out["drain"] = {"s": rec.meta.get("drain_s"), "capped": bool(rec.meta.get("drain_capped", False))}
     if reference is not None:
         out["bit_exact"] = _reference_check(reference, meas_data, was_sent & ~expect_reject, answered, raw)
     out["_series"] = {"k": np.flatnonzero(answered), "est": phys[answered], "truth": np.asarray(plan.truth_next),

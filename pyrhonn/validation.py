@@ -45,7 +45,10 @@ def check_real(path: str, value: object, *, positive: bool = False, nonnegative:
     """A finite real number (not bool), optionally > 0 or >= 0."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise fail(path, f"expected a real number, got {type(value).__name__} {value!r}")
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:  # a Python int beyond float64 (a TOML or JSON integer can be any size)
+        raise fail(path, "out of the float64 range (an integer beyond 1.8e308)") from None
     if not math.isfinite(v):
         raise fail(path, f"must be finite, got {v!r}")
     if positive and not v > 0.0:

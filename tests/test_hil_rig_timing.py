@@ -119,3 +119,43 @@ def test_the_udp_bench_compares_the_runner_asleep_and_busy_polling_with_the_pyth
     bad = subprocess.run([sys.executable, str(script), "--cycles", "3", "--rounds", "2"], capture_output=True,
                          text=True, timeout=60)
     assert bad.returncode == 2 and "--rounds" in bad.stderr
+
+
+class _QueuedBus:
+    """A bus whose rig is slow: each frame still queued takes ``per_frame`` s to read."""
+
+    def __init__(self, queued: int, per_frame: float) -> None:
+        self.queued, self.per_frame = queued, per_frame
+
+    def recv(self, timeout: float | None = None) -> can.Message | None:
+        if self.queued == 0:
+            time.sleep(timeout or 0.0)
+            return None
+        self.queued -= 1
+        time.sleep(self.per_frame)
+        return _estimate(0.0)
+
+
+def test_the_drain_reads_a_slow_queue_to_its_end_not_for_a_fixed_time() -> None:
+    # 12 frames at 20 ms each: 0.24 s of reading, far beyond the 50 ms of quiet the drain waits for
+    rig = Rig(_QueuedBus(12, 0.02), PLAN, transport="virtual", drain=0.05)
+    took, capped = rig._drain_estimates()
+    assert rig._n_rx == 12 and not capped and took >= 0.24 + 0.05
+
+
+def test_a_bus_that_never_goes_quiet_is_drained_for_at_most_the_cap() -> None:
+    from hil.rig import DRAIN_CAP
+
+    rig = Rig(_QueuedBus(10**9, 0.001), PLAN, transport="virtual", drain=0.01)
+    took, capped = rig._drain_estimates()
+    assert capped and DRAIN_CAP * 0.01 <= took < DRAIN_CAP * 0.01 + 0.5
+
+
+@pytest.mark.parametrize("kwargs, match", [({"drain": -1.0}, "drain: must be >= 0"),
+                                           ({"drain": float("inf")}, "drain: must be finite"),
+                                           ({"reply_timeout": 0.0}, "reply_timeout: must be > 0"),
+                                           ({"reply_timeout": 1e6}, "reply_timeout: must be <= 3600"),
+                                           ({"drain": 10**400}, "drain: out of the float64 range")])
+def test_the_rig_refuses_waits_that_are_not_seconds_it_can_wait(kwargs, match) -> None:
+    with pytest.raises(ValueError, match=match):
+        Rig(None, PLAN, transport="virtual", **kwargs)

@@ -75,3 +75,13 @@ def test_the_sensor_error_is_the_encoders_quantisation_and_zero_without_it() -> 
     count = moving.encoder_resolution
     assert count / 4 < pos < count                          # floor quantiser: uniform in [0, count)
     assert count / moving.period / 6 < vel < count / moving.period  # differences of two such errors / T
+
+
+def test_a_drain_cut_short_is_reported_beside_the_missing_estimates() -> None:
+    rec = run_replay(Scenario(duration=0.03), "virtual")
+    r = score(rec)
+    assert r["drain"]["capped"] is False and r["drain"]["s"] >= 0.3  # the default: 0.3 s of quiet
+    assert "the drain stopped" not in report.table(r)
+    rec.meta["drain_capped"] = True
+    text = report.table(score(rec))
+    assert f"the drain stopped after {rec.meta['drain_s']:.1f} s" in text and "--drain" in text
