@@ -127,6 +127,18 @@ Term = tuple[Factor, ...]
 """A high-order term z_ij: the product of its factors (eq. 4)."""
 
 
+def monomial(term: Term) -> frozenset[tuple[Any, ...]]:
+    """The product a term stands for, as {(kind, index, delay): power}: the
+    same for S(x1)*S(x2) and S(x2)*S(x1), for S(x1)^2 and S(x1)*S(x1), and
+    with ONE factors dropped (a bias alone is the empty product)."""
+    powers: dict[tuple[Any, ...], int] = {}
+    for fac in term:
+        if fac.kind is not FactorKind.ONE:
+            key = (fac.kind.value, fac.index, fac.delay)
+            powers[key] = powers.get(key, 0) + fac.power
+    return frozenset(powers.items())
+
+
 @dataclass(frozen=True, eq=False)
 class NeuronConfig:
     """One neuron: its terms and the EKF tuning of eq. 7-8.
@@ -168,6 +180,12 @@ class NeuronConfig:
             for f, fac in enumerate(term):
                 if not isinstance(fac, Factor):
                     raise fail(f"terms[{t}][{f}]", f"expected a Factor, got {type(fac).__name__}")
+        seen: dict[frozenset[tuple[Any, ...]], int] = {}
+        for t, term in enumerate(self.terms):
+            first = seen.setdefault(monomial(term), t)
+            if first != t:  # the same z_ij twice: two weights on one regressor, a typo more than a choice
+                raise fail(f"terms[{t}]", f"the same product as terms[{first}] (factor order, ONE factors and "
+                                          "split powers do not make a different term)")
         if not isinstance(self.activation, Activation):
             raise fail("activation", f"expected an Activation, got {self.activation!r}")
         check_real("beta", self.beta, positive=True)
@@ -188,6 +206,11 @@ class NeuronConfig:
                 if not np.all(diag > 0):
                     raise fail(f"p0[{int(np.argmin(diag > 0))}][{int(np.argmin(diag > 0))}]",
                                 "diagonal entries must be > 0")
+                try:  # P_i(0) is a covariance (eq. 10): positive definite, not only symmetric
+                    np.linalg.cholesky(full)
+                except np.linalg.LinAlgError:
+                    raise fail("p0", "matrix must be positive definite (smallest eigenvalue "
+                                     f"{float(np.linalg.eigvalsh(full)[0]):.3g})") from None
                 object.__setattr__(self, "p0", full)
         else:
             object.__setattr__(self, "p0", check_real("p0", self.p0, positive=True))
@@ -313,8 +336,8 @@ class IdentifierConfig:
     def __post_init__(self) -> None:
         n = check_int("n_states", self.n_states, 1, 255)
         m = check_int("n_inputs", self.n_inputs, 0, 255)
-        if self.dtype not in DTYPES:
-            raise fail("dtype", f"expected one of {DTYPES}, got {self.dtype!r}")
+        if not isinstance(self.dtype, str) or self.dtype not in DTYPES:  # np.dtype("float32") == "float32"
+            raise fail("dtype", f"expected one of {DTYPES} as a str, got {type(self.dtype).__name__} {self.dtype!r}")
         if not isinstance(self.neurons, tuple):
             raise fail("neurons", f"expected a tuple of NeuronConfig, got {type(self.neurons).__name__}")
         if len(self.neurons) != n:
@@ -365,6 +388,7 @@ class IdentifierConfig:
     ) -> "IdentifierConfig":
         """Every neuron with the same tuning. ``terms`` is either one term
         list shared by all neurons or a list of n_states term lists."""
+        check_int("n_states", n_states, 1, 255)
         if terms and isinstance(terms[0], tuple) and terms[0] and isinstance(terms[0][0], Factor):
             per = [tuple(terms)] * n_states  # type: ignore[arg-type]
         else:

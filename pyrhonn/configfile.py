@@ -89,7 +89,7 @@ import numpy as np
 import tomli_w
 
 from .config import DTYPES, Activation, Factor, FactorKind, IdentifierConfig, NeuronConfig, Term
-from .validation import check_int, check_real, decode_text, fail
+from .validation import check_int, check_real, decode_text, fail, read_file
 
 __all__ = [
     "FORMAT",
@@ -113,6 +113,7 @@ __all__ = [
 
 FORMAT = "pyrhonn-config"
 VERSION = 1
+MAX_FILE_BYTES = 1 << 20  #: a config file is a few kB; a larger one is not a config (or /dev/zero)
 
 TUNING_KEYS = ("activation", "beta", "p0", "q", "r", "eta")
 _TOP_KEYS = ("format", "version", "n_states", "n_inputs", "dtype", "state_names", "input_names", "x0",
@@ -454,6 +455,8 @@ def _neuron(i: int, raw: object, defaults: Mapping[str, Any], n: int, m: int) ->
             where = origin[key] + field[len(key):]
             note = f" (inherited by {path}, which has {L} terms)" if origin[key].startswith("defaults.") else ""
             raise fail(where, rest.strip() + note) from None
+        if key == "terms":  # a term index: neurons[i].terms[t]
+            raise fail(f"{path}.{field}", rest.strip()) from None
         raise fail(path, message) from None
     return neuron, why
 
@@ -515,6 +518,8 @@ def loads(text: str, source: str = "<string>") -> ConfigFile:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{source}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise ValueError(f"{source}: not a pyrhonn config: arrays or tables nested too deeply to parse") from None
     try:
         return _from_document(doc)
     except ValueError as exc:
@@ -525,7 +530,7 @@ def load_config(path: str | Path) -> ConfigFile:
     """Read a config file; every defect raises ``ValueError`` naming the file
     and the key (``OSError`` if it cannot be read)."""
     p = Path(path)
-    return loads(decode_text(p.read_bytes(), str(path)), source=str(path))
+    return loads(decode_text(read_file(p, str(path), limit=MAX_FILE_BYTES), str(path), bom=True), source=str(path))
 
 
 # -- writing --------------------------------------------------------------------------------------
@@ -636,7 +641,8 @@ def is_path(name_or_path: str) -> bool:
 def read_named(name_or_path: str) -> tuple[str, str]:
     """``(source, text)`` for a shipped config name or a file path (see :func:`is_path`)."""
     if is_path(name_or_path):
-        return name_or_path, decode_text(Path(name_or_path).read_bytes(), name_or_path)
+        return name_or_path, decode_text(read_file(name_or_path, name_or_path, limit=MAX_FILE_BYTES), name_or_path,
+                                         bom=True)
     return f"pyrhonn/configs/{name_or_path}.toml", shipped_text(name_or_path)
 
 

@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from .configfile import ConfigFile
-from .validation import decode_text
+from .validation import decode_text, read_file
 
 __all__ = ["Data", "TIME_COLUMN", "check_suffix", "read_data"]
 
@@ -50,6 +50,7 @@ _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?
 _MISSING = ("", "nan", "NaN", "NAN")
 _INFINITE = re.compile(r"[+-]?(?:inf|Inf|INF|infinity|Infinity|INFINITY)\Z")
 TIME_COLUMN = "t"
+MAX_FILE_BYTES = 1 << 30  #: 1 GiB of CSV: ~10 million rows of a 9-column log, beyond what one run holds
 
 
 
@@ -119,7 +120,7 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
               config_source: str = "the config") -> Data:
     """Read and check a data file for the config ``cf`` (see the module docs)."""
     source = str(path)
-    text = decode_text(Path(path).read_bytes(), source, bom=True)  # spreadsheets write a BOM
+    text = decode_text(read_file(path, source, limit=MAX_FILE_BYTES), source, bom=True)  # spreadsheets write a BOM
     if not text.strip():
         raise ValueError(f"{source}: empty file (expected a header row naming the columns, then the data)")
     records = _records(text, source)

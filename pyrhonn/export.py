@@ -27,7 +27,11 @@ from .identifier import Identifier
 
 __all__ = ["export_header", "header_text"]
 
-_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+#: C99's keywords (6.4.1): a name the compiler would refuse
+_C_KEYWORDS = frozenset("""auto break case char const continue default do double else enum extern float for goto
+    if inline int long register restrict return short signed sizeof static struct switch typedef union unsigned
+    void volatile while _Bool _Complex _Imaginary""".split())
 
 
 def _literal(value: float, dtype: str) -> str:
@@ -45,6 +49,13 @@ def header_text(source: Identifier | IdentifierConfig, name: str) -> str:
     weights and covariances become w0 and p0) or a config (exported as is)."""
     if not isinstance(name, str) or not _IDENT.match(name):
         raise ValueError(f"name: expected a C identifier, got {name!r}")
+    if name in _C_KEYWORDS:
+        raise ValueError(f"name: {name!r} is a C keyword")
+    if name.startswith(("rhonn_", "RHONN_")) and name != "rhonn_exported":
+        # the core's namespace: rhonn_init, rhonn_config, RHONN_OK ... would clash at compile or link time
+        raise ValueError(f"name: {name!r} is in the core's rhonn_ namespace; choose another prefix")
+    if name.startswith("__") or (name.startswith("_") and name[1:2].isupper()):
+        raise ValueError(f"name: {name!r} is reserved to the C implementation (7.1.3)")
     if isinstance(source, Identifier):
         cfg = source.as_config()
     elif isinstance(source, IdentifierConfig):

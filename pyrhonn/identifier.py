@@ -93,6 +93,19 @@ def _packed(P: np.ndarray) -> np.ndarray:
     return P[np.triu_indices(P.shape[0])]
 
 
+def clearly_indefinite(P: np.ndarray) -> float | None:
+    """The smallest eigenvalue of the symmetric covariance ``P`` if it is
+    clearly negative, else None. P_i is a covariance (eq. 10), but one the
+    filter itself produced may sit a rounding error below semi-definite, so
+    only what is negative beyond L ulps of P's largest eigenvalue, at P's
+    own dtype, counts."""
+    eig = np.linalg.eigvalsh(P.astype(np.float64))
+    eps = float(np.finfo(P.dtype).eps) if P.dtype.kind == "f" else float(np.finfo(np.float64).eps)
+    if eig[0] < -P.shape[0] * eps * float(np.max(np.abs(eig))):
+        return float(eig[0])
+    return None
+
+
 def _unpacked(p: np.ndarray, L: int) -> np.ndarray:
     P = np.zeros((L, L), dtype=p.dtype)
     P[np.triu_indices(L)] = p
@@ -258,6 +271,7 @@ class Identifier:
         self._require(w, "w", (L,))
         if not np.all(np.isfinite(w)):
             raise ValueError(f"w[{int(np.argmin(np.isfinite(w)))}]: not finite")
+        w = np.ascontiguousarray(w)  # a strided view (w[::2]) is taken as step() takes x: same values, same dtype
         self._check(self._lib.rhonn_set_weights(self._net, i, self._ffi.from_buffer(self._real_array, w), L), "w")
 
     def get_covariance(self, neuron: int) -> np.ndarray:
@@ -269,7 +283,8 @@ class Identifier:
         return _unpacked(packed, L)
 
     def set_covariance(self, neuron: int, P: np.ndarray) -> None:
-        """Replace P_i with a symmetric (L_i, L_i) matrix with a positive diagonal."""
+        """Replace P_i with a symmetric, positive semi-definite (L_i, L_i) matrix
+        with a positive diagonal."""
         i = self._neuron_index(neuron)
         L = self._config.neurons[i].n_terms
         self._require(P, "P", (L, L))
@@ -281,6 +296,9 @@ class Identifier:
         if not np.all(np.diag(P) > 0):
             raise ValueError(f"P[{int(np.argmin(np.diag(P) > 0))}, {int(np.argmin(np.diag(P) > 0))}]: "
                              "diagonal entries must be > 0")
+        lowest = clearly_indefinite(P)
+        if lowest is not None:
+            raise ValueError(f"P: not positive semi-definite (smallest eigenvalue {lowest:.3g})")
         packed = np.ascontiguousarray(_packed(P))
         self._check(self._lib.rhonn_set_covariance(self._net, i, self._ffi.from_buffer(self._real_array, packed),
                                                    packed.size), "P")

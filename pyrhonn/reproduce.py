@@ -798,7 +798,10 @@ def _plot_errors(result: ScenarioResult, path: Path) -> None:
 
 
 def check_output_dir(out: str | Path) -> Path:
-    """Create ``out`` if needed and prove it is writable (OSError naming it otherwise)."""
+    """Create ``out`` if needed and prove it is writable (OSError naming it
+    otherwise; ValueError for an empty name, which would mean the current folder)."""
+    if not str(out).strip():
+        raise ValueError("--out: empty; give a folder")
     path = Path(out)
     try:
         path.mkdir(parents=True, exist_ok=True)

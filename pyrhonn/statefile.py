@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from .config import IdentifierConfig
-from .identifier import Identifier
+from .identifier import Identifier, _unpacked, clearly_indefinite
 
 __all__ = ["FORMAT", "VERSION", "save_state", "load_state"]
 
@@ -97,7 +97,10 @@ def load_state(path: str | Path) -> Identifier:
     except FileNotFoundError:
         raise ValueError(f"{path}: no such file") from None
     except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
-        raise ValueError(f"{path}: not a {FORMAT} file ({exc})") from None
+        # numpy takes bytes it does not recognise for a pickle and suggests loading them unsafely:
+        # never the advice for a file that is not even an archive
+        why = "neither an .npz archive nor an .npy array" if "pickle" in str(exc) else str(exc)
+        raise ValueError(f"{path}: not a {FORMAT} file ({why})") from None
     if not isinstance(archive, np.lib.npyio.NpzFile):
         raise ValueError(f"{path}: not a {FORMAT} file (a single .npy array, not an archive)")
     with archive:
@@ -108,6 +111,8 @@ def load_state(path: str | Path) -> Identifier:
             header = json.loads(str(raw[()])) if raw.dtype.kind == "U" and raw.shape == () else None
         except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
             raise _fail(path, "header", f"unreadable ({exc})") from None
+        except RecursionError:
+            raise _fail(path, "header", "unreadable (JSON nested too deeply)") from None
         if not isinstance(header, dict):
             raise _fail(path, "header", "expected a JSON object")
         if header.get("format") != FORMAT:
@@ -143,6 +148,9 @@ def load_state(path: str | Path) -> Identifier:
             diag = p[np.cumsum(np.r_[0, np.arange(L, 1, -1)])]
             if not np.all(diag > 0):
                 raise _fail(path, f"p_{i}", "covariance diagonal must be > 0")
+            lowest = clearly_indefinite(_unpacked(p, L))
+            if lowest is not None:
+                raise _fail(path, f"p_{i}", f"covariance not positive semi-definite (smallest eigenvalue {lowest:.3g})")
             covs.append(p)
             regs.append(_member(path, archive, f"z_{i}", (L,), dt))
         xhat = _member(path, archive, "xhat", (n,), dt)

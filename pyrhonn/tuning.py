@@ -780,11 +780,14 @@ def tune(
     # can pop the same waiting trial, which then runs twice or fails with "Cannot tell a COMPLETE
     # trial" (optuna issue #4002, reproduced with optuna 5.0 here).
     first = 1 if enqueued else 0
-    if first:
-        study.optimize(objective, n_trials=1, n_jobs=1, callbacks=[report], gc_after_trial=False)
-    if n_trials > first:
-        study.optimize(objective, n_trials=n_trials - first, n_jobs=n_jobs, callbacks=[report],
-                       gc_after_trial=False)
+    try:
+        if first:
+            study.optimize(objective, n_trials=1, n_jobs=1, callbacks=[report], gc_after_trial=False)
+        if n_trials > first:
+            study.optimize(objective, n_trials=n_trials - first, n_jobs=n_jobs, callbacks=[report],
+                           gc_after_trial=False)
+    except json.JSONDecodeError as exc:  # a journal cut short (an interrupted write) read back mid-run
+        raise _unreadable(path if path is not None else Path("<memory>"), exc) from None
 
     complete = [t for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))]
     best_score: Score | None = None

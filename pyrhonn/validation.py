@@ -8,15 +8,37 @@ complex or object array is not real.
 from __future__ import annotations
 
 import math
+import os
+import stat
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["fail", "check_int", "check_real", "check_array", "check_data"]
+__all__ = ["fail", "check_int", "check_real", "check_array", "check_data", "read_file"]
 
 
 def fail(path: str, message: str) -> ValueError:
     """The ValueError every check raises: ``"<path>: <message>"``."""
     return ValueError(f"{path}: {message}")
+
+
+def read_file(path: str | os.PathLike, source: str, *, limit: int) -> bytes:
+    """The bytes of the regular file ``path``, at most ``limit`` of them.
+
+    A device, pipe or socket (``/dev/zero`` would be read forever, a FIFO
+    blocks) or a larger file is a ValueError naming ``source``; a file that
+    cannot be opened raises the OSError ``open`` gives.
+    """
+    p = Path(path)
+    if p.exists() and not (p.is_file() or p.is_dir()):  # a directory: let open() say so
+        raise ValueError(f"{source}: not a regular file (a device, pipe or socket)")
+    with open(p, "rb") as fh:
+        if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+            raise ValueError(f"{source}: not a regular file")
+        data = fh.read(limit + 1)
+    if len(data) > limit:
+        raise ValueError(f"{source}: larger than {limit:,} bytes, the most pyrhonn reads from such a file")
+    return data
 
 
 def decode_text(data: bytes, source: str, *, bom: bool = False) -> str:

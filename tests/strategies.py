@@ -7,6 +7,7 @@ import numpy as np
 from hypothesis import strategies as st
 
 from pyrhonn import Activation, Factor, FactorKind, IdentifierConfig, NeuronConfig
+from pyrhonn.config import monomial
 
 
 @st.composite
@@ -24,10 +25,13 @@ def factors(draw: st.DrawFn, n: int, m: int, max_delay: int = 3) -> Factor:
 
 @st.composite
 def neuron_configs(draw: st.DrawFn, n: int, m: int) -> NeuronConfig:
-    L = draw(st.integers(1, 8))
-    terms = tuple(
-        tuple(draw(factors(n, m)) for _ in range(draw(st.integers(1, 3)))) for _ in range(L)
-    )
+    drawn = [tuple(draw(factors(n, m)) for _ in range(draw(st.integers(1, 3))))
+             for _ in range(draw(st.integers(1, 8)))]
+    unique: dict[frozenset, tuple[Factor, ...]] = {}
+    for term in drawn:  # NeuronConfig refuses the same product twice
+        unique.setdefault(monomial(term), term)
+    terms = tuple(unique.values())
+    L = len(terms)
     diag = draw(st.booleans())
     p0 = (np.array([draw(st.floats(0.1, 100.0)) for _ in range(L)]) if diag
           else draw(st.floats(0.1, 100.0)))

@@ -27,3 +27,14 @@ def test_missing_or_unknown_command_exits_2_with_usage() -> None:
 def test_console_module_runs() -> None:
     out = subprocess.run([sys.executable, "-m", "pyrhonn.cli", "info"], capture_output=True, text=True, check=True)
     assert "RHONN_MAX_TERMS" in out.stdout
+
+
+def test_a_reader_that_goes_away_ends_the_command_quietly() -> None:
+    # `pyrhonn show-config example1 | head -0`: the reader is gone before the first write (the
+    # interpreter's start-up alone outlasts closing the pipe here)
+    proc = subprocess.Popen([sys.executable, "-m", "pyrhonn.cli", "show-config", "example1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 141 and err == "", err  # 128 + SIGPIPE, as a shell tool; no traceback

@@ -294,3 +294,25 @@ def test_identifier_failure_names_the_data_line(tmp_path: Path, capsys: pytest.C
     data.write_text("x1,x2,u1\n1,2,3\n1e39,2,3\n1,2,3\n")
     assert identify(data, config, "--dtype", "float32") == 2
     assert f"{data}: line 3, column 'x1': 1e+39 overflows float32" in capsys.readouterr().err
+
+
+def test_an_output_that_is_the_data_or_the_config_file_is_refused_before_anything_is_written(
+        tmp_path: Path, cli_error) -> None:
+    data = tmp_path / "predictions.csv"  # the measurements, named as identify names its own output
+    data.write_text(GOOD)
+    cfg = tmp_path / "cfg.toml"
+    cfg.write_text(CONFIG)
+    err = cli_error(["identify", str(data), "--config", str(cfg), "--out", str(tmp_path)])
+    assert f"would overwrite the data file {data} with its predictions.csv" in err
+    assert data.read_text() == GOOD and not (tmp_path / "metrics.json").exists()
+    cfg = tmp_path / "metrics.json"  # a config by any name: the second output
+    cfg.write_text(CONFIG)
+    (tmp_path / "data.csv").write_text(GOOD)
+    err = cli_error(["identify", str(tmp_path / "data.csv"), "--config", str(cfg), "--out", str(tmp_path)])
+    assert "would overwrite the config file" in err and cfg.read_text() == CONFIG
+
+
+def test_an_empty_output_folder_name_is_refused(tmp_path: Path, config: Path, cli_error) -> None:
+    data = tmp_path / "data.csv"
+    data.write_text(GOOD)
+    assert "--out: empty" in cli_error(["identify", str(data), "--config", str(config), "--out", " "])

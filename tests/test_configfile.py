@@ -250,6 +250,13 @@ BAD_FILES = [
     ("p0 = [1.0, 2.0, 3.0]", "p0 = [[1.0, 0.5, 0], [0, 1.0, 0], [0, 0, 1.0]]", E + "neurons[3].p0: matrix must be "
                                                                                    "symmetric"),
     ("p0 = [1.0, 2.0, 3.0]", "p0 = [[1, 0, 0], [0, 0, 0], [0, 0, 1]]", E + "neurons[3].p0[1][1]: diagonal entries"),
+    ("p0 = [1.0, 2.0, 3.0]", "p0 = [[1, 2, 0], [2, 1, 0], [0, 0, 1]]", E + "neurons[3].p0: matrix must be "
+                                                                          "positive definite (smallest eigenvalue -1)"),
+    ("beta = 0.01", "beta = 1" + "0" * 400, E + "defaults.beta: out of the float64 range"),
+    ("x0 = [0.0, 0.0, 0.0, 0.0]", "x0 = [0.0, -1" + "0" * 400 + ", 0.0, 0.0]", E + "x0[1]: out of the float64 range"),
+    ('["S(x3)", "S(x1)"]', '["S(x3)", "S(x1)", "S(x3)*1"]', E + "neurons[2].terms[2]: the same product as terms[0]"),
+    ('["S(x2)", "u1"]', '["S(x2)*u1", "u1*S(x2)"]', E + "neurons[1].terms[1]: the same product as terms[0]"),
+    ('["S(x2)", "u1"]', '["S(x2)^2", "S(x2)*S(x2)"]', E + "neurons[1].terms[1]: the same product as terms[0]"),
     ("q = [0.0, 0.1, 0.2]", "q = [0.0, -0.1, 0.2]", E + "neurons[3].q[1]: must be >= 0"),
     ("w0 = [0.1, -0.2, 0.3]", "w0 = [0.1, -0.2]", E + "neurons[3].w0: expected shape (3,), got (2,)"),
     ("w0 = [0.1, -0.2, 0.3]", "w0 = 0.1", E + "neurons[3].w0: expected an array of numbers"),
@@ -277,6 +284,34 @@ def test_misshapen_tables_are_rejected(text: str, message: str) -> None:
     head = 'format = "pyrhonn-config"\nversion = 1\nn_states = 4\nn_inputs = 1\n'
     with pytest.raises(ValueError, match=re.escape("cfg.toml: " + message)):
         loads(head + text, source="cfg.toml")
+
+
+def test_arrays_nested_too_deeply_for_the_parser_are_a_clear_error() -> None:
+    with pytest.raises(ValueError, match=re.escape("cfg.toml: not a pyrhonn config: arrays or tables nested too "
+                                                   "deeply")):
+        loads("a = " + "[" * 5000 + "]" * 5000, source="cfg.toml")
+
+
+def test_a_byte_order_mark_is_read_as_spreadsheets_and_editors_write_it(tmp_path) -> None:
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + SPEC_EXAMPLE.encode())
+    assert load_config(path).config == loads(SPEC_EXAMPLE).config
+    assert load_named(str(path)).config == loads(SPEC_EXAMPLE).config
+
+
+def test_devices_pipes_and_oversized_files_are_refused_unread(tmp_path) -> None:
+    import os
+
+    with pytest.raises(ValueError, match=re.escape("/dev/zero: not a regular file")):
+        load_config("/dev/zero")  # would be read forever
+    fifo = tmp_path / "cfg.toml"
+    os.mkfifo(fifo)
+    with pytest.raises(ValueError, match="cfg.toml: not a regular file"):
+        load_named(str(fifo))  # opening it would block until a writer came
+    big = tmp_path / "big.toml"
+    big.write_bytes(SPEC_EXAMPLE.encode() + b"#" * (1 << 20))
+    with pytest.raises(ValueError, match=r"big.toml: larger than 1,048,576 bytes"):
+        load_config(big)
 
 
 def test_load_config_names_the_file(tmp_path) -> None:

@@ -75,6 +75,18 @@ def test_header_refuses_wrong_precision_and_small_capacity(tmp_path: Path) -> No
     assert small.returncode != 0 and "capacities are too small" in small.stderr
 
 
+@pytest.mark.parametrize("name, message", [("int", "is a C keyword"), ("_Bool", "is a C keyword"),
+                                           ("rhonn_init", "rhonn_ namespace"), ("RHONN_OK", "rhonn_ namespace"),
+                                           ("__x", "reserved to the C implementation"),
+                                           ("_Weights", "reserved to the C implementation"),
+                                           ("abc\n", "expected a C identifier")])
+def test_export_rejects_a_name_the_compiler_or_the_core_would_clash_with(name: str, message: str) -> None:
+    cfg = IdentifierConfig.uniform(terms.first_order(2), n_states=2, n_inputs=0)
+    with pytest.raises(ValueError, match=f"^name: .*{message}"):
+        header_text(cfg, name)
+    header_text(cfg, "rhonn_exported")  # the default name stays valid
+
+
 @pytest.mark.parametrize("name", ["", "1abc", "a-b", "x y", None])
 def test_export_rejects_a_name_that_is_not_a_c_identifier(name) -> None:
     cfg = IdentifierConfig.uniform(terms.first_order(1), n_states=1, n_inputs=0)

@@ -105,11 +105,26 @@ def test_numerical_failure_mid_run_rolls_the_whole_run_back() -> None:
     assert snapshot(ident) == before
 
 
-def test_indefinite_covariance_is_reported_as_innovation_error_and_state_kept() -> None:
-    ident, X, U = warmed()
+def _indefinite() -> np.ndarray:
     P = np.eye(7)
-    P[0, 1:] = P[1:, 0] = -40.0
-    ident.set_covariance(0, P)
+    P[0, 1:] = P[1:, 0] = -40.0  # positive diagonal, symmetric, smallest eigenvalue -97
+    return P
+
+
+def test_set_covariance_refuses_an_indefinite_matrix_and_keeps_state() -> None:
+    ident, X, U = warmed()
+    before = snapshot(ident)
+    with pytest.raises(ValueError, match=r"^P: not positive semi-definite \(smallest eigenvalue -97\)"):
+        ident.set_covariance(0, _indefinite())
+    assert snapshot(ident) == before
+
+
+def test_indefinite_covariance_in_the_core_is_reported_as_innovation_error_and_state_kept() -> None:
+    ident, X, U = warmed()
+    # past the Python check, through the C API itself: the core's own guard of eq. 10's innovation
+    packed = np.ascontiguousarray(_indefinite()[np.triu_indices(7)])
+    assert ident._lib.rhonn_set_covariance(ident._net, 0, ident._ffi.from_buffer("double[]", packed),
+                                           packed.size) == ident._lib.RHONN_OK
     before = snapshot(ident)
     with pytest.raises(IdentifierError, match=r"^neurons\[0\]: innovation") as info:
         ident.step(X[3], U[3])
@@ -122,6 +137,7 @@ def test_indefinite_covariance_is_reported_as_innovation_error_and_state_kept() 
     (dict(n_states=0), "n_states"),
     (dict(n_states=True), "n_states"),
     (dict(dtype="float16"), "dtype"),
+    (dict(dtype=np.dtype("float32")), r"dtype: expected one of \('float64', 'float32'\) as a str, got"),
     (dict(x0=np.zeros(2)), "x0"),
     (dict(x0=np.array([0.0, np.nan, 0.0])), r"x0\[1\]"),
 ])
@@ -143,6 +159,9 @@ def test_invalid_identifier_config_names_the_field(kwargs: dict, field: str) -> 
     (dict(eta=0), "eta"),
     (dict(p0=np.array([1.0, 0.0])), r"p0\[1\]"),
     (dict(p0=np.array([[1.0, 2.0], [3.0, 1.0]])), "p0"),
+    (dict(p0=np.array([[1.0, 2.0], [2.0, 1.0]])), r"p0: matrix must be positive definite"),
+    (dict(beta=10**400), "beta: out of the float64 range"),
+    (dict(terms=((Factor.s(0),), (Factor.one(), Factor.s(0)))), r"terms\[1\]: the same product as terms\[0\]"),
     (dict(p0=np.ones(3)), "p0"),
     (dict(q=np.array([1.0, -1.0])), r"q\[1\]"),
     (dict(w0=np.ones(5)), "w0"),
@@ -168,7 +187,7 @@ def test_factor_index_out_of_range_names_the_factor() -> None:
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
 def test_config_over_compiled_capacity_is_rejected_by_name(dtype: str) -> None:
     caps = capacities(dtype)
-    big = tuple((Factor.s(0, power=1),) for _ in range(caps["RHONN_MAX_TERMS"] + 1))
+    big = tuple((Factor.s(0, delay=k % 4, power=1 + k // 4),) for k in range(caps["RHONN_MAX_TERMS"] + 1))
     with pytest.raises(ValueError, match=r"^neurons\[0\]\.terms: 17 exceeds the compiled capacity RHONN_MAX_TERMS"):
         Identifier(IdentifierConfig.uniform(big, n_states=1, n_inputs=0, dtype=dtype))
     n = caps["RHONN_MAX_STATES"] + 1
@@ -209,6 +228,23 @@ def test_non_contiguous_arrays_are_accepted_without_changing_results() -> None:
     Xf = np.asfortranarray(X)
     np.testing.assert_array_equal(ident.run(Xf, U[:, ::1]), twin.run(X, U))
     np.testing.assert_array_equal(ident.step(X[::2][3], U[3]), twin.step(X[6], U[3]))
+    w = np.linspace(-1.0, 1.0, 14)
+    ident.set_weights(0, w[::2])  # a strided view, as step() takes one
+    np.testing.assert_array_equal(ident.get_weights(0), w[::2])
+
+
+@pytest.mark.parametrize("n_states, message", [(2.0, "expected an integer"), (10**30, "out of range 1..255")])
+def test_uniform_names_a_state_count_that_is_not_one(n_states: object, message: str) -> None:
+    with pytest.raises(ValueError, match=rf"^n_states: .*{message}"):
+        IdentifierConfig.uniform(terms.first_order(2), n_states=n_states, n_inputs=0)  # type: ignore[arg-type]
+
+
+def test_a_semi_definite_covariance_is_accepted() -> None:
+    ident, _, _ = warmed()
+    P = np.eye(7)
+    P[0, 1] = P[1, 0] = 1.0  # singular (eigenvalue 0), not indefinite: a covariance may be degenerate
+    ident.set_covariance(0, P)
+    np.testing.assert_array_equal(ident.get_covariance(0), P)
 
 
 def test_float32_identifier_takes_only_float32_arrays() -> None:

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from scipy.special import expit
 
 from pyrhonn import Activation, Factor, FactorKind, IdentifierConfig, NeuronConfig, terms
+from pyrhonn.config import monomial
 from pyrhonn.reference import ReferenceIdentifier, activate
 
 KalmanFilter = pytest.importorskip("filterpy.kalman").KalmanFilter
@@ -59,6 +60,10 @@ def configs(draw: st.DrawFn) -> IdentifierConfig:
                 else:
                     factors.append(Factor.one())
             term_list.append(tuple(factors))
+        unique: dict[frozenset, tuple[Factor, ...]] = {}
+        for term in term_list:  # NeuronConfig refuses the same product twice
+            unique.setdefault(monomial(term), term)
+        term_list, L = list(unique.values()), len(unique)
         vec = lambda lo, hi: np.array(draw(st.lists(pos(lo, hi), min_size=L, max_size=L)))  # noqa: E731
         p0 = draw(st.one_of(pos(0.1, 100.0), st.just(None)))
         q = draw(st.sampled_from(["zero", "scalar", "vector"]))
@@ -385,10 +390,12 @@ def numerical_failure(ident: ReferenceIdentifier, steps: list[float], message: s
 
 
 def test_non_positive_innovation_raises_and_leaves_state_unchanged() -> None:
-    # Indefinite P(0) (eigenvalues 3, -1): with H = [-1, 1], R + H^T P H = 1 - 2 = -1.
-    nr = NeuronConfig(terms=(terms.delayed_taps(0, [0], raw=True) + terms.bias()), p0=np.array([[1.0, 2.0], [2.0, 1.0]]))
-    numerical_failure(ReferenceIdentifier(IdentifierConfig(n_states=1, n_inputs=0, neurons=(nr,))),
-                      [-1.0, 0.0], r"^neuron 0: innovation")
+    # Indefinite P (eigenvalues 3, -1), which a config refuses as P(0), put in the model's state
+    # directly: with H = [-1, 1], R + H^T P H = 1 - 2 = -1.
+    nr = NeuronConfig(terms=(terms.delayed_taps(0, [0], raw=True) + terms.bias()))
+    ref = ReferenceIdentifier(IdentifierConfig(n_states=1, n_inputs=0, neurons=(nr,)))
+    ref._P[0][...] = [[1.0, 2.0], [2.0, 1.0]]
+    numerical_failure(ref, [-1.0, 0.0], r"^neuron 0: innovation")
 
 
 def test_overflowing_covariance_raises_and_leaves_state_unchanged() -> None:

@@ -290,3 +290,5 @@ def test_cli_unwritable_out_exits_2_before_running(tmp_path: Path, capsys: pytes
         err = capsys.readouterr().err
         assert f"--out '{out}': cannot write there" in err
         assert "simulating" not in err  # refused before any run
+    assert main(["reproduce", "example2", "--out", ""]) == 2  # not the current folder by accident
+    assert "--out: empty" in capsys.readouterr().err

@@ -69,6 +69,14 @@ def header_with(**kw):
     return change
 
 
+def _indefinite_packed(p: np.ndarray) -> np.ndarray:
+    """A packed covariance of the same size with a positive diagonal and an eigenvalue of about -3."""
+    L = int((np.sqrt(8 * p.size + 1) - 1) / 2)
+    P = np.eye(L)
+    P[0, 1] = P[1, 0] = 4.0
+    return P[np.triu_indices(L)].astype(p.dtype)
+
+
 @pytest.mark.parametrize("change,message", [
     (header_with(format="other-tool"), r"header\.format"),
     (header_with(version=VERSION + 1), r"header\.version: version 2 is newer"),
@@ -85,6 +93,9 @@ def header_with(**kw):
     (lambda m: m.update(p_0=-np.abs(m["p_0"])), r"p_0: covariance diagonal"),
     (lambda m: m.update(extra=np.zeros(1)), r"archive: unexpected members"),
     (lambda m: m.update(header=np.array([1, 2])), r"header: expected a JSON object"),
+    (lambda m: m.update(header=np.array("[" * 100_000 + "]" * 100_000)), r"header: unreadable \(JSON nested too deeply"),
+    (header_with(config={"n_states": 10**400}), r"header\.config"),
+    (lambda m: m.update(p_1=_indefinite_packed(m["p_1"])), r"p_1: covariance not positive semi-definite"),
 ])
 def test_tampered_state_file_is_rejected_by_member(tmp_path: Path, change, message: str) -> None:
     bad = rewrite(saved(tmp_path), tmp_path / "bad.npz", change)

@@ -292,3 +292,27 @@ def test_cli_bad_inputs_exit_2_with_one_line(tmp_path: Path, monkeypatch: pytest
     assert lines[-1].startswith("pyrhonn tune: error: ") and message in lines[-1], stderr
     assert len([ln for ln in lines if "error" in ln]) == 1
     assert not Path("t.toml").exists()
+
+
+def test_a_journal_cut_short_by_an_interrupted_write_is_named_as_the_study_file(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "s.log"
+    args = ["--example", "example1", "--horizon", "10", "--config", "example1", "--out", str(tmp_path / "t.toml"),
+            "--study", str(log)]
+    assert run_cli([*args, "--trials", "2"], capsys)[0] == 0
+    log.write_bytes(log.read_bytes()[:-40])  # the last record half written
+    code, _, stderr = run_cli([*args, "--trials", "1"], capsys)
+    assert code == 2 and f"--study: '{log}' is not a readable optuna study file" in stderr
+    assert "Traceback" not in stderr
+
+
+def test_the_tuned_config_is_written_with_the_usual_file_mode(tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    import os
+
+    out = tmp_path / "t.toml"
+    assert run_cli(["--example", "example1", "--horizon", "10", "--config", "example1", "--out", str(out),
+                    "--trials", "1"], capsys)[0] == 0
+    umask = os.umask(0)
+    os.umask(umask)
+    assert out.stat().st_mode & 0o777 == 0o666 & ~umask  # not mkstemp's 0600

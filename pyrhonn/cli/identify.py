@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import os
 import re
 from pathlib import Path
 from typing import Any, Sequence
@@ -195,6 +196,24 @@ def _plot(path: Path, name: str, data: Data, Xhat: np.ndarray, j: int, warmup: i
     fig.savefig(path, dpi=100)
 
 
+def _output_dir(out: str | None, source: str) -> Path:
+    if out is None:
+        return Path(f"identify-{Path(source).stem}")
+    if not out.strip():
+        raise ValueError("--out: empty; give a folder (default: identify-<data file stem>)")
+    return Path(out)
+
+
+def _refuse_overwriting_inputs(outputs: Sequence[Path], inputs: dict[str, str]) -> None:
+    """An output that is one of the inputs (``--out`` pointed at the data's own
+    folder, say) would replace the measurements with their predictions."""
+    for path in outputs:
+        for what, src in inputs.items():
+            if path.exists() and Path(src).exists() and os.path.samefile(path, src):
+                raise ValueError(f"--out {path.parent}: would overwrite {what} {src} with its {path.name}; "
+                                 "choose another folder")
+
+
 def run(args: argparse.Namespace) -> int:
     cf = load_named(args.config)
     config_source = args.config
@@ -207,12 +226,15 @@ def run(args: argparse.Namespace) -> int:
     if args.warmup >= T - 1:
         raise ValueError(f"--warmup {args.warmup}: leaves nothing to score ({T} data rows give {T - 1} "
                          "one-step-ahead pairs)")
+    out = _output_dir(args.out, source)
+    plots = [] if args.no_plots else [out / f"{name}.png" for name in cf.state_names]
+    written = [out / "predictions.csv", out / "metrics.json"] + plots
+    _refuse_overwriting_inputs(written, {"the data file": source, "the config file": config_source})
     dtype = args.dtype or cf.config.dtype
     cfg = cf.config if dtype == cf.config.dtype else cf.config.replace(dtype=dtype)
     xhat0, Xhat = _run_identifier(cfg, data, cf, source, config_source)
     r, ad, count = _metrics(data, Xhat, args.warmup)
 
-    out = Path(args.out) if args.out else Path(f"identify-{Path(source).stem}")
     out.mkdir(parents=True, exist_ok=True)
     _write_predictions(out / "predictions.csv", data, cf, xhat0, Xhat)
     report = {
@@ -235,11 +257,8 @@ def run(args: argparse.Namespace) -> int:
         "next_prediction": {name: float(Xhat[-1, j]) for j, name in enumerate(cf.state_names)},
     }
     (out / "metrics.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
-    plots = []
-    if not args.no_plots:
-        for j, name in enumerate(cf.state_names):
-            plots.append(out / f"{name}.png")
-            _plot(plots[-1], name, data, Xhat, j, args.warmup)
+    for j, path in enumerate(plots):
+        _plot(path, cf.state_names[j], data, Xhat, j, args.warmup)
 
     print(f"identified {source}: {T} samples, {_count(cfg.n_states, 'state')}, {_count(cfg.n_inputs, 'input')}, "
           f"config {config_source}, {dtype}")
@@ -250,6 +269,5 @@ def run(args: argparse.Namespace) -> int:
     print(f"  {'state':<{width}}  {'scored':>7}  {'RMSE':>12}  {'abs. dev.':>12}")
     for j, name in enumerate(cf.state_names):
         print(f"  {name:<{width}}  {int(count[j]):>7}  {r[j]:>12.6g}  {ad[j]:>12.6g}")
-    written = [out / "predictions.csv", out / "metrics.json"] + plots
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
