@@ -4,7 +4,8 @@ A config file describes one :class:`~pyrhonn.config.IdentifierConfig` plus
 what a person needs to use and review it: the names of the states and inputs
 (the column names ``pyrhonn identify`` reads from a CSV file), a free-text
 description and, per neuron, why it uses the terms it uses. Files are read
-with the standard library's ``tomllib`` and written with ``tomli_w``.
+with the standard library's ``tomllib`` (UTF-8, a leading byte-order mark
+allowed; at most 1 MiB, a regular file) and written with ``tomli_w``.
 
 Example (every key that is not marked required is optional)::
 
@@ -22,7 +23,7 @@ Example (every key that is not marked required is optional)::
     activation = "bipolar"             # "bipolar" (eq. 19) or "logistic" (eq. 6)
     beta = 0.01                        # > 0
     p0 = 1e8                           # > 0: scalar (times I), list (diagonal) or
-                                       # list of lists (full symmetric matrix)
+                                       # list of lists (full symmetric positive definite matrix)
     q = 5e5                            # >= 0: scalar (times I) or list (diagonal)
     r = 1e4                            # > 0
     eta = 1.0                          # > 0
@@ -56,7 +57,10 @@ Rules
   leading zeros (``x01`` is an error), ``(k-0)`` is written as no delay,
   inputs have no delay. J refers to the position of the state or input, never
   to its name: with ``state_names = ["theta", "omega"]``, ``S(x2)`` is
-  S(omega). ``S(x1)^2*u1`` is S(x_1(k))^2 u_1(k).
+  S(omega). ``S(x1)^2*u1`` is S(x_1(k))^2 u_1(k). One neuron may not list
+  the same product twice (``S(x1)*u1`` and ``u1*S(x1)``, ``S(x1)^2`` and
+  ``S(x1)*S(x1)``, ``u1`` and ``u1*1``): that would be two weights on one
+  regressor, a typo more often than a choice.
 - **Names** (``state_names``, ``input_names``) are CSV column names: ASCII
   identifiers (``[A-Za-z_][A-Za-z0-9_]*``), unique across states and inputs,
   not ``t`` (the time column of ``pyrhonn identify``), and not of the form
