@@ -106,6 +106,27 @@ def clearly_indefinite(P: np.ndarray) -> float | None:
     return None
 
 
+def _float32_note(config: IdentifierConfig, field: int, neuron: int) -> str:
+    """Why a float32 core refused a real-valued field that float64 accepts: the
+    first value of that field that is beyond float32's range or rounds to 0."""
+    if config.dtype != "float32" or field not in (3, 6, 7, 8, 9, 10, 11):
+        return ""
+    if field == 3:
+        values = config.x0_vector()
+    else:
+        nr = config.neurons[neuron]
+        values = {6: np.array([nr.beta]), 7: np.array([nr.eta]), 8: np.array([nr.r]), 9: nr.q_diagonal(),
+                  10: nr.w0_vector(), 11: _packed(nr.p0_matrix())}[field]
+    f32 = np.finfo(np.float32)
+    with np.errstate(over="ignore", under="ignore"):
+        for v in np.asarray(values, dtype=np.float64):
+            if abs(v) > float(f32.max):
+                return f" ({v:.3g} is beyond float32's range, +-{float(f32.max):.3g})"
+            if v != 0.0 and abs(v) < float(f32.tiny):
+                return f" ({v:.3g} is below float32's smallest normal number, {float(f32.tiny):.3g})"
+    return ""
+
+
 def _unpacked(p: np.ndarray, L: int) -> np.ndarray:
     P = np.zeros((L, L), dtype=p.dtype)
     P[np.triu_indices(L)] = p
@@ -146,7 +167,8 @@ class Identifier:
         where = self._ffi.new("rhonn_config_error *")
         status = self._lib.rhonn_init(self._net, self._cfg, where)
         if status != self._lib.RHONN_OK:
-            raise ValueError(self._config_error_message(where))
+            raise ValueError(self._config_error_message(where) + _float32_note(config, int(where.field),
+                                                                                int(where.neuron)))
         self._out = np.empty(self._n, dtype=self._dtype)
         self._out_ptr = self._ffi.from_buffer(self._real_array, self._out)
         self._null = self._ffi.NULL

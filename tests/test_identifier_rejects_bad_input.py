@@ -252,3 +252,15 @@ def test_float32_identifier_takes_only_float32_arrays() -> None:
     with pytest.raises(ValueError, match=r"^x: expected dtype float32, got float64"):
         ident.step(X[0].astype(np.float64), U[0])
     assert ident.step(X[0], U[0]).dtype == np.float32
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(p0=1e308), r"^neurons\[0\]\.p0: rejected by the C core \(1e\+308 is beyond float32's range"),
+    (dict(q=1e39), r"^neurons\[0\]\.q: rejected by the C core \(1e\+39 is beyond float32's range"),
+    (dict(r=5e-324), r"^neurons\[0\]\.r: rejected by the C core \(4\.94e-324 is below float32's smallest normal"),
+])
+def test_a_float32_core_says_which_value_does_not_fit_float32(kwargs: dict, message: str) -> None:
+    cfg = IdentifierConfig.uniform(terms.first_order(2, 1), n_states=2, n_inputs=1, dtype="float32", **kwargs)
+    Identifier(cfg.replace(dtype="float64"))  # fine in float64
+    with pytest.raises(ValueError, match=message):
+        Identifier(cfg)
