@@ -464,7 +464,8 @@ class Identifier:
         neuron = int(self._net.fault_neuron)
         if status == lib.RHONN_E_INNOVATION:
             msg = (f"neurons[{neuron}]: innovation variance R + z^T P z is not a positive finite number{at}; "
-                   "the covariance has lost positive definiteness (check P0, Q, R)")
+                   "either the covariance has lost positive definiteness (check P0, Q, R) or z^T P z overflowed "
+                   "(check the size of the measurements and inputs the regressor z is built from)")
         elif status == lib.RHONN_E_COVARIANCE:
             msg = f"neurons[{neuron}]: the covariance update overflowed{at} (check P0 and Q)"
         elif status == lib.RHONN_E_DIVERGED:
