@@ -3,8 +3,10 @@ line, checked with a message that names the option."""
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
+from typing import Iterator
 
-__all__ = ["real_option"]
+__all__ = ["options_named", "real_option"]
 
 
 def real_option(option: str, text: str, *, positive: bool = False, nonnegative: bool = False) -> float:
@@ -20,3 +22,17 @@ def real_option(option: str, text: str, *, positive: bool = False, nonnegative: 
     if nonnegative and not value >= 0:
         raise ValueError(f"{option}: must be >= 0, got {text!r}")
     return value
+
+
+@contextmanager
+def options_named(**options: str) -> Iterator[None]:
+    """Library errors name their fields (``horizon: ...``); inside this block
+    the ones named here are re-raised with the command-line option instead
+    (``options_named(horizon="--horizon")`` gives ``--horizon: ...``)."""
+    try:
+        yield
+    except ValueError as exc:
+        field, sep, rest = str(exc).partition(": ")
+        if sep and field in options:
+            raise ValueError(f"{options[field]}: {rest}") from None
+        raise

@@ -18,7 +18,7 @@ import json
 import sys
 import time
 
-from .options import real_option
+from .options import options_named, real_option
 from .. import reproduce as rp
 
 EXAMPLE_CHOICES = (*rp.EXAMPLES, "all")
@@ -99,10 +99,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"pyrhonn reproduce: [{_i}/{len(keys)}] {_key}: {message} "
                   f"({time.perf_counter() - start:.1f} s)", file=sys.stderr, flush=True)
 
-        result = rp.run_scenario(
-            key, dtype=args.dtype, seed=opts["seed"], noise=opts["noise"], horizon=opts["horizon"],
-            identifiers=opts["identifiers"], mask_holds=not args.no_hold_mask,
-            horizons=() if args.no_horizon_study else None, progress=progress)
+        with options_named(horizon="--horizon"):
+            result = rp.run_scenario(
+                key, dtype=args.dtype, seed=opts["seed"], noise=opts["noise"], horizon=opts["horizon"],
+                identifiers=opts["identifiers"], mask_holds=not args.no_hold_mask,
+                horizons=() if args.no_horizon_study else None, progress=progress)
         progress("writing figures and JSON")
         files = rp.write_outputs(result, out)
         results.append((result, files))

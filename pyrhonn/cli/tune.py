@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .options import real_option
+from .options import options_named, real_option
 from .. import __version__
 from .. import tuning
 from ..config import DTYPES
@@ -231,13 +231,13 @@ def _example(name: str, dt: float | None, horizon: float | None, cf: ConfigFile,
     from ..plants import lim, oscillator, robot
 
     kwargs: dict[str, float] = {} if horizon is None else {"horizon": horizon}
-    if name == "example1":
-        period = 0.2 if dt is None else dt
-        traj = oscillator.simulate(dt=period, **kwargs)
-    elif name == "example2":
-        traj = robot.simulate(**kwargs)
-    else:
-        traj = lim.simulate(**kwargs)
+    with options_named(horizon="--horizon", dt="--dt"):
+        if name == "example1":
+            traj = oscillator.simulate(dt=0.2 if dt is None else dt, **kwargs)
+        elif name == "example2":
+            traj = robot.simulate(**kwargs)
+        else:
+            traj = lim.simulate(**kwargs)
     cfg = cf.config
     if (cfg.n_states, cfg.n_inputs) != (traj.n_states, traj.n_inputs):
         raise ValueError(f"--config {config_source}: has {cfg.n_states} states and {cfg.n_inputs} inputs, but "

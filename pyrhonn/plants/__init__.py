@@ -7,11 +7,14 @@
 Each has a validated parameter dataclass and a ``simulate(...)`` returning a
 :class:`Trajectory` (true states, inputs, measured states and the valid mask).
 Sensor effects (noise, quantisation, dropouts, hold windows) are applied in
-one place, :func:`pyrhonn.plants.trajectory.measure`.
+one place, :func:`pyrhonn.plants.trajectory.measure`. Every run samples
+through :func:`pyrhonn.plants.trajectory.sample_times`, which refuses a run of
+more than :data:`~pyrhonn.plants.trajectory.MAX_SAMPLES` samples up front.
 """
 from __future__ import annotations
 
 from . import lim, oscillator, robot
-from .trajectory import Corruption, HoldWindow, Trajectory, measure, sample_times
+from .trajectory import MAX_SAMPLES, Corruption, HoldWindow, Trajectory, measure, sample_times
 
-__all__ = ["Corruption", "HoldWindow", "Trajectory", "lim", "measure", "oscillator", "robot", "sample_times"]
+__all__ = ["MAX_SAMPLES", "Corruption", "HoldWindow", "Trajectory", "lim", "measure", "oscillator", "robot",
+           "sample_times"]

@@ -59,6 +59,8 @@ from .trajectory import (
     HoldWindow,
     Trajectory,
     build_trajectory,
+    check_length,
+    sample_count,
     sample_times,
 )
 from ..validation import check_array, check_real
@@ -150,13 +152,16 @@ def integrate(
 
     t is (S+1,) with t_n = n*step; x is (S+1, 4); xdot[n] is dx/dt at t_n from
     the right (the RK4 stage k1), with xdot[S] evaluated at the end point.
-    ``step`` must divide ``tau`` and ``horizon`` exactly.
+    ``step`` must divide ``tau`` and ``horizon`` exactly, and S + 1 is at most
+    :data:`~pyrhonn.plants.trajectory.MAX_SAMPLES` (a ValueError naming
+    ``horizon`` before the run otherwise).
     """
     p = OscillatorParams() if params is None else params
     if not isinstance(p, OscillatorParams):
         raise ValueError(f"params: expected OscillatorParams, got {type(p).__name__}")
     h = check_real("step", step, positive=True)
     horizon = check_real("horizon", horizon, positive=True)
+    check_length("horizon", horizon, h, "step", "RK4 grid points")  # the history keeps every point
     N = _steps_in("tau", p.tau, h)  # the delay in internal steps
     S = _steps_in("horizon", horizon, h)
     w = p.input_frequency
@@ -193,11 +198,13 @@ def integrate(
 
 def sample(params: OscillatorParams | None = None, *, dt: float = 0.2, horizon: float = DEFAULT_HORIZON,
            step: float = DEFAULT_STEP) -> tuple[np.ndarray, np.ndarray]:
-    """``(t, X)``: the solution at t_k = k*dt, k = 0..horizon/dt."""
-    t = sample_times(dt, horizon)
+    """``(t, X)``: the solution at t_k = k*dt, k = 0..horizon/dt. Both the
+    samples and the internal RK4 steps (horizon/step) are limited to
+    :data:`~pyrhonn.plants.trajectory.MAX_SAMPLES`, checked before any run."""
+    sample_count(dt, horizon)  # dt, horizon and the number of samples, before anything is allocated
     every = _steps_in("dt", check_real("dt", dt, positive=True), check_real("step", step, positive=True))
-    _, x, _ = integrate(params, horizon=horizon, step=step)
-    return t, x[::every].copy()
+    _, x, _ = integrate(params, horizon=horizon, step=step)  # checks the RK4 grid's length first
+    return sample_times(dt, horizon), x[::every].copy()
 
 
 def convergence_error(

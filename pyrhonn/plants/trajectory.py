@@ -27,6 +27,7 @@ off, and vice versa; the same seed always gives the same trajectory.
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
@@ -34,9 +35,23 @@ import numpy as np
 
 from ..validation import check_array, check_int, check_real, fail
 
-__all__ = ["Corruption", "HoldWindow", "Trajectory", "measure", "sample_times"]
+__all__ = ["MAX_SAMPLES", "Corruption", "HoldWindow", "Trajectory", "check_length", "measure", "sample_count",
+           "sample_times"]
 
 QUANTISERS = ("floor", "round")
+
+#: The most points a simulated run may have: the samples of a plant's run
+#: (:func:`sample_times`) and the steps of the oscillator's internal RK4 grid.
+#: Why this number: it covers the longest run any documented entry asks for,
+#: a ``pyrhonn hil`` scenario with start and duration at their 3600 s maximum
+#: at the rig's 0.3 ms period (7200 s: 24,000,001 samples; ``hil trajectory``
+#: at 3600 s and 0.3 ms: 12,000,001), and bounds the memory of one run: a
+#: simulation holds about 300 bytes per sample (measured: LIM 280, robot 320;
+#: the oscillator's RK4 history about 520 per step), so this is some 7.5 GB
+#: (13 GB for the oscillator's grid) at most. Beyond it a run would take hours
+#: of pure-Python stepping and exhaust memory, so it is refused up front with a
+#: message naming the horizon, instead of a numpy MemoryError part way.
+MAX_SAMPLES = 25_000_000
 
 
 def check_multiple(path: str, value: float, unit: float, unit_name: str) -> int:
@@ -48,16 +63,62 @@ def check_multiple(path: str, value: float, unit: float, unit_name: str) -> int:
     return int(k)
 
 
+def _short(x: float) -> str:
+    """``x`` in a few digits, exponents without padding: 1e9, 2.5e7, 0.0001."""
+    return re.sub(r"e([+-])0*(\d)", lambda m: f"e{'-' if m.group(1) == '-' else ''}{m.group(2)}", f"{x:.4g}")
+
+
+def check_length(path: str, length: float, step: float, step_name: str = "dt", what: str = "samples") -> None:
+    """ValueError naming ``path`` when ``length`` seconds at ``step`` seconds make
+    more than :data:`MAX_SAMPLES` points (``length / step + 1``, both ends
+    included); checked before anything of that size is allocated.
+    ``length`` and ``step`` are finite and > 0 (already validated)."""
+    count = length / step + 1.0  # inf for a huge length over a tiny step: refused as well
+    if not count <= MAX_SAMPLES:
+        raise fail(path, f"{_short(length)} s at {step_name} {_short(step)} s is {_short(count)} {what} "
+                         f"(limit {_short(MAX_SAMPLES)}); shorten {path} or lengthen {step_name}")
+
+
+def sample_count(dt: float, horizon: float) -> int:
+    """K = horizon/dt for :func:`sample_times`, validated (dt, horizon > 0 and
+    finite; K + 1 <= MAX_SAMPLES; K a whole number), without allocating."""
+    dt = check_real("dt", dt, positive=True)
+    horizon = check_real("horizon", horizon, positive=True)
+    check_length("horizon", horizon, dt)
+    return check_multiple("horizon", horizon, dt, "dt")
+
+
 def sample_times(dt: float, horizon: float) -> np.ndarray:
     """t_k = k*dt for k = 0..K with K = horizon/dt (which must be an integer).
 
     Both ends are included, as a Simulink log of a fixed-step run from 0 to
-    ``horizon`` would: K + 1 samples.
+    ``horizon`` would: K + 1 samples, at most :data:`MAX_SAMPLES`.
     """
-    dt = check_real("dt", dt, positive=True)
-    horizon = check_real("horizon", horizon, positive=True)
-    K = check_multiple("horizon", horizon, dt, "dt")
-    return np.arange(K + 1, dtype=np.float64) * dt
+    K = sample_count(dt, horizon)
+    return np.arange(K + 1, dtype=np.float64) * float(dt)
+
+#: relative part (of dt) of the tolerance on the sample times' uniformity
+UNIFORM_RTOL = 1e-9
+#: ulps of the largest |t| allowed on top (float64 rounding of t itself)
+UNIFORM_ULPS = 4.0
+
+
+def uniform_time_error(t: np.ndarray, dt: float) -> int | None:
+    """The index of the first sample time that is not t[0] + k*dt, or None.
+
+    The tolerance is ``UNIFORM_RTOL * dt`` plus ``UNIFORM_ULPS`` ulps of the
+    largest |t|: float64 rounds t = k*dt to a few 1e-13 s at t ~ 2000 s,
+    which is more than any fixed fraction of a 0.3 ms step, so a tolerance
+    on dt alone refuses the sample times of every long run. Against the grid
+    (not step by step), so a drift of the spacing is caught however slow.
+    """
+    k = np.arange(t.shape[0], dtype=np.float64)
+    grid = t[0] + k * dt
+    scale = max(float(np.max(np.abs(t))), float(np.max(np.abs(grid))))
+    tol = UNIFORM_RTOL * dt + UNIFORM_ULPS * float(np.spacing(scale))
+    bad = ~(np.abs(t - grid) <= tol)  # NaN counts as off
+    return int(np.argmax(bad)) if bad.any() else None
+
 
 def input_samples(inputs: object, t: np.ndarray, width: int, source: type, kind: str) -> tuple[np.ndarray, dict[str, Any]]:
     """The (T, width) inputs of a run: ``inputs`` is an input generator of
@@ -337,8 +398,11 @@ class Trajectory:
         T = self.t.shape[0]
         if T < 1:
             raise fail("t", "needs at least one sample")
-        if T > 1 and not np.allclose(np.diff(self.t), self.dt, rtol=1e-9, atol=1e-12 * self.dt):
-            raise fail("t", f"samples must be uniformly spaced by dt = {self.dt!r}")
+        if T > 1:
+            off = uniform_time_error(self.t, self.dt)
+            if off is not None:
+                raise fail("t", f"samples must be uniformly spaced by dt = {self.dt!r} (t[{off}] = "
+                                f"{float(self.t[off])!r} is off t[0] + {off} dt)")
         if not isinstance(self.state_names, tuple) or not all(isinstance(s, str) for s in self.state_names):
             raise fail("state_names", "expected a tuple of str")
         if not isinstance(self.input_names, tuple) or not all(isinstance(s, str) for s in self.input_names):
