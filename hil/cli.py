@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import tempfile
 from pathlib import Path
 from typing import Callable
 
@@ -205,6 +206,7 @@ def _scenario(args, recorded=None):
 
 def _trajectory(args) -> int:
     from pyrhonn.plants import lim
+    from pyrhonn.plants.trajectory import check_length
 
     from .scenario import Scenario
     from .trajectory import samples_per_period, write_trajectory
@@ -220,6 +222,7 @@ def _trajectory(args) -> int:
     K = int(round(args.duration / args.step))
     if K < 2:
         raise ValueError(f"--duration: must cover at least 2 steps of {args.step:g} s, got {args.duration!r}")
+    check_length("--duration", K * args.step, args.step, "--step")  # before anything of that size is allocated
     traj = lim.simulate(dt=args.step, horizon=K * args.step, inputs=lim.LimInput(start=args.input_start), holds=())
     write_trajectory(args.out, traj.t, traj.X, traj.U)
     print(f"wrote {traj.t.size} samples (t = 0..{traj.t[-1]:g} s, step {args.step:g} s) of the simulated LIM "
@@ -243,8 +246,58 @@ def _emit(report: dict, args, note: str | None) -> int:
 
 
 def _check_log_path(path: Path | None) -> None:
-    if path is not None and path.suffix.lower() not in (".blf", ".asc"):
+    """--log, before the run (the log and its sidecar are written after it): a
+    .blf or .asc name, not a directory, in an existing folder this process can
+    write in."""
+    from .rig import sidecar
+
+    if path is None:
+        return
+    if path.suffix.lower() not in (".blf", ".asc"):
         raise ValueError(f"--log: {path.name}: expected a .blf or .asc file name")
+    for p in (path, sidecar(path)):
+        if p.is_dir():
+            raise ValueError(f"--log: {p} is a directory")
+        if p.exists() and not os.access(p, os.W_OK):
+            raise ValueError(f"--log: {p} is not writable")
+    folder = path.parent
+    if not folder.is_dir():
+        raise ValueError(f"--log: folder {str(folder)!r} of {path.name} does not exist")
+    try:  # a real write: permission bits alone do not say it (as root, or on a read-only mount)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".pyrhonn-hil-", suffix=".tmp"):
+            pass
+    except OSError as exc:
+        raise ValueError(f"--log: cannot write in folder {str(folder)!r} ({exc.strerror or exc})") from None
+
+
+def _check_out(out: Path | None) -> None:
+    """--out, before the run: created if needed and proved writable (as pyrhonn reproduce's --out)."""
+    from pyrhonn.reproduce import check_output_dir
+
+    if out is not None:
+        check_output_dir(out)
+
+
+def _check_transport_options(args) -> None:
+    """Refuse what the chosen transport would silently ignore (--runner-spin-us: :func:`_runner_spin`)."""
+    if args.port is not None and args.transport != "udp_multicast":
+        raise ValueError(f"--port: only for udp_multicast; the {args.transport} bus has no port")
+    if args.transport == "virtual":
+        if args.runner is not None:
+            raise ValueError("--runner: the virtual bus's firmware is a thread of this process, no rhonn_runner is "
+                             "started; --runner is for udp_multicast and socketcan")
+        if args.firmware is not None:
+            raise ValueError("--firmware: the virtual bus's firmware is a thread of this process; --firmware "
+                             "chooses the firmware process of udp_multicast")
+    elif args.transport == "socketcan" and args.firmware is not None:
+        raise ValueError("--firmware: only for udp_multicast; over socketcan the firmware is rhonn_runner (--runner "
+                         "starts one, else one must be running already)")
+
+
+def _plan(sc) -> None:
+    """Build the scenario's frames before anything is sent (Scenario.build caches them for the run): a
+    scenario the DBC cannot carry is refused here, with the settings that lead there named."""
+    sc.build()
 
 
 def _note_fallback(side: dict | None) -> None:
@@ -257,14 +310,18 @@ def _replay(args) -> int:
     from .score import compare_runs, score
     from .transport import lim_config, run_replay
 
+    _check_transport_options(args)
+    spin = _runner_spin(args, bench=False)
     _check_log_path(args.log)
     recorded = read_log(args.from_log) if args.from_log is not None else None
     sc = _scenario(args, recorded)
     if recorded is not None and args.log is not None and args.log.resolve() == args.from_log.resolve():
         raise ValueError("--log: would overwrite the --from-log run it is compared with; choose another file")
+    _check_out(args.out)
+    _plan(sc)
     try:
         rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
-                         firmware=args.firmware or True, runner_spin_us=_runner_spin(args, bench=False),
+                         firmware=args.firmware or True, runner_spin_us=spin,
                          reply_timeout=args.timeout, drain=args.drain)
     except BusLost as exc:
         if args.log is not None:  # keep what was recorded up to the loss
@@ -289,6 +346,7 @@ def _score(args) -> int:
     from .transport import lim_config
 
     rec = read_log(args.log)
+    _check_out(args.out)
     report = score(rec, reference=lim_config())
     return _emit(report, args, f"re-scored from {args.log}")
 
@@ -317,24 +375,37 @@ def _cpu_pair(text: str) -> tuple[int, int]:
     return cpus
 
 
+def _bench_scenario(cycles: int):
+    """The bench's at-rest Scenario of ``cycles`` periods; a ValueError naming --cycles when it is longer
+    than a scenario may be."""
+    from .scenario import Scenario
+
+    try:
+        return Scenario.at_rest(cycles)
+    except (ValueError, OverflowError) as exc:  # OverflowError: an int beyond float64 times the period
+        shown = str(cycles) if len(str(cycles)) <= 24 else f"a {len(str(cycles))}-digit number of"
+        raise ValueError(f"--cycles: {shown} cycles of {Scenario().period * 1e3:g} ms are longer than a run may be "
+                         f"({exc})") from None
+
+
 def _bench(args) -> int:
     from . import report as rep
     from .host import StealMeter, steal_line
-    from .scenario import Scenario
     from .score import score
     from .transport import run_replay, use_fifo
 
+    _check_transport_options(args)
+    if args.cpus is not None and args.transport == "virtual":
+        raise ValueError("--cpus: the virtual bus's firmware is a thread of the rig's process; use "
+                         "udp_multicast or socketcan")
+    sc = _bench_scenario(args.cycles)
+    spin = _runner_spin(args, bench=True)
     policy = use_fifo(args.fifo)
     firmware_cpu = None
     if args.cpus is not None:
-        if args.transport == "virtual":
-            raise ValueError("--cpus: the virtual bus's firmware is a thread of the rig's process; use "
-                             "udp_multicast or socketcan")
         firmware_cpu = args.cpus[1]
         policy += f", rig on CPU {args.cpus[0]}, firmware on CPU {args.cpus[1]}"
 
-    sc = Scenario.at_rest(args.cycles)
-    spin = _runner_spin(args, bench=True)
     cpus_before = os.sched_getaffinity(0)
     if args.cpus is not None:
         os.sched_setaffinity(0, {args.cpus[0]})

@@ -47,6 +47,7 @@ __all__ = ["BusLost", "FirmwareTimeout", "LogWriteError", "Recording", "Rig", "i
 
 DRAIN_CAP = 20  #: the drain after the replay reads for at most this many times ``drain``
 MAX_WAIT_S = 3600.0  #: the longest ``reply_timeout`` or ``drain`` a Rig takes
+SIDECAR_MAX_BYTES = 1 << 20  #: a log's JSON sidecar holds the scenario and a few counters: a few kB
 
 
 def check_seconds(name: str, value: object, *, zero: bool) -> float:
@@ -381,35 +382,83 @@ def write_log(rec: Recording, path: str | os.PathLike, *, file: Any = None) -> P
     return path
 
 
+def _read_sidecar(sc_path: Path) -> tuple[Scenario, dict[str, Any]]:
+    """The scenario and the metadata of a log's sidecar ``sc_path``; a
+    ValueError naming the sidecar for anything that is not what
+    :func:`write_log` writes (not JSON, not an object, no scenario, a bad
+    scenario or a field of the wrong type)."""
+    from pyrhonn.validation import check_real, read_file
+
+    def bad(why: str) -> ValueError:
+        return ValueError(f"log: {sc_path}: not a hil log sidecar ({why})")
+
+    try:  # a sidecar is a few kB: a larger file, a device or a pipe is not one
+        meta = json.loads(read_file(sc_path, f"log: {sc_path}", limit=SIDECAR_MAX_BYTES))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise bad(f"not JSON: {exc}") from None
+    except RecursionError:
+        raise bad("JSON nested too deeply") from None
+    except OSError as exc:
+        raise ValueError(f"log: {sc_path}: cannot read it ({exc.strerror or exc})") from None
+    if not isinstance(meta, dict):
+        raise bad(f"expected a JSON object, got {json.dumps(meta)[:40]}")
+    if "scenario" not in meta:
+        raise bad("no 'scenario' entry")
+    try:
+        scenario = Scenario.from_dict(meta.pop("scenario"))
+    except (KeyError, TypeError) as exc:
+        raise bad(f"scenario: {exc}") from None
+    except ValueError as exc:  # a field out of range, or the trajectory file changed: said as it is
+        raise ValueError(f"log: {sc_path}: {exc}") from None
+    for key in ("first_run_event", "t0_ns", "period_ns", "delay_ns", "frames"):  # whole numbers (hil.score)
+        v = meta.get(key, 0)
+        if isinstance(v, bool) or not isinstance(v, int) or not -2 ** 63 <= v < 2 ** 63:
+            raise bad(f"{key}: expected a 64-bit integer, got {json.dumps(v)[:40]}")
+    pickup = meta.get("rx_pickup_us", {"n": 0})  # stats_us's figures, printed by the report
+    if not isinstance(pickup, dict) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                               for v in pickup.values()):
+        raise bad(f"rx_pickup_us: expected an object of numbers, got {json.dumps(pickup)[:40]}")
+    try:
+        meta["first_timestamp"] = check_real("first_timestamp", meta.get("first_timestamp", 0.0))
+    except ValueError as exc:
+        raise bad(str(exc)) from None
+    # run-time entries write_log never writes (hil.score would take them for a live run's)
+    for key in [k for k in meta if k.startswith("_")]:
+        del meta[key]
+    return scenario, meta
+
+
 def read_log(path: str | os.PathLike) -> Recording:
-    """A log written by :func:`write_log` (with its sidecar) as a Recording."""
+    """A log written by :func:`write_log` (with its sidecar) as a Recording.
+    Anything else (a missing, foreign, truncated or empty log, a bad sidecar)
+    is a ValueError naming the file."""
+    import struct
+
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"log: {path}: no such file")
     sc_path = sidecar(path)
     if not sc_path.is_file():
         raise ValueError(f"log: {path}: no sidecar {sc_path.name} (the scenario it replays)")
-    try:
-        meta = json.loads(sc_path.read_text())
-        scenario = Scenario.from_dict(meta.pop("scenario"))
-    except (json.JSONDecodeError, KeyError, TypeError) as exc:
-        raise ValueError(f"log: {sc_path}: not a hil log sidecar ({exc})") from exc
+    scenario, meta = _read_sidecar(sc_path)
     suffix = path.suffix.lower()
-    if suffix == ".blf":
-        reader = can.BLFReader(path)
-    elif suffix == ".asc":
-        reader = can.ASCReader(path)
-    else:
+    if suffix not in (".blf", ".asc"):
         raise ValueError(f"log: {path.name}: expected a .blf or .asc file")
-    try:
+    if path.stat().st_size == 0:
+        raise ValueError(f"log: {path}: empty file (not a {suffix[1:].upper()} log)")
+    reader = None
+    try:  # the BLF reader parses the file's header when it is made: a foreign or empty file fails there
+        reader = can.BLFReader(path) if suffix == ".blf" else can.ASCReader(path)
         msgs = list(reader)
     except Exception as exc:  # noqa: BLE001 - any parse failure of a truncated/foreign file
-        raise ValueError(f"log: {path}: cannot read it ({type(exc).__name__}: {exc})") from exc
+        kind = "truncated, or not a BLF log" if isinstance(exc, struct.error) else type(exc).__name__
+        raise ValueError(f"log: {path}: cannot read it ({kind}: {exc})") from exc
     finally:
-        reader.stop()
+        if reader is not None:
+            reader.stop()
     shift = 0.0
     if msgs:  # ASC stores times from its start, BLF from its (ms-truncated) start: anchor on the first frame
-        shift = float(meta.get("first_timestamp", 0.0)) - msgs[0].timestamp
+        shift = meta["first_timestamp"] - msgs[0].timestamp
     events = [(m.timestamp + shift, "rx" if m.is_rx else "tx", m) for m in msgs]
     meta["frames_read"] = len(events)
     return Recording(scenario=scenario, events=events, meta=meta)

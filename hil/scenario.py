@@ -282,8 +282,12 @@ def _build(sc: Scenario) -> Plan:
         bad = (col < s.minimum) | (col > s.maximum)
         if bad.any():
             k = int(np.argmax(bad))
+            span = f"start {sc.start:g} s and duration {sc.duration:g} s"
+            why = (f"t is the trajectory file's time: {span} replay a part of it the DBC cannot carry"
+                   if sc.trajectory else f"t is the trajectory time: {span} take the simulated LIM, driven from "
+                                         f"input_start {sc.input_start:g} s, outside what the DBC can carry")
             raise ValueError(f"scenario: {name} = {float(col[k]):.6g} at t = {t[k0 + k]:.4f} s is outside the DBC range "
-                             f"[{s.minimum}, {s.maximum}]")
+                             f"[{s.minimum}, {s.maximum}] ({why})")
     rng = np.random.default_rng(np.random.SeedSequence([sc.seed, 0x4811]))
     lost = rng.random(N) < sc.frame_loss if sc.frame_loss > 0 else np.zeros(N, dtype=bool)
     for a in (X, Uk, V, lost):
