@@ -312,12 +312,14 @@ def _replay(args) -> int:
 
     _check_transport_options(args)
     spin = _runner_spin(args, bench=False)
-    _check_log_path(args.log)
+    if args.log is not None and args.log.suffix.lower() not in (".blf", ".asc"):  # a typo: before reading anything
+        raise ValueError(f"--log: {args.log.name}: expected a .blf or .asc file name")
     recorded = read_log(args.from_log) if args.from_log is not None else None
     sc = _scenario(args, recorded)
     if recorded is not None and args.log is not None and args.log.resolve() == args.from_log.resolve():
         raise ValueError("--log: would overwrite the --from-log run it is compared with; choose another file")
-    _check_out(args.out)
+    _check_out(args.out)  # first: --log may name a file in the --out folder this creates
+    _check_log_path(args.log)
     _plan(sc)
     try:
         rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,

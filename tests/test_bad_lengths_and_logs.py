@@ -238,6 +238,15 @@ def test_replay_refuses_a_log_in_a_missing_folder_before_replaying(tmp_path, cli
                                    str(tmp_path / "d.blf")])
 
 
+def test_a_log_in_the_out_folder_the_replay_creates_is_accepted(tmp_path, capsys) -> None:
+    from pyrhonn.cli import main
+
+    out = tmp_path / "new" / "run"  # neither folder exists yet: --out makes it, --log writes into it
+    assert main(["hil", "replay", "--transport", "virtual", "--duration", "0.01", "--out", str(out), "--log",
+                 str(out / "run.blf")]) == 0, capsys.readouterr().err
+    assert (out / "run.blf").is_file() and (out / "run.blf.json").is_file()
+
+
 def test_replay_refuses_an_out_that_is_a_file_before_replaying_and_leaves_it(tmp_path, cli_error,
                                                                                no_replay) -> None:
     afile = tmp_path / "afile"
