@@ -115,7 +115,11 @@ typedef struct {
     rhonn_real w0[RHONN_MAX_TERMS];  /* w_i(0) */
     /* P_i(0), packed upper triangle row by row: P00 P01 .. P0L P11 P12 ..
      * The paper's diagonal P_i(0) has zeros off the diagonal; a full one
-     * (e.g. exported after training) is accepted. Diagonal entries > 0. */
+     * (e.g. exported after training) is accepted. Diagonal entries > 0.
+     * It must also be positive definite (a covariance, eq. 10). The core does
+     * not factorise it to check (pyrhonn's Python layer does); an indefinite
+     * P shows up as RHONN_E_INNOVATION at the first z that finds a negative
+     * direction. The same holds for rhonn_set_covariance. */
     rhonn_real p0[RHONN_MAX_PACKED];
     rhonn_term terms[RHONN_MAX_TERMS];
 } rhonn_neuron_config;
