@@ -23,6 +23,17 @@ def _indices(name: str, values: Iterable[int]) -> list[int]:
     return out
 
 
+def _count_or_indices(name: str, value: int | Sequence[int]) -> list[int]:
+    """A count n (indices 0..n-1, n in 0..255) or an explicit list of indices."""
+    if isinstance(value, bool):
+        raise ValueError(f"{name}: expected a count or a list of indices, got {value!r}")
+    if isinstance(value, int):
+        if not 0 <= value <= 255:
+            raise ValueError(f"{name}: a count must be in 0..255, got {value}")
+        return list(range(value))
+    return _indices(name, value)
+
+
 def bias() -> tuple[Term, ...]:
     """A single constant term, z = 1."""
     return ((Factor.one(),),)
@@ -34,21 +45,21 @@ def first_order(states: int | Sequence[int], inputs: int | Sequence[int] = 0) ->
     ``states`` / ``inputs`` are either a count (all indices below it) or an
     explicit list of indices.
     """
-    s = list(range(states)) if isinstance(states, int) else _indices("states", states)
-    u = list(range(inputs)) if isinstance(inputs, int) else _indices("inputs", inputs)
+    s = _count_or_indices("states", states)
+    u = _count_or_indices("inputs", inputs)
     return tuple((Factor.s(j),) for j in s) + tuple((Factor.u(j),) for j in u)
 
 
 def inputs(indices: int | Sequence[int], power: int = 1) -> tuple[Term, ...]:
     """u_j^power for each input j."""
-    u = list(range(indices)) if isinstance(indices, int) else _indices("inputs", indices)
+    u = _count_or_indices("inputs", indices)
     return tuple((Factor.u(j, power),) for j in u)
 
 
 def pairwise_products(states: int | Sequence[int], squares: bool = False) -> tuple[Term, ...]:
     """S(x_a) S(x_b) for every pair a < b of the given states; with
     ``squares=True`` also S(x_a)^2."""
-    s = list(range(states)) if isinstance(states, int) else _indices("states", states)
+    s = _count_or_indices("states", states)
     pairs = combinations_with_replacement(s, 2) if squares else combinations(s, 2)
     out: list[Term] = []
     for a, b in pairs:

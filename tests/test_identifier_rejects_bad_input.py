@@ -264,3 +264,14 @@ def test_a_float32_core_says_which_value_does_not_fit_float32(kwargs: dict, mess
     Identifier(cfg.replace(dtype="float64"))  # fine in float64
     with pytest.raises(ValueError, match=message):
         Identifier(cfg)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda: terms.first_order(-1, 1), r"^states: a count must be in 0\.\.255, got -1"),
+    (lambda: terms.first_order(2, True), r"^inputs: expected a count or a list of indices, got True"),
+    (lambda: terms.inputs(10**9), r"^inputs: a count must be in 0\.\.255"),
+    (lambda: terms.pairwise_products([0, -1]), r"^states: expected non-negative integer indices, got -1"),
+])
+def test_term_builders_refuse_counts_they_would_silently_empty(call, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        call()
