@@ -146,6 +146,8 @@ def _number(text: str, what: str, lo: int, hi: int) -> int:
     """A decimal integer field of a factor, without leading zeros, in lo..hi."""
     if len(text) > 1 and text[0] == "0":
         raise ValueError(f"{what} {text} is written with a leading zero")
+    if len(text) > 3:  # beyond any limit here (255): not worth converting, nor echoing in full
+        raise ValueError(f"{what} of {len(text)} digits out of range {lo}..{hi}")
     value = int(text)
     if not lo <= value <= hi:
         raise ValueError(f"{what} {value} out of range {lo}..{hi}")
@@ -202,7 +204,8 @@ def parse_term(text: str, n_states: int | None = None, n_inputs: int | None = No
         try:
             factors.append(_parse_factor(core, n_states, n_inputs))
         except ValueError as exc:
-            raise ValueError(f"{core!r}: {exc}") from None
+            shown = repr(core) if len(core) <= 60 else f"{core[:40]!r}... ({len(core)} characters)"
+            raise ValueError(f"{shown}: {exc}") from None
     return tuple(factors)
 
 

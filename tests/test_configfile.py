@@ -71,6 +71,9 @@ def test_parse_term_reads_each_factor_form(text: str, term: tuple) -> None:
 @pytest.mark.parametrize("text, message", [
     ("", "empty term"),
     ("S(x1)**2", "empty factor (powers are written ^P)"),
+    ("S(x" + "1" * 5000 + ")", "'S(x1111111111111111111111111111111111111'... (5004 characters): state index of 5000 "
+                              "digits out of range"),
+    ("u" + "9" * 30, "input index of 30 digits out of range"),
     ("S(x1)*", "empty factor"),
     (" S(x1)", "leading or trailing whitespace"),
     ("S(x1) ", "leading or trailing whitespace"),
