@@ -127,6 +127,24 @@ Term = tuple[Factor, ...]
 """A high-order term z_ij: the product of its factors (eq. 4)."""
 
 
+def _real_list(path: str, value: list | tuple) -> np.ndarray:
+    """A (nested) list of real numbers as a float64 array; None, bools,
+    strings and ragged rows are refused, not converted (np.array would turn
+    None into NaN and "1" into 1.0)."""
+    try:
+        a = np.array(value, dtype=object)
+    except ValueError:
+        raise fail(path, "expected a list of numbers (or of equal-length lists of numbers)") from None
+    for idx, v in np.ndenumerate(a):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            where = path + "".join(f"[{i}]" for i in idx)
+            raise fail(where, f"expected a real number, got {type(v).__name__} {v!r}"[:200])
+    try:
+        return a.astype(np.float64)
+    except OverflowError:
+        raise fail(path, "out of the float64 range (an integer beyond 1.8e308)") from None
+
+
 def monomial(term: Term) -> frozenset[tuple[Any, ...]]:
     """The product a term stands for, as {(kind, index, delay): power}: the
     same for S(x1)*S(x2) and S(x2)*S(x1), for S(x1)^2 and S(x1)*S(x1), and
@@ -295,27 +313,14 @@ class NeuronConfig:
 
         def num_or_array(key: str, default: Any) -> Any:
             v = data.get(key, default)
-            if isinstance(v, (list, tuple)):
-                try:
-                    a = np.array(v, dtype=np.float64)
-                except (TypeError, ValueError):
-                    raise fail(f"{path}.{key}", "expected a list of numbers") from None
-                return a
-            return v
+            return _real_list(f"{path}.{key}", v) if isinstance(v, (list, tuple)) else v
 
+        p0, q, w0 = num_or_array("p0", 1.0), num_or_array("q", 0.0), num_or_array("w0", None)
         try:
-            return cls(
-                terms=tuple(terms),
-                activation=activation,
-                beta=data.get("beta", 1.0),
-                p0=num_or_array("p0", 1.0),
-                q=num_or_array("q", 0.0),
-                r=data.get("r", 1.0),
-                eta=data.get("eta", 1.0),
-                w0=num_or_array("w0", None),
-            )
-        except ValueError as exc:
-            raise fail(path, str(exc)) from None
+            return cls(terms=tuple(terms), activation=activation, beta=data.get("beta", 1.0), p0=p0, q=q,
+                       r=data.get("r", 1.0), eta=data.get("eta", 1.0), w0=w0)
+        except ValueError as exc:  # "p0[1]: ..." from the checks: the field, under this neuron's path
+            raise ValueError(f"{path}.{exc}") from None
 
 
 @dataclass(frozen=True, eq=False)
@@ -423,6 +428,6 @@ class IdentifierConfig:
         if x0 is not None:
             if not isinstance(x0, (list, tuple)):
                 raise fail("x0", "expected a list of numbers")
-            x0 = np.array(x0, dtype=np.float64)
+            x0 = _real_list("x0", x0)
         return cls(n_states=data["n_states"], n_inputs=data["n_inputs"], neurons=neurons,
                    dtype=data.get("dtype", "float64"), x0=x0)

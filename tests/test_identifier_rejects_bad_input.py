@@ -275,3 +275,19 @@ def test_a_float32_core_says_which_value_does_not_fit_float32(kwargs: dict, mess
 def test_term_builders_refuse_counts_they_would_silently_empty(call, message: str) -> None:
     with pytest.raises(ValueError, match=message):
         call()
+
+
+@pytest.mark.parametrize("mutate, message", [
+    (lambda d: d.update(x0=[None, 0.0, 0.0]), r"^x0\[0\]: expected a real number, got NoneType None"),
+    (lambda d: d["neurons"][0].update(p0=["1"] + [1.0] * 6), r"^neurons\[0\]\.p0\[0\]: expected a real number, got str"),
+    (lambda d: d["neurons"][1].update(w0=[True] + [0.0] * 6), r"^neurons\[1\]\.w0\[0\]: expected a real number, got bool"),
+    (lambda d: d["neurons"][0].update(p0=[[1.0, 0.0], [0.0]]), r"^neurons\[0\]\.p0"),
+    (lambda d: d["neurons"][2].update(beta=0.0), r"^neurons\[2\]\.beta: must be > 0"),
+    (lambda d: d.update(x0=[10**400, 0.0, 0.0]), r"^x0: out of the float64 range"),
+])
+def test_from_dict_names_the_field_and_converts_nothing_silently(mutate, message: str) -> None:
+    d = make().to_dict()
+    mutate(d)
+    with pytest.raises(ValueError, match=message):
+        IdentifierConfig.from_dict(d)
+    assert IdentifierConfig.from_dict(make().to_dict()).to_dict() == make().to_dict()
