@@ -201,7 +201,10 @@ def _scenario(args, recorded=None):
         if args.input_start is not None:
             raise ValueError("--input-start: applies to the simulated plant, not to a --trajectory file")
         kw["trajectory"] = str(args.trajectory)
-    return Scenario(**kw)
+    from pyrhonn.cli.options import options_named
+
+    with options_named(**{field: "--" + dest.replace("_", "-") for dest, field in SCENARIO_OPTIONS.items()}):
+        return Scenario(**kw)
 
 
 def _trajectory(args) -> int:
@@ -217,8 +220,8 @@ def _trajectory(args) -> int:
         raise ValueError(f"--step: {exc}") from None
     if not 0 < args.duration <= 3600:
         raise ValueError(f"--duration: expected seconds in (0, 3600], got {args.duration!r}")
-    if not args.input_start >= 0:
-        raise ValueError(f"--input-start: expected seconds >= 0, got {args.input_start!r}")
+    if not 0 <= args.input_start < float("inf"):
+        raise ValueError(f"--input-start: expected finite seconds >= 0, got {args.input_start!r}")
     K = int(round(args.duration / args.step))
     if K < 2:
         raise ValueError(f"--duration: must cover at least 2 steps of {args.step:g} s, got {args.duration!r}")

@@ -304,3 +304,17 @@ def test_a_sidecar_too_deep_or_too_large_is_refused_naming_it(tmp_path, content:
     (tmp_path / "r.blf.json").write_bytes(content)
     with pytest.raises(ValueError, match=rf"^log: {re.escape(str(tmp_path))}/r\.blf\.json: .*{message}"):
         read_log(log)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["replay", "--transport", "virtual", "--duration", "0.01", "--input-start", "nan"], "--input-start: must be finite"),
+    (["replay", "--transport", "virtual", "--duration", "0.01", "--delay", "-1"], "--delay: must be >= 0"),
+    (["replay", "--transport", "virtual", "--duration", "0.01", "--frame-loss", "2"], "--frame-loss: must be <= 0.5"),
+    (["trajectory", "t.csv", "--input-start", "inf"], "--input-start: expected finite seconds >= 0, got inf"),
+])
+def test_scenario_errors_name_the_command_line_option(tmp_path, monkeypatch, cli_error, no_replay, argv,
+                                                       message) -> None:
+    monkeypatch.chdir(tmp_path)
+    err = cli_error(["hil", *argv])
+    assert err.startswith(f"pyrhonn hil: error: {message}"), err
+    assert not (tmp_path / "t.csv").exists()
