@@ -23,13 +23,19 @@ absolute deviation, nor scaled by 1.4826.
 
 Inputs must be float numpy arrays of identical shape (T, n) with T > warmup,
 with no NaN or infinity; anything else raises ValueError naming the argument.
+Errors up to the float64 limit give finite metrics (taken on e / max|e| when
+e^2 would overflow); truth and estimate beyond float64 apart give inf.
 Nothing is reshaped: pass a single state as ``x[:, None]``.
 """
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 __all__ = ["absolute_deviation", "errors", "rmse"]
+
+_SQUARE_SAFE = 1e150  #: |e| up to this squares and sums without overflow (float64 max is 1.8e308)
 
 
 def errors(truth: np.ndarray, estimate: np.ndarray, warmup: int = 0) -> np.ndarray:
@@ -55,7 +61,8 @@ def errors(truth: np.ndarray, estimate: np.ndarray, warmup: int = 0) -> np.ndarr
         if np.any(bad):
             k, j = (int(i) for i in np.argwhere(bad)[0])
             raise ValueError(f"{name}[{k}, {j}]: must be finite, got {a[k, j]!r}")
-    return (truth[warmup:] - estimate[warmup:]).astype(np.float64, copy=False)
+    with np.errstate(over="ignore"):  # a difference beyond float64 is an infinite error, said by the result
+        return (truth[warmup:] - estimate[warmup:]).astype(np.float64, copy=False)
 
 
 def rmse(truth: np.ndarray, estimate: np.ndarray, warmup: int = 0) -> np.ndarray:
@@ -63,8 +70,7 @@ def rmse(truth: np.ndarray, estimate: np.ndarray, warmup: int = 0) -> np.ndarray
 
     ``warmup`` samples at the start are excluded (default 0: all samples).
     """
-    e = errors(truth, estimate, warmup)
-    return np.sqrt(np.mean(e * e, axis=0))
+    return _scaled(lambda e: np.sqrt(np.mean(e * e, axis=0)), errors(truth, estimate, warmup))
 
 
 def absolute_deviation(truth: np.ndarray, estimate: np.ndarray, warmup: int = 0) -> np.ndarray:
@@ -74,5 +80,18 @@ def absolute_deviation(truth: np.ndarray, estimate: np.ndarray, warmup: int = 0)
     AD_j = (1/K) sum_k |e_kj - ebar_j|,  ebar_j = (1/K) sum_k e_kj.
     Equal to MATLAB's ``mad(e, 0)``; see the module docstring for why.
     """
-    e = errors(truth, estimate, warmup)
-    return np.mean(np.abs(e - np.mean(e, axis=0)), axis=0)
+    return _scaled(lambda e: np.mean(np.abs(e - np.mean(e, axis=0)), axis=0), errors(truth, estimate, warmup))
+
+
+def _scaled(metric: Callable[[np.ndarray], np.ndarray], e: np.ndarray) -> np.ndarray:
+    """``metric(e)`` for a metric that scales with |e| (both here do). Errors
+    beyond 1e150 would overflow in e^2 or in a sum although the metric itself
+    fits float64: then it is taken on e / peak and scaled back; an infinite
+    error (truth and estimate beyond float64 apart) gives inf."""
+    peak = np.max(np.abs(e), axis=0)
+    if not np.any(peak > _SQUARE_SAFE):
+        return metric(e)  # the plain formula, bit for bit, in every ordinary case
+    with np.errstate(over="ignore", invalid="ignore"):
+        scale = np.where((peak > 0) & np.isfinite(peak), peak, 1.0)
+        out = scale * metric(e / scale)
+    return np.where(np.isfinite(peak), out, np.inf)

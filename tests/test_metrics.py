@@ -103,3 +103,17 @@ def test_absolute_deviation_ignores_offsets_and_scales_with_the_error(pair, offs
 def test_bad_inputs_raise_value_error_naming_the_argument(metric, truth, estimate, warmup, field):
     with pytest.raises(ValueError, match=rf"^{field}"):
         metric(truth, estimate, warmup=warmup)
+
+
+def test_errors_near_the_float64_limit_give_finite_metrics_without_warnings() -> None:
+    import warnings
+
+    truth = np.array([[1e308, 1.0], [-1e308, 2.0], [0.0, 3.0]])
+    estimate = np.zeros((3, 2))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no numpy overflow warning leaks to a user's terminal
+        r, ad = rmse(truth, estimate), absolute_deviation(truth, estimate)
+        np.testing.assert_allclose(r, [math.sqrt(2.0 / 3.0) * 1e308, math.sqrt(14.0 / 3.0)], rtol=1e-15)
+        np.testing.assert_allclose(ad, [2.0 / 3.0 * 1e308, 2.0 / 3.0], rtol=1e-15)
+        apart = np.array([[1e308], [-1e308]])  # truth and estimate beyond float64 apart: the error is inf
+        assert rmse(apart, -apart)[0] == np.inf and absolute_deviation(apart, -apart)[0] == np.inf
