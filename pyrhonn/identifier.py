@@ -47,7 +47,10 @@ class IdentifierError(ValueError):
     """The C core refused a step: ``status`` is the rhonn_status name.
 
     A ``ValueError`` so that every rejected input is caught the same way;
-    the identifier's state is unchanged when this is raised.
+    the identifier's state is unchanged when this is raised. A failure that
+    comes from the stored state (a learning update that overflows for the
+    stored regressor and covariance) therefore repeats on the next steps:
+    recover with ``reset()``, ``learning = False`` or the setters.
     """
 
     def __init__(self, status: str, message: str) -> None:

@@ -291,3 +291,30 @@ def test_from_dict_names_the_field_and_converts_nothing_silently(mutate, message
     with pytest.raises(ValueError, match=message):
         IdentifierConfig.from_dict(d)
     assert IdentifierConfig.from_dict(make().to_dict()).to_dict() == make().to_dict()
+
+
+def _stuck() -> Identifier:
+    """An identifier whose stored regressor z(k) = 1e160 makes every next update overflow."""
+    ident = Identifier(IdentifierConfig.uniform(((Factor.x(0),),), n_states=1, n_inputs=0))
+    ident.learning = False
+    ident.step(np.array([0.1]))
+    ident.step(np.array([1e160]))  # predicting only: z(k) = 1e160 is stored for the next update
+    ident.learning = True
+    return ident
+
+
+def test_a_failure_of_the_stored_state_repeats_until_the_documented_recoveries() -> None:
+    ident = _stuck()
+    for _ in range(3):  # z^T P z = 1e320 overflows for every new sample: nothing is committed, so it repeats
+        with pytest.raises(IdentifierError, match="innovation"):
+            ident.step(np.array([0.1]))
+    ident.learning = False  # recovery 1: predictions go on from the frozen weights
+    ident.step(np.array([0.1]))
+    ident.learning = True
+    ident.step(np.array([0.1]))  # the stored regressor is ordinary again: learning resumes
+    ident = _stuck()
+    with pytest.raises(IdentifierError):
+        ident.step(np.array([0.1]))
+    ident.reset()  # recovery 2
+    ident.step(np.array([0.1]))
+    ident.step(np.array([0.2]))

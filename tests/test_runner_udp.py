@@ -447,6 +447,30 @@ def test_runner_rejects_bad_udp_options_with_exit_2_and_a_reason(runner_exe, arg
     assert out.returncode == 2 and message in out.stderr, out.stderr
 
 
+@pytest.mark.parametrize("argv, message", [
+    (["--fifo", "4294967297"], "--fifo takes a priority in 1..99"),      # was truncated to priority 1
+    (["--fifo", "-4294967295"], "--fifo takes a priority in 1..99"),
+    (["--cycles", " -1"], "--cycles must be a whole number"),               # was ULLONG_MAX cycles
+    (["--cycles", "18446744073709551616"], "--cycles must be a whole number"),
+    (["--cycles", "+5"], "--cycles must be a whole number"),
+    (["--diag-period", "+5"], "--diag-period takes 0..65535"),
+    (["--json", "/nonexistent-dir/x.json"], "--json: cannot write /nonexistent-dir/x.json"),
+])
+def test_runner_refuses_counts_it_would_wrap_and_a_json_path_before_running(runner_exe, argv, message) -> None:
+    out = subprocess.run([str(runner_exe), "--bus-less", "--duration", "2", *argv], capture_output=True, text=True,
+                         timeout=30)
+    assert out.returncode == 2 and message in out.stderr, out.stderr
+    assert "cycles, SCHED" not in out.stdout  # refused before the run, not after it
+
+
+def test_runner_reports_statistics_it_could_not_write(runner_exe) -> None:
+    if not Path("/dev/full").exists():
+        pytest.skip("no /dev/full here")
+    out = subprocess.run([str(runner_exe), "--bus-less", "--cycles", "3", "--json", "/dev/full"], capture_output=True,
+                         text=True, timeout=30)
+    assert out.returncode == 1 and "--json: writing /dev/full failed" in out.stderr, out.stderr
+
+
 def test_runner_without_a_network_exits_1_with_a_clear_message(runner_exe) -> None:
     """In a network namespace of its own (no interface up) the group cannot be joined."""
     unshare = shutil.which("unshare")

@@ -39,6 +39,13 @@
  * identifier exactly as it was before the call (weights, covariances,
  * history, prediction): the new values are computed into the inactive half of
  * double-buffered storage and committed only when every neuron succeeded.
+ * Because nothing is committed, a failure caused by the stored state rather
+ * than by the new sample (a learning update that overflows for the stored
+ * z(k-1) and P, e.g. after huge inputs or with P0, Q or eta near the range
+ * of rhonn_real) repeats on every later step. The caller recovers with
+ * rhonn_reset, with rhonn_set_learning(net, 0) (predictions go on from the
+ * frozen weights) or by replacing the weights and covariance with the
+ * setters; the firmware app counts such steps as step errors.
  * Nothing in this library allocates, prints, recurses or aborts.
  *
  * PRECISION. rhonn_real is double, or float when RHONN_SINGLE is defined.

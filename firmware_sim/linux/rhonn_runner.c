@@ -113,8 +113,9 @@ static uint64_t hist_quantile(const histogram *h, double q)
     for (b = 0; b < HIST_BINS; ++b) {
         seen += h->bins[b];
         if (seen >= need) {
+            /* the last bin holds everything beyond 20 ms: its only honest bound is the maximum */
             uint64_t edge = (uint64_t)(b + 1u) * HIST_BIN_NS;
-            return edge < h->max_ns ? edge : h->max_ns;
+            return b == HIST_BINS - 1u || edge > h->max_ns ? h->max_ns : edge;
         }
     }
     return h->max_ns;
@@ -577,6 +578,30 @@ static void on_signal(int sig)
     stop_requested = 1;
 }
 
+/* A whole number in lo..hi written as plain decimal digits: no sign, no
+ * spaces, no hex, nothing strtoull would wrap (" -1" is ULLONG_MAX to it). */
+static int parse_count(const char *text, unsigned long long lo, unsigned long long hi, unsigned long long *out)
+{
+    unsigned long long v;
+    char *endp;
+    size_t i;
+    if (text[0] == '\0') {
+        return -1;
+    }
+    for (i = 0; text[i] != '\0'; ++i) {
+        if (text[i] < '0' || text[i] > '9') {
+            return -1;
+        }
+    }
+    errno = 0;
+    v = strtoull(text, &endp, 10);
+    if (errno != 0 || *endp != '\0' || v < lo || v > hi) {
+        return -1;
+    }
+    *out = v;
+    return 0;
+}
+
 static void usage(FILE *f)
 {
     fprintf(f, "usage: rhonn_runner (--interface IF | --udp-multicast GROUP:PORT | --bus-less)\n"
@@ -694,8 +719,10 @@ int main(int argc, char **argv)
     long diag_period = 1000;
     double spin_us = 0.0;
     double period_us = 300.0, duration_s = 0.0;
-    unsigned long long max_cycles = 0;
+    unsigned long long max_cycles = 0, count = 0;
     const char *policy = "SCHED_OTHER";
+    FILE *json_file = NULL;
+    int json_failed = 0;
     int bus_failed = 0;
     fw_hal hal;
     fw_app_config cfg;
@@ -723,12 +750,11 @@ int main(int argc, char **argv)
             }
             break;
         case 'D':
-            errno = 0;
-            diag_period = strtol(optarg, &endp, 10);
-            if (*optarg == '\0' || *endp != '\0' || errno != 0 || diag_period < 0 || diag_period > 65535) {
+            if (parse_count(optarg, 0u, 65535u, &count) < 0) {
                 fprintf(stderr, "rhonn_runner: --diag-period takes 0..65535 measurements, got '%s'\n", optarg);
                 return 2;
             }
+            diag_period = (long)count;
             break;
         case 'S':
             spin_us = strtod(optarg, &endp);
@@ -745,9 +771,8 @@ int main(int argc, char **argv)
             }
             break;
         case 'n':
-            max_cycles = strtoull(optarg, &endp, 10);
-            if (*endp != '\0' || max_cycles == 0 || optarg[0] == '-') {
-                fprintf(stderr, "rhonn_runner: --cycles must be a positive integer, got '%s'\n", optarg);
+            if (parse_count(optarg, 1u, 1000000000000ull, &max_cycles) < 0) { /* 1e12: 3.5 days at 0.3 ms */
+                fprintf(stderr, "rhonn_runner: --cycles must be a whole number in 1..1000000000000, got '%s'\n", optarg);
                 return 2;
             }
             break;
@@ -760,11 +785,11 @@ int main(int argc, char **argv)
             }
             break;
         case 'f':
-            fifo = (int)strtol(optarg, &endp, 10);
-            if (*endp != '\0' || fifo < 1 || fifo > 99) {
+            if (parse_count(optarg, 1u, 99u, &count) < 0) {
                 fprintf(stderr, "rhonn_runner: --fifo takes a priority in 1..99, got '%s'\n", optarg);
                 return 2;
             }
+            fifo = (int)count;
             break;
         case 'j': json_path = optarg; break;
         case 'q': quiet = 1; break;
@@ -789,6 +814,11 @@ int main(int argc, char **argv)
     }
     if (spin_us > 0.0 && (rx_arrival == 0 || bus_less || !(2.0 * spin_us < period_us))) {
         fprintf(stderr, "rhonn_runner: --spin-us needs --rx arrival on a bus, and less than half the period\n");
+        return 2;
+    }
+    /* opened before the run: a path that cannot be written is found now, not after an hour's run */
+    if (json_path != NULL && (json_file = fopen(json_path, "w")) == NULL) {
+        fprintf(stderr, "rhonn_runner: --json: cannot write %s: %s\n", json_path, strerror(errno));
         return 2;
     }
     if (ifname != NULL) {
@@ -961,12 +991,8 @@ int main(int argc, char **argv)
                    elapsed ? 100.0 * (double)spin_total_ns / (double)elapsed : 0.0);
         }
     }
-    if (json_path != NULL) {
-        FILE *f = fopen(json_path, "w");
-        if (f == NULL) {
-            fprintf(stderr, "rhonn_runner: cannot write %s: %s\n", json_path, strerror(errno));
-            return 1;
-        }
+    if (json_file != NULL) {
+        FILE *f = json_file;
         fprintf(f, "{\"mode\": \"%s\", \"interface\": ", mode);
         json_string(f, bus_less ? "" : where);
         fprintf(f, ", \"rx\": \"%s\", \"period_us\": %.3f, \"cycles\": %llu, \"policy\": \"%s\", \"overruns\": %llu, "
@@ -999,10 +1025,13 @@ int main(int argc, char **argv)
             fprintf(f, "}}");
         }
         fprintf(f, "}\n");
-        fclose(f);
+        if (ferror(f) | fclose(f)) { /* a full disk or /dev/full: the statistics are not there */
+            fprintf(stderr, "rhonn_runner: --json: writing %s failed: %s\n", json_path, strerror(errno));
+            json_failed = 1;
+        }
     }
     if (plat.fd >= 0) {
         close(plat.fd);
     }
-    return bus_failed ? 1 : 0;
+    return bus_failed || json_failed ? 1 : 0;
 }
