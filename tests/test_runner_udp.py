@@ -455,6 +455,9 @@ def test_runner_rejects_bad_udp_options_with_exit_2_and_a_reason(runner_exe, arg
     (["--cycles", "+5"], "--cycles must be a whole number"),
     (["--diag-period", "+5"], "--diag-period takes 0..65535"),
     (["--json", "/nonexistent-dir/x.json"], "--json: cannot write /nonexistent-dir/x.json"),
+    (["--period-us", "300", "--period-us", "200"], "--period-us is given twice"),  # was: the last one wins
+    (["--bus-less"], "--bus-less is given twice"),
+    (["--cycles", "5"], "give --cycles or --duration, not both"),
 ])
 def test_runner_refuses_counts_it_would_wrap_and_a_json_path_before_running(runner_exe, argv, message) -> None:
     out = subprocess.run([str(runner_exe), "--bus-less", "--duration", "2", *argv], capture_output=True, text=True,

@@ -723,6 +723,7 @@ int main(int argc, char **argv)
     const char *policy = "SCHED_OTHER";
     FILE *json_file = NULL;
     int json_failed = 0;
+    unsigned char seen[128] = {0};
     int bus_failed = 0;
     fw_hal hal;
     fw_app_config cfg;
@@ -737,6 +738,18 @@ int main(int argc, char **argv)
     plat.kind = BUS_NONE;
     plat.fd = -1;
     while ((opt = getopt_long(argc, argv, "i:bu:r:D:S:p:n:d:f:j:qh", options, NULL)) != -1) {
+        /* an option given twice is a mistake in a script, not "the last one wins" */
+        if (opt > 0 && opt < 128 && opt != '?' && opt != 'h') {
+            if (seen[opt]) {
+                const struct option *o = options;
+                while (o->name != NULL && o->val != opt) {
+                    ++o;
+                }
+                fprintf(stderr, "rhonn_runner: --%s is given twice\n", o->name != NULL ? o->name : "?");
+                return 2;
+            }
+            seen[opt] = 1;
+        }
         switch (opt) {
         case 'i': ifname = optarg; break;
         case 'b': bus_less = 1; break;
@@ -800,6 +813,10 @@ int main(int argc, char **argv)
     if (optind != argc || (ifname != NULL) + (udp_spec != NULL) + bus_less != 1) {
         fprintf(stderr, "rhonn_runner: give exactly one of --interface IF, --udp-multicast GROUP:PORT or --bus-less\n");
         usage(stderr);
+        return 2;
+    }
+    if (seen['n'] && seen['d']) {
+        fprintf(stderr, "rhonn_runner: give --cycles or --duration, not both\n");
         return 2;
     }
     if (bus_less && rx_arrival == 1) {
