@@ -249,15 +249,13 @@ def _emit(report: dict, args, note: str | None) -> int:
 
 
 def _check_log_path(path: Path | None) -> None:
-    """--log, before the run (the log and its sidecar are written after it): a
-    .blf or .asc name, not a directory, in an existing folder this process can
-    write in."""
+    """--log, before the run (the log and its sidecar are written after it;
+    its .blf/.asc name is checked first thing in _replay): not a directory,
+    in an existing folder this process can write in."""
     from .rig import sidecar
 
     if path is None:
         return
-    if path.suffix.lower() not in (".blf", ".asc"):
-        raise ValueError(f"--log: {path.name}: expected a .blf or .asc file name")
     for p in (path, sidecar(path)):
         if p.is_dir():
             raise ValueError(f"--log: {p} is a directory")
@@ -297,12 +295,6 @@ def _check_transport_options(args) -> None:
                          "starts one, else one must be running already)")
 
 
-def _plan(sc) -> None:
-    """Build the scenario's frames before anything is sent (Scenario.build caches them for the run): a
-    scenario the DBC cannot carry is refused here, with the settings that lead there named."""
-    sc.build()
-
-
 def _note_fallback(side: dict | None) -> None:
     if side and side.get("fallback"):
         print(f"note: {side['fallback']}", file=sys.stderr)
@@ -323,7 +315,7 @@ def _replay(args) -> int:
         raise ValueError("--log: would overwrite the --from-log run it is compared with; choose another file")
     _check_out(args.out)  # first: --log may name a file in the --out folder this creates
     _check_log_path(args.log)
-    _plan(sc)
+    sc.build()  # the frames before anything is sent (cached for the run): a scenario the DBC cannot carry ends here
     try:
         rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
                          firmware=args.firmware or True, runner_spin_us=spin,

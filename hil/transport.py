@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import functools
 import json
-import math
 import os
 import random
 import signal
@@ -58,11 +57,13 @@ RUNNER_SPIN_MAX_US = 149.0
 def check_runner_spin(value: object) -> float:
     """The runner's busy-poll margin in us, 0 <= value <= RUNNER_SPIN_MAX_US
     (ValueError naming runner_spin_us otherwise)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or not 0.0 <= value <= RUNNER_SPIN_MAX_US:
-        raise ValueError(f"runner_spin_us: expected microseconds in [0, {RUNNER_SPIN_MAX_US:g}] (less than half "
-                         f"the 0.3 ms period), got {value!r}")
-    return float(value)
+    from pyrhonn.validation import check_real, fail
+
+    v = check_real("runner_spin_us", value)
+    if not 0.0 <= v <= RUNNER_SPIN_MAX_US:
+        raise fail("runner_spin_us", f"expected microseconds in [0, {RUNNER_SPIN_MAX_US:g}] (less than half the "
+                                     f"0.3 ms period), got {value!r}")
+    return v
 
 
 @functools.cache

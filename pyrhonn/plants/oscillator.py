@@ -60,7 +60,6 @@ from .trajectory import (
     Trajectory,
     build_trajectory,
     check_length,
-    sample_count,
     sample_times,
 )
 from ..validation import check_array, check_real
@@ -201,10 +200,10 @@ def sample(params: OscillatorParams | None = None, *, dt: float = 0.2, horizon: 
     """``(t, X)``: the solution at t_k = k*dt, k = 0..horizon/dt. Both the
     samples and the internal RK4 steps (horizon/step) are limited to
     :data:`~pyrhonn.plants.trajectory.MAX_SAMPLES`, checked before any run."""
-    sample_count(dt, horizon)  # dt, horizon and the number of samples, before anything is allocated
+    t = sample_times(dt, horizon)  # checks dt, horizon and the number of samples
     every = _steps_in("dt", check_real("dt", dt, positive=True), check_real("step", step, positive=True))
     _, x, _ = integrate(params, horizon=horizon, step=step)  # checks the RK4 grid's length first
-    return sample_times(dt, horizon), x[::every].copy()
+    return t, x[::every].copy()
 
 
 def convergence_error(

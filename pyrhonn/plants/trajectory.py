@@ -35,7 +35,7 @@ import numpy as np
 
 from ..validation import check_array, check_int, check_real, fail
 
-__all__ = ["MAX_SAMPLES", "Corruption", "HoldWindow", "Trajectory", "check_length", "measure", "sample_count",
+__all__ = ["MAX_SAMPLES", "Corruption", "HoldWindow", "Trajectory", "check_length", "measure",
            "sample_times"]
 
 QUANTISERS = ("floor", "round")
@@ -79,23 +79,18 @@ def check_length(path: str, length: float, step: float, step_name: str = "dt", w
                          f"(limit {_short(MAX_SAMPLES)}); shorten {path} or lengthen {step_name}")
 
 
-def sample_count(dt: float, horizon: float) -> int:
-    """K = horizon/dt for :func:`sample_times`, validated (dt, horizon > 0 and
-    finite; K + 1 <= MAX_SAMPLES; K a whole number), without allocating."""
-    dt = check_real("dt", dt, positive=True)
-    horizon = check_real("horizon", horizon, positive=True)
-    check_length("horizon", horizon, dt)
-    return check_multiple("horizon", horizon, dt, "dt")
-
-
 def sample_times(dt: float, horizon: float) -> np.ndarray:
     """t_k = k*dt for k = 0..K with K = horizon/dt (which must be an integer).
 
     Both ends are included, as a Simulink log of a fixed-step run from 0 to
-    ``horizon`` would: K + 1 samples, at most :data:`MAX_SAMPLES`.
+    ``horizon`` would: K + 1 samples, at most :data:`MAX_SAMPLES` (checked
+    before anything is allocated).
     """
-    K = sample_count(dt, horizon)
-    return np.arange(K + 1, dtype=np.float64) * float(dt)
+    dt = check_real("dt", dt, positive=True)
+    horizon = check_real("horizon", horizon, positive=True)
+    check_length("horizon", horizon, dt)
+    K = check_multiple("horizon", horizon, dt, "dt")
+    return np.arange(K + 1, dtype=np.float64) * dt
 
 #: relative part (of dt) of the tolerance on the sample times' uniformity
 UNIFORM_RTOL = 1e-9
