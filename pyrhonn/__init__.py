@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from .config import Activation, Factor, FactorKind, IdentifierConfig, NeuronConfig, Term
 from . import presets, terms
-from .identifier import Identifier, IdentifierError, capacities
+from .identifier import Identifier, IdentifierError, NeuronHealth, capacities
 
 __version__ = "0.1.0"
 
@@ -17,6 +17,7 @@ __all__ = [
     "Identifier",
     "IdentifierConfig",
     "IdentifierError",
+    "NeuronHealth",
     "capacities",
     "presets",
     "NeuronConfig",

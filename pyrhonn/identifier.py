@@ -23,6 +23,7 @@ for the exact ordering, the dropout rule and the initial history.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -32,7 +33,7 @@ import numpy as np
 from . import _rhonn_f32, _rhonn_f64
 from .config import IdentifierConfig
 
-__all__ = ["Identifier", "IdentifierError", "capacities"]
+__all__ = ["Identifier", "IdentifierError", "NeuronHealth", "capacities"]
 
 _BACKENDS: dict[str, ModuleType] = {"float64": _rhonn_f64, "float32": _rhonn_f32}
 
@@ -41,6 +42,20 @@ _FIELD_NAMES = {
     8: "r", 9: "q", 10: "w0", 11: "p0", 12: "terms[{t}] factors", 13: "terms[{t}][{f}].kind",
     14: "terms[{t}][{f}].index", 15: "terms[{t}][{f}].delay", 16: "terms[{t}][{f}].power",
 }
+
+
+@dataclass(frozen=True)
+class NeuronHealth:
+    """One neuron's filter health (``rhonn_health`` in ``rhonn.h``)."""
+
+    innovation: float   # e_i of the last learning update (eq. 9)
+    nis: float          # e_i^2 / s_i of that update: about 1 on average when P_i is consistent
+    trace_p: float      # trace of the committed P_i
+    updates: int        # learning updates committed
+    rejected: int       # learning updates refused (the step raised)
+    resets: int         # automatic covariance resets (reset_after)
+    bounded: int        # updates whose P_i was scaled down to p_trace_max
+    fail_run: int       # refused updates in a row, up to now
 
 
 class IdentifierError(ValueError):
@@ -439,6 +454,34 @@ class Identifier:
     def reset(self) -> None:
         """Back to w(0), P(0), x̂(0) and an empty history; learning on."""
         self._check(self._lib.rhonn_reset(self._net), "reset")
+
+    def restart(self) -> None:
+        """Forget the history and the pending comparison, keep what was learnt.
+
+        For a break in the sample stream (lost samples, a restarted sender): the
+        next step does not learn (x̂(k) was predicted for another sample) and
+        fills every delayed tap with its own sample, as the first step does;
+        weights, covariances, the learning switch and x̂(k) are kept.
+        """
+        self._check(self._lib.rhonn_restart(self._net), "restart")
+
+    def health(self, neuron: int) -> NeuronHealth:
+        """Filter health of one neuron: the last innovation e_i, the normalised
+        innovation squared e_i^2 / s_i (s_i = R_i + z^T P_i z, eq. 8), trace P_i
+        and the counters of updates, refused updates, automatic covariance
+        resets and bounded covariances (since construction; :meth:`reset`
+        keeps them)."""
+        i = self._neuron_index(neuron)
+        h = self._ffi.new("rhonn_health *")
+        self._check(self._lib.rhonn_get_health(self._net, i, h), "health")
+        return NeuronHealth(innovation=float(h.innovation), nis=float(h.nis), trace_p=float(h.trace_p),
+                            updates=int(h.updates), rejected=int(h.rejected), resets=int(h.resets),
+                            bounded=int(h.bounded), fail_run=int(h.fail_run))
+
+    @property
+    def healths(self) -> list[NeuronHealth]:
+        """:meth:`health` of every neuron."""
+        return [self.health(i) for i in range(self._n)]
 
     # -- errors ---------------------------------------------------------------------
 

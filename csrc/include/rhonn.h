@@ -39,6 +39,8 @@
  * identifier exactly as it was before the call (weights, covariances,
  * history, prediction): the new values are computed into the inactive half of
  * double-buffered storage and committed only when every neuron succeeded.
+ * Only the failing neuron's health counters (rhonn_health: rejected,
+ * fail_run) record the refusal.
  * Because nothing is committed, a failure caused by the stored state rather
  * than by the new sample (a learning update that overflows for the stored
  * z(k-1) and P, e.g. after huge inputs or with P0, Q or eta near the range
@@ -71,7 +73,7 @@ typedef double rhonn_real;
 
 /* Version of this header's API and of rhonn_t's layout. */
 #define RHONN_VERSION_MAJOR 1
-#define RHONN_VERSION_MINOR 0
+#define RHONN_VERSION_MINOR 1
 
 typedef enum {
     RHONN_OK = 0,
@@ -83,7 +85,8 @@ typedef enum {
     RHONN_E_INNOVATION = 6,     /* R_i + z^T P_i z is not a positive finite number */
     RHONN_E_COVARIANCE = 7,     /* the updated P_i would not be finite */
     RHONN_E_DIVERGED = 8,       /* updated weights or the prediction would not be finite */
-    RHONN_E_VALUE = 9           /* a value given to a setter is invalid (non-finite, P_jj <= 0) */
+    RHONN_E_VALUE = 9,          /* a value given to a setter is invalid (non-finite, P_jj <= 0) */
+    RHONN_E_NOT_PD = 10         /* the updated P_i would not be positive definite (not committed) */
 } rhonn_status;
 
 /* Factor kinds of a high-order term (eq. 4-5). */
@@ -155,6 +158,20 @@ typedef struct {
     uint8_t factor;     /* factor index (or P0/Q entry index), likewise */
 } rhonn_config_error;
 
+/* Filter health of one neuron (rhonn_get_health). The counters wrap. */
+typedef struct {
+    rhonn_real innovation;  /* e_i of the last learning update (eq. 9); 0 before the first */
+    rhonn_real nis;         /* normalised innovation squared e_i^2 / s_i of that update,
+                             * s_i = R_i + z^T P_i z (eq. 8); about 1 on average for a
+                             * consistent filter, persistently large when P_i is too small */
+    rhonn_real trace_p;     /* trace of the committed P_i, computed by rhonn_get_health */
+    uint32_t updates;       /* learning updates committed */
+    uint32_t rejected;      /* learning updates refused (a step that returned an error) */
+    uint32_t resets;        /* automatic covariance resets (reset_after) */
+    uint32_t bounded;       /* updates whose P_i was scaled down to p_trace_max */
+    uint16_t fail_run;      /* refused updates in a row, up to now */
+} rhonn_health;
+
 /* The identifier. Caller-owned; treat the fields as private and use the
  * functions below. Its size is sizeof(rhonn_t), fixed by the capacities. */
 typedef struct {
@@ -185,7 +202,8 @@ typedef struct {
     uint8_t started;                /* a step has run since init/reset */
     uint8_t learning;               /* learning on (1) or frozen (0) */
     uint32_t steps;                 /* steps since init/reset (wraps) */
-    uint8_t fault_neuron;           /* diagnostics: neuron of the last E_INNOVATION/COVARIANCE/DIVERGED */
+    uint8_t fault_neuron;           /* diagnostics: neuron of the last E_INNOVATION/COVARIANCE/DIVERGED/NOT_PD */
+    rhonn_health health[RHONN_MAX_STATES];  /* per neuron; trace_p is filled on reading */
 } rhonn_t;
 
 /* Check a configuration against the capacities and the paper's constraints.
@@ -212,6 +230,20 @@ rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
  * and the identifier holds the state after those steps. */
 rhonn_status rhonn_run(rhonn_t *net, size_t T, const rhonn_real *X, const rhonn_real *U,
                        const uint8_t *valid, rhonn_real *Xhat, size_t *done);
+
+/* Forget the history and the pending comparison, keep what was learnt: the
+ * weights, the covariances, the learning switch and xhat(k) (which stands in
+ * for states invalid on the next step). The next step learns nothing and
+ * fills every delayed tap with its own sample, as the first step after
+ * rhonn_init does. For a break in the sample stream (lost frames, a restarted
+ * sender): learning the next sample against xhat(k), a prediction made for
+ * another sample, would train on a wrong error. */
+rhonn_status rhonn_restart(rhonn_t *net);
+
+/* Health of one neuron: the last innovation, e^2/s, trace P_i and the
+ * counters. Read-only; counters run since rhonn_init (rhonn_reset keeps
+ * them). */
+rhonn_status rhonn_get_health(const rhonn_t *net, size_t neuron, rhonn_health *out);
 
 /* Freeze (0) or resume (nonzero) learning; predictions continue either way. */
 rhonn_status rhonn_set_learning(rhonn_t *net, int on);

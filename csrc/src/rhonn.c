@@ -292,6 +292,17 @@ rhonn_status rhonn_init(rhonn_t *net, const rhonn_config *cfg, rhonn_config_erro
         }
         net->group_of[i] = (uint8_t)g;
     }
+    for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
+        rhonn_health *h = &net->health[i];
+        h->innovation = R(0.0);
+        h->nis = R(0.0);
+        h->trace_p = R(0.0);
+        h->updates = 0;
+        h->rejected = 0;
+        h->resets = 0;
+        h->bounded = 0;
+        h->fail_run = 0;
+    }
     net->magic = (uint32_t)RHONN_MAGIC;
     return rhonn_reset(net);
 }
@@ -348,6 +359,19 @@ rhonn_status rhonn_reset(rhonn_t *net)
     net->learning = 1;
     net->steps = 0;
     net->fault_neuron = 0;
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_restart(rhonn_t *net)
+{
+    rhonn_status st = check_net(net);
+    if (st != RHONN_OK) {
+        return st;
+    }
+    /* The step after this one sees started == 0: it does not learn (there is
+     * no prediction made for its sample) and refills the history with its
+     * own sample, exactly as the first step after rhonn_init. */
+    net->started = 0;
     return RHONN_OK;
 }
 
@@ -409,7 +433,8 @@ RHONN_INLINE int any_nonfinite(const rhonn_real *v, size_t len)
 /* The scalar-measurement EKF update of eq. 7-8 for one neuron, written into
  * the inactive bank. H = z (eq. 11: the network is linear in w). P is the
  * packed upper triangle: row r holds P(r, r..L-1) contiguously. */
-RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, const size_t L)
+RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
+                                      const size_t L)
 {
     const rhonn_neuron_config *nc = &net->cfg.neurons[i];
     const uint8_t b = net->bank[i];
@@ -448,6 +473,7 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
         return RHONN_E_INNOVATION;
     }
     inv_s = R(1.0) / s;
+    *nis = e * (e * inv_s);
     /* eq. 7: K = P z M and w(k+1) = w + eta K e, i.e. w + (eta e M) P z. */
     gain = nc->eta * e * inv_s;
     RHONN_UNROLL_LOOP
@@ -487,13 +513,13 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
     return RHONN_OK;
 }
 
-static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z)
+static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis)
 {
     const size_t L = net->cfg.neurons[i].n_terms;
 #if RHONN_UNROLL
     /* L as a constant: one specialised kernel per size (see RHONN_UNROLL) */
     switch (L) {
-#define RHONN_CASE(n) case n: return ekf_kernel(net, i, e, z, n);
+#define RHONN_CASE(n) case n: return ekf_kernel(net, i, e, z, nis, n);
     RHONN_CASE(1)
 #if RHONN_MAX_TERMS >= 2
     RHONN_CASE(2)
@@ -545,7 +571,7 @@ static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn
         return RHONN_E_NOT_INIT; /* L outside 1..RHONN_MAX_TERMS: rhonn_init never allows it */
     }
 #else
-    return ekf_kernel(net, i, e, z, L);
+    return ekf_kernel(net, i, e, z, nis, L);
 #endif
 }
 
@@ -556,6 +582,7 @@ rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
     rhonn_real se[RHONN_MAX_STATES][RHONN_MAX_STATES];     /* S(x(k)) per group */
     rhonn_real xnew[RHONN_MAX_STATES];
     uint8_t updated[RHONN_MAX_STATES];
+    rhonn_real innov[RHONN_MAX_STATES], nis[RHONN_MAX_STATES];
     rhonn_status st = check_net(net);
     size_t n, m, i, j, g, t, f;
     uint8_t next_head, zb_new;
@@ -587,8 +614,14 @@ rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
         updated[i] = 0;
         if (learn) {
             zprev = net->z[net->zbank][i];
-            st = ekf_update(net, i, x[i] - net->xhat[i], zprev);
+            innov[i] = x[i] - net->xhat[i];
+            st = ekf_update(net, i, innov[i], zprev, &nis[i]);
             if (st != RHONN_OK) {
+                rhonn_health *h = &net->health[i];
+                h->rejected += 1u;
+                if (h->fail_run < 0xFFFFu) {
+                    h->fail_run = (uint16_t)(h->fail_run + 1u);
+                }
                 return st;
             }
             updated[i] = 1;
@@ -672,6 +705,13 @@ rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
     }
     net->head = next_head;
     for (i = 0; i < n; ++i) {
+        if (updated[i]) {
+            rhonn_health *h = &net->health[i];
+            h->innovation = innov[i];
+            h->nis = nis[i];
+            h->updates += 1u;
+            h->fail_run = 0;
+        }
         net->bank[i] = (uint8_t)(net->bank[i] ^ updated[i]);
         net->xhat[i] = xnew[i];
         if (xhat_next != NULL) {
@@ -800,6 +840,31 @@ rhonn_status rhonn_set_covariance(rhonn_t *net, size_t neuron, const rhonn_real 
     return RHONN_OK;
 }
 
+rhonn_status rhonn_get_health(const rhonn_t *net, size_t neuron, rhonn_health *out)
+{
+    rhonn_status st = check_net(net);
+    const rhonn_real *P;
+    size_t L, r, diag;
+    rhonn_real tr = R(0.0);
+    if (st != RHONN_OK) {
+        return st;
+    }
+    if (out == NULL) {
+        return RHONN_E_NULL;
+    }
+    if (neuron >= net->cfg.n_states) {
+        return RHONN_E_ARGUMENT;
+    }
+    L = net->cfg.neurons[neuron].n_terms;
+    P = net->p[neuron][net->bank[neuron]];
+    for (r = 0, diag = 0; r < L; diag += L - r, ++r) {
+        tr += P[diag];
+    }
+    *out = net->health[neuron];
+    out->trace_p = tr;
+    return RHONN_OK;
+}
+
 rhonn_status rhonn_get_prediction(const rhonn_t *net, rhonn_real *xhat, size_t len)
 {
     rhonn_status st = check_net(net);
@@ -832,6 +897,7 @@ const char *rhonn_status_name(rhonn_status status)
     case RHONN_E_COVARIANCE: return "RHONN_E_COVARIANCE";
     case RHONN_E_DIVERGED: return "RHONN_E_DIVERGED";
     case RHONN_E_VALUE: return "RHONN_E_VALUE";
+    case RHONN_E_NOT_PD: return "RHONN_E_NOT_PD";
     default: return "RHONN_E_UNKNOWN";
     }
 }
