@@ -236,3 +236,19 @@ def test_protection_fields_are_validated_with_the_field_named() -> None:
                           (dict(covariance="ud"), "covariance")]:
         with pytest.raises(ValueError, match=rf"^{field}"):
             NeuronConfig(**base, **kwargs)
+
+
+def test_the_firmware_lim_position_neuron_runs_with_p0_100_and_r_1e_6_in_float32() -> None:
+    config = load_shipped("firmware-lim").config
+    position = config.neurons[0]
+    assert config.dtype == "float32"
+    assert (position.covariance, float(position.p0), position.r) == (UD, 100.0, 1e-6)
+    ident = Identifier(config)
+    X, U = moving_lim(20_000)
+    ident.run(X, U)
+    assert_definite(ident)
+    assert all(h.rejected == 0 for h in ident.healths)
+    # eq. 7 as written cannot: the moving start makes [q_m, v]'s P indefinite at once
+    full = Identifier(config.replace(neurons=(replace(position, covariance=FULL),) + config.neurons[1:]))
+    with pytest.raises(IdentifierError, match="RHONN_E_NOT_PD"):
+        full.run(X, U)
