@@ -162,7 +162,7 @@ static size_t packed_size(size_t L)
     return L * (L + 1u) / 2u;
 }
 
-static int udu_factor(const rhonn_real *P, rhonn_real *F, size_t L);
+RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHONN_RESTRICT F, const size_t L);
 static rhonn_real full_trace(const rhonn_real *P, size_t L);
 static void load_p0(const rhonn_t *net, size_t i, rhonn_real *dst);
 
@@ -473,32 +473,47 @@ static size_t row_start(size_t r, size_t L)
  * U's strict upper triangle beside it), from the last column back. Returns 1
  * when every pivot d_j is a positive finite number (P is positive definite
  * at working precision), else 0 with F partly written. About L^3/6
- * multiply-adds and L divisions. */
-static int udu_factor(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHONN_RESTRICT F, size_t L)
+ * multiply-adds and L divisions; the row offsets are tabulated once so the
+ * inner loops are plain strided dot products. */
+RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHONN_RESTRICT F, const size_t L)
 {
-    rhonn_real t[RHONN_MAX_TERMS];
-    size_t j = L;
-    while (j-- > 0u) {
-        const size_t rj = row_start(j, L);
-        rhonn_real d = P[rj], inv;
+    rhonn_real t[RHONN_MAX_TERMS], d[RHONN_MAX_TERMS];
+    size_t rs[RHONN_MAX_TERMS];
+    size_t j, r;
+    rs[0] = 0;
+    RHONN_UNROLL_LOOP
+    for (r = 0; r + 1u < L; ++r) {
+        rs[r + 1u] = rs[r] + (L - r);
+    }
+    RHONN_UNROLL_LOOP
+    for (j = L; j-- > 0u;) {
+        const rhonn_real *RHONN_RESTRICT uj = F + rs[j] + 1u; /* U(j, j+1..L-1) */
+        const size_t tail = L - 1u - j;
+        rhonn_real dj = P[rs[j]], inv;
         size_t i, k;
         /* t_k = d_k U(j,k) for the columns k > j already factorised */
-        for (k = j + 1u; k < L; ++k) {
-            t[k] = F[row_start(k, L)] * F[rj + (k - j)];
-            d -= F[rj + (k - j)] * t[k];
+        RHONN_UNROLL_LOOP
+        for (k = 0; k < tail; ++k) {
+            t[k] = d[j + 1u + k] * uj[k];
+            dj -= uj[k] * t[k];
         }
-        if (!is_finite(d) || !(d > R(0.0))) {
+        /* false for NaN too, and -Inf: a non-finite entry anywhere in P
+         * reaches some pivot as NaN or -Inf (U(i,k)^2 d_k >= 0) */
+        if (!(dj > R(0.0)) || !is_finite(dj)) {
             return 0;
         }
-        F[rj] = d;
-        inv = R(1.0) / d;
+        d[j] = dj;
+        F[rs[j]] = dj;
+        inv = R(1.0) / dj;
+        RHONN_UNROLL_LOOP
         for (i = 0; i < j; ++i) {
-            const size_t ri = row_start(i, L);
-            rhonn_real a = P[ri + (j - i)];
-            for (k = j + 1u; k < L; ++k) {
-                a -= F[ri + (k - i)] * t[k];
+            rhonn_real *RHONN_RESTRICT fi = F + rs[i] + (j - i); /* U(i, j..L-1) */
+            rhonn_real a = P[rs[i] + (j - i)];
+            RHONN_UNROLL_LOOP
+            for (k = 0; k < tail; ++k) {
+                a -= fi[1u + k] * t[k];
             }
-            F[ri + (j - i)] = a * inv;
+            fi[0] = a * inv;
         }
     }
     return 1;
@@ -542,12 +557,27 @@ static rhonn_status neuron_fault(rhonn_t *net, size_t i, rhonn_status st)
     return st;
 }
 
-/* The measurement part of eq. 7-8 for a RHONN_COV_FULL neuron, written into
- * the inactive bank: w(k+1) and P - K z^T P (Q, forgetting and the checks
- * follow in full_finish). H = z (eq. 11: the network is linear in w). P is
- * the packed upper triangle: row r holds P(r, r..L-1) contiguously. */
+/* The trace ceiling: P scaled down to p_trace_max when its trace is above. */
+static void bound_trace(rhonn_real *P, size_t L, rhonn_real p_trace_max, uint8_t *bounded)
+{
+    const rhonn_real tr = full_trace(P, L);
+    size_t c;
+    if (tr > p_trace_max) {
+        const rhonn_real scale = p_trace_max / tr;
+        for (c = 0; c < packed_size(L); ++c) {
+            P[c] *= scale;
+        }
+        *bounded = 1;
+    }
+}
+
+/* eq. 7-8 for a RHONN_COV_FULL neuron, written into the inactive bank, then
+ * the check that makes the committed P a covariance: positive definite at
+ * working precision (its U D U^T pivots; a non-finite entry fails it too).
+ * H = z (eq. 11: the network is linear in w). P is the packed upper
+ * triangle: row r holds P(r, r..L-1) contiguously. */
 RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
-                                      const size_t L)
+                                      uint8_t *bounded, const size_t L)
 {
     const rhonn_neuron_config *nc = &net->cfg.neurons[i];
     const uint8_t b = net->bank[i];
@@ -556,7 +586,9 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
     const rhonn_real *RHONN_RESTRICT w = net->w[i][b];
     rhonn_real *RHONN_RESTRICT wn = net->w[i][b ^ 1u];
     rhonn_real pz[RHONN_MAX_TERMS];
+    rhonn_real scratch[RHONN_MAX_PACKED];
     rhonn_real s, inv_s, gain;
+    const rhonn_real inv_lambda = inverse_forgetting(nc);
     size_t r, c, len;
     const rhonn_real *row;
 
@@ -596,58 +628,36 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
     if (any_nonfinite(wn, L)) {
         return neuron_fault(net, i, RHONN_E_DIVERGED);
     }
-    /* eq. 7: P - K z^T P = P - (P z)(P z)^T M: symmetric, so only the upper
-     * triangle is formed, row by row. */
+    /* eq. 7: P(k+1) = P - K z^T P + Q = P - (P z)(P z)^T M + Q: symmetric,
+     * so only the upper triangle is formed, row by row. With forgetting,
+     * (P - K z^T P) / lambda + Q. */
     row = P;
     RHONN_UNROLL_LOOP
     for (r = 0; r < L; ++r) {
         const rhonn_real kr = pz[r] * inv_s;
         rhonn_real *RHONN_RESTRICT out = Pn + (row - P);
         len = L - r;
-        RHONN_UNROLL_LOOP
-        for (c = 0; c < len; ++c) {
-            out[c] = row[c] - kr * pz[r + c];
+        if (inv_lambda > R(0.0)) {
+            RHONN_UNROLL_LOOP
+            for (c = 0; c < len; ++c) {
+                out[c] = (row[c] - kr * pz[r + c]) * inv_lambda;
+            }
+            out[0] += nc->q[r];
+        } else {
+            out[0] = (row[0] - kr * pz[r]) + nc->q[r];
+            RHONN_UNROLL_LOOP
+            for (c = 1; c < len; ++c) {
+                out[c] = row[c] - kr * pz[r + c];
+            }
         }
         row += len;
     }
-    return RHONN_OK;
-}
-
-/* The rest of eq. 7 for a RHONN_COV_FULL neuron: / lambda, + Q, the trace
- * ceiling, then the checks that make a committed P a covariance: finite, and
- * positive definite at working precision (its U D U^T pivots). */
-static rhonn_status full_finish(rhonn_t *net, size_t i, size_t L, uint8_t *bounded)
-{
-    const rhonn_neuron_config *nc = &net->cfg.neurons[i];
-    rhonn_real *Pn = net->p[i][net->bank[i] ^ 1u];
-    rhonn_real scratch[RHONN_MAX_PACKED];
-    const size_t np = packed_size(L);
-    const rhonn_real inv_lambda = inverse_forgetting(nc);
-    size_t r, c;
-
-    if (inv_lambda > R(0.0)) {
-        for (c = 0; c < np; ++c) {
-            Pn[c] *= inv_lambda;
-        }
-    }
-    for (r = 0; r < L; ++r) {
-        Pn[row_start(r, L)] += nc->q[r];
-    }
     if (nc->p_trace_max > R(0.0)) {
-        const rhonn_real tr = full_trace(Pn, L);
-        if (tr > nc->p_trace_max) {
-            const rhonn_real scale = nc->p_trace_max / tr;
-            for (c = 0; c < np; ++c) {
-                Pn[c] *= scale;
-            }
-            *bounded = 1;
-        }
-    }
-    if (any_nonfinite(Pn, np)) {
-        return neuron_fault(net, i, RHONN_E_COVARIANCE);
+        bound_trace(Pn, L, nc->p_trace_max, bounded);
     }
     if (!udu_factor(Pn, scratch, L)) {
-        return neuron_fault(net, i, RHONN_E_NOT_PD);
+        /* which way it failed, off the hot path */
+        return neuron_fault(net, i, any_nonfinite(Pn, packed_size(L)) ? RHONN_E_COVARIANCE : RHONN_E_NOT_PD);
     }
     return RHONN_OK;
 }
@@ -664,8 +674,8 @@ static rhonn_status full_finish(rhonn_t *net, size_t i, size_t L, uint8_t *bound
  * Then / lambda (D / lambda) and + Q (Thornton's modified weighted
  * Gram-Schmidt on the rows of [U | I] weighted by [D, diag(Q)]): each new
  * d_j is a weighted sum of squares containing d_j * 1, hence positive. */
-static rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis, size_t L,
-                           uint8_t *bounded)
+RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
+                                  uint8_t *bounded, const size_t L)
 {
     const rhonn_neuron_config *nc = &net->cfg.neurons[i];
     const uint8_t bk = net->bank[i];
@@ -676,39 +686,42 @@ static rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rhonn_rea
     rhonn_real wu[RHONN_MAX_PACKED], wq[RHONN_MAX_PACKED];
     rhonn_real f[RHONN_MAX_TERMS], v[RHONN_MAX_TERMS], b[RHONN_MAX_TERMS], dt[RHONN_MAX_TERMS];
     rhonn_real cu[RHONN_MAX_TERMS], cq[RHONN_MAX_TERMS];
+    size_t rs[RHONN_MAX_TERMS];
     rhonn_real alpha, alpha_new, inv, inv_prev, s, gain;
     const rhonn_real inv_lambda = inverse_forgetting(nc);
     size_t j, k, c;
 
+    rs[0] = 0;
+    for (j = 0; j + 1u < L; ++j) {
+        rs[j + 1u] = rs[j] + (L - j);
+    }
     /* f = U^T z (U unit upper triangular), v = D f */
     for (j = 0; j < L; ++j) {
         f[j] = z[j];
     }
     for (k = 0; k < L; ++k) {
-        const size_t rk = row_start(k, L);
-        for (j = k + 1u; j < L; ++j) {
-            f[j] += F[rk + (j - k)] * z[k];
+            for (j = k + 1u; j < L; ++j) {
+            f[j] += F[rs[k] + (j - k)] * z[k];
         }
     }
     for (j = 0; j < L; ++j) {
-        v[j] = F[row_start(j, L)] * f[j];
+        v[j] = F[rs[j]] * f[j];
     }
     /* Bierman's update, column by column; wu receives U~ with a unit diagonal */
     alpha = nc->r;
     inv_prev = R(0.0);
     for (j = 0; j < L; ++j) {
-        const size_t rj = row_start(j, L);
         const rhonn_real lam = -f[j] * inv_prev;
         alpha_new = alpha + f[j] * v[j];
         inv = R(1.0) / alpha_new;
-        dt[j] = F[rj] * (alpha * inv);
-        for (k = 0; k < j; ++k) {
-            const size_t idx = row_start(k, L) + (j - k);
+        dt[j] = F[rs[j]] * (alpha * inv);
+            for (k = 0; k < j; ++k) {
+            const size_t idx = rs[k] + (j - k);
             const rhonn_real ukj = F[idx];
             wu[idx] = ukj + lam * b[k];
             b[k] += ukj * v[j];
         }
-        wu[rj] = R(1.0);
+        wu[rs[j]] = R(1.0);
         b[j] = v[j];
         alpha = alpha_new;
         inv_prev = inv;
@@ -726,37 +739,35 @@ static rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rhonn_rea
         return neuron_fault(net, i, RHONN_E_DIVERGED);
     }
     if (inv_lambda > R(0.0)) {
-        for (j = 0; j < L; ++j) {
+            for (j = 0; j < L; ++j) {
             dt[j] *= inv_lambda;
         }
     }
     /* + Q: rows of W = [U~ | I] in wu and wq (both upper triangular), from the
      * last row up; row j is final once the rows below it are processed. */
     for (j = 0; j < L; ++j) {
-        const size_t rj = row_start(j, L);
-        for (c = 0; c < L - j; ++c) {
-            wq[rj + c] = c == 0u ? R(1.0) : R(0.0);
+            for (c = 0; c < L - j; ++c) {
+            wq[rs[j] + c] = c == 0u ? R(1.0) : R(0.0);
         }
     }
-    j = L;
-    while (j-- > 0u) {
-        const size_t rj = row_start(j, L), len = L - j;
+    for (j = L; j-- > 0u;) {
+        const size_t rj = rs[j], len = L - j;
         rhonn_real dj;
-        for (c = 0; c < len; ++c) {
+            for (c = 0; c < len; ++c) {
             cu[c] = dt[j + c] * wu[rj + c];
             cq[c] = nc->q[j + c] * wq[rj + c];
         }
         dj = dot(&wu[rj], cu, len) + dot(&wq[rj], cq, len);
-        if (!is_finite(dj) || !(dj > R(0.0))) {
+        if (!(dj > R(0.0)) || !is_finite(dj)) {
             return neuron_fault(net, i, RHONN_E_NOT_PD);
         }
         Fn[rj] = dj;
         inv = R(1.0) / dj;
-        for (k = 0; k < j; ++k) {
-            const size_t at = row_start(k, L) + (j - k);
+            for (k = 0; k < j; ++k) {
+            const size_t at = rs[k] + (j - k);
             const rhonn_real ukj = (dot(&wu[at], cu, len) + dot(&wq[at], cq, len)) * inv;
             Fn[at] = ukj;
-            for (c = 0; c < len; ++c) {
+                    for (c = 0; c < len; ++c) {
                 wu[at + c] -= ukj * wu[rj + c];
                 wq[at + c] -= ukj * wq[rj + c];
             }
@@ -767,7 +778,10 @@ static rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rhonn_rea
         if (tr > nc->p_trace_max) {
             const rhonn_real scale = nc->p_trace_max / tr;
             for (j = 0; j < L; ++j) {
-                Fn[row_start(j, L)] *= scale;
+                Fn[rs[j]] *= scale;
+                if (!(Fn[rs[j]] > R(0.0))) { /* scaled into underflow */
+                    return neuron_fault(net, i, RHONN_E_NOT_PD);
+                }
             }
             *bounded = 1;
         }
@@ -775,21 +789,44 @@ static rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rhonn_rea
     if (any_nonfinite(Fn, packed_size(L))) {
         return neuron_fault(net, i, RHONN_E_COVARIANCE);
     }
-    for (j = 0; j < L; ++j) {
-        if (!(Fn[row_start(j, L)] > R(0.0))) {
-            return neuron_fault(net, i, RHONN_E_NOT_PD);
-        }
-    }
     return RHONN_OK;
+}
+
+static rhonn_status ekf_ud_generic(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
+                                   uint8_t *bounded, size_t L)
+{
+    return ekf_ud(net, i, e, z, nis, bounded, L);
 }
 #endif
 
-static rhonn_status ekf_full(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis, size_t L)
+#define RHONN_KERNEL(n) ekf_kernel(net, i, e, z, nis, bounded, n)
+
+/* One neuron's learning update into its inactive bank (eq. 7-9). */
+static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
+                               uint8_t *bounded)
 {
+    const size_t L = net->cfg.neurons[i].n_terms;
+#if RHONN_WITH_UD
+    /* The factored form is the robust one, not the fast one: specialised
+     * for the small neurons where loop overhead would dominate, one
+     * generic kernel above (its O(L^3) work is the cost there). */
+    if (net->cfg.neurons[i].covariance == (uint8_t)RHONN_COV_UD) {
+#if RHONN_UNROLL
+        switch (L) {
+        case 1: return ekf_ud(net, i, e, z, nis, bounded, 1);
+        case 2: return ekf_ud(net, i, e, z, nis, bounded, 2);
+        case 3: return ekf_ud(net, i, e, z, nis, bounded, 3);
+        case 4: return ekf_ud(net, i, e, z, nis, bounded, 4);
+        default: break;
+        }
+#endif
+        return ekf_ud_generic(net, i, e, z, nis, bounded, L);
+    }
+#endif
 #if RHONN_UNROLL
     /* L as a constant: one specialised kernel per size (see RHONN_UNROLL) */
     switch (L) {
-#define RHONN_CASE(n) case n: return ekf_kernel(net, i, e, z, nis, n);
+#define RHONN_CASE(n) case n: return RHONN_KERNEL(n);
     RHONN_CASE(1)
 #if RHONN_MAX_TERMS >= 2
     RHONN_CASE(2)
@@ -841,24 +878,10 @@ static rhonn_status ekf_full(rhonn_t *net, size_t i, rhonn_real e, const rhonn_r
         return RHONN_E_NOT_INIT; /* L outside 1..RHONN_MAX_TERMS: rhonn_init never allows it */
     }
 #else
-    return ekf_kernel(net, i, e, z, nis, L);
+    return RHONN_KERNEL(L);
 #endif
 }
-
-/* One neuron's learning update into its inactive bank (eq. 7-9). */
-static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
-                               uint8_t *bounded)
-{
-    const size_t L = net->cfg.neurons[i].n_terms;
-    rhonn_status st;
-#if RHONN_WITH_UD
-    if (net->cfg.neurons[i].covariance == (uint8_t)RHONN_COV_UD) {
-        return ekf_ud(net, i, e, z, nis, L, bounded);
-    }
-#endif
-    st = ekf_full(net, i, e, z, nis, L);
-    return st == RHONN_OK ? full_finish(net, i, L, bounded) : st;
-}
+#undef RHONN_KERNEL
 
 /* P_i(0) in neuron i's storage form: a copy, or its U D U^T factors (the
  * config was validated, so the factorisation succeeds). */
