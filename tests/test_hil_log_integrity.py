@@ -220,3 +220,22 @@ def test_a_log_write_killed_at_any_moment_leaves_a_whole_log_or_a_refused_one(tm
             assert "SHA-256 does not match" in str(exc) or "frames its sidecar records are missing" in str(exc)
             seen.add("refused")
     assert counts <= seen
+
+
+def test_a_replay_interrupted_while_writing_its_report_leaves_the_out_folder_marked_incomplete(
+        tmp_path, monkeypatch, capsys) -> None:
+    import hil.report
+    from pyrhonn.atomic import MARKER, incomplete
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    out, log = tmp_path / "report", tmp_path / "run.blf"
+    monkeypatch.setattr(hil.report, "figures", interrupted)  # Ctrl-C after report.json and report.txt
+    argv = ["hil", "replay", "--transport", "virtual", "--duration", "0.05", "--out", str(out), "--log", str(log)]
+    assert pyrhonn_main(argv) == 130
+    assert "pyrhonn hil" in incomplete(out) and json.loads((out / "report.json").read_text())["frames"]
+    assert len(read_log(log).events) > 0  # the log was written before the report: whole, not partial
+    monkeypatch.undo()
+    assert pyrhonn_main(argv) == 0
+    assert not (out / MARKER).exists() and (out / "position.png").is_file()
