@@ -355,7 +355,7 @@ def _signal_exit(signum: int) -> int:
 
 
 def _replay(args) -> int:
-    from .rig import BusLost, Interrupted, LogWriteError, read_log
+    from .rig import BusLost, Interrupted, LogWriteError, Recording, read_log
     from .score import compare_runs, score
     from .transport import lim_config, run_replay
 
@@ -385,10 +385,11 @@ def _replay(args) -> int:
         signum = getattr(exc, "signum", signal.SIGINT)
         name = signal.Signals(signum).name
         rec = exc.recording if isinstance(exc, Interrupted) else None
-        if args.log is not None and rec is not None:
+        if rec is None:  # before the rig started: --log still ends as this run's log, an empty partial one
+            rec = Recording(scenario=sc, meta={"transport": args.transport, "channel": args.channel,
+                                               "partial": f"interrupted by {name} before the first frame"})
+        if args.log is not None:
             _record(rec, args.log, f" (up to the {name}; marked partial)")
-        elif args.log is not None:
-            print(f"pyrhonn hil replay: nothing recorded yet; {args.log} not written", file=sys.stderr)
         print(f"pyrhonn hil replay: interrupted by {name}", file=sys.stderr)
         return _signal_exit(signum)
     log_error = None

@@ -172,7 +172,7 @@ def test_a_signal_sent_to_a_replay_process_leaves_a_partial_log(tmp_path, cli_er
     try:
         first = proc.stderr.readline()  # printed once the handlers are in place, right before the run
         assert "cycles over virtual" in first, first
-        time.sleep(1.0)                 # into the run (any moment of it would do)
+        time.sleep(3.0)                 # into the run, usually (any moment after that line leaves a partial log)
         proc.send_signal(signum)
         rest = proc.communicate(timeout=300)[1]
     finally:
@@ -239,3 +239,17 @@ def test_a_replay_interrupted_while_writing_its_report_leaves_the_out_folder_mar
     monkeypatch.undo()
     assert pyrhonn_main(argv) == 0
     assert not (out / MARKER).exists() and (out / "position.png").is_file()
+
+
+def test_a_replay_interrupted_before_its_first_frame_leaves_an_empty_partial_log(tmp_path, monkeypatch,
+                                                                                 cli_error) -> None:
+    def interrupted(*args, **kwargs):  # Ctrl-C while the transport is being set up
+        raise KeyboardInterrupt
+
+    log = tmp_path / "run.asc"
+    write_log(run_replay(Scenario(duration=0.03), "virtual"), log)  # a previous run's log at that path
+    monkeypatch.setattr(hil.transport, "run_replay", interrupted)
+    assert pyrhonn_main(["hil", "replay", "--transport", "virtual", "--duration", "0.3", "--log", str(log)]) == 130
+    assert read_log(log, partial=True).events == []
+    assert all("a partial log (interrupted by SIGINT before the first frame" in refusal
+               for refusal in _refusals(log, cli_error))
