@@ -253,3 +253,31 @@ def test_a_replay_interrupted_before_its_first_frame_leaves_an_empty_partial_log
     assert read_log(log, partial=True).events == []
     assert all("a partial log (interrupted by SIGINT before the first frame" in refusal
                for refusal in _refusals(log, cli_error))
+
+
+@pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_signal_while_the_log_is_written_after_the_run_waits_for_the_whole_log(tmp_path, monkeypatch, capsys,
+                                                                                signum, code) -> None:
+    import hil.rig
+
+    real = hil.rig.write_log
+
+    def signalled_mid_write(rec, path):
+        os.kill(os.getpid(), signum)  # arrives while this log is being written
+        return real(rec, path)
+
+    def unhandled(_signum, _frame):
+        raise AssertionError("SIGTERM reached the test: the log write did not hold it")
+
+    monkeypatch.setattr(hil.rig, "write_log", signalled_mid_write)
+    before = signal.signal(signal.SIGTERM, unhandled)
+    try:
+        log = tmp_path / "run.blf"
+        assert pyrhonn_main(["hil", "replay", "--transport", "virtual", "--duration", "0.05", "--log",
+                             str(log)]) == code
+    finally:
+        signal.signal(signal.SIGTERM, before)
+    assert "after the run; the log is complete" in capsys.readouterr().err
+    rec = read_log(log)  # whole, and not partial: the run itself had finished
+    assert sum(1 for _, d, m in rec.events if d == "tx" and m.arbitration_id == MEAS_ID) == Scenario(
+        duration=0.05).cycles
