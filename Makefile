@@ -25,6 +25,7 @@ bench: venv
 	$(VENV)/bin/python bench/bench_cortex_m4.py
 	$(VENV)/bin/python bench/bench_linux_runner.py
 	$(VENV)/bin/python bench/bench_hil_udp.py --fifo 50 --cpus 0,1
+	$(VENV)/bin/python bench/bench_writes.py
 
 test: venv test-python test-c test-c-sanitize test-fuzz test-vm
 

@@ -8,16 +8,22 @@
 
 Exit codes: 0 run complete (every frame accounted for, estimates bit-exact),
 1 a run that completed but is not (see the report), 2 bad input or a run that
-could not happen (firmware not answering, a log that cannot be written).
+could not happen (firmware not answering, a log that cannot be written), 130
+and 143 a replay stopped by SIGINT (Ctrl-C) and SIGTERM: its ``--log`` then
+holds every frame up to that moment, whole and readable, marked partial in
+its sidecar (``hil score`` and ``--from-log`` refuse it; ``hil score
+--partial`` scores it anyway).
 """
 from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
 
 __all__ = ["register"]
 
@@ -101,6 +107,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     s.add_argument("log", type=Path)
     s.add_argument("--out", type=Path, default=None)
     s.add_argument("--json", action="store_true")
+    s.add_argument("--partial", action="store_true",
+                   help="score a partial log (a run stopped by SIGINT/SIGTERM or a lost bus) anyway; its unsent "
+                        "cycles then count as unaccounted")
     s.set_defaults(func=_score)
 
     b = hs.add_parser("bench", help="cyclictest-style timing of both sides at 0.3 ms")
@@ -300,8 +309,53 @@ def _note_fallback(side: dict | None) -> None:
         print(f"note: {side['fallback']}", file=sys.stderr)
 
 
+def _raise_interrupted(signum: int, _frame: object) -> None:
+    from .rig import Interrupted
+
+    raise Interrupted(signum)
+
+
+@contextmanager
+def _stop_on_sigterm() -> Iterator[None]:
+    """SIGTERM raises :class:`hil.rig.Interrupted` (as SIGINT raises KeyboardInterrupt), so a
+    terminated replay ends as a Ctrl-C'd one does: its frames so far in a partial log."""
+    before = signal.signal(signal.SIGTERM, _raise_interrupted)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, before)
+
+
+@contextmanager
+def _signals_held() -> Iterator[list[int]]:
+    """SIGINT and SIGTERM are held (recorded in the list, not acted on) for the block: a log being
+    written is finished first. kill -9 cannot be held; the log's temporary file then protects it."""
+    held: list[int] = []
+    before = {s: signal.signal(s, lambda signum, _f: held.append(signum)) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield held
+    finally:
+        for s, handler in before.items():
+            signal.signal(s, handler)
+
+
+def _record(rec, path: Path, what: str) -> list[int]:
+    """Write ``rec`` to the log ``path`` with SIGINT/SIGTERM held; the signals that came meanwhile."""
+    from .rig import write_log
+
+    with _signals_held() as held:
+        write_log(rec, path)
+    print(f"recorded {len(rec.events)} frames{what} to {path} (+ {path.name}.json)", file=sys.stderr)
+    return held
+
+
+def _signal_exit(signum: int) -> int:
+    """The conventional exit code of a command stopped by ``signum``: 130 for SIGINT, 143 for SIGTERM."""
+    return 128 + signum
+
+
 def _replay(args) -> int:
-    from .rig import BusLost, read_log, write_log
+    from .rig import BusLost, Interrupted, LogWriteError, Recording, read_log
     from .score import compare_runs, score
     from .transport import lim_config, run_replay
 
@@ -316,35 +370,60 @@ def _replay(args) -> int:
     _check_out(args.out)  # first: --log may name a file in the --out folder this creates
     _check_log_path(args.log)
     sc.build()  # the frames before anything is sent (cached for the run): a scenario the DBC cannot carry ends here
+    keeps = f"; Ctrl-C stops it and keeps the frames so far in {args.log}" if args.log is not None else ""
+    print(f"pyrhonn hil replay: {sc.cycles} cycles over {args.transport}{keeps}", file=sys.stderr, flush=True)
     try:
-        rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
-                         firmware=args.firmware or True, runner_spin_us=spin,
-                         reply_timeout=args.timeout, drain=args.drain)
+        with _stop_on_sigterm():
+            rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
+                             firmware=args.firmware or True, runner_spin_us=spin,
+                             reply_timeout=args.timeout, drain=args.drain)
     except BusLost as exc:
-        if args.log is not None:  # keep what was recorded up to the loss
-            write_log(exc.recording, args.log)
-            print(f"recorded {len(exc.recording.events)} frames (up to the loss) to {args.log}", file=sys.stderr)
+        if args.log is not None:  # keep what was recorded up to the loss (a partial log)
+            _record(exc.recording, args.log, " (up to the loss; marked partial)")
         raise
+    except KeyboardInterrupt as exc:  # SIGINT, or SIGTERM as Interrupted
+        signum = getattr(exc, "signum", signal.SIGINT)
+        name = signal.Signals(signum).name
+        rec = exc.recording if isinstance(exc, Interrupted) else None
+        if rec is None:  # before the rig started: --log still ends as this run's log, an empty partial one
+            rec = Recording(scenario=sc, meta={"transport": args.transport, "channel": args.channel,
+                                               "partial": f"interrupted by {name} before the first frame"})
+        if args.log is not None:
+            _record(rec, args.log, f" (up to the {name}; marked partial)")
+        print(f"pyrhonn hil replay: interrupted by {name}", file=sys.stderr)
+        return _signal_exit(signum)
+    log_error = None
+    if args.log is not None:  # first: a Ctrl-C during the scoring still leaves the whole run's log
+        try:
+            held = _record(rec, args.log, "")
+        except LogWriteError as exc:  # reported after the report, which is complete without the log
+            log_error, held = exc, []
+        if held:
+            print(f"pyrhonn hil replay: interrupted by {signal.Signals(held[0]).name} after the run; the log is "
+                  "complete", file=sys.stderr)
+            return _signal_exit(held[0])
     report = score(rec, reference=lim_config())
     if recorded is not None:
         report["regression"] = compare_runs(score(recorded), report, str(args.from_log))
     report["firmware_side"] = rec.meta.get("firmware_side")
     _note_fallback(report["firmware_side"])
     code = _emit(report, args, timing_note(args.transport))
-    if args.log is not None:
-        write_log(rec, args.log)  # a LogWriteError (OSError) is reported by pyrhonn's main: exit 2
-        print(f"recorded {len(rec.events)} frames to {args.log} (+ {args.log.name}.json)", file=sys.stderr)
+    if log_error is not None:
+        raise log_error  # an OSError: pyrhonn's main reports it, exit 2
     return code
 
 
 def _score(args) -> int:
-    from .rig import read_log
+    from .rig import partial_reason, read_log
     from .score import score
     from .transport import lim_config
 
-    rec = read_log(args.log)
+    rec = read_log(args.log, partial=args.partial)
     _check_out(args.out)
     report = score(rec, reference=lim_config())
+    why = partial_reason(rec)
+    if why:
+        report["partial"] = why
     return _emit(report, args, f"re-scored from {args.log}")
 
 

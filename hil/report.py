@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from pyrhonn import atomic
+
 __all__ = ["figures", "table", "to_json", "write"]
 
 
@@ -62,6 +64,8 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
              f"{'':<22}duplicates {f['duplicates']}  unexpected {f['unexpected']}  foreign sent "
              f"{sum(f['foreign_sent'].values())}  step errors {f['step_errors']}  -> "
              f"{'all accounted for' if f['accounted'] else 'NOT ACCOUNTED FOR'}"]
+    if report.get("partial"):
+        lines.append(f"{'':<22}PARTIAL LOG: {report['partial']}; the cycles it never sent count as unaccounted")
     drain = report.get("drain") or {}
     if drain.get("capped"):
         lines.append(f"{'':<22}the drain stopped after {drain['s']:.1f} s with estimates still coming in: "
@@ -150,8 +154,7 @@ def figures(report: dict[str, Any], out: Path) -> list[Path]:
         ax.set_title(f"LIM {name}: real vs identified (cf. Fig. {fig_no}), {report['transport']}")
         ax.legend(loc="best", fontsize=8)
         fig.tight_layout()
-        p = out / f"{name}.png"
-        fig.savefig(p, dpi=110)
+        p = atomic.save_figure(fig, out / f"{name}.png", dpi=110)
         plt.close(fig)
         paths.append(p)
     lat = np.asarray(s["latency_ns"], dtype=np.float64) / 1e3
@@ -164,17 +167,16 @@ def figures(report: dict[str, Any], out: Path) -> list[Path]:
         ax.set_title(f"latency over {report['transport']} (n = {lat.size})")
         ax.legend()
         fig.tight_layout()
-        p = out / "latency.png"
-        fig.savefig(p, dpi=110)
+        p = atomic.save_figure(fig, out / "latency.png", dpi=110)
         plt.close(fig)
         paths.append(p)
     return paths
 
 
 def write(report: dict[str, Any], out: str | Path, *, timing_note: str | None = None) -> list[Path]:
-    """report.json, report.txt and the PNGs into ``out``."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "report.json").write_text(to_json(report) + "\n")
-    (out / "report.txt").write_text(table(report, timing_note=timing_note))
-    return [out / "report.json", out / "report.txt", *figures(report, out)]
+    """report.json, report.txt and the PNGs into ``out``, each replaced whole, the folder marked
+    incomplete (pyrhonn.atomic.MARKER) until the last is in place."""
+    with atomic.output_folder(out, "pyrhonn hil") as folder:
+        paths = [atomic.write_text(folder / "report.json", to_json(report) + "\n"),
+                 atomic.write_text(folder / "report.txt", table(report, timing_note=timing_note))]
+        return paths + figures(report, folder)

@@ -25,13 +25,25 @@ log after it, so the log writer's compression never disturbs the schedule.
 ``LOG.json`` sidecar with the scenario and the run's metadata), and
 :func:`read_log` reads a log back into the same :class:`Recording`, which is
 all :mod:`hil.score` needs.
+
+Integrity. The log is written to a temporary file and renamed into place
+(:mod:`pyrhonn.atomic`), then its sidecar, which records the log's frame
+count and SHA-256: an interrupted write leaves the previous log or none,
+and :func:`read_log` refuses a log that falls short of its sidecar (naming
+the frames missing), that does not match its checksum, or that has no
+sidecar. A run stopped by SIGINT or SIGTERM (:class:`Interrupted`, which
+:meth:`Rig.run` raises with every frame up to then) or by a lost bus is
+written as a whole, readable log marked ``partial`` in its sidecar, which
+:func:`read_log` refuses unless asked for it (``hil score --partial``).
 """
 from __future__ import annotations
 
 import errno
 import gc
+import hashlib
 import json
 import os
+import signal
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,12 +54,14 @@ import numpy as np
 
 from .scenario import Plan, Scenario
 
-__all__ = ["BusLost", "FirmwareTimeout", "LogWriteError", "Recording", "Rig", "ids", "read_log", "write_log"]
+__all__ = ["BusLost", "FirmwareTimeout", "Interrupted", "LogWriteError", "Recording", "Rig", "ids", "read_log",
+           "write_log"]
 
 
 DRAIN_CAP = 20  #: the drain after the replay reads for at most this many times ``drain``
 MAX_WAIT_S = 3600.0  #: the longest ``reply_timeout`` or ``drain`` a Rig takes
 SIDECAR_MAX_BYTES = 1 << 20  #: a log's JSON sidecar holds the scenario and a few counters: a few kB
+LOG_FORMAT = "pyrhonn-hil-log 2"  #: 2: the sidecar records the log's frame count, SHA-256 and whether it is partial
 
 
 def check_seconds(name: str, value: object, *, zero: bool) -> float:
@@ -66,7 +80,19 @@ class FirmwareTimeout(TimeoutError):
 
 
 class LogWriteError(OSError):
-    """Writing the log failed part way (the partial log is kept)."""
+    """Writing the log failed part way (nothing is left of it: the previous log, if any, is unchanged)."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM stopped the run (``signum``; hil's command line turns
+    SIGTERM into this exception). Raised by :meth:`Rig.run` with
+    ``recording``: every frame sent and received up to that moment, marked
+    partial, to be written as a log."""
+
+    def __init__(self, signum: int = signal.SIGINT, recording: "Recording | None" = None) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = int(signum)
+        self.recording = recording
 
 
 class BusLost(OSError):
@@ -232,6 +258,17 @@ class Rig:
     # -- the run -----------------------------------------------------------------------------
 
     def run(self) -> Recording:
+        """The run as a Recording; :class:`Interrupted` (with the frames so far) on SIGINT or SIGTERM."""
+        try:
+            return self._run()
+        except KeyboardInterrupt as exc:
+            signum = getattr(exc, "signum", signal.SIGINT)
+            sent = sum(1 for _, d, _m in self._events if d == "tx")
+            received = len(self._events) - sent
+            why = f"interrupted by {signal.Signals(signum).name} after {sent} frames sent and {received} received"
+            raise Interrupted(signum, self._recording({"partial": why})) from None
+
+    def _run(self) -> Recording:
         sc = self.plan.scenario
         frames = self.plan.frames()
         T = int(round(sc.period * 1e9))
@@ -328,9 +365,9 @@ class Rig:
 # -- logs ------------------------------------------------------------------------------------------
 
 
-def _writer(path: Path, file: Any = None) -> can.io.generic.MessageWriter:
+def _writer(path: Path, target: Path) -> can.io.generic.MessageWriter:
+    """python-can's writer for ``path``'s format, writing to ``target``."""
     suffix = path.suffix.lower()
-    target = path if file is None else file
     if suffix == ".blf":
         return can.BLFWriter(target)
     if suffix == ".asc":
@@ -342,43 +379,63 @@ def sidecar(path: Path) -> Path:
     return Path(str(path) + ".json")
 
 
-def write_log(rec: Recording, path: str | os.PathLike, *, file: Any = None) -> Path:
-    """Write ``rec`` to ``path`` (BLF or ASC) and its sidecar ``path.json``.
-    ``file``: an open binary file to write to instead (tests: a full disk).
-    A failure part way raises :class:`LogWriteError`; what was written stays."""
+def file_sha256(path: Path) -> str:
+    """The SHA-256 of the file ``path``, hex."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def partial_reason(rec: Recording) -> str | None:
+    """Why ``rec`` is not a whole run (interrupted, the bus lost), or None."""
+    if rec.meta.get("partial"):
+        return str(rec.meta["partial"])
+    if rec.meta.get("bus_lost"):
+        return f"the bus went away ({rec.meta['bus_lost']})"
+    return None
+
+
+def write_log(rec: Recording, path: str | os.PathLike) -> Path:
+    """Write ``rec`` to ``path`` (BLF or ASC), then its sidecar ``path.json``
+    with the frame count and the log's SHA-256 (and ``partial``: why the run
+    is not whole, or null). Each is written to a temporary file and renamed
+    into place: a write that fails or is interrupted leaves the previous log
+    (or none), never a part of one; a failure raises :class:`LogWriteError`."""
+    from pyrhonn import atomic
+
     path = Path(path)
     if path.suffix.lower() not in (".blf", ".asc"):
         raise ValueError(f"log: {path.name}: expected a .blf or .asc file name")
-    meta = {"format": "pyrhonn-hil-log 1", "scenario": rec.scenario.to_dict(),
-            **{k: v for k, v in rec.meta.items() if not k.startswith("_")},
-            "first_timestamp": rec.events[0][0] if rec.events else 0.0, "frames": len(rec.events)}
-    sc_path = sidecar(path)
-    try:
-        sc_path.write_text(json.dumps(meta, indent=1, sort_keys=True) + "\n")
-    except OSError as exc:
-        raise LogWriteError(exc.errno or errno.EIO, f"log: cannot write {sc_path}: {exc.strerror or exc}") from exc
     written = 0
-    writer = None
     try:
-        writer = _writer(path, file)
-        nudge = 0.4e-9 if path.suffix.lower() == ".blf" else 0.0  # BLF truncates to whole ns: land on ours
-        for ts, d, m in rec.events:
-            m.timestamp = ts + nudge
-            m.is_rx = d == "rx"
-            writer.on_message_received(m)
-            written += 1
-        writer.stop()
-        writer = None
-    except OSError as exc:
-        if writer is not None:
+        with atomic.replacing_path(path) as tmp:
+            writer = _writer(path, tmp)
             try:
+                nudge = 0.4e-9 if path.suffix.lower() == ".blf" else 0.0  # BLF truncates to whole ns: land on ours
+                for ts, d, m in rec.events:
+                    m.timestamp = ts + nudge
+                    m.is_rx = d == "rx"
+                    writer.on_message_received(m)
+                    written += 1
+            finally:
                 writer.stop()
-            except OSError:
-                pass
+            digest = file_sha256(tmp)
+    except OSError as exc:
         what = "disk full" if exc.errno == errno.ENOSPC else (exc.strerror or str(exc))
         raise LogWriteError(exc.errno or errno.EIO,
-                            f"log: {path}: {what} after {written} of {len(rec.events)} frames; the partial log "
-                            "is kept (the run's report is complete)") from exc
+                            f"log: {path}: {what} after {written} of {len(rec.events)} frames; nothing of it is "
+                            "kept (a previous log there is unchanged; the run's report is complete)") from exc
+    meta = {"format": LOG_FORMAT, "scenario": rec.scenario.to_dict(),
+            **{k: v for k, v in rec.meta.items() if not k.startswith("_")},
+            "first_timestamp": rec.events[0][0] if rec.events else 0.0, "frames": len(rec.events),
+            "sha256": digest, "partial": partial_reason(rec)}
+    sc_path = sidecar(path)
+    try:  # after the log: a kill in between leaves a log its old sidecar (or none) does not vouch for
+        atomic.write_text(sc_path, json.dumps(meta, indent=1, sort_keys=True) + "\n")
+    except OSError as exc:
+        raise LogWriteError(exc.errno or errno.EIO, f"log: cannot write {sc_path}: {exc.strerror or exc}") from exc
     return path
 
 
@@ -414,6 +471,14 @@ def _read_sidecar(sc_path: Path) -> tuple[Scenario, dict[str, Any]]:
         v = meta.get(key, 0)
         if isinstance(v, bool) or not isinstance(v, int) or not -2 ** 63 <= v < 2 ** 63:
             raise bad(f"{key}: expected a 64-bit integer, got {json.dumps(v)[:40]}")
+    if meta.get("frames", 0) < 0:
+        raise bad(f"frames: expected a count >= 0, got {meta['frames']}")
+    digest = meta.get("sha256")
+    if digest is not None and not (isinstance(digest, str) and len(digest) == 64
+                                   and all(c in "0123456789abcdef" for c in digest)):
+        raise bad(f"sha256: expected 64 lowercase hex digits, got {json.dumps(digest)[:80]}")
+    if not isinstance(meta.get("partial"), (str, type(None))):
+        raise bad(f"partial: expected a reason (text) or null, got {json.dumps(meta['partial'])[:40]}")
     pickup = meta.get("rx_pickup_us", {"n": 0})  # stats_us's figures, printed by the report
     if not isinstance(pickup, dict) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
                                                for v in pickup.values()):
@@ -428,10 +493,31 @@ def _read_sidecar(sc_path: Path) -> tuple[Scenario, dict[str, Any]]:
     return scenario, meta
 
 
-def read_log(path: str | os.PathLike) -> Recording:
+def _read_frames(path: Path, suffix: str) -> tuple[list[can.Message], Exception | None]:
+    """The frames of a log, up to where it stops parsing: the frames read,
+    and the exception that stopped the reader (None: read to its end)."""
+    msgs: list[can.Message] = []
+    reader = None
+    try:  # the BLF reader parses the file's header when it is made: a foreign or empty file fails there
+        reader = can.BLFReader(path) if suffix == ".blf" else can.ASCReader(path)
+        for m in reader:
+            msgs.append(m)
+    except Exception as exc:  # noqa: BLE001 - any parse failure of a truncated/foreign file
+        return msgs, exc
+    finally:
+        if reader is not None:
+            reader.stop()
+    return msgs, None
+
+
+def read_log(path: str | os.PathLike, *, partial: bool = False) -> Recording:
     """A log written by :func:`write_log` (with its sidecar) as a Recording.
-    Anything else (a missing, foreign, truncated or empty log, a bad sidecar)
-    is a ValueError naming the file."""
+    Anything else is a ValueError naming the file: a missing, foreign or
+    empty log, a bad sidecar or none, a log that falls short of the frame
+    count its sidecar records (the message names how many frames are
+    missing) or whose SHA-256 does not match it, and a log of a run that was
+    interrupted or lost its bus (its sidecar's ``partial``), unless
+    ``partial`` (the Recording's meta then keeps the reason)."""
     import struct
 
     path = Path(path)
@@ -439,23 +525,32 @@ def read_log(path: str | os.PathLike) -> Recording:
         raise ValueError(f"log: {path}: no such file")
     sc_path = sidecar(path)
     if not sc_path.is_file():
-        raise ValueError(f"log: {path}: no sidecar {sc_path.name} (the scenario it replays)")
+        raise ValueError(f"log: {path}: no sidecar {sc_path.name} (its scenario, frame count and checksum): "
+                         "refused, nothing says the log is whole")
     scenario, meta = _read_sidecar(sc_path)
     suffix = path.suffix.lower()
     if suffix not in (".blf", ".asc"):
         raise ValueError(f"log: {path.name}: expected a .blf or .asc file")
     if path.stat().st_size == 0:
         raise ValueError(f"log: {path}: empty file (not a {suffix[1:].upper()} log)")
-    reader = None
-    try:  # the BLF reader parses the file's header when it is made: a foreign or empty file fails there
-        reader = can.BLFReader(path) if suffix == ".blf" else can.ASCReader(path)
-        msgs = list(reader)
-    except Exception as exc:  # noqa: BLE001 - any parse failure of a truncated/foreign file
-        kind = "truncated, or not a BLF log" if isinstance(exc, struct.error) else type(exc).__name__
-        raise ValueError(f"log: {path}: cannot read it ({kind}: {exc})") from exc
-    finally:
-        if reader is not None:
-            reader.stop()
+    if "frames" not in meta or not isinstance(meta.get("sha256"), str):
+        raise ValueError(f"log: {path}: its sidecar {sc_path.name} records no frame count and checksum (sha256), "
+                         "so nothing says the log is whole: refused (written by an older pyrhonn or by hand)")
+    expected = meta["frames"]
+    why = meta.get("partial")
+    if why and not partial:
+        raise ValueError(f"log: {path}: a partial log ({why}; {expected} frames recorded): refused, its run did "
+                         "not finish (hil score --partial scores it anyway)")
+    msgs, failure = _read_frames(path, suffix)
+    if len(msgs) < expected:
+        raise ValueError(f"log: {path}: {expected - len(msgs)} of the {expected} frames its sidecar records are "
+                         f"missing (it holds {len(msgs)}): cut short after it was written; refused")
+    if failure is not None:
+        kind = "truncated, or not a BLF log" if isinstance(failure, struct.error) else type(failure).__name__
+        raise ValueError(f"log: {path}: cannot read it ({kind}: {failure})")
+    if file_sha256(path) != meta["sha256"]:
+        raise ValueError(f"log: {path}: its SHA-256 does not match the one its sidecar {sc_path.name} records: "
+                         "changed after it was written (or not the log the sidecar describes); refused")
     shift = 0.0
     if msgs:  # ASC stores times from its start, BLF from its (ms-truncated) start: anchor on the first frame
         shift = meta["first_timestamp"] - msgs[0].timestamp

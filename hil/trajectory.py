@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pyrhonn import atomic
 from pyrhonn.plants.lim import INPUT_NAMES, STATE_NAMES
 
 __all__ = ["COLUMNS", "RecordedTrajectory", "file_sha256", "read_trajectory", "samples_per_period",
@@ -134,7 +135,7 @@ def write_trajectory(path: str | Path, t: np.ndarray, X: np.ndarray, U: np.ndarr
     if not np.isfinite(rows).all():
         k = int(np.argwhere(~np.isfinite(rows))[0][0])
         raise ValueError(f"trajectory: sample {k} is not finite")
-    with open(path, "w", encoding="utf-8", newline="") as f:
+    with atomic.replacing(path, "w", newline="") as f:  # an interrupted write leaves the previous file or none
         f.write(",".join(COLUMNS) + "\n")
         for row in rows:
             f.write(",".join(repr(float(v)) for v in row) + "\n")

@@ -627,8 +627,10 @@ def dump_config(config: ConfigFile | IdentifierConfig, fp: BinaryIO) -> None:
 
 
 def save_config(config: ConfigFile | IdentifierConfig, path: str | Path) -> None:
-    """Write the config file ``path`` (UTF-8), replacing it if it exists."""
-    Path(path).write_bytes(dumps(config).encode("utf-8"))
+    """Write the config file ``path`` (UTF-8), replacing it whole if it exists (pyrhonn.atomic)."""
+    from . import atomic
+
+    atomic.write_text(path, dumps(config))
 
 
 # -- shipped configs --------------------------------------------------------------------------------

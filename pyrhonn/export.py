@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import atomic
 from .config import IdentifierConfig
 from .identifier import Identifier
 
@@ -129,8 +130,10 @@ def header_text(source: Identifier | IdentifierConfig, name: str) -> str:
 
 
 def export_header(source: Identifier | IdentifierConfig, path: str | Path, name: str = "rhonn_exported") -> Path:
-    """Write :func:`header_text` to ``path`` and return the path."""
+    """Write :func:`header_text` to ``path`` and return the path (replaced
+    whole: an interrupted export leaves the previous header or none, see
+    :mod:`pyrhonn.atomic`)."""
     path = Path(path)
     text = header_text(source, name)
-    path.write_text(text)
+    atomic.write_text(path, text)
     return path

@@ -59,7 +59,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from . import metrics
+from . import atomic, metrics
 from .baselines.honn_observer import HonnObserverParams, observe_oscillator
 from .config import DTYPES, IdentifierConfig
 from .configfile import ConfigFile, load_named, load_shipped
@@ -776,7 +776,7 @@ def _plot_states(result: ScenarioResult, e: EstimatorResult, path: Path) -> None
     axes[-1].set_xlabel("time (s)")
     fig.suptitle(f"{result.scenario.title}: real (black solid) vs {verb} (grey dotted), {e.label}", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    atomic.save_figure(fig, path, dpi=110)
 
 
 def _plot_errors(result: ScenarioResult, path: Path) -> None:
@@ -794,7 +794,7 @@ def _plot_errors(result: ScenarioResult, path: Path) -> None:
     axes[-1].set_xlabel("time (s)")
     fig.suptitle(f"{result.scenario.title}: error x(k+1) - estimate (hold windows shaded)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    atomic.save_figure(fig, path, dpi=110)
 
 
 def check_output_dir(out: str | Path) -> Path:
@@ -815,13 +815,14 @@ def check_output_dir(out: str | Path) -> Path:
 
 def write_outputs(result: ScenarioResult, out: str | Path) -> tuple[Path, ...]:
     """Write ``<key>.json``, ``<key>-<estimator>.png`` per identifier and
-    observer, and ``<key>-errors.png`` into ``out``; returns the paths."""
+    observer, and ``<key>-errors.png`` into ``out``, each replaced whole
+    (:mod:`pyrhonn.atomic`); returns the paths."""
     folder = check_output_dir(out)
     key = result.scenario.key
     written: list[Path] = []
     data = result.to_dict()
     path = folder / f"{key}.json"
-    path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    atomic.write_text(path, json.dumps(data, indent=2, allow_nan=False) + "\n")
     written.append(path)
     for e in result.estimators:
         if e.kind == "baseline":

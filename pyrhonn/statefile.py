@@ -25,6 +25,11 @@ it exactly, so a loaded identifier continues bit for bit. Readers reject a
 file with another ``format`` or a newer ``version``; every other defect
 (missing member, wrong shape or dtype, non-finite value) raises
 ``ValueError`` naming the member.
+
+A save writes a temporary file beside the target and renames it over the
+target (:mod:`pyrhonn.atomic`): a save that is interrupted, even by
+``kill -9`` or a power cut, leaves the previous state file as it was (or no
+file, if there was none), never a partial archive.
 """
 from __future__ import annotations
 
@@ -35,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from . import atomic
 from .config import IdentifierConfig
 from .identifier import Identifier, IdentifierError, _unpacked, clearly_indefinite
 
@@ -67,8 +73,9 @@ def save_state(identifier: Identifier, path: str | Path) -> None:
         members[f"z_{i}"] = regressors[i]
     members["xhat"] = identifier.prediction
     members["history"] = identifier._history(cfg.max_delay)
-    path = Path(path)
-    with open(path, "wb") as fh:
+    # a temporary file renamed over ``path``: a save interrupted at any point (kill -9 included) leaves
+    # the previous state file whole, never a truncated archive
+    with atomic.replacing(path) as fh:
         np.savez(fh, **members)
 
 

@@ -316,3 +316,65 @@ def test_an_empty_output_folder_name_is_refused(tmp_path: Path, config: Path, cl
     data = tmp_path / "data.csv"
     data.write_text(GOOD)
     assert "--out: empty" in cli_error(["identify", str(data), "--config", str(config), "--out", " "])
+
+
+# -- interrupted runs ------------------------------------------------------------------------------------
+
+
+def _outputs(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in folder.iterdir() if not p.name.startswith(".")}
+
+
+def test_identify_killed_into_an_existing_out_leaves_whole_files_and_marks_a_mixed_folder(tmp_path: Path) -> None:
+    """5 times, ``pyrhonn identify`` (a process) is killed (SIGKILL) at a random moment after it starts
+    writing into an --out that holds a previous run's outputs: every file there is then whole (the
+    previous run's or the new one's), and a folder whose files are not all from one run is marked
+    INCOMPLETE; never a truncated file in a folder that looks finished."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from pyrhonn.atomic import MARKER
+
+    runs = {}
+    for seed in (7, 8):  # two data files, two sets of outputs, each from a complete run
+        traj = oscillator.simulate(dt=0.02, horizon=300.0, corruption=Corruption(dropout=0.1, seed=seed))
+        write_csv(tmp_path / f"d{seed}.csv", traj)
+        assert main(["identify", str(tmp_path / f"d{seed}.csv"), "--config", "example1", "--out",
+                     str(tmp_path / f"ref{seed}")]) == 0
+        runs[seed] = _outputs(tmp_path / f"ref{seed}")
+    assert set(runs[7]) == set(runs[8]) and MARKER not in runs[7]
+    out = tmp_path / "out"
+    out.mkdir()
+    for name, data in runs[7].items():
+        (out / name).write_bytes(data)
+    root = Path(__file__).resolve().parent.parent
+    env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+    rng = np.random.default_rng(3)
+
+    def listing() -> list[tuple[str, int, int]]:
+        return sorted((e.name, e.stat().st_size, e.stat().st_mtime_ns) for e in os.scandir(out))
+
+    for _ in range(5):
+        before = listing()
+        proc = subprocess.Popen([sys.executable, "-m", "pyrhonn.cli", "identify", str(tmp_path / "d8.csv"),
+                                 "--config", "example1", "--out", str(out)], env=env,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            while proc.poll() is None and listing() == before:  # until it starts writing
+                time.sleep(0.002)
+            time.sleep(float(rng.uniform(0.0, 1.5)))
+            proc.send_signal(signal.SIGKILL)
+        finally:
+            proc.wait()
+        now = _outputs(out)
+        marked = now.pop(MARKER, None) is not None
+        for name, data in now.items():
+            assert data in (runs[7][name], runs[8][name]), f"{name}: neither run's whole file"
+        if not marked:
+            assert now in (runs[7], runs[8]), "a folder not marked INCOMPLETE mixes two runs"
+    # a run that finishes removes the marker and leaves the new outputs
+    assert main(["identify", str(tmp_path / "d8.csv"), "--config", "example1", "--out", str(out)]) == 0
+    assert _outputs(out) == runs[8]

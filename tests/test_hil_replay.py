@@ -231,7 +231,9 @@ def test_a_bus_that_disappears_mid_run_is_a_clear_error_and_the_frames_so_far_ar
     sent = [m for _, d, m in rec.events if d == "tx" and m.arbitration_id == MEAS.frame_id]
     assert len(sent) == 41 and "bus_lost" in rec.meta
     log = write_log(rec, tmp_path / "lost.blf")
-    assert len(read_log(log).events) == len(rec.events)  # nothing recorded before the loss is lost
+    with pytest.raises(ValueError, match=r"a partial log \(the bus went away"):  # not a whole run: refused ...
+        read_log(log)
+    assert len(read_log(log, partial=True).events) == len(rec.events)  # ... but nothing before the loss is lost
 
 
 def test_a_burst_of_malformed_frames_is_counted_and_nothing_crashes() -> None:
@@ -305,13 +307,24 @@ class _FullDisk(io.RawIOBase):
         super().close()
 
 
-def test_a_full_log_disk_is_a_clear_error_and_the_partial_log_is_kept(tmp_path) -> None:
+def test_a_full_log_disk_is_a_clear_error_and_leaves_the_previous_log_whole(tmp_path, monkeypatch) -> None:
     rec = run_replay(SCENARIO.replace(duration=0.6, frame_loss=0.0), "virtual")
     path = tmp_path / "run.blf"
-    with pytest.raises(LogWriteError, match=r"disk full after \d+ of \d+ frames; the partial log is kept") as info:
-        write_log(rec, path, file=_FullDisk(path, 20_000))
+    write_log(run_replay(SCENARIO.replace(duration=0.03, frame_loss=0.0), "virtual"), path)
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+
+    class FullDiskBLF(can.BLFWriter):  # the disk fills up 20,000 bytes into the new log
+        def __init__(self, file, **kwargs) -> None:
+            super().__init__(_FullDisk(file, 20_000), **kwargs)
+
+    monkeypatch.setattr(can, "BLFWriter", FullDiskBLF)
+    with pytest.raises(LogWriteError, match=r"disk full after \d+ of \d+ frames; nothing of it is kept") as info:
+        write_log(rec, path)
     assert info.value.errno == errno.ENOSPC
-    assert path.stat().st_size == 20_000 and (tmp_path / "run.blf.json").is_file()
+    # the previous log and its sidecar as they were, still a valid pair; no temporary file left behind
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+    monkeypatch.undo()
+    assert len(read_log(path).events) == json.loads((tmp_path / "run.blf.json").read_text())["frames"]
 
 
 # -- the command line -----------------------------------------------------------------------------

@@ -293,3 +293,32 @@ def test_cli_unwritable_out_exits_2_before_running(tmp_path: Path, capsys: pytes
         assert "simulating" not in err  # refused before any run
     assert main(["reproduce", "example2", "--out", ""]) == 2  # not the current folder by accident
     assert "--out: empty" in capsys.readouterr().err
+
+
+def test_an_interrupted_reproduce_leaves_whole_files_in_a_folder_marked_incomplete(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    """Ctrl-C while example1's second period runs: the files of the first are whole, and the folder
+    says it is incomplete until a run finishes."""
+    from pyrhonn.atomic import MARKER, incomplete
+
+    out = tmp_path / "o"
+    real = rp.run_scenario
+
+    def interrupted_at_the_second(key, **kwargs):
+        if key != rp.scenario_keys("example1")[0]:
+            raise KeyboardInterrupt
+        return real(key, **kwargs)
+
+    monkeypatch.setattr(rp, "run_scenario", interrupted_at_the_second)
+    argv = ["reproduce", "example1", "--horizon", "2", "--no-horizon-study", "--out", str(out)]
+    assert main(argv) == 130
+    assert "pyrhonn reproduce" in incomplete(out) and not (out / "summary.json").exists()
+    assert sorted(p.name for p in out.glob("*.json")) == [f"{rp.scenario_keys('example1')[0]}.json"]
+    for p in out.glob("*.json"):
+        json.loads(p.read_text())                               # whole
+    assert all(p.read_bytes().startswith(PNG_MAGIC) for p in out.glob("*.png"))
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary file left
+    monkeypatch.undo()
+    capsys.readouterr()
+    assert main(argv) == 0
+    assert incomplete(out) is None and not (out / MARKER).exists() and (out / "summary.json").is_file()

@@ -122,3 +122,45 @@ def test_corrupt_and_foreign_files_are_rejected(tmp_path: Path) -> None:
 
 def test_format_is_documented_and_stable() -> None:
     assert FORMAT == "pyrhonn-state" and VERSION == 1
+
+
+def _filter_state(ident: Identifier) -> tuple[bytes, ...]:
+    n = ident.config.n_states
+    return (ident.steps.to_bytes(8, "little"), ident.prediction.tobytes(),
+            *(ident.get_weights(i).tobytes() for i in range(n)),
+            *(ident.get_covariance(i).tobytes() for i in range(n)))
+
+
+def test_a_save_killed_at_any_moment_leaves_the_old_or_the_new_state_file(tmp_path: Path) -> None:
+    """100 times: a child process saves two states in turn over one file and is
+    killed (SIGKILL) at a random moment; the file always loads, as one of them."""
+    import os
+    import signal
+    import time
+
+    X, U, valid = trajectory(6, 200, 3, 1)
+    old, new = Identifier(config("float64")), Identifier(config("float64"))
+    old.run(X[:60], U[:60], valid[:60])
+    new.run(X, U, valid)
+    states = {_filter_state(old): "old", _filter_state(new): "new"}
+    assert len(states) == 2
+    path = tmp_path / "state.npz"
+    old.save(path)
+    rng = np.random.default_rng(2)
+    seen = set()
+    for _ in range(100):
+        pid = os.fork()
+        if pid == 0:  # the child: save, save, save ... until killed
+            try:
+                while True:
+                    new.save(path)
+                    old.save(path)
+            finally:
+                os._exit(1)
+        time.sleep(float(rng.uniform(0.0, 0.02)))
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+        seen.add(states[_filter_state(Identifier.load(path))])  # KeyError: neither state
+    assert seen == {"old", "new"}
+    # what a kill can leave beside it is a hidden temporary file, never something that looks like an output
+    assert all(p.name == "state.npz" or p.name.startswith(".state.npz.tmp-") for p in tmp_path.iterdir())

@@ -25,6 +25,12 @@ Outputs (in ``--out``, default ``identify-<file stem>``)
 - ``<state>.png`` per state (unless ``--no-plots``): measured vs identified,
   and the error, against ``t`` (or the sample index).
 
+Each file is written to a temporary file and renamed into place, and the
+folder holds a file ``INCOMPLETE`` from before the first output until after
+the last (:mod:`pyrhonn.atomic`): a run that is interrupted, even by
+``kill -9``, leaves every file whole (the previous run's or this one's) and,
+unless it finished, the ``INCOMPLETE`` marker saying the set may be mixed.
+
 The identifier runs in the C core in ``--dtype`` (default: the config's
 dtype); measurements are read as float64 and rounded to float32 only when
 running float32. Metrics compare the float64 measurements of the file with
@@ -42,6 +48,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from .. import atomic
 from ..config import DTYPES, IdentifierConfig
 from ..configfile import ConfigFile, load_named
 from ..datafile import Data, TIME_COLUMN, check_suffix, read_data
@@ -156,7 +163,7 @@ def _write_predictions(path: Path, data: Data, cf: ConfigFile, xhat0: np.ndarray
     header = ["line"] + ([TIME_COLUMN] if data.t is not None else [])
     for name in cf.state_names:
         header += [f"{name}_hat", f"{name}_err"]
-    with path.open("w", newline="", encoding="utf-8") as fh:
+    with atomic.replacing(path, "w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(header)
         for k in range(T):
@@ -193,7 +200,7 @@ def _plot(path: Path, name: str, data: Data, Xhat: np.ndarray, j: int, warmup: i
             ax.axvspan(x_axis[0], x_axis[min(warmup, data.n_samples - 1)], color="0.9", lw=0, zorder=0,
                        label="warm-up (not scored)" if ax is top else None)
     top.legend(loc="best", fontsize="small")
-    fig.savefig(path, dpi=100)
+    atomic.save_figure(fig, path, dpi=100)
 
 
 def _output_dir(out: str | None, source: str) -> Path:
@@ -229,14 +236,13 @@ def run(args: argparse.Namespace) -> int:
     out = _output_dir(args.out, source)
     plots = [] if args.no_plots else [out / f"{name}.png" for name in cf.state_names]
     written = [out / "predictions.csv", out / "metrics.json"] + plots
-    _refuse_overwriting_inputs(written, {"the data file": source, "the config file": config_source})
+    _refuse_overwriting_inputs([*written, out / atomic.MARKER],
+                               {"the data file": source, "the config file": config_source})
     dtype = args.dtype or cf.config.dtype
     cfg = cf.config if dtype == cf.config.dtype else cf.config.replace(dtype=dtype)
     xhat0, Xhat = _run_identifier(cfg, data, cf, source, config_source)
     r, ad, count = _metrics(data, Xhat, args.warmup)
 
-    out.mkdir(parents=True, exist_ok=True)
-    _write_predictions(out / "predictions.csv", data, cf, xhat0, Xhat)
     report = {
         "format": "pyrhonn-identify-metrics",
         "version": 1,
@@ -256,9 +262,11 @@ def run(args: argparse.Namespace) -> int:
                    for j, name in enumerate(cf.state_names)},
         "next_prediction": {name: float(Xhat[-1, j]) for j, name in enumerate(cf.state_names)},
     }
-    (out / "metrics.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
-    for j, path in enumerate(plots):
-        _plot(path, cf.state_names[j], data, Xhat, j, args.warmup)
+    with atomic.output_folder(out, "pyrhonn identify"):  # marked INCOMPLETE until every file is in place
+        _write_predictions(out / "predictions.csv", data, cf, xhat0, Xhat)
+        atomic.write_text(out / "metrics.json", json.dumps(report, indent=2) + "\n")
+        for j, path in enumerate(plots):
+            _plot(path, cf.state_names[j], data, Xhat, j, args.warmup)
 
     print(f"identified {source}: {T} samples, {_count(cfg.n_states, 'state')}, {_count(cfg.n_inputs, 'input')}, "
           f"config {config_source}, {dtype}")

@@ -10,6 +10,11 @@ For every state the table shows the paper's figure, ours and ours / paper,
 for RMSE and absolute deviation; figures (PNG) and numbers (JSON) go to
 ``--out``. Progress goes to stderr, tables to stdout. See
 :mod:`pyrhonn.reproduce` for what is run and how it is aligned.
+
+Every file is replaced whole, and ``--out`` holds a file ``INCOMPLETE``
+from the start of the run until ``summary.json`` is in place
+(:mod:`pyrhonn.atomic`): an interrupted run leaves whole files and the
+marker saying the folder may mix this run's outputs with an earlier one's.
 """
 from __future__ import annotations
 
@@ -17,8 +22,10 @@ import argparse
 import json
 import sys
 import time
+from pathlib import Path
 
 from .options import options_named, real_option
+from .. import atomic
 from .. import reproduce as rp
 
 EXAMPLE_CHOICES = (*rp.EXAMPLES, "all")
@@ -92,6 +99,11 @@ def run(args: argparse.Namespace) -> int:
     opts = _parse(args)
     keys = rp.scenario_keys(args.example, opts["dt"])  # type: ignore[arg-type]
     out = rp.check_output_dir(args.out)  # fail before any long run
+    with atomic.output_folder(out, "pyrhonn reproduce"):  # marked INCOMPLETE until summary.json is in place
+        return _run(args, opts, keys, out)
+
+
+def _run(args: argparse.Namespace, opts: dict[str, object], keys: tuple[str, ...], out: Path) -> int:
     start = time.perf_counter()
     results = []
     for i, key in enumerate(keys, 1):
@@ -123,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
                "scenarios": {r.scenario.key: [str(p.name) for p in f] for r, f in results},
                "targets_missed": [dict(t, scenario=r.scenario.key) for r, _ in results
                                   for t in r.targets() if not t["met"]]}
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    atomic.write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     if args.json:
         print(json.dumps({"seconds": total, "results": [r.to_dict() for r, _ in results]}, indent=2,
                          allow_nan=False))

@@ -47,7 +47,7 @@ import numpy as np
 
 from .options import options_named, real_option
 from .. import __version__
-from .. import tuning
+from .. import atomic, tuning
 from ..config import DTYPES
 from ..configfile import ConfigFile, dumps, is_path, load_named
 from ..datafile import check_suffix, read_data
@@ -259,22 +259,6 @@ def _data(path: str, cf: ConfigFile, config_source: str, valid_suffix: str) -> T
 # -- output ------------------------------------------------------------------------------------------------
 
 
-def _write(out: Path, text: str) -> None:
-    """Write ``text`` to ``out`` atomically (a temporary file in the same folder, then a rename)."""
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            # mkstemp makes the file 0600; a config is an ordinary file: the mode open() would give
-            umask = os.umask(0)
-            os.umask(umask)
-            os.fchmod(fh.fileno(), 0o666 & ~umask)
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def _what(result: tuning.TuneResult) -> str:
     names = ", ".join(dict.fromkeys(d.param for d in result.space))
     return f"{names} ({'one value per neuron' if result.per_neuron else 'shared by all neurons'})"
@@ -375,7 +359,7 @@ def run(args: argparse.Namespace) -> int:
     description = f"{cf.description.rstrip()}\n\n{note}\n" if cf.description.strip() else f"{note}\n"
     tuned = ConfigFile(config=result.config, state_names=cf.state_names, input_names=cf.input_names,
                        description=description, why=cf.why)
-    _write(opts.out, dumps(tuned))
+    atomic.write_text(opts.out, dumps(tuned))  # replaced whole: an interrupted write leaves the previous file
 
     c = result.counts
     print(f"tuned {config_source} on {traj.label}, {dtype}")
