@@ -158,13 +158,15 @@ class SecOCSender:
         """``payload`` (a whole frame, trailer bytes included and
         overwritten) secured with the next freshness value."""
         n = len(payload)
+        if isinstance(frame_id, bool) or not isinstance(frame_id, (int, np.integer)) or not 0 <= frame_id <= 0x7FF:
+            raise ValueError(f"frame_id: expected an 11-bit CAN identifier (the DataId), got {frame_id!r}")
         if not int(_lib.FW_SECOC_TRAILER_BYTES) <= n <= int(_lib.FW_MAX_FRAME_LEN):
             raise ValueError(f"payload: {n} bytes cannot carry the {int(_lib.FW_SECOC_TRAILER_BYTES)}-byte "
                              "SecOC trailer")
         if self._freshness >= 2 ** 64 - 1:
             raise ValueError("freshness: the 64-bit counter is spent; provision a new key")
         buf = _ffi.new("uint8_t[]", bytes(payload))
-        status = _lib.fw_secoc_protect(self._key, int(frame_id) & 0x7FF, buf, n, self._freshness + 1)
+        status = _lib.fw_secoc_protect(self._key, int(frame_id), buf, n, self._freshness + 1)
         if status != _lib.FW_OK:
             raise FirmwareError(status_name(status), f"protect: {status_name(status)}")
         self._freshness += 1

@@ -169,6 +169,10 @@ def test_sender_refuses_bad_keys_and_counters() -> None:
             SecOCSender(firmware.TEST_KEY, freshness=bad)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="sender: expected a SecOCSender"):
         firmware.control_message("Reset", sender=None)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="frame_id: expected an 11-bit"):
+        SecOCSender(firmware.TEST_KEY).protect(0x800, bytes(16))
+    with pytest.raises(ValueError, match="cannot carry"):
+        SecOCSender(firmware.TEST_KEY).protect(0x110, bytes(11))
     tx = SecOCSender(firmware.TEST_KEY, freshness=2 ** 64 - 2)
     firmware.control_message("Reset", sender=tx)
     with pytest.raises(ValueError, match="spent"):
