@@ -104,6 +104,42 @@ def test_a_command_secured_by_an_independent_implementation_is_accepted() -> Non
     assert app.last_status == "FW_OK" and app.counters["weight_chunks"] == 1
 
 
+def _reference_verdict(latest: int, fv: int) -> str:
+    """AUTOSAR's reconstruction with the acceptance window, written out: the
+    received low 32 bits replace the last accepted value's, the high half
+    carries when they are not greater; then newer by at most the window, and
+    the MAC (over the sender's own full value) must match the rebuilt one."""
+    low, mask = fv & 0xFFFFFFFF, 0xFFFFFFFF
+    cand = (latest & ~mask & (2 ** 64 - 1)) | low
+    if low <= latest & mask:
+        if latest >> 32 == mask:
+            return "FW_E_FRESHNESS"
+        cand += 2 ** 32
+    if cand - latest > int(lib.FW_SECOC_ACCEPTANCE_WINDOW):
+        return "FW_E_FRESHNESS"
+    return "FW_OK" if cand == fv else "FW_E_AUTH"
+
+
+@FAST
+@given(latest=st.integers(0, 2 ** 64 - 1),
+       delta=st.one_of(st.integers(-70_000, 70_000), st.integers(-2 ** 40, 2 ** 40),
+                       st.sampled_from([2 ** 32, -2 ** 32, 2 ** 32 + 1, -2 ** 32 + 1, 65_536, 65_537])))
+def test_freshness_is_rebuilt_and_windowed_as_autosar_does(latest: int, delta: int) -> None:
+    fv = latest + delta
+    if not 0 <= fv < 2 ** 64:
+        fv = (latest - delta) % 2 ** 64
+    k = ffi.new("fw_cmac_key *")
+    lib.fw_cmac_init(k, firmware.TEST_KEY)
+    pdu = ffi.new("uint8_t[16]", bytes([3, 1, 0, 0]) + bytes(12))
+    assert lib.fw_secoc_protect(k, 0x110, pdu, 16, fv) == lib.FW_OK
+    held = ffi.new("uint64_t *", latest)
+    got = firmware.status_name(lib.fw_secoc_verify(k, 0x110, pdu, 16, held))
+    assert got == _reference_verdict(latest, fv)
+    assert held[0] == (fv if got == "FW_OK" else latest)
+    if got == "FW_OK":  # and the very same frame is a replay now
+        assert firmware.status_name(lib.fw_secoc_verify(k, 0x110, pdu, 16, held)) == "FW_E_FRESHNESS"
+
+
 def _refused(app: FirmwareApp, before: bytes, data: bytes, status: str, can_id: int = 0x110) -> None:
     fv = app.freshness
     replies = app.handle_frame(can_id, data)
@@ -177,3 +213,18 @@ def test_sender_refuses_bad_keys_and_counters() -> None:
     firmware.control_message("Reset", sender=tx)
     with pytest.raises(ValueError, match="spent"):
         firmware.control_message("Reset", sender=tx)
+
+
+def test_a_replayed_weight_chunk_is_rejected_and_stages_nothing() -> None:
+    app = FirmwareApp(None, CONFIG, host_clock=False)
+    tx = SecOCSender(firmware.TEST_KEY)
+    (ack,) = app.handle(firmware.control_message("WeightsBegin", 1, sender=tx))
+    total = DB.decode_message("ControlAck", bytes(ack.data), decode_choices=False)["Missing"]
+    L0 = CONFIG.neurons[0].n_terms
+    (chunk,) = firmware.weight_load_messages([np.full(L0, 0.5, dtype=np.float32)], sender=tx)
+    assert app.handle(chunk) == [] and app.last_status == "FW_OK"
+    assert app.handle(chunk) == [] and app.last_status == "FW_E_FRESHNESS"
+    assert app.counters["weight_chunks"] == 1 and app.counters["rejected_freshness"] == 1
+    (ack,) = app.handle(firmware.control_message("WeightsCommit", 2, sender=tx))
+    d = DB.decode_message("ControlAck", bytes(ack.data), decode_choices=False)
+    assert d["Result"] == int(lib.FW_E_WEIGHTS) and d["Missing"] == total - L0
