@@ -55,7 +55,7 @@ FUZZ_UDP_SECONDS ?= 30
 FW_FLAGS = -std=c99 -ffp-contract=off -DRHONN_SINGLE -Icsrc/include -Ifirmware_sim/app \
 	-Ifirmware_sim/generated -Ifirmware_sim/config
 FW_SOURCES = firmware_sim/app/fw_app.c firmware_sim/app/fw_protocol.c firmware_sim/app/fw_hal_mem.c \
-	firmware_sim/generated/rhonn_id.c csrc/src/rhonn.c
+	firmware_sim/app/fw_secoc.c firmware_sim/app/fw_aes_cmac.c firmware_sim/generated/rhonn_id.c csrc/src/rhonn.c
 test-fuzz:
 	mkdir -p $(BUILD)/fuzz/corpus
 	$(CLANG) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $(FW_FLAGS) \

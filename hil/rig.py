@@ -234,16 +234,23 @@ class Rig:
                        f"and {received} received: {exc}", rec)
 
     def _control(self, command: str, token: int, timeout: float) -> bool:
-        """Send a Control frame; True when its ControlAck came back."""
-        from pyrhonn.firmware import control_message, database
+        """Send a Control frame, authenticated with the firmware's public test
+        key (each resend with the next freshness value: the firmware refuses a
+        replay); True when its ControlAck came back."""
+        from pyrhonn.firmware import TEST_KEY, SecOCSender, control_message, database
 
+        if not hasattr(self, "_secoc"):  # one freshness counter per rig, as per firmware run
+            if TEST_KEY is None:
+                raise RuntimeError("pyrhonn._fwapp was built with a provisioned SecOC key: hil knows only the "
+                                   "public test key of the simulations")
+            self._secoc = SecOCSender(TEST_KEY)
         ack_id = ids()["ControlAck"]
         end = time.perf_counter_ns() + int(timeout * 1e9)
         n0 = len(self._events)
         resend = 0
         while time.perf_counter_ns() < end:
             if time.perf_counter_ns() >= resend:  # again every 0.25 s: the firmware may still be binding
-                self._send(control_message(command, token))
+                self._send(control_message(command, token, sender=self._secoc))
                 resend = time.perf_counter_ns() + 250_000_000
             self._take(self._recv(0.02), time.perf_counter_ns())
             for _, d, m in self._events[n0:]:

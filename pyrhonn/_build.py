@@ -69,12 +69,14 @@ def make_ffi(dtype: str) -> FFI:
 
 
 FIRMWARE = ROOT / "firmware_sim"
-FIRMWARE_INCLUDES = ("csrc/include", "firmware_sim/app", "firmware_sim/generated")
+FIRMWARE_INCLUDES = ("csrc/include", "firmware_sim/app", "firmware_sim/generated", "firmware_sim/config")
 FIRMWARE_SOURCES = ("csrc/src/rhonn.c", "firmware_sim/app/fw_app.c", "firmware_sim/app/fw_protocol.c",
-                    "firmware_sim/app/fw_hal_mem.c", "firmware_sim/generated/rhonn_id.c")
+                    "firmware_sim/app/fw_hal_mem.c", "firmware_sim/app/fw_secoc.c", "firmware_sim/app/fw_aes_cmac.c",
+                    "firmware_sim/generated/rhonn_id.c")
 FIRMWARE_CONSTANTS = CONSTANTS + (
     "FW_N_STATES", "FW_N_INPUTS", "FW_WEIGHTS_PER_FRAME", "FW_MAX_FRAME_LEN", "FW_MEM_HAL_DEPTH", "FW_FRAME_FD",
-    "FW_FRAME_BRS", "FW_CAN_EFF_FLAG", "FW_CAN_RTR_FLAG", "FW_CAN_ERR_FLAG",
+    "FW_FRAME_BRS", "FW_CAN_EFF_FLAG", "FW_CAN_RTR_FLAG", "FW_CAN_ERR_FLAG", "FW_SECOC", "FW_SECOC_FV_BYTES",
+    "FW_SECOC_MAC_BYTES", "FW_SECOC_TRAILER_BYTES", "FW_SECOC_ACCEPTANCE_WINDOW", "FW_AES128_KEY", "FW_AES_BLOCK",
 )
 # Host glue of pyrhonn._fwapp: the in-memory HAL with the host's monotonic
 # clock, and the DBC the extension was built from (so the Python side of the
@@ -84,6 +86,7 @@ FIRMWARE_GLUE = """
 #include "fw_app.h"
 #include "fw_hal_mem.h"
 #include "rhonn_id.h"
+#include "fw_secoc_key.h"
 
 uint64_t fwpy_now_ns(void)
 {
@@ -106,6 +109,24 @@ fw_status fwpy_bind_hal(fw_mem_hal *m, fw_hal *hal, int host_clock)
     return st;
 }
 
+/* The public test key compiled into this build's firmware
+ * (config/fw_secoc_key.h), for the simulated rig. A provisioned key
+ * (FW_SECOC_KEY_HEADER) is not handed out: 0 bytes. */
+#if FW_SECOC_KEY_IS_TEST_KEY
+static const unsigned char fwpy_secoc_key_bytes[FW_AES128_KEY] = FW_SECOC_KEY_BYTES;
+size_t fwpy_secoc_key(const unsigned char **key)
+{
+    *key = fwpy_secoc_key_bytes;
+    return sizeof fwpy_secoc_key_bytes;
+}
+#else
+size_t fwpy_secoc_key(const unsigned char **key)
+{
+    *key = NULL;
+    return 0;
+}
+#endif
+
 static const unsigned char fwpy_dbc_bytes[] = {%s};
 size_t fwpy_dbc(const unsigned char **text)
 {
@@ -117,6 +138,7 @@ FIRMWARE_GLUE_CDEF = """
 uint64_t fwpy_now_ns(void);
 fw_status fwpy_bind_hal(fw_mem_hal *m, fw_hal *hal, int host_clock);
 size_t fwpy_dbc(const unsigned char **text);
+size_t fwpy_secoc_key(const unsigned char **key);
 """
 
 

@@ -22,6 +22,13 @@ embedded in the extension at build time: :func:`database`,
 :func:`measurement_message`, :func:`decode_estimate`,
 :func:`control_message`, :func:`weight_load_messages`. Bit-rate figures of
 the design come from :func:`fd_frame_bits` and :func:`cycle_bus_time`.
+
+Control and WeightLoad frames are authenticated as AUTOSAR SecOC does
+(firmware_sim/README.md, Authentication): a :class:`SecOCSender` holds the
+key and the rig's freshness counter and is the one place that secures them::
+
+    sender = SecOCSender(TEST_KEY)           # the public test key of the simulations
+    bus.send(control_message("Reset", token=1, sender=sender))
 """
 from __future__ import annotations
 
@@ -46,7 +53,10 @@ __all__ = [
     "FirmwareApp",
     "FirmwareError",
     "INPUT_SIGNALS",
+    "SECOC_ENABLED",
     "STATE_SIGNALS",
+    "SecOCSender",
+    "TEST_KEY",
     "VALID_SIGNALS",
     "WEIGHTS_PER_FRAME",
     "control_message",
@@ -75,7 +85,8 @@ WEIGHTS_PER_FRAME = int(_lib.FW_WEIGHTS_PER_FRAME)
 _COUNTERS = ("frames_in", "frames_out", "rejected", "rejected_unknown_id", "rejected_length", "rejected_range",
              "rejected_seq_repeat", "rejected_seq_jump", "rejected_state", "rejected_weights", "measurements",
              "step_errors", "commands", "weight_chunks", "hal_errors", "overruns", "cycle_time_ns", "step_time_ns",
-             "step_time_max_ns", "step_time_worst_ns", "last_reject", "last_step_status")
+             "step_time_max_ns", "step_time_worst_ns", "last_reject", "last_step_status", "rejected_auth",
+             "rejected_freshness")
 
 
 class FirmwareError(ValueError):
@@ -99,6 +110,67 @@ def database():
     text = _ffi.new("const unsigned char **")
     n = _lib.fwpy_dbc(text)
     return cantools.database.load_string(bytes(_ffi.buffer(text[0], n)).decode("utf-8"), database_format="dbc")
+
+
+def _test_key() -> bytes | None:
+    key = _ffi.new("const unsigned char **")
+    n = _lib.fwpy_secoc_key(key)
+    return bytes(_ffi.buffer(key[0], n)) if n else None
+
+
+#: The key compiled into pyrhonn._fwapp (firmware_sim/config/fw_secoc_key.h):
+#: the PUBLIC test key "pyrhonn-TEST-key" of the simulations, not a secret.
+#: None when the twin was built with a provisioned key, which it never hands out.
+TEST_KEY: bytes | None = _test_key()
+#: Whether the twin's firmware checks the command authentication (FW_SECOC).
+SECOC_ENABLED = bool(_lib.FW_SECOC)
+
+
+class SecOCSender:
+    """The rig's side of the command authentication: the AES-128 key and the
+    64-bit freshness counter shared by Control and WeightLoad.
+
+    :meth:`protect` adds one to the counter and writes the secured trailer
+    (the low 32 bits of the freshness value and the 8-byte truncated
+    AES-CMAC over DataId | authentic bytes | full freshness value) with the
+    firmware's own C code (``fw_secoc_protect``), which the tests check
+    against RFC 4493 and the ``cryptography`` package. One sender per
+    firmware: the firmware refuses a freshness value it has already seen.
+    """
+
+    def __init__(self, key: bytes, freshness: int = 0) -> None:
+        if not isinstance(key, (bytes, bytearray)) or len(key) != int(_lib.FW_AES128_KEY):
+            raise ValueError(f"key: expected {int(_lib.FW_AES128_KEY)} bytes (AES-128), got "
+                             f"{len(key) if isinstance(key, (bytes, bytearray)) else type(key).__name__}")
+        if isinstance(freshness, bool) or not isinstance(freshness, (int, np.integer)) \
+                or not 0 <= freshness < 2 ** 64 - 1:
+            raise ValueError(f"freshness: expected an integer in 0..2**64-2, got {freshness!r}")
+        self._key = _ffi.new("fw_cmac_key *")
+        _lib.fw_cmac_init(self._key, bytes(key))
+        self._freshness = int(freshness)
+
+    @property
+    def freshness(self) -> int:
+        """The freshness value of the last frame secured (0: none yet)."""
+        return self._freshness
+
+    def protect(self, frame_id: int, payload: bytes) -> bytes:
+        """``payload`` (a whole frame, trailer bytes included and
+        overwritten) secured with the next freshness value."""
+        n = len(payload)
+        if isinstance(frame_id, bool) or not isinstance(frame_id, (int, np.integer)) or not 0 <= frame_id <= 0x7FF:
+            raise ValueError(f"frame_id: expected an 11-bit CAN identifier (the DataId), got {frame_id!r}")
+        if not int(_lib.FW_SECOC_TRAILER_BYTES) <= n <= int(_lib.FW_MAX_FRAME_LEN):
+            raise ValueError(f"payload: {n} bytes cannot carry the {int(_lib.FW_SECOC_TRAILER_BYTES)}-byte "
+                             "SecOC trailer")
+        if self._freshness >= 2 ** 64 - 1:
+            raise ValueError("freshness: the 64-bit counter is spent; provision a new key")
+        buf = _ffi.new("uint8_t[]", bytes(payload))
+        status = _lib.fw_secoc_protect(self._key, int(frame_id), buf, n, self._freshness + 1)
+        if status != _lib.FW_OK:
+            raise FirmwareError(status_name(status), f"protect: {status_name(status)}")
+        self._freshness += 1
+        return bytes(_ffi.buffer(buf, n))
 
 
 # -- the rig's side of the protocol -------------------------------------------------
@@ -152,16 +224,25 @@ def decode_estimate(msg: can.Message, *, scaling: bool = True) -> Estimate:
                     xhat=np.array([d[s] for s in ESTIMATE_SIGNALS], dtype=np.float64 if scaling else np.int64))
 
 
-def control_message(command: str | int, token: int = 0) -> can.Message:
-    """A Control frame; ``command`` is a name of :data:`COMMANDS` or a raw number."""
+def _secured(name: str, values: dict[str, Any], sender: SecOCSender, *, strict: bool = True) -> can.Message:
+    if not isinstance(sender, SecOCSender):
+        raise ValueError(f"sender: expected a SecOCSender, got {type(sender).__name__}")
+    msg = database().get_message_by_name(name)
+    data = msg.encode({**values, "Freshness": 0, "Mac": 0}, strict=strict)
+    return _message(name, sender.protect(msg.frame_id, data))
+
+
+def control_message(command: str | int, token: int = 0, *, sender: SecOCSender) -> can.Message:
+    """A Control frame secured by ``sender`` (the next freshness value);
+    ``command`` is a name of :data:`COMMANDS` or a raw number."""
     cmd = COMMANDS[command] if isinstance(command, str) else int(command)
-    data = database().encode_message("Control", {"Command": cmd, "Token": int(token)}, strict=False)
-    return _message("Control", data)
+    return _secured("Control", {"Command": cmd, "Token": int(token)}, sender, strict=False)
 
 
-def weight_load_messages(weights: Sequence[np.ndarray]) -> list[can.Message]:
+def weight_load_messages(weights: Sequence[np.ndarray], *, sender: SecOCSender) -> list[can.Message]:
     """WeightLoad frames carrying w_i of every neuron (float32 on the wire),
-    15 values a frame; send them between WeightsBegin and WeightsCommit."""
+    :data:`WEIGHTS_PER_FRAME` values a frame, each secured by ``sender``;
+    send them between WeightsBegin and WeightsCommit, in order."""
     out = []
     for i, w in enumerate(weights):
         w = np.asarray(w, dtype=np.float32)
@@ -170,7 +251,7 @@ def weight_load_messages(weights: Sequence[np.ndarray]) -> list[can.Message]:
             values: dict[str, Any] = {"Neuron": i, "First": first, "Count": int(chunk.size)}
             values.update({f"W{k:02d}": float(chunk[k]) if k < chunk.size else 0.0
                            for k in range(WEIGHTS_PER_FRAME)})
-            out.append(_message("WeightLoad", database().encode_message("WeightLoad", values)))
+            out.append(_secured("WeightLoad", values, sender))
     return out
 
 
@@ -423,6 +504,13 @@ class FirmwareApp:
         self._check_core(_lib.rhonn_get_covariance(self._net[0], neuron, _ffi.from_buffer("float[]", out),
                                                    out.size), "covariance")
         return out
+
+    @property
+    def freshness(self) -> int:
+        """The last freshness value the firmware accepted (command authentication)."""
+        out = _ffi.new("uint64_t *")
+        self._check(_lib.fw_app_get_freshness(self._app, out), "freshness")
+        return int(out[0])
 
     def identifier_bytes(self) -> bytes:
         """The whole rhonn_t, byte for byte (for bit-exact comparisons)."""

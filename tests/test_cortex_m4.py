@@ -1,7 +1,8 @@
 """The same C core on a Cortex-M4F (QEMU mps2-an386, newlib, hard float)
 and on the host (float32, glibc): every prediction of the LIM test vector
 must be bit-identical. The core carries its own exp and is built with
--ffp-contract=off so that this holds; this test is what proves it."""
+-ffp-contract=off so that this holds; this test is what proves it. The
+command authentication's AES-CMAC is checked on the target too."""
 from __future__ import annotations
 
 import json
@@ -40,4 +41,9 @@ def test_cortex_m4_predictions_are_bit_identical_to_host_float32(tmp_path: Path)
         assert r["predictions_compared"] == 1500
         assert r["distinct_predictions"] > 1000  # a live trajectory, not a constant
         assert r["bit_identical_to_host_float32"], f"{build}: M4 and host float32 predictions differ"
+    # the command authentication on the target: RFC 4493's examples, and secured frames verify
+    secoc = report["secoc"]
+    print(f"secoc: {secoc['instructions_per_control_verify']:.0f} instructions per Control verified, "
+          f"{secoc['instructions_per_weight_load_verify']:.0f} per WeightLoad")
+    assert secoc["cmac_rfc4493_and_verification_on_target"]
     assert proc.returncode == 0

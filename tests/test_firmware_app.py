@@ -145,6 +145,7 @@ def _raw_measurement(seq: int, **override) -> can.Message:
 def _bad_frames(seq: int) -> list[tuple[str, can.Message, str]]:
     good = bytes(_raw_measurement(seq).data)
     mid = MEAS.frame_id
+    tx = firmware.SecOCSender(firmware.TEST_KEY)  # authentic commands that are refused for what they say
     out = [
         ("unknown id", _std(0x123, good, is_fd=True), "FW_E_UNKNOWN_ID"),
         ("estimate id", _std(EST.frame_id, good, is_fd=True), "FW_E_UNKNOWN_ID"),
@@ -158,11 +159,11 @@ def _bad_frames(seq: int) -> list[tuple[str, can.Message, str]]:
         ("empty", _std(mid, b"", is_fd=True), "FW_E_LENGTH"),
         ("repeat", _raw_measurement(seq - 1), "FW_E_SEQ_REPEAT"),
         ("control 2 bytes", _std(0x110, b"\x01\x00", is_fd=True), "FW_E_LENGTH"),
-        ("command 0", firmware.control_message(0), "FW_E_RANGE"),
-        ("command 8", firmware.control_message(8), "FW_E_RANGE"),
-        ("commit, nothing open", firmware.control_message("WeightsCommit"), "FW_E_STATE"),
-        ("abort, nothing open", firmware.control_message("WeightsAbort"), "FW_E_STATE"),
-        ("weights, nothing open", firmware.weight_load_messages([np.ones(2)])[0], "FW_E_STATE"),
+        ("command 0", firmware.control_message(0, sender=tx), "FW_E_RANGE"),
+        ("command 8", firmware.control_message(8, sender=tx), "FW_E_RANGE"),
+        ("commit, nothing open", firmware.control_message("WeightsCommit", sender=tx), "FW_E_STATE"),
+        ("abort, nothing open", firmware.control_message("WeightsAbort", sender=tx), "FW_E_STATE"),
+        ("weights, nothing open", firmware.weight_load_messages([np.ones(2)], sender=tx)[0], "FW_E_STATE"),
     ]
     for name, sig in zip(firmware.STATE_SIGNALS + firmware.INPUT_SIGNALS,
                          [MEAS.get_signal_by_name(n) for n in firmware.STATE_SIGNALS + firmware.INPUT_SIGNALS]):
@@ -277,6 +278,7 @@ def test_control_frames_on_a_live_bus_with_the_app_serving_from_a_thread() -> No
     rig, bus = _virtual_pair()
     stop = threading.Event()
     app = FirmwareApp(bus, CONFIG, diag_period=0)
+    tx = firmware.SecOCSender(firmware.TEST_KEY)
     server = threading.Thread(target=app.serve, kwargs={"until": stop.is_set, "timeout": 0.01}, daemon=True)
     server.start()
     trained = Identifier(CONFIG)
@@ -301,17 +303,19 @@ def test_control_frames_on_a_live_bus_with_the_app_serving_from_a_thread() -> No
         est = []
         for t in range(160):
             if t == 40:
-                assert ack(call(firmware.control_message("LearningOff", 1), 1), "LearningOff", 1)["Result"] == 0
+                d = ack(call(firmware.control_message("LearningOff", 1, sender=tx), 1), "LearningOff", 1)
+                assert d["Result"] == 0
             if t == 80:
-                assert ack(call(firmware.control_message("LearningOn", 2), 1), "LearningOn", 2)["Result"] == 0
-                d = ack(call(firmware.control_message("WeightsBegin", 3), 1), "WeightsBegin", 3)
+                d = ack(call(firmware.control_message("LearningOn", 2, sender=tx), 1), "LearningOn", 2)
+                assert d["Result"] == 0
+                d = ack(call(firmware.control_message("WeightsBegin", 3, sender=tx), 1), "WeightsBegin", 3)
                 assert d["Result"] == 0 and d["Missing"] == sum(nr.n_terms for nr in CONFIG.neurons)
-                for m in firmware.weight_load_messages(new_w):
+                for m in firmware.weight_load_messages(new_w, sender=tx):
                     rig.send(m)  # no answer to a chunk
-                d = ack(call(firmware.control_message("WeightsCommit", 4), 1), "WeightsCommit", 4)
+                d = ack(call(firmware.control_message("WeightsCommit", 4, sender=tx), 1), "WeightsCommit", 4)
                 assert d["Result"] == 0 and d["Missing"] == 0
             if t == 120:
-                replies = call(firmware.control_message("DiagRequest", 5), 2)
+                replies = call(firmware.control_message("DiagRequest", 5, sender=tx), 2)
                 assert ack(replies, "DiagRequest", 5)["Result"] == 0
                 diag = DB.decode_message("Diagnostics", bytes(replies[1].data), decode_choices=False)
                 assert diag["Measurements"] == 120 and diag["LastSeq"] == 119 and diag["Rejected"] == 0
@@ -352,7 +356,7 @@ def test_diagnostics_on_a_simulated_clock() -> None:
         assert out[0].arbitration_id == EST.frame_id
         diags += [DB.decode_message("Diagnostics", bytes(m.data), decode_choices=False) for m in out[1:]]
         if t == 30:
-            app.handle(firmware.control_message(99))  # rejected: out of range
+            app.handle(firmware.control_message(99, sender=firmware.SecOCSender(firmware.TEST_KEY)))  # out of range
     assert [d["Counter"] for d in diags] == [0, 1]
     d = diags[1]
     assert d["Measurements"] == 50 and d["LastSeq"] == 56 and d["CycleTime"] == pytest.approx(300.0)

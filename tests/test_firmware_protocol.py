@@ -378,7 +378,7 @@ def test_weight_chunk_decode_agrees_with_cantools(raw: dict, special) -> None:
     py = msg.decode(data, decode_choices=False)
     f32 = lambda v: float(np.float32(v))  # noqa: E731 - the DBC's float range, as the C compares it
     w_lo, w_hi = f32(msg.get_signal_by_name("W00").minimum), f32(msg.get_signal_by_name("W00").maximum)
-    ok = (0 <= py["Neuron"] <= 5 and py["First"] <= 254 and 1 <= py["Count"] <= 15
+    ok = (0 <= py["Neuron"] <= 5 and py["First"] <= 254 and 1 <= py["Count"] <= firmware.WEIGHTS_PER_FRAME
           and all(w_lo <= py[f"W{k:02d}"] <= w_hi for k in range(py["Count"])))
     assert status == ("FW_OK" if ok else "FW_E_RANGE")
     if ok:
@@ -396,7 +396,11 @@ def test_rig_helpers_round_trip() -> None:
     assert d["Seq"] == 65535 and d["ValidV"] == 0 and d["Qm"] == pytest.approx(0.123456)
     with pytest.raises(Exception):
         firmware.measurement_message(0, [9.0, 0, 0, 0, 0, 0], [0, 0])  # 9 m: outside the DBC range
-    msgs = firmware.weight_load_messages([np.arange(20, dtype=np.float32), np.ones(2, dtype=np.float32)])
-    assert [DB.decode_message("WeightLoad", bytes(m.data))["Count"] for m in msgs] == [15, 5, 2]
-    c = firmware.control_message("DiagRequest", token=9)
-    assert DB.decode_message("Control", bytes(c.data), decode_choices=False) == {"Command": 7, "Token": 9}
+    sender = firmware.SecOCSender(firmware.TEST_KEY)
+    msgs = firmware.weight_load_messages([np.arange(20, dtype=np.float32), np.ones(2, dtype=np.float32)],
+                                         sender=sender)
+    assert [DB.decode_message("WeightLoad", bytes(m.data))["Count"] for m in msgs] == [12, 8, 2]
+    assert [DB.decode_message("WeightLoad", bytes(m.data))["Freshness"] for m in msgs] == [1, 2, 3]
+    c = firmware.control_message("DiagRequest", token=9, sender=sender)
+    d = DB.decode_message("Control", bytes(c.data), decode_choices=False)
+    assert (d["Command"], d["Token"], d["Freshness"]) == (7, 9, 4) and len(c.data) == 16

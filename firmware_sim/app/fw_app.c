@@ -5,6 +5,7 @@
 
 #include <string.h>
 
+#include "fw_secoc_key.h"
 #include "rhonn_id.h"
 
 #define FW_APP_MAGIC 0x46574150u /* "FWAP" */
@@ -26,6 +27,15 @@ FW_STATIC_ASSERT(weights, FW_E_WEIGHTS == RHONN_ID_CONTROL_ACK_RESULT_WEIGHTS_CH
 FW_STATIC_ASSERT(step, FW_E_STEP == RHONN_ID_CONTROL_ACK_RESULT_STEP_CHOICE);
 FW_STATIC_ASSERT(hal, FW_E_HAL == RHONN_ID_CONTROL_ACK_RESULT_HAL_CHOICE);
 FW_STATIC_ASSERT(empty, FW_E_EMPTY == RHONN_ID_CONTROL_ACK_RESULT_EMPTY_CHOICE);
+FW_STATIC_ASSERT(auth, FW_E_AUTH == RHONN_ID_CONTROL_ACK_RESULT_AUTH_CHOICE);
+FW_STATIC_ASSERT(freshness, FW_E_FRESHNESS == RHONN_ID_CONTROL_ACK_RESULT_FRESHNESS_CHOICE);
+/* The SecOC trailer closes Control and WeightLoad (fw_secoc.h), and
+ * WeightLoad's Count range is the number of weights a frame has room for. */
+FW_STATIC_ASSERT(control_trailer, RHONN_ID_CONTROL_LENGTH == 4u + FW_SECOC_TRAILER_BYTES);
+FW_STATIC_ASSERT(weights_trailer,
+                 RHONN_ID_WEIGHT_LOAD_LENGTH == 4u + 4u * FW_WEIGHTS_PER_FRAME + FW_SECOC_TRAILER_BYTES);
+FW_STATIC_ASSERT(diag_table_auth,
+                 RHONN_ID_DIAGNOSTICS_LAST_REJECT_FRESHNESS_CHOICE == RHONN_ID_CONTROL_ACK_RESULT_FRESHNESS_CHOICE);
 FW_STATIC_ASSERT(diag_table,
                  RHONN_ID_DIAGNOSTICS_LAST_REJECT_EMPTY_CHOICE == RHONN_ID_CONTROL_ACK_RESULT_EMPTY_CHOICE);
 /* Estimate.StepStatus carries rhonn_status in 4 bits. */
@@ -65,6 +75,8 @@ static fw_status reject(fw_app *app, fw_status why)
     case FW_E_SEQ_JUMP: ++c->rejected_seq_jump; break;
     case FW_E_STATE: ++c->rejected_state; break;
     case FW_E_WEIGHTS: ++c->rejected_weights; break;
+    case FW_E_AUTH: ++c->rejected_auth; break;
+    case FW_E_FRESHNESS: ++c->rejected_freshness; break;
     default: break;
     }
     return why;
@@ -156,6 +168,11 @@ fw_status fw_app_init(fw_app *app, const fw_app_config *cfg, const fw_hal *hal)
     app->last_seq = 0;
     app->diag_counter = 0;
     app->last_time_ns = 0;
+    {
+        static const uint8_t key[FW_AES128_KEY] = FW_SECOC_KEY_BYTES;
+        (void)fw_cmac_init(&app->secoc_key, key);
+    }
+    app->secoc_freshness = 0;
     app->magic = FW_APP_MAGIC;
     return reset_identifier(app);
 }
@@ -269,6 +286,22 @@ static fw_status commit_weights(fw_app *app)
     return FW_OK;
 }
 
+/* A secured command frame of the DBC length: verify its trailer against
+ * the last accepted freshness value (fw_secoc.h), which moves only when the
+ * MAC verifies. Nothing of the frame is interpreted before that. */
+static fw_status authenticate(fw_app *app, uint16_t data_id, const uint8_t *data, size_t len)
+{
+#if FW_SECOC
+    return fw_secoc_verify(&app->secoc_key, data_id, data, len, &app->secoc_freshness);
+#else
+    (void)app;
+    (void)data_id;
+    (void)data;
+    (void)len;
+    return FW_OK;
+#endif
+}
+
 static fw_status on_control(fw_app *app, const uint8_t *data, size_t len)
 {
     struct rhonn_id_control_t f;
@@ -279,6 +312,10 @@ static fw_status on_control(fw_app *app, const uint8_t *data, size_t len)
 
     if (len != RHONN_ID_CONTROL_LENGTH) {
         return reject(app, FW_E_LENGTH);
+    }
+    result = authenticate(app, (uint16_t)RHONN_ID_CONTROL_FRAME_ID, data, len);
+    if (result != FW_OK) {
+        return reject(app, result); /* not answered: a forger learns nothing */
     }
     if (rhonn_id_control_unpack(&f, data, len) != 0) {
         return reject(app, FW_E_LENGTH);
@@ -346,6 +383,13 @@ static fw_status on_weight_load(fw_app *app, const uint8_t *data, size_t len)
     fw_status st;
     uint8_t k;
 
+    if (len != RHONN_ID_WEIGHT_LOAD_LENGTH) {
+        return reject(app, FW_E_LENGTH);
+    }
+    st = authenticate(app, (uint16_t)RHONN_ID_WEIGHT_LOAD_FRAME_ID, data, len);
+    if (st != FW_OK) {
+        return reject(app, st);
+    }
     st = fw_weight_chunk_decode(data, len, &c);
     if (st != FW_OK) {
         return reject(app, st);
@@ -504,6 +548,33 @@ fw_status fw_app_get_identifier(const fw_app *app, const rhonn_t **net)
     return FW_OK;
 }
 
+fw_status fw_app_get_freshness(const fw_app *app, uint64_t *freshness)
+{
+    if (app == NULL || freshness == NULL) {
+        return FW_E_NULL;
+    }
+    if (!app_ready(app)) {
+        return FW_E_NOT_INIT;
+    }
+    *freshness = app->secoc_freshness;
+    return FW_OK;
+}
+
+fw_status fw_app_set_freshness(fw_app *app, uint64_t freshness)
+{
+    if (app == NULL) {
+        return FW_E_NULL;
+    }
+    if (!app_ready(app)) {
+        return FW_E_NOT_INIT;
+    }
+    if (freshness < app->secoc_freshness) {
+        return FW_E_FRESHNESS; /* going back would reopen accepted frames to replay */
+    }
+    app->secoc_freshness = freshness;
+    return FW_OK;
+}
+
 const char *fw_status_name(fw_status status)
 {
     switch (status) {
@@ -521,6 +592,8 @@ const char *fw_status_name(fw_status status)
     case FW_E_STEP: return "FW_E_STEP";
     case FW_E_HAL: return "FW_E_HAL";
     case FW_E_EMPTY: return "FW_E_EMPTY";
+    case FW_E_AUTH: return "FW_E_AUTH";
+    case FW_E_FRESHNESS: return "FW_E_FRESHNESS";
     default: return "FW_E_UNKNOWN_STATUS";
     }
 }

@@ -23,6 +23,16 @@
  * Measurement steps the filter, and only a successful WeightsCommit,
  * Reset, LearningOff or LearningOn changes it otherwise.
  *
+ * AUTHENTICATION (FW_SECOC, on unless compiled with -DFW_SECOC=0). Control
+ * and WeightLoad frames are SecOC-style secured PDUs (fw_secoc.h): a frame
+ * of the right length whose MAC does not verify is rejected as FW_E_AUTH,
+ * one whose freshness value is not newer than the last accepted one (a
+ * replay) or too far ahead as FW_E_FRESHNESS; neither is answered, both are
+ * counted, and nothing else is looked at before the MAC verifies. The key
+ * is compiled in (config/fw_secoc_key.h). The freshness value survives
+ * Reset; fw_app_get/set_freshness let a platform persist it across power
+ * cycles. Measurement frames are not authenticated.
+ *
  * SEQUENCE COUNTER. The first Measurement after init or Reset is accepted
  * with any Seq (Estimate.Resync = 1). After that a Measurement must carry
  * last + 1 (mod 65536). Seq == last is a repeat (rejected). Anything else is
@@ -45,12 +55,20 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "fw_aes_cmac.h"
 #include "fw_hal.h"
 #include "fw_protocol.h"
+#include "fw_secoc.h"
 #include "rhonn.h"
 
 #ifdef __cplusplus
 extern "C" {
+#endif
+
+/* 1: Control and WeightLoad must carry a valid SecOC trailer (fw_secoc.h).
+ * 0: the trailer is ignored (a trusted bus; frames keep their length). */
+#ifndef FW_SECOC
+#define FW_SECOC 1
 #endif
 
 /* Static configuration of the application. */
@@ -87,6 +105,8 @@ typedef struct {
     uint32_t step_time_worst_ns;/* largest StepTime since init */
     uint8_t last_reject;        /* fw_status of the last rejected frame (0 when none) */
     uint8_t last_step_status;   /* rhonn_status of the last step */
+    uint32_t rejected_auth;     /* command frames whose MAC did not verify */
+    uint32_t rejected_freshness;/* command frames replayed, stale or too far ahead */
 } fw_counters;
 
 /* The application. Caller-owned (static on a target); treat the fields as
@@ -115,6 +135,9 @@ typedef struct {
     uint16_t weights_missing;
     rhonn_real w_stage[RHONN_MAX_STATES][RHONN_MAX_TERMS];
     uint8_t w_have[RHONN_MAX_STATES][RHONN_MAX_TERMS];
+    /* command authentication (fw_secoc.h) */
+    fw_cmac_key secoc_key;      /* the compiled-in key, expanded at init */
+    uint64_t secoc_freshness;   /* the last accepted freshness value */
 } fw_app;
 
 /* Validate the configuration and HAL, set up the identifier. On error the
@@ -146,6 +169,14 @@ fw_status fw_app_get_counters(const fw_app *app, fw_counters *out);
 
 /* The identifier, read-only, for the rhonn_get_* functions. */
 fw_status fw_app_get_identifier(const fw_app *app, const rhonn_t **net);
+
+/* The last accepted freshness value of the command authentication. */
+fw_status fw_app_get_freshness(const fw_app *app, uint64_t *freshness);
+
+/* Restore a freshness value saved before a restart (call after
+ * fw_app_init), so that frames recorded before it cannot be replayed after
+ * it. FW_E_FRESHNESS when it is below the current value (never back). */
+fw_status fw_app_set_freshness(fw_app *app, uint64_t freshness);
 
 /* Human-readable name of a status code (a static string). */
 const char *fw_status_name(fw_status status);

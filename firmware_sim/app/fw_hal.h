@@ -42,7 +42,9 @@ typedef enum {
     FW_E_WEIGHTS = 10,      /* weight commit refused: weights missing, or rejected by the core */
     FW_E_STEP = 11,         /* measurement accepted but rhonn_step failed; filter unchanged */
     FW_E_HAL = 12,          /* the platform failed to send a frame or read the clock */
-    FW_E_EMPTY = 13         /* HAL receive: no frame pending (not an error) */
+    FW_E_EMPTY = 13,        /* HAL receive: no frame pending (not an error) */
+    FW_E_AUTH = 14,         /* command frame whose authenticator (MAC) does not verify */
+    FW_E_FRESHNESS = 15     /* command frame replayed or stale: freshness not newer, or too far ahead */
 } fw_status;
 
 #define FW_CAN_EFF_FLAG 0x80000000u /* 29-bit identifier (SocketCAN CAN_EFF_FLAG) */

@@ -213,11 +213,8 @@ fw_status fw_weight_chunk_decode(const uint8_t *data, size_t len, fw_weight_chun
     out.w[9] = f.w09;
     out.w[10] = f.w10;
     out.w[11] = f.w11;
-    out.w[12] = f.w12;
-    out.w[13] = f.w13;
-    out.w[14] = f.w14;
     /* The generated range check of a float signal is false for NaN and
-     * for values beyond the DBC's +-3.4e38 (so for +-Inf too). All fifteen
+     * for values beyond the DBC's +-3.4e38 (so for +-Inf too). All twelve
      * signals share one range; W00's check stands for each. */
     for (k = 0; k < out.count; ++k) {
         if (!rhonn_id_weight_load_w00_is_in_range(out.w[k])) {

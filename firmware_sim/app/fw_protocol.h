@@ -30,7 +30,7 @@ extern "C" {
 
 #define FW_N_STATES 6u   /* the DBC carries the LIM: 6 states ... */
 #define FW_N_INPUTS 2u   /* ... and 2 inputs */
-#define FW_WEIGHTS_PER_FRAME 15u
+#define FW_WEIGHTS_PER_FRAME 12u /* 64 bytes: 4 header, 12 x 4 weights, 12 SecOC trailer */
 
 /* A decoded Measurement frame. */
 typedef struct {

@@ -1,7 +1,10 @@
 """Build the identifier for a Cortex-M4F, run it under QEMU (mps2-an386), and
 compare every prediction, bit for bit, with the host's float32 build of the
 same source on the same test vector. Reports instructions per step, image
-sizes, the worst-case stack of rhonn_step and the identifier's RAM.
+sizes, the worst-case stack of rhonn_step and the identifier's RAM; then
+checks the command authentication's AES-CMAC against RFC 4493 on the target
+and counts the instructions of verifying a secured Control and WeightLoad
+(secoc_main.c).
 
     python firmware_sim/cortex_m4/run_m4.py [--out build/m4] [--json report.json]
 
@@ -141,6 +144,16 @@ def main(argv: list[str] | None = None) -> int:
                 "rhonn_step_worst_stack_bytes": stack,
                 "rhonn_step_worst_stack_path": path,
             }
+        secoc = run([*QEMU, "-kernel", str(out / "unrolled" / "secoc_m4.elf")], timeout=300).stdout
+        secoc_ok = "cmac_rfc4493 ok" in secoc and "verified ok" in secoc
+        agree = agree and secoc_ok
+        report["secoc"] = {
+            "cmac_rfc4493_and_verification_on_target": secoc_ok,
+            "instructions_per_control_verify": field(secoc, "instructions_per_control_verify"),
+            "instructions_per_weight_load_verify": field(secoc, "instructions_per_weight_load_verify"),
+            "control_verify_budget_fraction": field(secoc, "instructions_per_control_verify") / CYCLE_BUDGET,
+            "objects": {obj.name.split(".")[0]: sizes(obj) for obj in sorted((out / "unrolled").rglob("fw_*.c.obj"))},
+        }
     except ToolError as exc:
         print(f"run_m4: {exc}", file=sys.stderr)
         return 2

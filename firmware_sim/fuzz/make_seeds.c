@@ -1,6 +1,7 @@
 /* Writes a seed corpus for fuzz_on_frame into the folder given as argv[1]:
- * a run of valid Measurement frames, each control command, a weight
- * transfer, and frames with wrong lengths, so that the fuzzer starts from
+ * a run of valid Measurement frames, each control command (secured by the
+ * harness: selector 0xE0), a weight transfer (0xE1 chunks), an unsecured
+ * command, and frames with wrong lengths, so that the fuzzer starts from
  * inputs that reach every branch of the protocol. Packs with the code
  * cantools generated from rhonn_id.dbc. */
 #include <stdio.h>
@@ -69,13 +70,37 @@ int main(int argc, char **argv)
         c.command = cmd;
         (void)rhonn_id_control_pack(payload, &c, sizeof payload);
         pos = measurement(buf, 0, 1, 1);
-        pos = put_frame(buf, pos, 3u, payload, RHONN_ID_CONTROL_LENGTH);
+        pos = put_frame(buf, pos, 0xE0u, payload, 4u); /* the harness secures it */
         pos = measurement(buf, pos, 2, 1);
         {
             char name[32];
             snprintf(name, sizeof name, "control_%u", (unsigned)cmd);
             rc |= write_seed(argv[1], name, buf, pos);
         }
+    }
+    {
+        struct rhonn_id_control_t c;
+        struct rhonn_id_weight_load_t w;
+        uint8_t payload[64];
+        uint8_t neuron;
+        memset(&c, 0, sizeof c);
+        c.command = RHONN_ID_CONTROL_COMMAND_WEIGHTS_BEGIN_CHOICE;
+        (void)rhonn_id_control_pack(payload, &c, sizeof payload);
+        pos = put_frame(buf, 0, 0xE0u, payload, 4u);
+        for (neuron = 0; neuron < 6u; ++neuron) {
+            memset(&w, 0, sizeof w);
+            w.neuron = neuron;
+            w.count = 2;
+            w.w00 = 0.5f;
+            w.w01 = -0.25f;
+            (void)rhonn_id_weight_load_pack(payload, &w, sizeof payload);
+            pos = put_frame(buf, pos, 0xE1u, payload, RHONN_ID_WEIGHT_LOAD_LENGTH - 12u);
+        }
+        c.command = RHONN_ID_CONTROL_COMMAND_WEIGHTS_COMMIT_CHOICE;
+        (void)rhonn_id_control_pack(payload, &c, sizeof payload);
+        pos = put_frame(buf, pos, 0xE0u, payload, 4u);
+        pos = put_frame(buf, pos, 3u, payload, RHONN_ID_CONTROL_LENGTH); /* the same, unsecured */
+        rc |= write_seed(argv[1], "weights", buf, pos);
     }
     {
         uint8_t payload[64];

@@ -57,6 +57,14 @@ static inline uint8_t pack_left_shift_u32(
     return (uint8_t)((uint8_t)(value << shift) & mask);
 }
 
+static inline uint8_t pack_left_shift_u64(
+    uint64_t value,
+    uint8_t shift,
+    uint8_t mask)
+{
+    return (uint8_t)((uint8_t)(value << shift) & mask);
+}
+
 static inline uint8_t pack_right_shift_u16(
     uint16_t value,
     uint8_t shift,
@@ -67,6 +75,14 @@ static inline uint8_t pack_right_shift_u16(
 
 static inline uint8_t pack_right_shift_u32(
     uint32_t value,
+    uint8_t shift,
+    uint8_t mask)
+{
+    return (uint8_t)((uint8_t)(value >> shift) & mask);
+}
+
+static inline uint8_t pack_right_shift_u64(
+    uint64_t value,
     uint8_t shift,
     uint8_t mask)
 {
@@ -87,6 +103,14 @@ static inline uint32_t unpack_left_shift_u32(
     uint8_t mask)
 {
     return (uint32_t)((uint32_t)(value & mask) << shift);
+}
+
+static inline uint64_t unpack_left_shift_u64(
+    uint8_t value,
+    uint8_t shift,
+    uint8_t mask)
+{
+    return (uint64_t)((uint64_t)(value & mask) << shift);
 }
 
 static inline uint8_t unpack_right_shift_u8(
@@ -111,6 +135,14 @@ static inline uint32_t unpack_right_shift_u32(
     uint8_t mask)
 {
     return (uint32_t)((uint32_t)(value & mask) >> shift);
+}
+
+static inline uint64_t unpack_right_shift_u64(
+    uint8_t value,
+    uint8_t shift,
+    uint8_t mask)
+{
+    return (uint64_t)((uint64_t)(value & mask) >> shift);
 }
 
 static uint64_t cantools_unsigned_from_double(double value)
@@ -883,16 +915,28 @@ int rhonn_id_control_pack(
     const struct rhonn_id_control_t *src_p,
     size_t size)
 {
-    if (size < 8u) {
+    if (size < 16u) {
         return (-EINVAL);
     }
 
-    memset(&dst_p[0], 0, 8);
+    memset(&dst_p[0], 0, 16);
 
     dst_p[0] |= pack_left_shift_u8(src_p->command, 0u, 0xffu);
     dst_p[1] |= pack_left_shift_u8(src_p->token, 0u, 0xffu);
+    dst_p[4] |= pack_left_shift_u32(src_p->freshness, 0u, 0xffu);
+    dst_p[5] |= pack_right_shift_u32(src_p->freshness, 8u, 0xffu);
+    dst_p[6] |= pack_right_shift_u32(src_p->freshness, 16u, 0xffu);
+    dst_p[7] |= pack_right_shift_u32(src_p->freshness, 24u, 0xffu);
+    dst_p[8] |= pack_left_shift_u64(src_p->mac, 0u, 0xffu);
+    dst_p[9] |= pack_right_shift_u64(src_p->mac, 8u, 0xffu);
+    dst_p[10] |= pack_right_shift_u64(src_p->mac, 16u, 0xffu);
+    dst_p[11] |= pack_right_shift_u64(src_p->mac, 24u, 0xffu);
+    dst_p[12] |= pack_right_shift_u64(src_p->mac, 32u, 0xffu);
+    dst_p[13] |= pack_right_shift_u64(src_p->mac, 40u, 0xffu);
+    dst_p[14] |= pack_right_shift_u64(src_p->mac, 48u, 0xffu);
+    dst_p[15] |= pack_right_shift_u64(src_p->mac, 56u, 0xffu);
 
-    return (8);
+    return (16);
 }
 
 int rhonn_id_control_unpack(
@@ -900,12 +944,24 @@ int rhonn_id_control_unpack(
     const uint8_t *src_p,
     size_t size)
 {
-    if (size < 8u) {
+    if (size < 16u) {
         return (-EINVAL);
     }
 
     dst_p->command = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
     dst_p->token = unpack_right_shift_u8(src_p[1], 0u, 0xffu);
+    dst_p->freshness = unpack_right_shift_u32(src_p[4], 0u, 0xffu);
+    dst_p->freshness |= unpack_left_shift_u32(src_p[5], 8u, 0xffu);
+    dst_p->freshness |= unpack_left_shift_u32(src_p[6], 16u, 0xffu);
+    dst_p->freshness |= unpack_left_shift_u32(src_p[7], 24u, 0xffu);
+    dst_p->mac = unpack_right_shift_u64(src_p[8], 0u, 0xffu);
+    dst_p->mac |= unpack_left_shift_u64(src_p[9], 8u, 0xffu);
+    dst_p->mac |= unpack_left_shift_u64(src_p[10], 16u, 0xffu);
+    dst_p->mac |= unpack_left_shift_u64(src_p[11], 24u, 0xffu);
+    dst_p->mac |= unpack_left_shift_u64(src_p[12], 32u, 0xffu);
+    dst_p->mac |= unpack_left_shift_u64(src_p[13], 40u, 0xffu);
+    dst_p->mac |= unpack_left_shift_u64(src_p[14], 48u, 0xffu);
+    dst_p->mac |= unpack_left_shift_u64(src_p[15], 56u, 0xffu);
 
     return (0);
 }
@@ -959,6 +1015,50 @@ bool rhonn_id_control_token_is_in_range(uint8_t value)
 bool rhonn_id_control_token_is_in_phys_range(double value)
 {
     return ((value >= 0.0) && (value <= 255.0));
+}
+
+uint32_t rhonn_id_control_freshness_encode(double value)
+{
+    return (uint32_t)(cantools_unsigned_from_double(value));
+}
+
+double rhonn_id_control_freshness_decode(uint32_t value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_control_freshness_is_in_range(uint32_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool rhonn_id_control_freshness_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 4294967295.0));
+}
+
+uint64_t rhonn_id_control_mac_encode(double value)
+{
+    return (uint64_t)(cantools_unsigned_from_double(value));
+}
+
+double rhonn_id_control_mac_decode(uint64_t value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_control_mac_is_in_range(uint64_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool rhonn_id_control_mac_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 1.8446744073709552e+19));
 }
 
 int rhonn_id_control_ack_pack(
@@ -1113,9 +1213,6 @@ int rhonn_id_weight_load_pack(
     uint32_t w09;
     uint32_t w10;
     uint32_t w11;
-    uint32_t w12;
-    uint32_t w13;
-    uint32_t w14;
 
     if (size < 64u) {
         return (-EINVAL);
@@ -1186,21 +1283,18 @@ int rhonn_id_weight_load_pack(
     dst_p[49] |= pack_right_shift_u32(w11, 8u, 0xffu);
     dst_p[50] |= pack_right_shift_u32(w11, 16u, 0xffu);
     dst_p[51] |= pack_right_shift_u32(w11, 24u, 0xffu);
-    memcpy(&w12, &src_p->w12, sizeof(w12));
-    dst_p[52] |= pack_left_shift_u32(w12, 0u, 0xffu);
-    dst_p[53] |= pack_right_shift_u32(w12, 8u, 0xffu);
-    dst_p[54] |= pack_right_shift_u32(w12, 16u, 0xffu);
-    dst_p[55] |= pack_right_shift_u32(w12, 24u, 0xffu);
-    memcpy(&w13, &src_p->w13, sizeof(w13));
-    dst_p[56] |= pack_left_shift_u32(w13, 0u, 0xffu);
-    dst_p[57] |= pack_right_shift_u32(w13, 8u, 0xffu);
-    dst_p[58] |= pack_right_shift_u32(w13, 16u, 0xffu);
-    dst_p[59] |= pack_right_shift_u32(w13, 24u, 0xffu);
-    memcpy(&w14, &src_p->w14, sizeof(w14));
-    dst_p[60] |= pack_left_shift_u32(w14, 0u, 0xffu);
-    dst_p[61] |= pack_right_shift_u32(w14, 8u, 0xffu);
-    dst_p[62] |= pack_right_shift_u32(w14, 16u, 0xffu);
-    dst_p[63] |= pack_right_shift_u32(w14, 24u, 0xffu);
+    dst_p[52] |= pack_left_shift_u32(src_p->freshness, 0u, 0xffu);
+    dst_p[53] |= pack_right_shift_u32(src_p->freshness, 8u, 0xffu);
+    dst_p[54] |= pack_right_shift_u32(src_p->freshness, 16u, 0xffu);
+    dst_p[55] |= pack_right_shift_u32(src_p->freshness, 24u, 0xffu);
+    dst_p[56] |= pack_left_shift_u64(src_p->mac, 0u, 0xffu);
+    dst_p[57] |= pack_right_shift_u64(src_p->mac, 8u, 0xffu);
+    dst_p[58] |= pack_right_shift_u64(src_p->mac, 16u, 0xffu);
+    dst_p[59] |= pack_right_shift_u64(src_p->mac, 24u, 0xffu);
+    dst_p[60] |= pack_right_shift_u64(src_p->mac, 32u, 0xffu);
+    dst_p[61] |= pack_right_shift_u64(src_p->mac, 40u, 0xffu);
+    dst_p[62] |= pack_right_shift_u64(src_p->mac, 48u, 0xffu);
+    dst_p[63] |= pack_right_shift_u64(src_p->mac, 56u, 0xffu);
 
     return (64);
 }
@@ -1222,9 +1316,6 @@ int rhonn_id_weight_load_unpack(
     uint32_t w09;
     uint32_t w10;
     uint32_t w11;
-    uint32_t w12;
-    uint32_t w13;
-    uint32_t w14;
 
     if (size < 64u) {
         return (-EINVAL);
@@ -1293,21 +1384,18 @@ int rhonn_id_weight_load_unpack(
     w11 |= unpack_left_shift_u32(src_p[50], 16u, 0xffu);
     w11 |= unpack_left_shift_u32(src_p[51], 24u, 0xffu);
     memcpy(&dst_p->w11, &w11, sizeof(dst_p->w11));
-    w12 = unpack_right_shift_u32(src_p[52], 0u, 0xffu);
-    w12 |= unpack_left_shift_u32(src_p[53], 8u, 0xffu);
-    w12 |= unpack_left_shift_u32(src_p[54], 16u, 0xffu);
-    w12 |= unpack_left_shift_u32(src_p[55], 24u, 0xffu);
-    memcpy(&dst_p->w12, &w12, sizeof(dst_p->w12));
-    w13 = unpack_right_shift_u32(src_p[56], 0u, 0xffu);
-    w13 |= unpack_left_shift_u32(src_p[57], 8u, 0xffu);
-    w13 |= unpack_left_shift_u32(src_p[58], 16u, 0xffu);
-    w13 |= unpack_left_shift_u32(src_p[59], 24u, 0xffu);
-    memcpy(&dst_p->w13, &w13, sizeof(dst_p->w13));
-    w14 = unpack_right_shift_u32(src_p[60], 0u, 0xffu);
-    w14 |= unpack_left_shift_u32(src_p[61], 8u, 0xffu);
-    w14 |= unpack_left_shift_u32(src_p[62], 16u, 0xffu);
-    w14 |= unpack_left_shift_u32(src_p[63], 24u, 0xffu);
-    memcpy(&dst_p->w14, &w14, sizeof(dst_p->w14));
+    dst_p->freshness = unpack_right_shift_u32(src_p[52], 0u, 0xffu);
+    dst_p->freshness |= unpack_left_shift_u32(src_p[53], 8u, 0xffu);
+    dst_p->freshness |= unpack_left_shift_u32(src_p[54], 16u, 0xffu);
+    dst_p->freshness |= unpack_left_shift_u32(src_p[55], 24u, 0xffu);
+    dst_p->mac = unpack_right_shift_u64(src_p[56], 0u, 0xffu);
+    dst_p->mac |= unpack_left_shift_u64(src_p[57], 8u, 0xffu);
+    dst_p->mac |= unpack_left_shift_u64(src_p[58], 16u, 0xffu);
+    dst_p->mac |= unpack_left_shift_u64(src_p[59], 24u, 0xffu);
+    dst_p->mac |= unpack_left_shift_u64(src_p[60], 32u, 0xffu);
+    dst_p->mac |= unpack_left_shift_u64(src_p[61], 40u, 0xffu);
+    dst_p->mac |= unpack_left_shift_u64(src_p[62], 48u, 0xffu);
+    dst_p->mac |= unpack_left_shift_u64(src_p[63], 56u, 0xffu);
 
     return (0);
 }
@@ -1373,12 +1461,12 @@ double rhonn_id_weight_load_count_decode(uint8_t value)
 
 bool rhonn_id_weight_load_count_is_in_range(uint8_t value)
 {
-    return ((value >= 1u) && (value <= 15u));
+    return ((value >= 1u) && (value <= 12u));
 }
 
 bool rhonn_id_weight_load_count_is_in_phys_range(double value)
 {
-    return ((value >= 1.0) && (value <= 15.0));
+    return ((value >= 1.0) && (value <= 12.0));
 }
 
 float rhonn_id_weight_load_w00_encode(double value)
@@ -1621,64 +1709,48 @@ bool rhonn_id_weight_load_w11_is_in_phys_range(double value)
     return ((value >= -3.4e+38) && (value <= 3.4e+38));
 }
 
-float rhonn_id_weight_load_w12_encode(double value)
+uint32_t rhonn_id_weight_load_freshness_encode(double value)
 {
-    return (float)(value);
+    return (uint32_t)(cantools_unsigned_from_double(value));
 }
 
-double rhonn_id_weight_load_w12_decode(float value)
+double rhonn_id_weight_load_freshness_decode(uint32_t value)
 {
     return ((double)value);
 }
 
-bool rhonn_id_weight_load_w12_is_in_range(float value)
+bool rhonn_id_weight_load_freshness_is_in_range(uint32_t value)
 {
-    return ((value >= -3.4e+38f) && (value <= 3.4e+38f));
+    (void)value;
+
+    return (true);
 }
 
-bool rhonn_id_weight_load_w12_is_in_phys_range(double value)
+bool rhonn_id_weight_load_freshness_is_in_phys_range(double value)
 {
-    return ((value >= -3.4e+38) && (value <= 3.4e+38));
+    return ((value >= 0.0) && (value <= 4294967295.0));
 }
 
-float rhonn_id_weight_load_w13_encode(double value)
+uint64_t rhonn_id_weight_load_mac_encode(double value)
 {
-    return (float)(value);
+    return (uint64_t)(cantools_unsigned_from_double(value));
 }
 
-double rhonn_id_weight_load_w13_decode(float value)
+double rhonn_id_weight_load_mac_decode(uint64_t value)
 {
     return ((double)value);
 }
 
-bool rhonn_id_weight_load_w13_is_in_range(float value)
+bool rhonn_id_weight_load_mac_is_in_range(uint64_t value)
 {
-    return ((value >= -3.4e+38f) && (value <= 3.4e+38f));
+    (void)value;
+
+    return (true);
 }
 
-bool rhonn_id_weight_load_w13_is_in_phys_range(double value)
+bool rhonn_id_weight_load_mac_is_in_phys_range(double value)
 {
-    return ((value >= -3.4e+38) && (value <= 3.4e+38));
-}
-
-float rhonn_id_weight_load_w14_encode(double value)
-{
-    return (float)(value);
-}
-
-double rhonn_id_weight_load_w14_decode(float value)
-{
-    return ((double)value);
-}
-
-bool rhonn_id_weight_load_w14_is_in_range(float value)
-{
-    return ((value >= -3.4e+38f) && (value <= 3.4e+38f));
-}
-
-bool rhonn_id_weight_load_w14_is_in_phys_range(double value)
-{
-    return ((value >= -3.4e+38) && (value <= 3.4e+38));
+    return ((value >= 0.0) && (value <= 1.8446744073709552e+19));
 }
 
 int rhonn_id_diagnostics_pack(

@@ -55,7 +55,7 @@ extern "C" {
 /* Frame lengths in bytes. */
 #define RHONN_ID_MEASUREMENT_LENGTH (20u)
 #define RHONN_ID_ESTIMATE_LENGTH (16u)
-#define RHONN_ID_CONTROL_LENGTH (8u)
+#define RHONN_ID_CONTROL_LENGTH (16u)
 #define RHONN_ID_CONTROL_ACK_LENGTH (8u)
 #define RHONN_ID_WEIGHT_LOAD_LENGTH (64u)
 #define RHONN_ID_DIAGNOSTICS_LENGTH (24u)
@@ -113,6 +113,8 @@ extern "C" {
 #define RHONN_ID_CONTROL_ACK_RESULT_STEP_CHOICE (11u)
 #define RHONN_ID_CONTROL_ACK_RESULT_HAL_CHOICE (12u)
 #define RHONN_ID_CONTROL_ACK_RESULT_EMPTY_CHOICE (13u)
+#define RHONN_ID_CONTROL_ACK_RESULT_AUTH_CHOICE (14u)
+#define RHONN_ID_CONTROL_ACK_RESULT_FRESHNESS_CHOICE (15u)
 
 #define RHONN_ID_DIAGNOSTICS_LAST_REJECT_OK_CHOICE (0u)
 #define RHONN_ID_DIAGNOSTICS_LAST_REJECT_NULL_CHOICE (1u)
@@ -128,6 +130,8 @@ extern "C" {
 #define RHONN_ID_DIAGNOSTICS_LAST_REJECT_STEP_CHOICE (11u)
 #define RHONN_ID_DIAGNOSTICS_LAST_REJECT_HAL_CHOICE (12u)
 #define RHONN_ID_DIAGNOSTICS_LAST_REJECT_EMPTY_CHOICE (13u)
+#define RHONN_ID_DIAGNOSTICS_LAST_REJECT_AUTH_CHOICE (14u)
+#define RHONN_ID_DIAGNOSTICS_LAST_REJECT_FRESHNESS_CHOICE (15u)
 
 #define RHONN_ID_DIAGNOSTICS_STEP_STATUS_OK_CHOICE (0u)
 #define RHONN_ID_DIAGNOSTICS_STEP_STATUS_NULL_CHOICE (1u)
@@ -177,6 +181,8 @@ extern "C" {
 #define RHONN_ID_ESTIMATE_IB_HAT_NAME "IbHat"
 #define RHONN_ID_CONTROL_COMMAND_NAME "Command"
 #define RHONN_ID_CONTROL_TOKEN_NAME "Token"
+#define RHONN_ID_CONTROL_FRESHNESS_NAME "Freshness"
+#define RHONN_ID_CONTROL_MAC_NAME "Mac"
 #define RHONN_ID_CONTROL_ACK_COMMAND_NAME "Command"
 #define RHONN_ID_CONTROL_ACK_TOKEN_NAME "Token"
 #define RHONN_ID_CONTROL_ACK_RESULT_NAME "Result"
@@ -196,9 +202,8 @@ extern "C" {
 #define RHONN_ID_WEIGHT_LOAD_W09_NAME "W09"
 #define RHONN_ID_WEIGHT_LOAD_W10_NAME "W10"
 #define RHONN_ID_WEIGHT_LOAD_W11_NAME "W11"
-#define RHONN_ID_WEIGHT_LOAD_W12_NAME "W12"
-#define RHONN_ID_WEIGHT_LOAD_W13_NAME "W13"
-#define RHONN_ID_WEIGHT_LOAD_W14_NAME "W14"
+#define RHONN_ID_WEIGHT_LOAD_FRESHNESS_NAME "Freshness"
+#define RHONN_ID_WEIGHT_LOAD_MAC_NAME "Mac"
 #define RHONN_ID_DIAGNOSTICS_COUNTER_NAME "Counter"
 #define RHONN_ID_DIAGNOSTICS_LAST_SEQ_NAME "LastSeq"
 #define RHONN_ID_DIAGNOSTICS_CYCLE_TIME_NAME "CycleTime"
@@ -471,7 +476,7 @@ struct rhonn_id_estimate_t {
 /**
  * Signals in message Control.
  *
- * A command to the firmware, answered by a ControlAck with the same Command and Token. Bytes 2-7 are reserved.
+ * A command to the firmware, answered by a ControlAck with the same Command and Token. Secured as AUTOSAR SecOC does (firmware_sim/README.md, Authentication): bytes 0-3 are the authentic PDU (bytes 2-3 reserved, sent as 0, covered by the MAC), then the truncated freshness value and the truncated MAC. A frame whose MAC does not verify, or whose freshness is not newer than the last accepted one, is rejected, counted and not answered.
  *
  * All signal values are as on the CAN bus.
  */
@@ -493,6 +498,24 @@ struct rhonn_id_control_t {
      * Offset: 0
      */
     uint8_t token;
+
+    /**
+     * Low 32 bits of the 64-bit freshness value: +1 per secured frame (Control and WeightLoad share one counter). The firmware rebuilds the full value from the last accepted one.
+     *
+     * Range: 0..4294967295 (0..4294967295 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint32_t freshness;
+
+    /**
+     * AES-128-CMAC over DataId (0x110, 2 bytes big-endian) | bytes 0-3 | full freshness value (8 bytes big-endian), truncated to its first 8 bytes, which are bytes 8-15 of the frame in CMAC order (so this Intel signal reads them as a little-endian integer).
+     *
+     * Range: 0..18446744073709551615 (0..18446744073709551615 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint64_t mac;
 };
 
 /**
@@ -539,7 +562,7 @@ struct rhonn_id_control_ack_t {
 /**
  * Signals in message WeightLoad.
  *
- * Indexed weight transfer: writes Count float32 values W00.. into the staged weights of Neuron at term indices First..First+Count-1. Frames may come in any order and repeat; a write outside the neuron's L_i terms, a non-finite value, or a frame outside a WeightsBegin..WeightsCommit transfer is rejected. WeightsCommit applies all neurons at once (rhonn_set_weights) when every weight has arrived, and is refused otherwise. The filter is untouched until then. Values past Count are ignored.
+ * Indexed weight transfer: writes Count float32 values W00.. into the staged weights of Neuron at term indices First..First+Count-1. Frames may come in any order and repeat; a write outside the neuron's L_i terms, a non-finite value, or a frame outside a WeightsBegin..WeightsCommit transfer is rejected. WeightsCommit applies all neurons at once (rhonn_set_weights) when every weight has arrived, and is refused otherwise. The filter is untouched until then. Values past Count are ignored. Secured as Control: bytes 0-51 are the authentic PDU (byte 3 reserved), then Freshness and Mac (DataId 0x120).
  *
  * All signal values are as on the CAN bus.
  */
@@ -563,9 +586,9 @@ struct rhonn_id_weight_load_t {
     uint8_t first;
 
     /**
-     * Number of values in this frame, 1..15.
+     * Number of values in this frame, 1..12.
      *
-     * Range: 1..15 (1..15 -)
+     * Range: 1..12 (1..12 -)
      * Scale: 1
      * Offset: 0
      */
@@ -656,25 +679,22 @@ struct rhonn_id_weight_load_t {
     float w11;
 
     /**
-     * Range: -3.4e+38..3.4e+38 (-3.4e+38..3.4e+38 -)
+     * As Control.Freshness (the same counter).
+     *
+     * Range: 0..4294967295 (0..4294967295 -)
      * Scale: 1
      * Offset: 0
      */
-    float w12;
+    uint32_t freshness;
 
     /**
-     * Range: -3.4e+38..3.4e+38 (-3.4e+38..3.4e+38 -)
+     * As Control.Mac, over DataId 0x120 | bytes 0-51 | full freshness value.
+     *
+     * Range: 0..18446744073709551615 (0..18446744073709551615 -)
      * Scale: 1
      * Offset: 0
      */
-    float w13;
-
-    /**
-     * Range: -3.4e+38..3.4e+38 (-3.4e+38..3.4e+38 -)
-     * Scale: 1
-     * Offset: 0
-     */
-    float w14;
+    uint64_t mac;
 };
 
 /**
@@ -2062,6 +2082,86 @@ bool rhonn_id_control_token_is_in_range(uint8_t value);
 bool rhonn_id_control_token_is_in_phys_range(double value);
 
 /**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint32_t rhonn_id_control_freshness_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_control_freshness_decode(uint32_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_control_freshness_is_in_range(uint32_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_control_freshness_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint64_t rhonn_id_control_mac_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_control_mac_decode(uint64_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_control_mac_is_in_range(uint64_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_control_mac_is_in_phys_range(double value);
+
+/**
  * Pack message ControlAck.
  *
  * @param[out] dst_p Buffer to pack the message into.
@@ -2902,7 +3002,7 @@ bool rhonn_id_weight_load_w11_is_in_phys_range(double value);
  *
  * @return Encoded signal.
  */
-float rhonn_id_weight_load_w12_encode(double value);
+uint32_t rhonn_id_weight_load_freshness_encode(double value);
 
 /**
  * Decode given signal by applying scaling and offset.
@@ -2911,7 +3011,7 @@ float rhonn_id_weight_load_w12_encode(double value);
  *
  * @return Decoded signal.
  */
-double rhonn_id_weight_load_w12_decode(float value);
+double rhonn_id_weight_load_freshness_decode(uint32_t value);
 
 /**
  * Check that given signal is in allowed range.
@@ -2920,7 +3020,7 @@ double rhonn_id_weight_load_w12_decode(float value);
  *
  * @return true if in range, false otherwise.
  */
-bool rhonn_id_weight_load_w12_is_in_range(float value);
+bool rhonn_id_weight_load_freshness_is_in_range(uint32_t value);
 
 /**
  * Check that given physical value is in allowed range before encoding.
@@ -2933,7 +3033,7 @@ bool rhonn_id_weight_load_w12_is_in_range(float value);
  *
  * @return true if in range, false otherwise.
  */
-bool rhonn_id_weight_load_w12_is_in_phys_range(double value);
+bool rhonn_id_weight_load_freshness_is_in_phys_range(double value);
 
 /**
  * Encode given signal by applying scaling and offset.
@@ -2942,7 +3042,7 @@ bool rhonn_id_weight_load_w12_is_in_phys_range(double value);
  *
  * @return Encoded signal.
  */
-float rhonn_id_weight_load_w13_encode(double value);
+uint64_t rhonn_id_weight_load_mac_encode(double value);
 
 /**
  * Decode given signal by applying scaling and offset.
@@ -2951,7 +3051,7 @@ float rhonn_id_weight_load_w13_encode(double value);
  *
  * @return Decoded signal.
  */
-double rhonn_id_weight_load_w13_decode(float value);
+double rhonn_id_weight_load_mac_decode(uint64_t value);
 
 /**
  * Check that given signal is in allowed range.
@@ -2960,7 +3060,7 @@ double rhonn_id_weight_load_w13_decode(float value);
  *
  * @return true if in range, false otherwise.
  */
-bool rhonn_id_weight_load_w13_is_in_range(float value);
+bool rhonn_id_weight_load_mac_is_in_range(uint64_t value);
 
 /**
  * Check that given physical value is in allowed range before encoding.
@@ -2973,47 +3073,7 @@ bool rhonn_id_weight_load_w13_is_in_range(float value);
  *
  * @return true if in range, false otherwise.
  */
-bool rhonn_id_weight_load_w13_is_in_phys_range(double value);
-
-/**
- * Encode given signal by applying scaling and offset.
- *
- * @param[in] value Signal to encode.
- *
- * @return Encoded signal.
- */
-float rhonn_id_weight_load_w14_encode(double value);
-
-/**
- * Decode given signal by applying scaling and offset.
- *
- * @param[in] value Signal to decode.
- *
- * @return Decoded signal.
- */
-double rhonn_id_weight_load_w14_decode(float value);
-
-/**
- * Check that given signal is in allowed range.
- *
- * @param[in] value Signal to check.
- *
- * @return true if in range, false otherwise.
- */
-bool rhonn_id_weight_load_w14_is_in_range(float value);
-
-/**
- * Check that given physical value is in allowed range before encoding.
- *
- * Use this BEFORE calling _encode() to avoid silent integer overflow:
- *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
- *   is_in_phys_range(-1.0) correctly returns false.
- *
- * @param[in] value Physical signal value to check.
- *
- * @return true if in range, false otherwise.
- */
-bool rhonn_id_weight_load_w14_is_in_phys_range(double value);
+bool rhonn_id_weight_load_mac_is_in_phys_range(double value);
 
 /**
  * Pack message Diagnostics.

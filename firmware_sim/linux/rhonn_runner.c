@@ -986,9 +986,10 @@ int main(int argc, char **argv)
         if (rx_arrival) {
             hist_print(&interval_hist);
         }
-        printf("overruns %llu (%.4f %%), frames in %u, out %u, rejected %u, step errors %u\n",
+        printf("overruns %llu (%.4f %%), frames in %u, out %u, rejected %u, step errors %u, "
+               "commands failing authentication %u, replayed or stale %u\n",
                (unsigned long long)overruns, cycle ? 100.0 * (double)overruns / (double)cycle : 0.0,
-               c.frames_in, c.frames_out, c.rejected, c.step_errors);
+               c.frames_in, c.frames_out, c.rejected, c.step_errors, c.rejected_auth, c.rejected_freshness);
         if (plat.kind == BUS_UDP) {
             printf("udp: datagrams %llu, own skipped %llu, malformed %llu", (unsigned long long)plat.datagrams,
                    (unsigned long long)plat.own_skipped, (unsigned long long)plat.malformed);
@@ -1025,9 +1026,9 @@ int main(int argc, char **argv)
         fprintf(f, ", ");
         hist_json(f, &interval_hist);
         fprintf(f, ", \"frames_in\": %u, \"frames_out\": %u, \"rejected\": %u, \"step_errors\": %u, "
-                   "\"send_errors\": %llu, \"bus_failed\": %s",
-                c.frames_in, c.frames_out, c.rejected, c.step_errors, (unsigned long long)plat.send_errors,
-                bus_failed ? "true" : "false");
+                   "\"rejected_auth\": %u, \"rejected_freshness\": %u, \"send_errors\": %llu, \"bus_failed\": %s",
+                c.frames_in, c.frames_out, c.rejected, c.step_errors, c.rejected_auth, c.rejected_freshness,
+                (unsigned long long)plat.send_errors, bus_failed ? "true" : "false");
         if (plat.kind == BUS_UDP) {
             fprintf(f, ", \"udp\": {\"datagrams\": %llu, \"own_skipped\": %llu, \"malformed\": %llu, "
                        "\"oversized\": %llu, \"malformed_by\": {",

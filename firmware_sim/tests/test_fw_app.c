@@ -9,7 +9,14 @@
  *     is counted, and the stream then goes on as if the bad frames had never
  *     been sent;
  *   - control commands, the weight transfer, diagnostics, HAL failures,
- *     the quantiser's rounding and saturation.
+ *     the quantiser's rounding and saturation;
+ *   - command authentication (FW_SECOC): forged, replayed, stale and short
+ *     command frames are rejected, counted, not answered, and leave the
+ *     identifier bit for bit unchanged; authenticated ones work.
+ *
+ * Command frames are secured by a sender of the test's own (the compiled-in
+ * key, a freshness counter restarted with each setup), as a rig does; with
+ * -DFW_SECOC=0 the firmware ignores the trailer and the same tests run.
  */
 #include <math.h>
 #include <string.h>
@@ -17,6 +24,7 @@
 #include "../../csrc/tests/check.h"
 #include "fw_app.h"
 #include "fw_hal_mem.h"
+#include "fw_secoc_key.h"
 #include "lim_identifier.h"
 #include "rhonn_id.h"
 #include "rhonn_id_limits.h"
@@ -40,6 +48,8 @@ enum { N = FW_N_STATES, M = FW_N_INPUTS }; /* int constants */
 static fw_app app;
 static fw_mem_hal mem;
 static fw_hal hal;
+static fw_cmac_key tx_key;  /* the rig's side of the authentication */
+static uint64_t tx_fv;      /* the rig's freshness counter: last value used */
 
 /* ---- helpers -------------------------------------------------------------- */
 
@@ -52,6 +62,17 @@ static void setup(uint16_t diag_period, uint32_t deadline_ns)
     memset(&app, 0, sizeof app);
     CHECK_FW(fw_mem_hal_init(&mem, &hal), FW_OK);
     CHECK_FW(fw_app_init(&app, &cfg, &hal), FW_OK);
+    {
+        static const uint8_t key[FW_AES128_KEY] = FW_SECOC_KEY_BYTES;
+        CHECK_FW(fw_cmac_init(&tx_key, key), FW_OK);
+        tx_fv = 0;
+    }
+}
+
+/* Secure a command frame with the rig's next freshness value. */
+static void secure(uint32_t id, uint8_t *data, size_t len)
+{
+    CHECK_FW(fw_secoc_protect(&tx_key, (uint16_t)id, data, len, ++tx_fv), FW_OK);
 }
 
 static fw_counters counters(void)
@@ -222,6 +243,7 @@ static fw_status send_control(uint8_t command, uint8_t token)
     f.command = command;
     f.token = token;
     CHECK(rhonn_id_control_pack(data, &f, sizeof data) == (int)RHONN_ID_CONTROL_LENGTH);
+    secure(RHONN_ID_CONTROL_FRAME_ID, data, sizeof data);
     return fw_app_on_frame(&app, RHONN_ID_CONTROL_FRAME_ID, data, sizeof data, 0);
 }
 
@@ -249,7 +271,7 @@ static void pack_weights(uint8_t *data, uint8_t neuron, uint8_t first, uint8_t c
     f.count = count;
     f.w00 = v[0]; f.w01 = v[1]; f.w02 = v[2]; f.w03 = v[3]; f.w04 = v[4];
     f.w05 = v[5]; f.w06 = v[6]; f.w07 = v[7]; f.w08 = v[8]; f.w09 = v[9];
-    f.w10 = v[10]; f.w11 = v[11]; f.w12 = v[12]; f.w13 = v[13]; f.w14 = v[14];
+    f.w10 = v[10]; f.w11 = v[11];
     CHECK(rhonn_id_weight_load_pack(data, &f, RHONN_ID_WEIGHT_LOAD_LENGTH) == (int)RHONN_ID_WEIGHT_LOAD_LENGTH);
 }
 
@@ -257,6 +279,7 @@ static fw_status send_weights(uint8_t neuron, uint8_t first, uint8_t count, cons
 {
     uint8_t data[RHONN_ID_WEIGHT_LOAD_LENGTH];
     pack_weights(data, neuron, first, count, w);
+    secure(RHONN_ID_WEIGHT_LOAD_FRAME_ID, data, sizeof data);
     return fw_app_on_frame(&app, RHONN_ID_WEIGHT_LOAD_FRAME_ID, data, sizeof data, 0);
 }
 
@@ -340,6 +363,7 @@ typedef struct {
     uint8_t data[80];
     size_t len;
     fw_status want;
+    int secured;    /* secure with the next freshness value when sent */
 } bad_frame;
 
 static bad_frame BAD[128];
@@ -393,6 +417,7 @@ static void test_rejections_leave_the_filter_bit_for_bit_unchanged(void)
         BAD[n_bad].id = (id_);                                                            \
         BAD[n_bad].len = (len_);                                                          \
         BAD[n_bad].want = (want_);                                                        \
+        BAD[n_bad].secured = 0;                                                           \
         memset(BAD[n_bad].data, 0, sizeof BAD[n_bad].data);                               \
         memcpy(BAD[n_bad].data, good.data, sizeof good.data);                             \
         ++n_bad;                                                                          \
@@ -413,8 +438,8 @@ static void test_rejections_leave_the_filter_bit_for_bit_unchanged(void)
         for (i = 0; i < sizeof lens / sizeof lens[0]; ++i) {
             ADD("measurement length", RHONN_ID_MEASUREMENT_FRAME_ID, lens[i], FW_E_LENGTH);
         }
-        ADD("control length 7", RHONN_ID_CONTROL_FRAME_ID, 7, FW_E_LENGTH);
-        ADD("control length 9", RHONN_ID_CONTROL_FRAME_ID, 9, FW_E_LENGTH);
+        ADD("control length 8", RHONN_ID_CONTROL_FRAME_ID, 8, FW_E_LENGTH);
+        ADD("control length 17", RHONN_ID_CONTROL_FRAME_ID, 17, FW_E_LENGTH);
         ADD("control length 0", RHONN_ID_CONTROL_FRAME_ID, 0, FW_E_LENGTH);
         ADD("weights length 63", RHONN_ID_WEIGHT_LOAD_FRAME_ID, 63, FW_E_LENGTH);
         ADD("weights length 20", RHONN_ID_WEIGHT_LOAD_FRAME_ID, 20, FW_E_LENGTH);
@@ -452,29 +477,37 @@ static void test_rejections_leave_the_filter_bit_for_bit_unchanged(void)
     {
         static const uint8_t cmds[] = {0, 8, 9, 200, 255};
         for (i = 0; i < sizeof cmds / sizeof cmds[0]; ++i) {
-            ADD("command out of range", RHONN_ID_CONTROL_FRAME_ID, 8, FW_E_RANGE);
-            memset(BAD[n_bad - 1].data, 0, 8);
+            ADD("command out of range", RHONN_ID_CONTROL_FRAME_ID, 16, FW_E_RANGE);
+            memset(BAD[n_bad - 1].data, 0, 16);
             BAD[n_bad - 1].data[0] = cmds[i];
+            BAD[n_bad - 1].secured = 1;
         }
-        ADD("commit without begin", RHONN_ID_CONTROL_FRAME_ID, 8, FW_E_STATE);
-        memset(BAD[n_bad - 1].data, 0, 8);
+        ADD("commit without begin", RHONN_ID_CONTROL_FRAME_ID, 16, FW_E_STATE);
+        memset(BAD[n_bad - 1].data, 0, 16);
         BAD[n_bad - 1].data[0] = RHONN_ID_CONTROL_COMMAND_WEIGHTS_COMMIT_CHOICE;
-        ADD("abort without begin", RHONN_ID_CONTROL_FRAME_ID, 8, FW_E_STATE);
-        memset(BAD[n_bad - 1].data, 0, 8);
+        BAD[n_bad - 1].secured = 1;
+        ADD("abort without begin", RHONN_ID_CONTROL_FRAME_ID, 16, FW_E_STATE);
+        memset(BAD[n_bad - 1].data, 0, 16);
         BAD[n_bad - 1].data[0] = RHONN_ID_CONTROL_COMMAND_WEIGHTS_ABORT_CHOICE;
+        BAD[n_bad - 1].secured = 1;
     }
     /* a weight chunk with no transfer open */
     {
         float w[2] = {1.0f, 2.0f};
         ADD("weights without begin", RHONN_ID_WEIGHT_LOAD_FRAME_ID, 64, FW_E_STATE);
         pack_weights(BAD[n_bad - 1].data, 0, 0, 2, w);
+        BAD[n_bad - 1].secured = 1;
     }
 
     memcpy(&net_before, net_of(&app), sizeof net_before);
     take(net_of(&app), &snap_before);
     for (i = 0; i < n_bad; ++i) {
         fw_counters before = counters();
-        fw_status got = fw_app_on_frame(&app, BAD[i].id, BAD[i].len ? BAD[i].data : NULL, BAD[i].len, 0);
+        fw_status got;
+        if (BAD[i].secured) {
+            secure(BAD[i].id, BAD[i].data, BAD[i].len);
+        }
+        got = fw_app_on_frame(&app, BAD[i].id, BAD[i].len ? BAD[i].data : NULL, BAD[i].len, 0);
         CHECK(got == BAD[i].want);
         if (got != BAD[i].want) {
             fprintf(stderr, "  %s (#%u): got %s, expected %s\n", BAD[i].what, (unsigned)i, fw_status_name(got),
@@ -518,7 +551,7 @@ static void test_rejections_leave_the_filter_bit_for_bit_unchanged(void)
         CHECK_FW(send_weights(6, 0, 1, w), FW_E_RANGE);      /* neuron outside the DBC range */
         CHECK_FW(send_weights(255, 0, 1, w), FW_E_RANGE);
         CHECK_FW(send_weights(0, 0, 0, w), FW_E_RANGE);      /* count 0 */
-        CHECK_FW(send_weights(0, 0, 16, w), FW_E_RANGE);     /* count 16 */
+        CHECK_FW(send_weights(0, 0, FW_WEIGHTS_PER_FRAME + 1u, w), FW_E_RANGE); /* count 13 */
         CHECK_FW(send_weights(0, 255, 1, w), FW_E_RANGE);    /* first outside the DBC range */
         CHECK_FW(send_weights(0, LIM_IDENTIFIER.neurons[0].n_terms, 1, w), FW_E_RANGE); /* past L_0 */
         CHECK_FW(send_weights(1, 0, (uint8_t)(LIM_IDENTIFIER.neurons[1].n_terms + 1u), w), FW_E_RANGE);
@@ -992,6 +1025,138 @@ static void test_init_and_api_guards(void)
     CHECK(strcmp(fw_status_name((fw_status)99), "FW_E_UNKNOWN_STATUS") == 0);
 }
 
+/* ---- command authentication ------------------------------------------------- */
+
+#if FW_SECOC
+/* A Control frame secured with an explicit freshness value and DataId. */
+static void control_frame(uint8_t *data, uint8_t command, uint8_t token, uint16_t data_id, uint64_t fv)
+{
+    struct rhonn_id_control_t f;
+    (void)rhonn_id_control_init(&f);
+    f.command = command;
+    f.token = token;
+    CHECK(rhonn_id_control_pack(data, &f, RHONN_ID_CONTROL_LENGTH) == (int)RHONN_ID_CONTROL_LENGTH);
+    CHECK_FW(fw_secoc_protect(&tx_key, data_id, data, RHONN_ID_CONTROL_LENGTH, fv), FW_OK);
+}
+
+static void expect_refused(const char *what, fw_status got, fw_status want, const rhonn_t *net_ref,
+                           uint64_t fv_ref)
+{
+    uint64_t fv = 0;
+    CHECK_FW(got, want);
+    CHECK(memcmp(net_of(&app), net_ref, sizeof *net_ref) == 0);
+    CHECK_FW(fw_app_get_freshness(&app, &fv), FW_OK);
+    CHECK(fv == fv_ref);
+    CHECK(outbox_count() == 0u); /* not answered */
+    CHECK(counters().last_reject == (uint8_t)want);
+    if (got != want || memcmp(net_of(&app), net_ref, sizeof *net_ref) != 0) {
+        fprintf(stderr, "  ... %s\n", what);
+    }
+}
+
+static void test_forged_replayed_stale_and_short_commands_are_rejected_untouched(void)
+{
+    uint8_t c[RHONN_ID_CONTROL_LENGTH], replay[RHONN_ID_CONTROL_LENGTH], w[RHONN_ID_WEIGHT_LOAD_LENGTH];
+    uint8_t all_valid[N] = {1, 1, 1, 1, 1, 1};
+    float ones[FW_WEIGHTS_PER_FRAME];
+    uint16_t seq;
+    uint64_t fv;
+    fw_counters cnt;
+    unsigned k;
+
+    setup(0, 0);
+    walk_reset();
+    for (seq = 0; seq < 20u; ++seq) {
+        raw_sample smp = walk_next();
+        meas_frame f = pack_measurement(seq, &smp, all_valid);
+        CHECK_FW(fw_app_on_frame(&app, RHONN_ID_MEASUREMENT_FRAME_ID, f.data, 20, 0), FW_OK);
+        drain();
+    }
+    memcpy(&net_before, net_of(&app), sizeof net_before);
+
+    /* forged: one MAC bit flipped; a frame with no MAC at all; a Control
+     * signed as a WeightLoad; a WeightLoad with a flipped payload bit */
+    control_frame(c, RHONN_ID_CONTROL_COMMAND_RESET_CHOICE, 1, RHONN_ID_CONTROL_FRAME_ID, 1);
+    c[RHONN_ID_CONTROL_LENGTH - 1u] ^= 0x80u;
+    expect_refused("flipped MAC", fw_app_on_frame(&app, RHONN_ID_CONTROL_FRAME_ID, c, sizeof c, 0), FW_E_AUTH,
+                   &net_before, 0);
+    memset(c, 0, sizeof c);
+    c[0] = RHONN_ID_CONTROL_COMMAND_LEARNING_OFF_CHOICE;
+    c[4] = 1; /* freshness 1, MAC 0 */
+    expect_refused("no MAC", fw_app_on_frame(&app, RHONN_ID_CONTROL_FRAME_ID, c, sizeof c, 0), FW_E_AUTH,
+                   &net_before, 0);
+    control_frame(c, RHONN_ID_CONTROL_COMMAND_RESET_CHOICE, 1, RHONN_ID_WEIGHT_LOAD_FRAME_ID, 1);
+    expect_refused("other DataId", fw_app_on_frame(&app, RHONN_ID_CONTROL_FRAME_ID, c, sizeof c, 0), FW_E_AUTH,
+                   &net_before, 0);
+    for (k = 0; k < FW_WEIGHTS_PER_FRAME; ++k) {
+        ones[k] = 1.0f;
+    }
+    pack_weights(w, 0, 0, 2, ones);
+    CHECK_FW(fw_secoc_protect(&tx_key, RHONN_ID_WEIGHT_LOAD_FRAME_ID, w, sizeof w, 1), FW_OK);
+    w[4] ^= 0x01u;
+    expect_refused("weights forged", fw_app_on_frame(&app, RHONN_ID_WEIGHT_LOAD_FRAME_ID, w, sizeof w, 0),
+                   FW_E_AUTH, &net_before, 0);
+    /* wrong length: a secured 15-byte Control, a 63-byte WeightLoad */
+    control_frame(c, RHONN_ID_CONTROL_COMMAND_RESET_CHOICE, 1, RHONN_ID_CONTROL_FRAME_ID, 1);
+    CHECK_FW(fw_secoc_protect(&tx_key, RHONN_ID_CONTROL_FRAME_ID, c, 15, 1), FW_OK);
+    expect_refused("short control", fw_app_on_frame(&app, RHONN_ID_CONTROL_FRAME_ID, c, 15, 0), FW_E_LENGTH,
+                   &net_before, 0);
+    expect_refused("short weights", fw_app_on_frame(&app, RHONN_ID_WEIGHT_LOAD_FRAME_ID, w, 63, 0), FW_E_LENGTH,
+                   &net_before, 0);
+    /* too far ahead: beyond the acceptance window, with a valid MAC */
+    control_frame(c, RHONN_ID_CONTROL_COMMAND_RESET_CHOICE, 1, RHONN_ID_CONTROL_FRAME_ID,
+                  (uint64_t)FW_SECOC_ACCEPTANCE_WINDOW + 1u);
+    expect_refused("too far ahead", fw_app_on_frame(&app, RHONN_ID_CONTROL_FRAME_ID, c, sizeof c, 0),
+                   FW_E_FRESHNESS, &net_before, 0);
+    cnt = counters();
+    CHECK(cnt.rejected_auth == 4u && cnt.rejected_freshness == 1u && cnt.rejected_length == 2u);
+    CHECK(cnt.commands == 0u && cnt.weight_chunks == 0u);
+
+    /* an authenticated command works: LearningOff, answered */
+    tx_fv = 4;
+    control_frame(c, RHONN_ID_CONTROL_COMMAND_LEARNING_OFF_CHOICE, 7, RHONN_ID_CONTROL_FRAME_ID, ++tx_fv);
+    memcpy(replay, c, sizeof c);
+    CHECK_FW(fw_app_on_frame(&app, RHONN_ID_CONTROL_FRAME_ID, c, sizeof c, 0), FW_OK);
+    {
+        struct rhonn_id_control_ack_t a = pop_ack();
+        CHECK(a.result == 0 && a.token == 7 && a.command == RHONN_ID_CONTROL_COMMAND_LEARNING_OFF_CHOICE);
+    }
+    CHECK_FW(fw_app_get_freshness(&app, &fv), FW_OK);
+    CHECK(fv == 5u && counters().commands == 1u);
+    memcpy(&net_before, net_of(&app), sizeof net_before);
+
+    /* replayed: the same frame again; stale: an older freshness value */
+    expect_refused("replay", fw_app_on_frame(&app, RHONN_ID_CONTROL_FRAME_ID, replay, sizeof replay, 0),
+                   FW_E_FRESHNESS, &net_before, 5);
+    control_frame(c, RHONN_ID_CONTROL_COMMAND_RESET_CHOICE, 8, RHONN_ID_CONTROL_FRAME_ID, 3);
+    expect_refused("stale", fw_app_on_frame(&app, RHONN_ID_CONTROL_FRAME_ID, c, sizeof c, 0), FW_E_FRESHNESS,
+                   &net_before, 5);
+    cnt = counters();
+    CHECK(cnt.rejected_freshness == 3u && cnt.rejected_auth == 4u && cnt.commands == 1u);
+
+    /* Reset, authenticated, works and keeps the freshness value: the
+     * LearningOff frame stays a replay after it */
+    CHECK_FW(send_control(RHONN_ID_CONTROL_COMMAND_RESET_CHOICE, 9), FW_OK);
+    CHECK(pop_ack().result == 0);
+    CHECK_FW(fw_app_get_freshness(&app, &fv), FW_OK);
+    CHECK(fv == 6u);
+    memcpy(&net_before, net_of(&app), sizeof net_before);
+    expect_refused("replay after reset", fw_app_on_frame(&app, RHONN_ID_CONTROL_FRAME_ID, replay, sizeof replay, 0),
+                   FW_E_FRESHNESS, &net_before, 6);
+    /* a persisted value can be restored, never lowered */
+    CHECK_FW(fw_app_set_freshness(&app, 5), FW_E_FRESHNESS);
+    CHECK_FW(fw_app_set_freshness(&app, 1000), FW_OK);
+    CHECK_FW(send_control(RHONN_ID_CONTROL_COMMAND_DIAG_REQUEST_CHOICE, 10), FW_E_FRESHNESS); /* tx at 7 */
+    tx_fv = 1000;
+    CHECK_FW(send_control(RHONN_ID_CONTROL_COMMAND_DIAG_REQUEST_CHOICE, 11), FW_OK);
+    drain();
+    CHECK_FW(fw_app_get_freshness(NULL, &fv), FW_E_NULL);
+    CHECK_FW(fw_app_set_freshness(NULL, 1), FW_E_NULL);
+    CHECK(strcmp(fw_status_name(FW_E_AUTH), "FW_E_AUTH") == 0);
+    CHECK(strcmp(fw_status_name(FW_E_FRESHNESS), "FW_E_FRESHNESS") == 0);
+}
+#endif
+
 int main(void)
 {
     printf("rhonn_real is %s, sizeof(fw_app) = %u bytes\n", sizeof(rhonn_real) == 4 ? "float" : "double",
@@ -1005,5 +1170,8 @@ int main(void)
     RUN(test_hal_failures_and_poll);
     RUN(test_quantiser_rounds_half_to_even_and_saturates);
     RUN(test_init_and_api_guards);
+#if FW_SECOC
+    RUN(test_forged_replayed_stale_and_short_commands_are_rejected_untouched);
+#endif
     return CHECK_SUMMARY();
 }

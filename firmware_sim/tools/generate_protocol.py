@@ -11,9 +11,9 @@ rhonn_id.h, rhonn_id.c
     The only change made to its output is dropping the generation date from
     the banner line, so that the same DBC always gives the same bytes.
 rhonn_id_limits.h
-    the raw range and scale of every integer signal (cantools' generator
-    checks ranges but does not export them; the firmware needs them to
-    saturate the estimates it sends).
+    the raw range and scale of every integer signal but the 64-bit MAC
+    (cantools' generator checks ranges but does not export them; the
+    firmware needs them to saturate the estimates it sends).
 
 The files are committed, so firmware builds need neither Python nor
 cantools. tests/test_firmware_protocol.py regenerates them into a temporary
@@ -64,7 +64,9 @@ def limits_header(dbc: Path) -> str:
     for msg in db.messages:
         mname = camel_to_snake_case(msg.name).upper()
         for sig in msg.signals:
-            if sig.is_float:
+            if sig.is_float or (sig.length > 32 and sig.name == "Mac"):
+                # The 64-bit authenticator is opaque bytes (fw_secoc.h), never
+                # range-checked or saturated; the firmware needs no limits for it.
                 continue
             prefix = f"{DATABASE_NAME.upper()}_{mname}_{camel_to_snake_case(sig.name).upper()}"
             lo = -(2 ** (sig.length - 1)) if sig.is_signed else 0
