@@ -23,10 +23,12 @@ for the exact ordering, the dropout rule and the initial history.
 """
 from __future__ import annotations
 
+import functools
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
-from typing import Any
+from typing import Any, Callable, TypeVar
 
 import numpy as np
 
@@ -69,9 +71,10 @@ class IdentifierError(ValueError):
     recover with ``reset()``, ``learning = False`` or the setters.
     """
 
-    def __init__(self, status: str, message: str) -> None:
+    def __init__(self, status: str, message: str, sample: int | None = None) -> None:
         super().__init__(message)
         self.status = status
+        self.sample = sample  #: the failing row of a run() (None for step() and the setters)
 
 
 def capacities(dtype: str = "float64") -> dict[str, int]:
@@ -157,6 +160,20 @@ def _unpacked(p: np.ndarray, L: int) -> np.ndarray:
     return P + np.triu(P, 1).T
 
 
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def _serialised(method: _F) -> _F:
+    """Run ``method`` holding the identifier's lock: the C core's state is
+    one struct, and two threads stepping it at once would interleave halves
+    of two updates (cffi releases the GIL during the C call)."""
+    @functools.wraps(method)
+    def locked(self: "Identifier", *args: Any, **kwargs: Any) -> Any:
+        with self._lock:
+            return method(self, *args, **kwargs)
+    return locked  # type: ignore[return-value]
+
+
 class Identifier:
     """A RHONN identifier trained online by a per-neuron EKF, in C.
 
@@ -170,6 +187,11 @@ class Identifier:
     Arrays in and out have exactly the identifier's dtype; nothing is
     converted silently. Wrong shapes, dtypes or non-finite measurements raise
     ``ValueError`` naming the argument, and leave the identifier unchanged.
+
+    Threads: one identifier may be used from several threads; its calls are
+    serialised by a lock (a second thread's ``step`` or ``run`` waits for the
+    first to finish). Separate identifiers share nothing and run in parallel:
+    the C call releases the GIL.
     """
 
     def __init__(self, config: IdentifierConfig) -> None:
@@ -186,6 +208,7 @@ class Identifier:
         self._xshape = (self._n,)
         self._ushape = (self._m,)
         self._real_array = "double[]" if config.dtype == "float64" else "float[]"
+        self._lock = threading.RLock()
         self._net = self._ffi.new("rhonn_t *")
         self._cfg = self._c_config(config)
         where = self._ffi.new("rhonn_config_error *")
@@ -261,22 +284,26 @@ class Identifier:
         return self._m
 
     @property
+    @_serialised
     def steps(self) -> int:
         """Steps since construction or :meth:`reset` (wraps at 2**32)."""
         return int(self._net.steps)
 
     @property
+    @_serialised
     def learning(self) -> bool:
         """Whether steps update the weights (predictions continue either way)."""
         return bool(self._net.learning)
 
     @learning.setter
+    @_serialised
     def learning(self, on: bool) -> None:
         if not isinstance(on, (bool, np.bool_)):
             raise ValueError(f"learning: expected a bool, got {type(on).__name__}")
         self._check(self._lib.rhonn_set_learning(self._net, 1 if on else 0), "learning")
 
     @property
+    @_serialised
     def prediction(self) -> np.ndarray:
         """x̂(k): the last prediction (config x0 before the first step)."""
         out = np.empty(self._n, dtype=self._dtype)
@@ -295,6 +322,7 @@ class Identifier:
         return [self.get_covariance(i) for i in range(self._n)]
 
     @property
+    @_serialised
     def regressors(self) -> list[np.ndarray]:
         """z_i(k-1), the regressors that produced x̂(k) (copies)."""
         zb = int(self._net.zbank)
@@ -306,6 +334,7 @@ class Identifier:
             raise ValueError(f"neuron: expected an index in 0..{self._n - 1}, got {neuron!r}")
         return int(neuron)
 
+    @_serialised
     def get_weights(self, neuron: int) -> np.ndarray:
         i = self._neuron_index(neuron)
         L = self._config.neurons[i].n_terms
@@ -314,6 +343,7 @@ class Identifier:
                     "weights")
         return out
 
+    @_serialised
     def set_weights(self, neuron: int, w: np.ndarray) -> None:
         """Replace w_i; ``w`` must have shape (L_i,) and the identifier's dtype."""
         i = self._neuron_index(neuron)
@@ -324,6 +354,7 @@ class Identifier:
         w = np.ascontiguousarray(w)  # a strided view (w[::2]) is taken as step() takes x: same values, same dtype
         self._check(self._lib.rhonn_set_weights(self._net, i, self._ffi.from_buffer(self._real_array, w), L), "w")
 
+    @_serialised
     def get_covariance(self, neuron: int) -> np.ndarray:
         i = self._neuron_index(neuron)
         L = self._config.neurons[i].n_terms
@@ -332,6 +363,7 @@ class Identifier:
                                                    packed.size), "covariance")
         return _unpacked(packed, L)
 
+    @_serialised
     def set_covariance(self, neuron: int, P: np.ndarray) -> None:
         """Replace P_i with a symmetric (L_i, L_i) matrix that is positive
         definite at the identifier's precision (its U D U^T factorisation has
@@ -407,13 +439,15 @@ class Identifier:
                 self._require_valid(valid, self._xshape)
             valid = np.ascontiguousarray(valid)
             v_ptr = ffi.from_buffer("uint8_t[]", valid)
-        status = self._lib.rhonn_step(self._net, ffi.from_buffer(self._real_array, x), u_ptr, v_ptr,
-                                      self._out_ptr)
-        if status:
-            self._raise_step_error(status, x[None, :], None if u is None else u[None, :],
-                                   None if valid is None else valid[None, :], 0, single=True)
-        return self._out.copy()
+        with self._lock:  # one step at a time on this identifier (see the class docs)
+            status = self._lib.rhonn_step(self._net, ffi.from_buffer(self._real_array, x), u_ptr, v_ptr,
+                                          self._out_ptr)
+            if status:
+                self._raise_step_error(status, x[None, :], None if u is None else u[None, :],
+                                       None if valid is None else valid[None, :], 0, single=True)
+            return self._out.copy()
 
+    @_serialised
     def run(self, X: np.ndarray, U: np.ndarray | None = None, valid: np.ndarray | None = None,
             out: np.ndarray | None = None) -> np.ndarray:
         """A whole trajectory in one C call.
@@ -469,10 +503,12 @@ class Identifier:
             self._raise_step_error(status, Xc, Uc, Vc, int(done[0]), single=False, neuron=fault)
         return out
 
+    @_serialised
     def reset(self) -> None:
         """Back to w(0), P(0), x̂(0) and an empty history; learning on."""
         self._check(self._lib.rhonn_reset(self._net), "reset")
 
+    @_serialised
     def restart(self) -> None:
         """Forget the history and the pending comparison, keep what was learnt.
 
@@ -483,6 +519,7 @@ class Identifier:
         """
         self._check(self._lib.rhonn_restart(self._net), "restart")
 
+    @_serialised
     def health(self, neuron: int) -> NeuronHealth:
         """Filter health of one neuron: the last innovation e_i, the normalised
         innovation squared e_i^2 / s_i (s_i = R_i + z^T P_i z, eq. 8), trace P_i
@@ -524,7 +561,7 @@ class Identifier:
             else:
                 j = int(np.argmin(np.isfinite(U[t]))) if U is not None else 0
                 where = f"u[{j}]" if single else f"U[{t}, {j}]"
-            raise IdentifierError(name, f"{where}: not finite")
+            raise IdentifierError(name, f"{where}: not finite", None if single else t)
         if neuron is None:
             neuron = int(self._net.fault_neuron)
         if status == lib.RHONN_E_INNOVATION:
@@ -543,10 +580,11 @@ class Identifier:
                       if form == "full" else "; check P0, Q and R"))
         else:
             msg = f"step rejected by the C core{at}"
-        raise IdentifierError(name, f"{msg} [{name}]")
+        raise IdentifierError(name, f"{msg} [{name}]", None if single else t)
 
     # -- persistence ------------------------------------------------------------------
 
+    @_serialised
     def save(self, path: str | Path) -> None:
         """Write the full filter state; see :mod:`pyrhonn.statefile`."""
         from .statefile import save_state
@@ -574,6 +612,7 @@ class Identifier:
 
     # -- state access for the state file (not public API) --------------------------------
 
+    @_serialised
     def _history(self, depth: int) -> np.ndarray:
         """Effective x(k-d) for d = 0..depth, newest first (after a step)."""
         net = self._net
@@ -581,6 +620,7 @@ class Identifier:
         rows = [[net.xh[(int(net.head) - d) % H][j] for j in range(self._n)] for d in range(depth + 1)]
         return np.array(rows, dtype=self._dtype)
 
+    @_serialised
     def _stored_covariance(self, neuron: int) -> np.ndarray:
         """P_i exactly as the core keeps it, packed: P_i, or its U D U^T factors."""
         L = self._config.neurons[neuron].n_terms
@@ -589,6 +629,7 @@ class Identifier:
                                                 packed.size), "covariance")
         return packed
 
+    @_serialised
     def _restore(self, *, weights: list[np.ndarray], packed_cov: list[np.ndarray], regressors: list[np.ndarray],
                  prediction: np.ndarray, history: np.ndarray, started: bool, learning: bool, steps: int) -> None:
         """Load a mid-run state. Arguments are validated by the caller."""

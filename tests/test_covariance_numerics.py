@@ -250,5 +250,6 @@ def test_the_firmware_lim_position_neuron_runs_with_p0_100_and_r_1e_6_in_float32
     assert all(h.rejected == 0 for h in ident.healths)
     # eq. 7 as written cannot: the moving start makes [q_m, v]'s P indefinite at once
     full = Identifier(config.replace(neurons=(replace(position, covariance=FULL),) + config.neurons[1:]))
-    with pytest.raises(IdentifierError, match="RHONN_E_NOT_PD"):
+    with pytest.raises(IdentifierError, match="RHONN_E_NOT_PD") as info:
         full.run(X, U)
+    assert info.value.sample == 1  # the failing row, for a caller that skips it and goes on
