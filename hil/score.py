@@ -185,6 +185,8 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
               "measurements": (b["Measurements"] - a["Measurements"]) & 0xFFFFFFFF,
               "step_errors": (b["StepErrors"] - a["StepErrors"]) & 0xFFFF,
               "overruns": (b["Overruns"] - a["Overruns"]) & 0xFFFF,
+              "lost_frames": (b["LostFrames"] - a["LostFrames"]) & 0xFFFFFFFF,
+              "rx_drops": (b["RxDrops"] - a["RxDrops"]) & 0xFFFFFFFF,
               "step_time_max_us": b["StepTimeMax"], "last_step_time_us": b["StepTime"]}
         out["firmware"] = fw
         n_foreign = sum(foreign.values())

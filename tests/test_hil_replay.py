@@ -29,6 +29,7 @@ from pyrhonn import Identifier  # noqa: E402
 from pyrhonn import firmware  # noqa: E402
 from pyrhonn.cli import main as pyrhonn_main  # noqa: E402
 
+from hil import report  # noqa: E402
 from hil.rig import BusLost, FirmwareTimeout, LogWriteError, Rig, read_log, write_log  # noqa: E402
 from hil.scenario import ENCODER_SENC50, Scenario  # noqa: E402
 from hil.score import score  # noqa: E402
@@ -140,6 +141,10 @@ def test_estimates_over_the_bus_are_identifier_run_bit_for_bit_and_every_lost_fr
     assert f["duplicates"] == f["unexpected"] == f["step_errors"] == 0
     assert r["firmware"]["rejected"] == r["firmware"]["seq_errors"] == f["rejected_seq_jump"]
     assert r["firmware"]["measurements"] == f["answered"]
+    # the firmware counts every injected loss a later frame revealed (none before its first frame or after its last)
+    lead, trail = int(np.argmax(~plan.lost)), int(np.argmax(~plan.lost[::-1]))
+    assert r["firmware"]["lost_frames"] == n_lost - lead - trail and r["firmware"]["rx_drops"] == 0
+    assert f"lost {n_lost - lead - trail}  kernel drops 0" in report.table(r)
     assert f["accounted"]
     assert r["bit_exact"] == {"checked": f["answered"], "mismatches": 0, "equal": True, "first_mismatch_cycle": None}
     assert _independent_bit_exact(rec) == f["answered"]
