@@ -4,7 +4,7 @@ See README.md for the quick start and ``csrc/include/rhonn.h`` for the C core.
 """
 from __future__ import annotations
 
-from .config import Activation, Factor, FactorKind, IdentifierConfig, NeuronConfig, Term
+from .config import Activation, CovarianceForm, Factor, FactorKind, IdentifierConfig, NeuronConfig, Term
 from . import presets, terms
 from .identifier import Identifier, IdentifierError, NeuronHealth, capacities
 
@@ -12,6 +12,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Activation",
+    "CovarianceForm",
     "Factor",
     "FactorKind",
     "Identifier",

@@ -53,6 +53,17 @@ class Activation(str, enum.Enum):
         return 0 if self is Activation.LOGISTIC else 1
 
 
+class CovarianceForm(str, enum.Enum):
+    """How the core stores and updates a neuron's P_i (``rhonn_covariance_form``)."""
+
+    FULL = "full"  #: P_i itself, eq. 7 as written, positive definiteness checked after each update
+    UD = "ud"  #: P_i = U D U^T, Bierman's update then Thornton's for + Q: definite by construction
+
+    @property
+    def code(self) -> int:
+        return 0 if self is CovarianceForm.FULL else 1
+
+
 @dataclass(frozen=True)
 class Factor:
     """One factor xi^d of a high-order term (eq. 4).
@@ -178,6 +189,22 @@ class NeuronConfig:
         eta_i > 0, the learning rate of eq. 7.
     w0:
         w_i(0), L_i entries; zeros when None.
+    covariance:
+        How P_i is stored and updated: :attr:`CovarianceForm.FULL` (eq. 7 as
+        written) or :attr:`CovarianceForm.UD` (the same filter on the factors
+        P_i = U D U^T, which cannot lose positive definiteness to rounding;
+        about (2/3) L_i^3 more multiply-adds per step). Either way a step whose
+        P_i(k+1) is not positive definite at the working precision is refused.
+    forgetting:
+        lambda in (0, 1]: P_i <- (P_i - K_i z^T P_i) / lambda + Q_i. 1 (the
+        default) is eq. 7; below 1, old information fades geometrically.
+    p_trace_max:
+        None (the default) or a ceiling on trace P_i, at least trace P_i(0): a
+        P_i(k+1) above it is scaled down to it, so a long stretch without
+        excitation (where Q_i piles up) cannot build an unbounded gain.
+    reset_after:
+        0 (the default) or N >= 1: the N-th refused learning update in a row
+        resets P_i to P_i(0) instead (weights kept) and the step goes on.
     """
 
     terms: tuple[Term, ...]
@@ -188,6 +215,10 @@ class NeuronConfig:
     r: float = 1.0
     eta: float = 1.0
     w0: np.ndarray | None = None
+    covariance: CovarianceForm = CovarianceForm.FULL
+    forgetting: float = 1.0
+    p_trace_max: float | None = None
+    reset_after: int = 0
 
     def __post_init__(self) -> None:
         if not isinstance(self.terms, tuple) or not self.terms:
@@ -243,6 +274,20 @@ class NeuronConfig:
             object.__setattr__(self, "w0", check_array("w0", self.w0, (L,)))
         for name in ("beta", "r", "eta"):
             object.__setattr__(self, name, float(getattr(self, name)))
+        if not isinstance(self.covariance, CovarianceForm):
+            raise fail("covariance", f"expected a CovarianceForm, got {self.covariance!r}")
+        lam = check_real("forgetting", self.forgetting, positive=True)
+        if lam > 1.0:
+            raise fail("forgetting", f"lambda must be in (0, 1] (1 = no forgetting), got {lam!r}")
+        object.__setattr__(self, "forgetting", lam)
+        if self.p_trace_max is not None:
+            ceiling = check_real("p_trace_max", self.p_trace_max, positive=True)
+            trace0 = float(np.trace(self.p0_matrix()))
+            if ceiling < trace0:
+                raise fail("p_trace_max", f"{ceiling!r} is below trace P0 = {trace0:.6g}: the bound would "
+                                          "shrink the starting covariance")
+            object.__setattr__(self, "p_trace_max", ceiling)
+        object.__setattr__(self, "reset_after", check_int("reset_after", self.reset_after, 0, 65535))
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, NeuronConfig) and self.to_dict() == other.to_dict()
@@ -287,13 +332,18 @@ class NeuronConfig:
             "r": self.r,
             "eta": self.eta,
             "w0": None if self.w0 is None else self.w0.tolist(),
+            "covariance": self.covariance.value,
+            "forgetting": self.forgetting,
+            "p_trace_max": self.p_trace_max,
+            "reset_after": self.reset_after,
         }
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], path: str = "neuron") -> "NeuronConfig":
         if not isinstance(data, Mapping):
             raise fail(path, f"expected a table, got {type(data).__name__}")
-        known = {"terms", "activation", "beta", "p0", "q", "r", "eta", "w0"}
+        known = {"terms", "activation", "beta", "p0", "q", "r", "eta", "w0", "covariance", "forgetting",
+                 "p_trace_max", "reset_after"}
         unknown = set(data) - known
         if unknown:
             raise fail(path, f"unknown keys {sorted(unknown)}")
@@ -316,9 +366,17 @@ class NeuronConfig:
             return _real_list(f"{path}.{key}", v) if isinstance(v, (list, tuple)) else v
 
         p0, q, w0 = num_or_array("p0", 1.0), num_or_array("q", 0.0), num_or_array("w0", None)
+        form = data.get("covariance", CovarianceForm.FULL.value)
+        try:
+            covariance = CovarianceForm(form)
+        except ValueError:
+            raise fail(f"{path}.covariance", f"expected one of {[c.value for c in CovarianceForm]}, "
+                                             f"got {form!r}") from None
         try:
             return cls(terms=tuple(terms), activation=activation, beta=data.get("beta", 1.0), p0=p0, q=q,
-                       r=data.get("r", 1.0), eta=data.get("eta", 1.0), w0=w0)
+                       r=data.get("r", 1.0), eta=data.get("eta", 1.0), w0=w0, covariance=covariance,
+                       forgetting=data.get("forgetting", 1.0), p_trace_max=data.get("p_trace_max"),
+                       reset_after=data.get("reset_after", 0))
         except ValueError as exc:  # "p0[1]: ..." from the checks: the field, under this neuron's path
             raise ValueError(f"{path}.{exc}") from None
 

@@ -27,6 +27,12 @@ Example (every key that is not marked required is optional)::
     q = 5e5                            # >= 0: scalar (times I) or list (diagonal)
     r = 1e4                            # > 0
     eta = 1.0                          # > 0
+    covariance = "ud"                  # optional: "full" (default, eq. 7 as written) or "ud"
+                                       # (P = U D U^T factors, definite through rounding)
+    forgetting = 0.999                 # optional: lambda in (0, 1], default 1 (no forgetting)
+    p_trace_max = 4e8                  # optional: ceiling on trace P, >= trace P0; default none
+    reset_after = 3                    # optional: 0..65535; reset P to P0 at the N-th refused
+                                       # update in a row (default 0: never)
 
     [[neurons]]                        # required: exactly n_states tables, in state order
     terms = ["S(x1)", "S(x1)*S(x2)", "S(x1(k-1))^2", "x3", "u1", "1"]   # required, non-empty
@@ -43,6 +49,9 @@ Rules
   A tuning key set neither in the neuron nor in ``[defaults]`` takes the
   :class:`~pyrhonn.config.NeuronConfig` default (logistic, beta = 1, p0 = 1,
   q = 0, r = 1, eta = 1); files written by :func:`dumps` always set all six.
+  The covariance form and windup keys (``covariance``, ``forgetting``,
+  ``p_trace_max``, ``reset_after``) are off by default, so eq. 7 stays exact,
+  and :func:`dumps` writes them only where they are set.
 - **Numbers.** A real may be written as a TOML integer or float (``eta = 1``);
   booleans, strings and non-finite values (``inf``, ``nan``) are errors.
   A ``p0`` or ``q`` list applies per term, so it must have L_i entries for
@@ -92,7 +101,7 @@ from typing import Any, BinaryIO, Mapping
 import numpy as np
 import tomli_w
 
-from .config import DTYPES, Activation, Factor, FactorKind, IdentifierConfig, NeuronConfig, Term
+from .config import DTYPES, Activation, CovarianceForm, Factor, FactorKind, IdentifierConfig, NeuronConfig, Term
 from .validation import check_int, check_real, decode_text, fail, read_file
 
 __all__ = [
@@ -120,9 +129,13 @@ VERSION = 1
 MAX_FILE_BYTES = 1 << 20  #: a config file is a few kB; a larger one is not a config (or /dev/zero)
 
 TUNING_KEYS = ("activation", "beta", "p0", "q", "r", "eta")
+#: Covariance form and windup protection: optional, written by dumps only when not the default.
+PROTECTION_KEYS = ("covariance", "forgetting", "p_trace_max", "reset_after")
+_PROTECTION_DEFAULTS: dict[str, Any] = {"covariance": CovarianceForm.FULL.value, "forgetting": 1.0,
+                                        "p_trace_max": None, "reset_after": 0}
 _TOP_KEYS = ("format", "version", "n_states", "n_inputs", "dtype", "state_names", "input_names", "x0",
              "description", "defaults", "neurons")
-_NEURON_KEYS = ("terms", *TUNING_KEYS, "w0", "why")
+_NEURON_KEYS = ("terms", *TUNING_KEYS, *PROTECTION_KEYS, "w0", "why")
 _NEURON_DEFAULTS: dict[str, Any] = {"activation": Activation.LOGISTIC.value, "beta": 1.0, "p0": 1.0, "q": 0.0,
                                     "r": 1.0, "eta": 1.0}
 _NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
@@ -407,6 +420,15 @@ def _tuning_value(path: str, key: str, value: object) -> Any:
         if isinstance(value, list):
             return _real_vector(path, value, nonnegative=True)
         return check_real(path, value, nonnegative=True)
+    if key == "covariance":
+        allowed = [c.value for c in CovarianceForm]
+        if not isinstance(value, str) or value not in allowed:
+            raise fail(path, f"expected one of {allowed}, got {_toml_type(value)}")
+        return CovarianceForm(value)
+    if key in ("forgetting", "p_trace_max"):
+        return check_real(path, value, positive=True)
+    if key == "reset_after":
+        return check_int(path, value, 0, 65535)
     raise AssertionError(key)  # pragma: no cover
 
 
@@ -439,13 +461,13 @@ def _neuron(i: int, raw: object, defaults: Mapping[str, Any], n: int, m: int) ->
     L = len(terms)
     values: dict[str, Any] = {}
     origin: dict[str, str] = {}
-    for key in TUNING_KEYS:
+    for key in TUNING_KEYS + PROTECTION_KEYS:
         if key in table:
             values[key] = _tuning_value(f"{path}.{key}", key, table[key])
             origin[key] = f"{path}.{key}"
         elif key in defaults:
             values[key], origin[key] = defaults[key], f"defaults.{key}"
-        else:
+        elif key in _NEURON_DEFAULTS:  # the protection keys default in NeuronConfig itself (off)
             values[key] = _tuning_value(key, key, _NEURON_DEFAULTS[key])
             origin[key] = f"{path}.{key}"
     if "w0" in table:
@@ -504,7 +526,7 @@ def _from_document(doc: Mapping[str, Any]) -> ConfigFile:
     defaults: dict[str, Any] = {}
     if "defaults" in doc:
         table = _table("defaults", doc["defaults"])
-        _check_keys("defaults", table, TUNING_KEYS)
+        _check_keys("defaults", table, TUNING_KEYS + PROTECTION_KEYS)
         defaults = {key: _tuning_value(f"defaults.{key}", key, v) for key, v in table.items()}
     raw = doc["neurons"]
     if not isinstance(raw, list):
@@ -560,6 +582,8 @@ def _document(cf: ConfigFile) -> dict[str, Any]:
         doc["description"] = cf.description
     dicts = [nr.to_dict() for nr in cfg.neurons]
     shared = {key: dicts[0][key] for key in TUNING_KEYS if all(d[key] == dicts[0][key] for d in dicts)}
+    shared.update({key: dicts[0][key] for key in PROTECTION_KEYS
+                   if dicts[0][key] != _PROTECTION_DEFAULTS[key] and all(d[key] == dicts[0][key] for d in dicts)})
     if shared:
         doc["defaults"] = shared
     neurons = []
@@ -569,6 +593,9 @@ def _document(cf: ConfigFile) -> dict[str, Any]:
             table["why"] = cf.why[i]
         for key in TUNING_KEYS:
             if key not in shared:
+                table[key] = d[key]
+        for key in PROTECTION_KEYS:
+            if key not in shared and d[key] != _PROTECTION_DEFAULTS[key]:
                 table[key] = d[key]
         if d["w0"] is not None:
             table["w0"] = d["w0"]

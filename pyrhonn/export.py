@@ -112,7 +112,18 @@ def header_text(source: Identifier | IdentifierConfig, name: str) -> str:
             factors = ", ".join(
                 f"{{{int(f.kind)}, {f.index}, {f.delay}, {f.power}}}" for f in term)
             lines.append(f"                {{{len(term)}, {{{factors}}}}},")
-        lines += ["            },", "        },"]
+        lines.append("            },")
+        # Covariance form and windup protection: written only when not the
+        # default, whose zero initialisation the header documents.
+        if nr.covariance.code != 0:
+            lines.append("            .covariance = RHONN_COV_UD,")
+        if nr.reset_after:
+            lines.append(f"            .reset_after = {nr.reset_after},")
+        if nr.forgetting != 1.0:
+            lines.append(f"            .forgetting = {_literal(nr.forgetting, dt)},")
+        if nr.p_trace_max is not None:
+            lines.append(f"            .p_trace_max = {_literal(nr.p_trace_max, dt)},")
+        lines.append("        },")
     lines += ["    },", "};", "", f"#endif /* {guard} */", ""]
     return "\n".join(lines)
 

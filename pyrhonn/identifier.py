@@ -41,6 +41,7 @@ _FIELD_NAMES = {
     1: "n_states", 2: "n_inputs", 3: "x0", 4: "terms", 5: "activation", 6: "beta", 7: "eta",
     8: "r", 9: "q", 10: "w0", 11: "p0", 12: "terms[{t}] factors", 13: "terms[{t}][{f}].kind",
     14: "terms[{t}][{f}].index", 15: "terms[{t}][{f}].delay", 16: "terms[{t}][{f}].power",
+    17: "covariance", 18: "forgetting", 19: "p_trace_max",
 }
 
 
@@ -127,14 +128,15 @@ def clearly_indefinite(P: np.ndarray) -> float | None:
 def _float32_note(config: IdentifierConfig, field: int, neuron: int) -> str:
     """Why a float32 core refused a real-valued field that float64 accepts: the
     first value of that field that is beyond float32's range or rounds to 0."""
-    if config.dtype != "float32" or field not in (3, 6, 7, 8, 9, 10, 11):
+    if config.dtype != "float32" or field not in (3, 6, 7, 8, 9, 10, 11, 18, 19):
         return ""
     if field == 3:
         values = config.x0_vector()
     else:
         nr = config.neurons[neuron]
         values = {6: np.array([nr.beta]), 7: np.array([nr.eta]), 8: np.array([nr.r]), 9: nr.q_diagonal(),
-                  10: nr.w0_vector(), 11: _packed(nr.p0_matrix())}[field]
+                  10: nr.w0_vector(), 11: _packed(nr.p0_matrix()), 18: np.array([nr.forgetting]),
+                  19: np.array([nr.p_trace_max or 0.0])}[field]
     f32 = np.finfo(np.float32)
     with np.errstate(over="ignore", under="ignore"):
         for v in np.asarray(values, dtype=np.float64):
@@ -142,6 +144,10 @@ def _float32_note(config: IdentifierConfig, field: int, neuron: int) -> str:
                 return f" ({v:.3g} is beyond float32's range, +-{float(f32.max):.3g})"
             if v != 0.0 and abs(v) < float(f32.tiny):
                 return f" ({v:.3g} is below float32's smallest normal number, {float(f32.tiny):.3g})"
+    if field == 11:
+        return " (not positive definite at float32 precision)"
+    if field == 19:
+        return " (below trace P0 once both are rounded to float32)"
     return ""
 
 
@@ -213,6 +219,10 @@ class Identifier:
                 nc.w0[t] = float(v)
             for t, v in enumerate(_packed(neuron.p0_matrix())):
                 nc.p0[t] = float(v)
+            nc.covariance = neuron.covariance.code
+            nc.forgetting = neuron.forgetting
+            nc.p_trace_max = 0.0 if neuron.p_trace_max is None else neuron.p_trace_max
+            nc.reset_after = neuron.reset_after
             for t, term in enumerate(neuron.terms):
                 nc.terms[t].n_factors = len(term)
                 for f, fac in enumerate(term):
@@ -323,8 +333,9 @@ class Identifier:
         return _unpacked(packed, L)
 
     def set_covariance(self, neuron: int, P: np.ndarray) -> None:
-        """Replace P_i with a symmetric, positive semi-definite (L_i, L_i) matrix
-        with a positive diagonal."""
+        """Replace P_i with a symmetric (L_i, L_i) matrix that is positive
+        definite at the identifier's precision (its U D U^T factorisation has
+        positive pivots)."""
         i = self._neuron_index(neuron)
         L = self._config.neurons[i].n_terms
         self._require(P, "P", (L, L))
@@ -340,8 +351,14 @@ class Identifier:
         if lowest is not None:
             raise ValueError(f"P: not positive semi-definite (smallest eigenvalue {lowest:.3g})")
         packed = np.ascontiguousarray(_packed(P))
-        self._check(self._lib.rhonn_set_covariance(self._net, i, self._ffi.from_buffer(self._real_array, packed),
-                                                   packed.size), "P")
+        status = self._lib.rhonn_set_covariance(self._net, i, self._ffi.from_buffer(self._real_array, packed),
+                                                packed.size)
+        if status == self._lib.RHONN_E_VALUE:
+            lowest = float(np.linalg.eigvalsh(P.astype(np.float64))[0])
+            raise IdentifierError(self._status_name(status),
+                                  f"P: not positive definite at {self._dtype} precision (smallest eigenvalue "
+                                  f"{lowest:.3g}; the core keeps every P_i positive definite)")
+        self._check(status, "P")
 
     # -- running ------------------------------------------------------------------
 
@@ -447,8 +464,9 @@ class Identifier:
             self._null if Vc is None else ffi.from_buffer("uint8_t[]", Vc),
             ffi.from_buffer(self._real_array, out), done)
         if status:
+            fault = int(self._net.fault_neuron)  # before the restore below puts the old one back
             ffi.memmove(self._net, saved, ffi.sizeof("rhonn_t"))
-            self._raise_step_error(status, Xc, Uc, Vc, int(done[0]), single=False)
+            self._raise_step_error(status, Xc, Uc, Vc, int(done[0]), single=False, neuron=fault)
         return out
 
     def reset(self) -> None:
@@ -494,7 +512,7 @@ class Identifier:
                                                              f"({self._status_name(status)})")
 
     def _raise_step_error(self, status: int, X: np.ndarray, U: np.ndarray | None, V: np.ndarray | None,
-                          t: int, single: bool) -> None:
+                          t: int, single: bool, neuron: int | None = None) -> None:
         name = self._status_name(status)
         at = "" if single else f" at sample {t} (nothing applied)"
         lib = self._lib
@@ -507,7 +525,8 @@ class Identifier:
                 j = int(np.argmin(np.isfinite(U[t]))) if U is not None else 0
                 where = f"u[{j}]" if single else f"U[{t}, {j}]"
             raise IdentifierError(name, f"{where}: not finite")
-        neuron = int(self._net.fault_neuron)
+        if neuron is None:
+            neuron = int(self._net.fault_neuron)
         if status == lib.RHONN_E_INNOVATION:
             msg = (f"neurons[{neuron}]: innovation variance R + z^T P z is not a positive finite number{at}; "
                    "either the covariance has lost positive definiteness (check P0, Q, R) or z^T P z overflowed "
@@ -516,6 +535,12 @@ class Identifier:
             msg = f"neurons[{neuron}]: the covariance update overflowed{at} (check P0 and Q)"
         elif status == lib.RHONN_E_DIVERGED:
             msg = f"neurons[{neuron}]: weights or prediction would not be finite{at}"
+        elif status == lib.RHONN_E_NOT_PD:
+            form = self._config.neurons[neuron].covariance.value
+            msg = (f"neurons[{neuron}]: the updated covariance would not be positive definite at {self._dtype} "
+                   f"precision{at}; nothing was committed"
+                   + ("; covariance = \"ud\" (the U D U^T form) keeps it definite through rounding"
+                      if form == "full" else "; check P0, Q and R"))
         else:
             msg = f"step rejected by the C core{at}"
         raise IdentifierError(name, f"{msg} [{name}]")
@@ -539,14 +564,12 @@ class Identifier:
         """The config with w0 and P0 taken from the current weights and
         covariances: a trained identifier as a starting point (e.g. for
         :func:`pyrhonn.export.export_header`)."""
-        from .config import NeuronConfig
+        from dataclasses import replace
 
         neurons = []
         for i, nr in enumerate(self._config.neurons):
             P = self.get_covariance(i).astype(np.float64)  # exactly symmetric: packed storage
-            neurons.append(NeuronConfig(terms=nr.terms, activation=nr.activation, beta=nr.beta, p0=P,
-                                        q=nr.q, r=nr.r, eta=nr.eta,
-                                        w0=self.get_weights(i).astype(np.float64)))
+            neurons.append(replace(nr, p0=P, w0=self.get_weights(i).astype(np.float64)))
         return self._config.replace(neurons=tuple(neurons))
 
     # -- state access for the state file (not public API) --------------------------------
@@ -558,6 +581,14 @@ class Identifier:
         rows = [[net.xh[(int(net.head) - d) % H][j] for j in range(self._n)] for d in range(depth + 1)]
         return np.array(rows, dtype=self._dtype)
 
+    def _stored_covariance(self, neuron: int) -> np.ndarray:
+        """P_i exactly as the core keeps it, packed: P_i, or its U D U^T factors."""
+        L = self._config.neurons[neuron].n_terms
+        packed = np.empty(L * (L + 1) // 2, dtype=self._dtype)
+        self._check(self._lib.rhonn_get_factors(self._net, neuron, self._ffi.from_buffer(self._real_array, packed),
+                                                packed.size), "covariance")
+        return packed
+
     def _restore(self, *, weights: list[np.ndarray], packed_cov: list[np.ndarray], regressors: list[np.ndarray],
                  prediction: np.ndarray, history: np.ndarray, started: bool, learning: bool, steps: int) -> None:
         """Load a mid-run state. Arguments are validated by the caller."""
@@ -568,7 +599,7 @@ class Identifier:
             self._check(lib.rhonn_set_weights(net, i, self._ffi.from_buffer(self._real_array, w), w.size),
                         f"w_{i}")
             p = np.ascontiguousarray(packed_cov[i])
-            self._check(lib.rhonn_set_covariance(net, i, self._ffi.from_buffer(self._real_array, p), p.size),
+            self._check(lib.rhonn_set_factors(net, i, self._ffi.from_buffer(self._real_array, p), p.size),
                         f"p_{i}")
             for t, v in enumerate(regressors[i]):
                 net.z[int(net.zbank)][i][t] = float(v)

@@ -69,6 +69,13 @@ class ReferenceIdentifier:
         w_i(k+1) = w_i(k) + eta_i K_i(k) e_i(k)                           (7)
         P_i(k+1) = P_i(k) - K_i(k) H_i^T P_i(k) + Q_i                     (7)
 
+    With a forgetting factor lambda < 1 the last line is
+    (P_i(k) - K_i(k) H_i^T P_i(k)) / lambda + Q_i, and with a ceiling
+    p_trace_max a P_i(k+1) of larger trace is scaled down to it. The
+    config's covariance form (full or U D U^T) does not matter here: the
+    reference always updates the full P_i, in float64; automatic resets
+    (reset_after) are not modelled.
+
     (the paper's w_i(k), w_i(k+1) are this class's weights before/after the
     step). K H^T P is computed as g g^T M with g = P H, which equals it for a
     symmetric P and keeps P exactly symmetric. One ``step`` for x(k), u(k):
@@ -188,7 +195,11 @@ class ReferenceIdentifier:
             if not (np.isfinite(s) and s > 0.0):
                 raise ValueError(f"neuron {i}: innovation R + z^T P z = {s!r} is not a positive finite number")
             K = g / s  # eq. 7
-            p_new[i] = P - np.outer(g, g) / s + self._q[i]  # eq. 7
+            # eq. 7 with the windup options: (P - K H^T P) / lambda + Q, then
+            # scaled down to the trace ceiling (lambda = 1, no ceiling: eq. 7)
+            p_new[i] = (P - np.outer(g, g) / s) / nr.forgetting + self._q[i]
+            if nr.p_trace_max is not None and np.trace(p_new[i]) > nr.p_trace_max:
+                p_new[i] = p_new[i] * (nr.p_trace_max / np.trace(p_new[i]))
             w_new[i] = self._w[i] + nr.eta * e * K  # eq. 7
             if not np.all(np.isfinite(p_new[i])):
                 raise ValueError(f"neuron {i}: updated covariance P is not finite")

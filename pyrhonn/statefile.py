@@ -10,7 +10,10 @@ member        shape / dtype    meaning
                                ``config`` (IdentifierConfig.to_dict()), ``dtype``,
                                ``steps``, ``started``, ``learning``
 ``w_<i>``     (L_i,) dtype     weights w_i(k) of neuron i
-``p_<i>``     (L_i(L_i+1)/2,)  P_i(k), packed upper triangle, row by row
+``p_<i>``     (L_i(L_i+1)/2,)  P_i(k), packed upper triangle, row by row; for a
+                               neuron with ``covariance = "ud"`` its factors
+                               P_i = U D U^T packed the same way (D on the
+                               diagonal, U's strict upper triangle beside it)
 ``z_<i>``     (L_i,) dtype     regressor z_i(k-1) that produced x̂_i(k)
 ``xhat``      (n,) dtype       x̂(k)
 ``history``   (D+1, n) dtype   effective x(k-d), d = 0..D, newest first, where
@@ -33,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from .config import IdentifierConfig
-from .identifier import Identifier, _unpacked, clearly_indefinite
+from .identifier import Identifier, IdentifierError, _unpacked, clearly_indefinite
 
 __all__ = ["FORMAT", "VERSION", "save_state", "load_state"]
 
@@ -60,7 +63,7 @@ def save_state(identifier: Identifier, path: str | Path) -> None:
     for i in range(cfg.n_states):
         L = cfg.neurons[i].n_terms
         members[f"w_{i}"] = identifier.get_weights(i)
-        members[f"p_{i}"] = identifier.get_covariance(i)[np.triu_indices(L)]
+        members[f"p_{i}"] = identifier._stored_covariance(i)
         members[f"z_{i}"] = regressors[i]
     members["xhat"] = identifier.prediction
     members["history"] = identifier._history(cfg.max_delay)
@@ -147,10 +150,13 @@ def load_state(path: str | Path) -> Identifier:
             p = _member(path, archive, f"p_{i}", (L * (L + 1) // 2,), dt)
             diag = p[np.cumsum(np.r_[0, np.arange(L, 1, -1)])]
             if not np.all(diag > 0):
-                raise _fail(path, f"p_{i}", "covariance diagonal must be > 0")
-            lowest = clearly_indefinite(_unpacked(p, L))
-            if lowest is not None:
-                raise _fail(path, f"p_{i}", f"covariance not positive semi-definite (smallest eigenvalue {lowest:.3g})")
+                raise _fail(path, f"p_{i}", "covariance diagonal must be > 0" if nr.covariance.code == 0
+                            else "factor D must be > 0")
+            if nr.covariance.code == 0:
+                lowest = clearly_indefinite(_unpacked(p, L))
+                if lowest is not None:
+                    raise _fail(path, f"p_{i}", f"covariance not positive semi-definite (smallest eigenvalue "
+                                                f"{lowest:.3g})")
             covs.append(p)
             regs.append(_member(path, archive, f"z_{i}", (L,), dt))
         xhat = _member(path, archive, "xhat", (n,), dt)
@@ -158,6 +164,10 @@ def load_state(path: str | Path) -> Identifier:
         extra = set(archive.files) - {"header", "xhat", "history"} - {f"{k}_{i}" for k in "wpz" for i in range(n)}
         if extra:
             raise _fail(path, "archive", f"unexpected members {sorted(extra)}")
-    ident._restore(weights=weights, packed_cov=covs, regressors=regs, prediction=xhat, history=history,
-                   started=header["started"], learning=header["learning"], steps=steps)
+    try:
+        ident._restore(weights=weights, packed_cov=covs, regressors=regs, prediction=xhat, history=history,
+                       started=header["started"], learning=header["learning"], steps=steps)
+    except IdentifierError as exc:  # the core's own check: P positive definite at the file's precision
+        member = str(exc).split(":", 1)[0]
+        raise _fail(path, member, f"covariance not positive definite at {cfg.dtype} precision") from None
     return ident

@@ -427,3 +427,56 @@ def test_load_named_takes_paths_and_rejects_unknown_names(tmp_path) -> None:
         load_named("nope")
     with pytest.raises(ValueError, match="unknown config"):
         shipped_text("../config")
+
+
+def test_covariance_form_and_windup_keys_round_trip_and_default_off() -> None:
+    from pyrhonn import CovarianceForm
+
+    text = """format = "pyrhonn-config"
+version = 1
+n_states = 2
+n_inputs = 1
+[defaults]
+covariance = "ud"
+p0 = 2.0
+forgetting = 0.99
+[[neurons]]
+terms = ["S(x1)", "u1"]
+p_trace_max = 8.0
+reset_after = 3
+[[neurons]]
+terms = ["x2"]
+covariance = "full"
+"""
+    cf = loads(text)
+    a, b = cf.config.neurons
+    assert (a.covariance, a.forgetting, a.p_trace_max, a.reset_after) == (CovarianceForm.UD, 0.99, 8.0, 3)
+    assert (b.covariance, b.forgetting, b.p_trace_max, b.reset_after) == (CovarianceForm.FULL, 0.99, None, 0)
+    again = loads(dumps(cf))
+    assert again.config == cf.config
+    plain = dumps(loads(text.replace('covariance = "ud"\n', "").replace("forgetting = 0.99\n", "")
+                        .replace("p_trace_max = 8.0\n", "").replace("reset_after = 3\n", "")
+                        .replace('covariance = "full"\n', "")))
+    for key in ("covariance", "forgetting", "p_trace_max", "reset_after"):
+        assert key not in plain  # off: not written, eq. 7 exactly
+
+
+@pytest.mark.parametrize("line, message", [
+    ('covariance = "cholesky"', r"neurons\[0\]\.covariance: expected one of \['full', 'ud'\]"),
+    ("forgetting = 0", r"neurons\[0\]\.forgetting: must be > 0"),
+    ("forgetting = 1.5", r"neurons\[0\]\.forgetting: lambda must be in \(0, 1\]"),
+    ("p_trace_max = 1.0", r"neurons\[0\]\.p_trace_max: 1\.0 is below trace P0 = 2"),
+    ("reset_after = -2", r"neurons\[0\]\.reset_after: -2 out of range 0\.\.65535"),
+    ("reset_after = 2.5", r"neurons\[0\]\.reset_after: expected an integer"),
+])
+def test_bad_covariance_and_windup_keys_name_the_key(line: str, message: str) -> None:
+    text = f"""format = "pyrhonn-config"
+version = 1
+n_states = 1
+n_inputs = 0
+[[neurons]]
+terms = ["x1", "1"]
+{line}
+"""
+    with pytest.raises(ValueError, match=message):
+        loads(text)

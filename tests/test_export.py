@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pyrhonn import Identifier, IdentifierConfig, terms
+from pyrhonn import CovarianceForm, Identifier, IdentifierConfig, terms
 from pyrhonn.export import export_header, header_text
 
 from strategies import trajectory
@@ -43,11 +43,14 @@ def build_and_run(tmp: Path, ident: Identifier, X, U, valid) -> np.ndarray:
     return np.array([[float.fromhex(v) for v in line.split()] for line in out.splitlines()])
 
 
+@pytest.mark.parametrize("protection", [{}, dict(covariance=CovarianceForm.UD, forgetting=0.995,
+                                                  p_trace_max=4000.0, reset_after=2)])
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
-def test_exported_header_reproduces_python_predictions_bit_for_bit(tmp_path: Path, dtype: str) -> None:
+def test_exported_header_reproduces_python_predictions_bit_for_bit(tmp_path: Path, dtype: str,
+                                                                   protection: dict) -> None:
     cfg = IdentifierConfig.uniform(
         terms.first_order(3, 2) + terms.pairwise_products(3, squares=True) + terms.delayed_taps(2, [3]) + terms.bias(),
-        n_states=3, n_inputs=2, dtype=dtype, p0=100.0, q=1e-3, r=0.2, beta=0.9)
+        n_states=3, n_inputs=2, dtype=dtype, p0=100.0, q=1e-3, r=0.2, beta=0.9, **protection)
     X, U, valid = trajectory(11, 700, 3, 2, 0.05, dtype)
     trained = Identifier(cfg)
     trained.run(X[:400], U[:400], valid[:400])
@@ -59,6 +62,10 @@ def test_exported_header_reproduces_python_predictions_bit_for_bit(tmp_path: Pat
     # and it really starts from the trained weights, not from w0 = 0
     untrained = Identifier(cfg).run(X[400:], U[400:], valid[400:])
     assert not np.array_equal(untrained, python)
+    if protection:  # the header carries the covariance form and the windup options
+        text = header_text(trained, "EXPORTED")
+        for field in (".covariance = RHONN_COV_UD", ".forgetting = ", ".p_trace_max = ", ".reset_after = 2"):
+            assert text.count(field) == 3
 
 
 def test_header_refuses_wrong_precision_and_small_capacity(tmp_path: Path) -> None:

@@ -119,17 +119,17 @@ def test_set_covariance_refuses_an_indefinite_matrix_and_keeps_state() -> None:
     assert snapshot(ident) == before
 
 
-def test_indefinite_covariance_in_the_core_is_reported_as_innovation_error_and_state_kept() -> None:
+def test_the_core_itself_refuses_an_indefinite_covariance_and_keeps_state() -> None:
     ident, X, U = warmed()
-    # past the Python check, through the C API itself: the core's own guard of eq. 10's innovation
-    packed = np.ascontiguousarray(_indefinite()[np.triu_indices(7)])
-    assert ident._lib.rhonn_set_covariance(ident._net, 0, ident._ffi.from_buffer("double[]", packed),
-                                           packed.size) == ident._lib.RHONN_OK
+    # past the Python check, through the C API itself: the core factorises P (U D U^T) and
+    # refuses it unless every pivot is positive at working precision
     before = snapshot(ident)
-    with pytest.raises(IdentifierError, match=r"^neurons\[0\]: innovation") as info:
-        ident.step(X[3], U[3])
-    assert info.value.status == "RHONN_E_INNOVATION"
+    packed = np.ascontiguousarray(_indefinite()[np.triu_indices(7)])
+    for setter in (ident._lib.rhonn_set_covariance, ident._lib.rhonn_set_factors):
+        assert setter(ident._net, 0, ident._ffi.from_buffer("double[]", packed), packed.size) \
+            == ident._lib.RHONN_E_VALUE
     assert snapshot(ident) == before
+    ident.step(X[3], U[3])
 
 
 @pytest.mark.parametrize("kwargs,field", [
@@ -239,10 +239,15 @@ def test_uniform_names_a_state_count_that_is_not_one(n_states: object, message: 
         IdentifierConfig.uniform(terms.first_order(2), n_states=n_states, n_inputs=0)  # type: ignore[arg-type]
 
 
-def test_a_semi_definite_covariance_is_accepted() -> None:
+def test_a_singular_covariance_is_refused_because_the_filter_keeps_p_definite() -> None:
     ident, _, _ = warmed()
+    before = snapshot(ident)
     P = np.eye(7)
-    P[0, 1] = P[1, 0] = 1.0  # singular (eigenvalue 0), not indefinite: a covariance may be degenerate
+    P[0, 1] = P[1, 0] = 1.0  # singular (eigenvalue 0): the filter could never learn along (1, -1, 0, ...)
+    with pytest.raises(IdentifierError, match=r"^P: not positive definite at float64 precision"):
+        ident.set_covariance(0, P)
+    assert snapshot(ident) == before
+    P[0, 1] = P[1, 0] = 0.999  # nearly singular but definite: accepted as given
     ident.set_covariance(0, P)
     np.testing.assert_array_equal(ident.get_covariance(0), P)
 

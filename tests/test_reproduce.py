@@ -255,7 +255,8 @@ def test_cli_failing_identifier_names_its_config(tmp_path: Path, capsys: pytest.
     assert main(["reproduce", "example2", "--config", str(bad), "--dtype", "float32", "--horizon", "0.5",
                  "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
-    assert f"error: identifier (--config) ({bad}): neurons[" in err and "RHONN_E_INNOVATION" in err
+    # now caught where it happens: the update that would leave P indefinite is refused
+    assert f"error: identifier (--config) ({bad}): neurons[" in err and "RHONN_E_NOT_PD" in err
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -20,6 +20,36 @@
  *     w_i  <- w_i + eta_i K_i e_i                                    (eq. 7)
  *     P_i  <- P_i - K_i z_i^T P_i + Q_i                              (eq. 7)
  *
+ * COVARIANCE FORM (per neuron, rhonn_neuron_config.covariance). RHONN_COV_FULL
+ * stores P_i itself and runs eq. 7 as written. RHONN_COV_UD stores the factors
+ * of P_i = U D U^T (U unit upper triangular, D diagonal > 0) and runs the same
+ * filter as Bierman's scalar measurement update (the eq. 7-8 correction, with
+ * K_i = P_i z_i M_i from the factors) followed by Thornton's modified weighted
+ * Gram-Schmidt for + Q_i: the same filter in exact arithmetic, but every d_j
+ * stays a positive number in floating point, so P_i cannot lose definiteness
+ * through rounding (the conventional update can in float32 when R_i is small
+ * against z^T P z and the regressors are nearly collinear). It costs about
+ * (2/3) L^3 multiply-adds and 2 L divisions per neuron and step against 2 L^2
+ * and 1 for the full form. RHONN_WITH_UD=0 compiles it out (configs asking
+ * for it are then refused).
+ * Whatever the form, a learning update whose P_i(k+1) is not positive
+ * definite at working precision (a pivot of its U D U^T factorisation is not
+ * a positive finite number) or whose innovation variance s_i = R_i + z^T P_i z
+ * is below R_i is not committed: the step returns RHONN_E_NOT_PD or
+ * RHONN_E_INNOVATION. After every RHONN_OK, each P_i is positive definite.
+ *
+ * WINDUP PROTECTION (per neuron, all off when zero, so eq. 7 stays exact):
+ *   forgetting   lambda in (0, 1]: P_i <- (P_i - K_i z^T P_i) / lambda + Q_i
+ *                (exponential forgetting of old information; 0 means 1)
+ *   p_trace_max  a ceiling on trace P_i: a P_i(k+1) above it is scaled by
+ *                p_trace_max / trace P_i(k+1) (counted in rhonn_health.bounded),
+ *                so a long unexcited stretch, where Q_i piles up in every
+ *                direction z does not visit, cannot build an unbounded gain
+ *   reset_after  recovery: when a neuron's learning update is refused this many
+ *                times in a row, the next refusal resets its P_i to P_i(0)
+ *                instead (weights kept, the update skipped, counted in
+ *                rhonn_health.resets) and the step goes on
+ *
  * ORDER OF ONE STEP (rhonn_step), for the sample k carrying x(k), u(k):
  *   1. Learn: for every neuron i whose measurement is valid, form
  *      e_i(k) = x_i(k) - xhat_i(k) and update w_i, P_i using the regressor
@@ -97,6 +127,12 @@ typedef enum {
     RHONN_FACTOR_ONE = 3  /* the constant 1 (bias); index and delay must be 0 */
 } rhonn_factor_kind;
 
+/* How a neuron stores and updates P_i (see COVARIANCE FORM above). */
+typedef enum {
+    RHONN_COV_FULL = 0,   /* P_i itself, eq. 7 as written, positive definiteness checked */
+    RHONN_COV_UD = 1      /* P_i = U D U^T, Bierman + Thornton: definite by construction */
+} rhonn_covariance_form;
+
 /* Activation S(.) of one neuron. */
 typedef enum {
     RHONN_LOGISTIC = 0,   /* S(s) = 1 / (1 + exp(-beta s))                 (eq. 6)  */
@@ -126,12 +162,18 @@ typedef struct {
     /* P_i(0), packed upper triangle row by row: P00 P01 .. P0L P11 P12 ..
      * The paper's diagonal P_i(0) has zeros off the diagonal; a full one
      * (e.g. exported after training) is accepted. Diagonal entries > 0.
-     * It must also be positive definite (a covariance, eq. 10). The core does
-     * not factorise it to check (pyrhonn's Python layer does); an indefinite
-     * P shows up as RHONN_E_INNOVATION at the first z that finds a negative
-     * direction. The same holds for rhonn_set_covariance. */
+     * It must also be positive definite (a covariance, eq. 10): the core
+     * factorises it (U D U^T) and refuses it unless every pivot is a positive
+     * finite number at working precision. So does rhonn_set_covariance. */
     rhonn_real p0[RHONN_MAX_PACKED];
     rhonn_term terms[RHONN_MAX_TERMS];
+    /* Covariance form and windup protection (see above). Zero, as in a
+     * zero- or designated-initialised config, is the full form, no
+     * forgetting, no bound and no automatic reset: eq. 7 exactly. */
+    uint8_t covariance;         /* rhonn_covariance_form */
+    uint16_t reset_after;       /* 0 = off; else reset P_i after this many refusals in a row */
+    rhonn_real forgetting;      /* lambda in (0, 1]; 0 = 1 = off */
+    rhonn_real p_trace_max;     /* 0 = off; else >= trace P_i(0) */
 } rhonn_neuron_config;
 
 typedef struct {
@@ -148,7 +190,8 @@ typedef enum {
     RHONN_FIELD_N_TERMS, RHONN_FIELD_ACTIVATION, RHONN_FIELD_BETA,
     RHONN_FIELD_ETA, RHONN_FIELD_R, RHONN_FIELD_Q, RHONN_FIELD_W0, RHONN_FIELD_P0,
     RHONN_FIELD_N_FACTORS, RHONN_FIELD_FACTOR_KIND, RHONN_FIELD_FACTOR_INDEX,
-    RHONN_FIELD_FACTOR_DELAY, RHONN_FIELD_FACTOR_POWER
+    RHONN_FIELD_FACTOR_DELAY, RHONN_FIELD_FACTOR_POWER,
+    RHONN_FIELD_COVARIANCE, RHONN_FIELD_FORGETTING, RHONN_FIELD_P_TRACE_MAX
 } rhonn_field;
 
 typedef struct {
@@ -250,11 +293,23 @@ rhonn_status rhonn_set_learning(rhonn_t *net, int on);
 
 /* Read or replace one neuron's weights (len must equal L_i) and covariance
  * (packed upper triangle, len must equal L_i (L_i + 1) / 2). The setters
- * reject non-finite values and non-positive diagonals with RHONN_E_VALUE. */
+ * reject non-finite values, and a covariance that is not positive definite
+ * at working precision, with RHONN_E_VALUE. For a RHONN_COV_UD neuron the
+ * covariance read is U D U^T formed from the stored factors and the one
+ * written is factorised: a read-write round trip is equal to rounding, not
+ * bit for bit (rhonn_get_factors/rhonn_set_factors are). */
 rhonn_status rhonn_get_weights(const rhonn_t *net, size_t neuron, rhonn_real *w, size_t len);
 rhonn_status rhonn_set_weights(rhonn_t *net, size_t neuron, const rhonn_real *w, size_t len);
 rhonn_status rhonn_get_covariance(const rhonn_t *net, size_t neuron, rhonn_real *p, size_t len);
 rhonn_status rhonn_set_covariance(rhonn_t *net, size_t neuron, const rhonn_real *p, size_t len);
+
+/* The stored covariance exactly as kept (packed upper triangle, len as for
+ * the covariance): P_i for RHONN_COV_FULL; for RHONN_COV_UD, D on the
+ * diagonal and U's strict upper triangle beside it. For saving and restoring
+ * a filter bit for bit. The setter checks every entry is finite and, for the
+ * factors, that D > 0, or for P that it is positive definite (RHONN_E_VALUE). */
+rhonn_status rhonn_get_factors(const rhonn_t *net, size_t neuron, rhonn_real *f, size_t len);
+rhonn_status rhonn_set_factors(rhonn_t *net, size_t neuron, const rhonn_real *f, size_t len);
 
 /* xhat(k): the last prediction (config x0 before the first step). */
 rhonn_status rhonn_get_prediction(const rhonn_t *net, rhonn_real *xhat, size_t len);

@@ -53,6 +53,13 @@
 #define RHONN_UNROLL_LOOP
 #endif
 
+/* RHONN_WITH_UD=1 (the default) builds the factored covariance update
+ * (RHONN_COV_UD); 0 leaves it out for the smallest code, and a config that
+ * asks for it is refused as RHONN_FIELD_COVARIANCE. */
+#ifndef RHONN_WITH_UD
+#define RHONN_WITH_UD 1
+#endif
+
 /* x - x is 0 for finite x and NaN for NaN or +-Inf; portable without
  * isfinite() (which needs C99 libm macros some freestanding targets lack). */
 static int is_finite(rhonn_real v)
@@ -155,6 +162,10 @@ static size_t packed_size(size_t L)
     return L * (L + 1u) / 2u;
 }
 
+static int udu_factor(const rhonn_real *P, rhonn_real *F, size_t L);
+static rhonn_real full_trace(const rhonn_real *P, size_t L);
+static void load_p0(const rhonn_t *net, size_t i, rhonn_real *dst);
+
 rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *where)
 {
     size_t n, m, i, t, f, e;
@@ -210,6 +221,24 @@ rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *
                     return config_error(where, RHONN_FIELD_P0, i, t, e);
                 }
             }
+        }
+        {
+            /* P0 is a covariance (eq. 10): positive definite at this precision */
+            rhonn_real scratch[RHONN_MAX_PACKED];
+            if (!udu_factor(nc->p0, scratch, L)) {
+                return config_error(where, RHONN_FIELD_P0, i, 0, 0);
+            }
+        }
+        if (nc->covariance != (uint8_t)RHONN_COV_FULL &&
+            (nc->covariance != (uint8_t)RHONN_COV_UD || !RHONN_WITH_UD)) {
+            return config_error(where, RHONN_FIELD_COVARIANCE, i, 0, 0);
+        }
+        if (!is_finite(nc->forgetting) || nc->forgetting < R(0.0) || nc->forgetting > R(1.0)) {
+            return config_error(where, RHONN_FIELD_FORGETTING, i, 0, 0);
+        }
+        if (!is_finite(nc->p_trace_max) || nc->p_trace_max < R(0.0) ||
+            (nc->p_trace_max > R(0.0) && nc->p_trace_max < full_trace(nc->p0, L))) {
+            return config_error(where, RHONN_FIELD_P_TRACE_MAX, i, 0, 0);
         }
         for (t = 0; t < L; ++t) {
             const rhonn_term *term = &nc->terms[t];
@@ -340,8 +369,11 @@ rhonn_status rhonn_reset(rhonn_t *net)
             net->z[1][i][t] = R(0.0);
         }
         for (t = 0; t < (size_t)RHONN_MAX_PACKED; ++t) {
-            net->p[i][0][t] = (i < n && t < packed_size(nc->n_terms)) ? nc->p0[t] : R(0.0);
+            net->p[i][0][t] = R(0.0);
             net->p[i][1][t] = R(0.0);
+        }
+        if (i < n) {
+            load_p0(net, i, net->p[i][0]);
         }
         net->xhat[i] = i < n ? net->cfg.x0[i] : R(0.0);
     }
@@ -430,9 +462,90 @@ RHONN_INLINE int any_nonfinite(const rhonn_real *v, size_t len)
     return bad;
 }
 
-/* The scalar-measurement EKF update of eq. 7-8 for one neuron, written into
- * the inactive bank. H = z (eq. 11: the network is linear in w). P is the
- * packed upper triangle: row r holds P(r, r..L-1) contiguously. */
+/* Packed upper triangle: row r holds (r, r..L-1) and starts after the
+ * L + (L-1) + ... + (L-r+1) entries of the rows above it. */
+static size_t row_start(size_t r, size_t L)
+{
+    return r * (2u * L + 1u - r) / 2u;
+}
+
+/* U D U^T factorisation of the packed symmetric P into F (D on the diagonal,
+ * U's strict upper triangle beside it), from the last column back. Returns 1
+ * when every pivot d_j is a positive finite number (P is positive definite
+ * at working precision), else 0 with F partly written. About L^3/6
+ * multiply-adds and L divisions. */
+static int udu_factor(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHONN_RESTRICT F, size_t L)
+{
+    rhonn_real t[RHONN_MAX_TERMS];
+    size_t j = L;
+    while (j-- > 0u) {
+        const size_t rj = row_start(j, L);
+        rhonn_real d = P[rj], inv;
+        size_t i, k;
+        /* t_k = d_k U(j,k) for the columns k > j already factorised */
+        for (k = j + 1u; k < L; ++k) {
+            t[k] = F[row_start(k, L)] * F[rj + (k - j)];
+            d -= F[rj + (k - j)] * t[k];
+        }
+        if (!is_finite(d) || !(d > R(0.0))) {
+            return 0;
+        }
+        F[rj] = d;
+        inv = R(1.0) / d;
+        for (i = 0; i < j; ++i) {
+            const size_t ri = row_start(i, L);
+            rhonn_real a = P[ri + (j - i)];
+            for (k = j + 1u; k < L; ++k) {
+                a -= F[ri + (k - i)] * t[k];
+            }
+            F[ri + (j - i)] = a * inv;
+        }
+    }
+    return 1;
+}
+
+/* trace(U D U^T) = sum_j d_j (1 + sum_{i<j} U(i,j)^2) */
+static rhonn_real ud_trace(const rhonn_real *F, size_t L)
+{
+    rhonn_real tr = R(0.0);
+    size_t i, j;
+    for (j = 0; j < L; ++j) {
+        rhonn_real col = R(1.0);
+        for (i = 0; i < j; ++i) {
+            const rhonn_real u = F[row_start(i, L) + (j - i)];
+            col += u * u;
+        }
+        tr += F[row_start(j, L)] * col;
+    }
+    return tr;
+}
+
+static rhonn_real full_trace(const rhonn_real *P, size_t L)
+{
+    rhonn_real tr = R(0.0);
+    size_t r;
+    for (r = 0; r < L; ++r) {
+        tr += P[row_start(r, L)];
+    }
+    return tr;
+}
+
+/* 1 / lambda of a neuron's forgetting factor, or 0 when forgetting is off. */
+static rhonn_real inverse_forgetting(const rhonn_neuron_config *nc)
+{
+    return (nc->forgetting > R(0.0) && nc->forgetting < R(1.0)) ? R(1.0) / nc->forgetting : R(0.0);
+}
+
+static rhonn_status neuron_fault(rhonn_t *net, size_t i, rhonn_status st)
+{
+    net->fault_neuron = (uint8_t)i;
+    return st;
+}
+
+/* The measurement part of eq. 7-8 for a RHONN_COV_FULL neuron, written into
+ * the inactive bank: w(k+1) and P - K z^T P (Q, forgetting and the checks
+ * follow in full_finish). H = z (eq. 11: the network is linear in w). P is
+ * the packed upper triangle: row r holds P(r, r..L-1) contiguously. */
 RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
                                       const size_t L)
 {
@@ -445,7 +558,6 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
     rhonn_real pz[RHONN_MAX_TERMS];
     rhonn_real s, inv_s, gain;
     size_t r, c, len;
-    int bad = 0;
     const rhonn_real *row;
 
     /* pz = P z: row r of the triangle gives pz[r] its (r, c >= r) part as a
@@ -466,11 +578,12 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
         pz[r] += dot(row, &z[r], len);
         row += len;
     }
-    /* eq. 8: M = 1 / (R + z^T P z), a scalar: no matrix inversion. */
+    /* eq. 8: M = 1 / (R + z^T P z), a scalar: no matrix inversion. With P
+     * positive definite z^T P z >= 0; a rounded value below 0 (s < R) means P
+     * is too close to singular for this z at working precision. */
     s = nc->r + dot(z, pz, L);
-    if (!is_finite(s) || !(s > R(0.0))) {
-        net->fault_neuron = (uint8_t)i;
-        return RHONN_E_INNOVATION;
+    if (!is_finite(s) || !(s >= nc->r)) {
+        return neuron_fault(net, i, RHONN_E_INNOVATION);
     }
     inv_s = R(1.0) / s;
     *nis = e * (e * inv_s);
@@ -481,41 +594,198 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
         wn[r] = w[r] + gain * pz[r];
     }
     if (any_nonfinite(wn, L)) {
-        net->fault_neuron = (uint8_t)i;
-        return RHONN_E_DIVERGED;
+        return neuron_fault(net, i, RHONN_E_DIVERGED);
     }
-    /* eq. 7: P(k+1) = P - K z^T P + Q = P - (P z)(P z)^T M + Q: symmetric,
-     * so only the upper triangle is formed, row by row. Each row also sums
-     * v * 0 over its entries, which is NaN iff some entry is NaN or +-Inf:
-     * the overflow check rides along with the update, without a second pass. */
+    /* eq. 7: P - K z^T P = P - (P z)(P z)^T M: symmetric, so only the upper
+     * triangle is formed, row by row. */
     row = P;
     RHONN_UNROLL_LOOP
     for (r = 0; r < L; ++r) {
         const rhonn_real kr = pz[r] * inv_s;
         rhonn_real *RHONN_RESTRICT out = Pn + (row - P);
-        rhonn_real diag = (row[0] - kr * pz[r]) + nc->q[r];
-        rhonn_real chk = diag * R(0.0);
-        out[0] = diag;
         len = L - r;
         RHONN_UNROLL_LOOP
-        for (c = 1; c < len; ++c) {
-            const rhonn_real v = row[c] - kr * pz[r + c];
-            out[c] = v;
-            chk += v * R(0.0);
+        for (c = 0; c < len; ++c) {
+            out[c] = row[c] - kr * pz[r + c];
         }
-        bad |= chk != chk;
         row += len;
-    }
-    if (bad) {
-        net->fault_neuron = (uint8_t)i;
-        return RHONN_E_COVARIANCE;
     }
     return RHONN_OK;
 }
 
-static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis)
+/* The rest of eq. 7 for a RHONN_COV_FULL neuron: / lambda, + Q, the trace
+ * ceiling, then the checks that make a committed P a covariance: finite, and
+ * positive definite at working precision (its U D U^T pivots). */
+static rhonn_status full_finish(rhonn_t *net, size_t i, size_t L, uint8_t *bounded)
 {
-    const size_t L = net->cfg.neurons[i].n_terms;
+    const rhonn_neuron_config *nc = &net->cfg.neurons[i];
+    rhonn_real *Pn = net->p[i][net->bank[i] ^ 1u];
+    rhonn_real scratch[RHONN_MAX_PACKED];
+    const size_t np = packed_size(L);
+    const rhonn_real inv_lambda = inverse_forgetting(nc);
+    size_t r, c;
+
+    if (inv_lambda > R(0.0)) {
+        for (c = 0; c < np; ++c) {
+            Pn[c] *= inv_lambda;
+        }
+    }
+    for (r = 0; r < L; ++r) {
+        Pn[row_start(r, L)] += nc->q[r];
+    }
+    if (nc->p_trace_max > R(0.0)) {
+        const rhonn_real tr = full_trace(Pn, L);
+        if (tr > nc->p_trace_max) {
+            const rhonn_real scale = nc->p_trace_max / tr;
+            for (c = 0; c < np; ++c) {
+                Pn[c] *= scale;
+            }
+            *bounded = 1;
+        }
+    }
+    if (any_nonfinite(Pn, np)) {
+        return neuron_fault(net, i, RHONN_E_COVARIANCE);
+    }
+    if (!udu_factor(Pn, scratch, L)) {
+        return neuron_fault(net, i, RHONN_E_NOT_PD);
+    }
+    return RHONN_OK;
+}
+
+#if RHONN_WITH_UD
+/* eq. 7-8 for a RHONN_COV_UD neuron: P = U D U^T is stored as its factors
+ * (D on the packed diagonal, U beside it).
+ *
+ * Measurement (Bierman): with f = U^T z and v = D f, the innovation variance
+ * builds up as a_0 = R, a_j = a_{j-1} + f_j v_j, so s = a_L >= R; the new
+ * d_j = d_j a_{j-1} / a_j stays in (0, d_j]; U(k,j) += -f_j / a_{j-1} b_k
+ * with b accumulating P z, so the gain K = b / s is that of eq. 7.
+ *
+ * Then / lambda (D / lambda) and + Q (Thornton's modified weighted
+ * Gram-Schmidt on the rows of [U | I] weighted by [D, diag(Q)]): each new
+ * d_j is a weighted sum of squares containing d_j * 1, hence positive. */
+static rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis, size_t L,
+                           uint8_t *bounded)
+{
+    const rhonn_neuron_config *nc = &net->cfg.neurons[i];
+    const uint8_t bk = net->bank[i];
+    const rhonn_real *RHONN_RESTRICT F = net->p[i][bk];
+    rhonn_real *RHONN_RESTRICT Fn = net->p[i][bk ^ 1u];
+    const rhonn_real *RHONN_RESTRICT w = net->w[i][bk];
+    rhonn_real *RHONN_RESTRICT wn = net->w[i][bk ^ 1u];
+    rhonn_real wu[RHONN_MAX_PACKED], wq[RHONN_MAX_PACKED];
+    rhonn_real f[RHONN_MAX_TERMS], v[RHONN_MAX_TERMS], b[RHONN_MAX_TERMS], dt[RHONN_MAX_TERMS];
+    rhonn_real cu[RHONN_MAX_TERMS], cq[RHONN_MAX_TERMS];
+    rhonn_real alpha, alpha_new, inv, inv_prev, s, gain;
+    const rhonn_real inv_lambda = inverse_forgetting(nc);
+    size_t j, k, c;
+
+    /* f = U^T z (U unit upper triangular), v = D f */
+    for (j = 0; j < L; ++j) {
+        f[j] = z[j];
+    }
+    for (k = 0; k < L; ++k) {
+        const size_t rk = row_start(k, L);
+        for (j = k + 1u; j < L; ++j) {
+            f[j] += F[rk + (j - k)] * z[k];
+        }
+    }
+    for (j = 0; j < L; ++j) {
+        v[j] = F[row_start(j, L)] * f[j];
+    }
+    /* Bierman's update, column by column; wu receives U~ with a unit diagonal */
+    alpha = nc->r;
+    inv_prev = R(0.0);
+    for (j = 0; j < L; ++j) {
+        const size_t rj = row_start(j, L);
+        const rhonn_real lam = -f[j] * inv_prev;
+        alpha_new = alpha + f[j] * v[j];
+        inv = R(1.0) / alpha_new;
+        dt[j] = F[rj] * (alpha * inv);
+        for (k = 0; k < j; ++k) {
+            const size_t idx = row_start(k, L) + (j - k);
+            const rhonn_real ukj = F[idx];
+            wu[idx] = ukj + lam * b[k];
+            b[k] += ukj * v[j];
+        }
+        wu[rj] = R(1.0);
+        b[j] = v[j];
+        alpha = alpha_new;
+        inv_prev = inv;
+    }
+    s = alpha;
+    if (!is_finite(s)) {
+        return neuron_fault(net, i, RHONN_E_INNOVATION);
+    }
+    *nis = e * (e * inv_prev);
+    gain = nc->eta * e * inv_prev;
+    for (j = 0; j < L; ++j) {
+        wn[j] = w[j] + gain * b[j];
+    }
+    if (any_nonfinite(wn, L)) {
+        return neuron_fault(net, i, RHONN_E_DIVERGED);
+    }
+    if (inv_lambda > R(0.0)) {
+        for (j = 0; j < L; ++j) {
+            dt[j] *= inv_lambda;
+        }
+    }
+    /* + Q: rows of W = [U~ | I] in wu and wq (both upper triangular), from the
+     * last row up; row j is final once the rows below it are processed. */
+    for (j = 0; j < L; ++j) {
+        const size_t rj = row_start(j, L);
+        for (c = 0; c < L - j; ++c) {
+            wq[rj + c] = c == 0u ? R(1.0) : R(0.0);
+        }
+    }
+    j = L;
+    while (j-- > 0u) {
+        const size_t rj = row_start(j, L), len = L - j;
+        rhonn_real dj;
+        for (c = 0; c < len; ++c) {
+            cu[c] = dt[j + c] * wu[rj + c];
+            cq[c] = nc->q[j + c] * wq[rj + c];
+        }
+        dj = dot(&wu[rj], cu, len) + dot(&wq[rj], cq, len);
+        if (!is_finite(dj) || !(dj > R(0.0))) {
+            return neuron_fault(net, i, RHONN_E_NOT_PD);
+        }
+        Fn[rj] = dj;
+        inv = R(1.0) / dj;
+        for (k = 0; k < j; ++k) {
+            const size_t at = row_start(k, L) + (j - k);
+            const rhonn_real ukj = (dot(&wu[at], cu, len) + dot(&wq[at], cq, len)) * inv;
+            Fn[at] = ukj;
+            for (c = 0; c < len; ++c) {
+                wu[at + c] -= ukj * wu[rj + c];
+                wq[at + c] -= ukj * wq[rj + c];
+            }
+        }
+    }
+    if (nc->p_trace_max > R(0.0)) {
+        const rhonn_real tr = ud_trace(Fn, L);
+        if (tr > nc->p_trace_max) {
+            const rhonn_real scale = nc->p_trace_max / tr;
+            for (j = 0; j < L; ++j) {
+                Fn[row_start(j, L)] *= scale;
+            }
+            *bounded = 1;
+        }
+    }
+    if (any_nonfinite(Fn, packed_size(L))) {
+        return neuron_fault(net, i, RHONN_E_COVARIANCE);
+    }
+    for (j = 0; j < L; ++j) {
+        if (!(Fn[row_start(j, L)] > R(0.0))) {
+            return neuron_fault(net, i, RHONN_E_NOT_PD);
+        }
+    }
+    return RHONN_OK;
+}
+#endif
+
+static rhonn_status ekf_full(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis, size_t L)
+{
 #if RHONN_UNROLL
     /* L as a constant: one specialised kernel per size (see RHONN_UNROLL) */
     switch (L) {
@@ -575,6 +845,37 @@ static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn
 #endif
 }
 
+/* One neuron's learning update into its inactive bank (eq. 7-9). */
+static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
+                               uint8_t *bounded)
+{
+    const size_t L = net->cfg.neurons[i].n_terms;
+    rhonn_status st;
+#if RHONN_WITH_UD
+    if (net->cfg.neurons[i].covariance == (uint8_t)RHONN_COV_UD) {
+        return ekf_ud(net, i, e, z, nis, L, bounded);
+    }
+#endif
+    st = ekf_full(net, i, e, z, nis, L);
+    return st == RHONN_OK ? full_finish(net, i, L, bounded) : st;
+}
+
+/* P_i(0) in neuron i's storage form: a copy, or its U D U^T factors (the
+ * config was validated, so the factorisation succeeds). */
+static void load_p0(const rhonn_t *net, size_t i, rhonn_real *dst)
+{
+    const rhonn_neuron_config *nc = &net->cfg.neurons[i];
+    size_t t;
+    for (t = 0; t < packed_size(nc->n_terms); ++t) {
+        dst[t] = nc->p0[t];
+    }
+#if RHONN_WITH_UD
+    if (nc->covariance == (uint8_t)RHONN_COV_UD) {
+        (void)udu_factor(nc->p0, dst, nc->n_terms);
+    }
+#endif
+}
+
 rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
                         const uint8_t *valid, rhonn_real *xhat_next)
 {
@@ -583,6 +884,7 @@ rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
     rhonn_real xnew[RHONN_MAX_STATES];
     uint8_t updated[RHONN_MAX_STATES];
     rhonn_real innov[RHONN_MAX_STATES], nis[RHONN_MAX_STATES];
+    uint8_t bounded[RHONN_MAX_STATES], recovered[RHONN_MAX_STATES];
     rhonn_status st = check_net(net);
     size_t n, m, i, j, g, t, f;
     uint8_t next_head, zb_new;
@@ -612,17 +914,34 @@ rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
     for (i = 0; i < n; ++i) {
         int learn = net->started && net->learning && (valid == NULL || valid[i] != 0u);
         updated[i] = 0;
+        bounded[i] = 0;
+        recovered[i] = 0;
         if (learn) {
             zprev = net->z[net->zbank][i];
             innov[i] = x[i] - net->xhat[i];
-            st = ekf_update(net, i, innov[i], zprev, &nis[i]);
+            st = ekf_update(net, i, innov[i], zprev, &nis[i], &bounded[i]);
             if (st != RHONN_OK) {
+                const rhonn_neuron_config *nc = &net->cfg.neurons[i];
                 rhonn_health *h = &net->health[i];
                 h->rejected += 1u;
                 if (h->fail_run < 0xFFFFu) {
                     h->fail_run = (uint16_t)(h->fail_run + 1u);
                 }
-                return st;
+                if (nc->reset_after == 0u || h->fail_run < nc->reset_after) {
+                    return st;
+                }
+                /* Recovery (reset_after): skip this update, keep the
+                 * weights and restart the covariance from P_i(0). */
+                {
+                    const uint8_t nb = (uint8_t)(net->bank[i] ^ 1u);
+                    for (t = 0; t < nc->n_terms; ++t) {
+                        net->w[i][nb][t] = net->w[i][net->bank[i]][t];
+                    }
+                    load_p0(net, i, net->p[i][nb]);
+                }
+                bounded[i] = 0;
+                recovered[i] = 1;
+                st = RHONN_OK;
             }
             updated[i] = 1;
         }
@@ -705,11 +1024,15 @@ rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
     }
     net->head = next_head;
     for (i = 0; i < n; ++i) {
-        if (updated[i]) {
+        if (recovered[i]) {
+            net->health[i].resets += 1u;
+            net->health[i].fail_run = 0;
+        } else if (updated[i]) {
             rhonn_health *h = &net->health[i];
             h->innovation = innov[i];
             h->nis = nis[i];
             h->updates += 1u;
+            h->bounded += bounded[i];
             h->fail_run = 0;
         }
         net->bank[i] = (uint8_t)(net->bank[i] ^ updated[i]);
@@ -810,42 +1133,92 @@ rhonn_status rhonn_set_weights(rhonn_t *net, size_t neuron, const rhonn_real *w,
     return RHONN_OK;
 }
 
+static int is_ud(const rhonn_t *net, size_t neuron)
+{
+    return net->cfg.neurons[neuron].covariance == (uint8_t)RHONN_COV_UD;
+}
+
 rhonn_status rhonn_get_covariance(const rhonn_t *net, size_t neuron, rhonn_real *p, size_t len)
 {
     rhonn_status st = neuron_access(net, p, neuron, len, 1);
-    if (st == RHONN_OK) {
-        copy_reals(p, net->p[neuron][net->bank[neuron]], len);
+    const rhonn_real *F;
+    size_t L, r, c, k;
+    if (st != RHONN_OK) {
+        return st;
     }
-    return st;
+    F = net->p[neuron][net->bank[neuron]];
+    if (!is_ud(net, neuron)) {
+        copy_reals(p, F, len);
+        return RHONN_OK;
+    }
+    /* P(r,c) = sum_{k >= c} U(r,k) d_k U(c,k), r <= c, U(k,k) = 1 */
+    L = net->cfg.neurons[neuron].n_terms;
+    for (r = 0; r < L; ++r) {
+        const size_t rr = row_start(r, L);
+        for (c = r; c < L; ++c) {
+            const size_t rc = row_start(c, L);
+            rhonn_real acc = F[rc] * (c == r ? R(1.0) : F[rr + (c - r)]);
+            for (k = c + 1u; k < L; ++k) {
+                acc += F[rr + (k - r)] * (F[row_start(k, L)] * F[rc + (k - c)]);
+            }
+            p[rr + (c - r)] = acc;
+        }
+    }
+    return RHONN_OK;
 }
 
 rhonn_status rhonn_set_covariance(rhonn_t *net, size_t neuron, const rhonn_real *p, size_t len)
 {
     rhonn_status st = neuron_access(net, p, neuron, len, 1);
-    size_t L, r, diag;
+    rhonn_real F[RHONN_MAX_PACKED];
     if (st != RHONN_OK) {
         return st;
     }
-    if (any_nonfinite(p, len)) {
+    /* a covariance: finite and positive definite at working precision */
+    if (any_nonfinite(p, len) || !udu_factor(p, F, net->cfg.neurons[neuron].n_terms)) {
         return RHONN_E_VALUE;
     }
-    /* a covariance has a positive diagonal; row r starts at the diagonal */
+    copy_reals(net->p[neuron][net->bank[neuron]], is_ud(net, neuron) ? F : p, len);
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_get_factors(const rhonn_t *net, size_t neuron, rhonn_real *f, size_t len)
+{
+    rhonn_status st = neuron_access(net, f, neuron, len, 1);
+    if (st == RHONN_OK) {
+        copy_reals(f, net->p[neuron][net->bank[neuron]], len);
+    }
+    return st;
+}
+
+rhonn_status rhonn_set_factors(rhonn_t *net, size_t neuron, const rhonn_real *f, size_t len)
+{
+    rhonn_status st = neuron_access(net, f, neuron, len, 1);
+    size_t L, r;
+    if (st != RHONN_OK) {
+        return st;
+    }
+    if (!is_ud(net, neuron)) {
+        return rhonn_set_covariance(net, neuron, f, len);
+    }
+    if (any_nonfinite(f, len)) {
+        return RHONN_E_VALUE;
+    }
     L = net->cfg.neurons[neuron].n_terms;
-    for (r = 0, diag = 0; r < L; diag += L - r, ++r) {
-        if (!(p[diag] > R(0.0))) {
+    for (r = 0; r < L; ++r) {
+        if (!(f[row_start(r, L)] > R(0.0))) {
             return RHONN_E_VALUE;
         }
     }
-    copy_reals(net->p[neuron][net->bank[neuron]], p, len);
+    copy_reals(net->p[neuron][net->bank[neuron]], f, len);
     return RHONN_OK;
 }
 
 rhonn_status rhonn_get_health(const rhonn_t *net, size_t neuron, rhonn_health *out)
 {
     rhonn_status st = check_net(net);
-    const rhonn_real *P;
-    size_t L, r, diag;
-    rhonn_real tr = R(0.0);
+    const rhonn_real *F;
+    size_t L;
     if (st != RHONN_OK) {
         return st;
     }
@@ -856,12 +1229,9 @@ rhonn_status rhonn_get_health(const rhonn_t *net, size_t neuron, rhonn_health *o
         return RHONN_E_ARGUMENT;
     }
     L = net->cfg.neurons[neuron].n_terms;
-    P = net->p[neuron][net->bank[neuron]];
-    for (r = 0, diag = 0; r < L; diag += L - r, ++r) {
-        tr += P[diag];
-    }
+    F = net->p[neuron][net->bank[neuron]];
     *out = net->health[neuron];
-    out->trace_p = tr;
+    out->trace_p = is_ud(net, neuron) ? ud_trace(F, L) : full_trace(F, L);
     return RHONN_OK;
 }
 

@@ -324,13 +324,14 @@ static void learning_off_freezes_weights_and_still_predicts(void)
     CHECK_STATUS(rhonn_set_learning(NULL, 1), RHONN_E_NULL);
 }
 
-static void indefinite_covariance_reports_innovation_and_keeps_state(void)
+static void indefinite_covariance_is_refused_by_the_setters_and_by_the_step(void)
 {
     rhonn_t net, twin;
     rhonn_config c = small_config();
     rhonn_real x[2], u[1], y[2];
     /* P with z^T P z < -R for z near (S, S, u, 1): large negative couplings */
     rhonn_real p[10] = {1, -50, -50, -50, 1, -50, -50, 1, -50, 1};
+    rhonn_real singular[10] = {1, 1, 0, 0, 1, 0, 0, 1, 0, 1};
     rhonn_real good[10] = {1, 0, 0, 0, 1, 0, 0, 1, 0, 1};
     observed before, after;
     size_t k;
@@ -340,18 +341,122 @@ static void indefinite_covariance_reports_innovation_and_keeps_state(void)
         sample(k, x, u);
         CHECK_STATUS(rhonn_step(&net, x, u, NULL, y), RHONN_OK);
     }
-    CHECK_STATUS(rhonn_set_covariance(&net, 1, p, 10), RHONN_OK);
+    before = observe(&net);
+    CHECK_STATUS(rhonn_set_covariance(&net, 1, p, 10), RHONN_E_VALUE);
+    CHECK_STATUS(rhonn_set_covariance(&net, 1, singular, 10), RHONN_E_VALUE);
+    CHECK_STATUS(rhonn_set_factors(&net, 1, p, 10), RHONN_E_VALUE);
+    after = observe(&net);
+    CHECK(memcmp(&before, &after, sizeof before) == 0);
+    /* An indefinite P that got into storage anyway (memory corruption): the
+     * step that meets it refuses and commits nothing. */
+    memcpy(net.p[1][net.bank[1]], p, sizeof p);
     twin = net;
     before = observe(&net);
     sample(6, x, u);
-    CHECK_STATUS(rhonn_step(&net, x, u, NULL, y), RHONN_E_INNOVATION);
+    k = (size_t)rhonn_step(&net, x, u, NULL, y);
+    CHECK(k == (size_t)RHONN_E_INNOVATION || k == (size_t)RHONN_E_NOT_PD);
     CHECK(net.fault_neuron == 1);
+    CHECK(net.health[1].rejected == 1 && net.health[1].fail_run == 1);
     after = observe(&net);
     CHECK(memcmp(&before, &after, sizeof before) == 0);
     /* repaired, it continues exactly like a twin that never saw the failure */
     CHECK_STATUS(rhonn_set_covariance(&net, 1, good, 10), RHONN_OK);
     CHECK_STATUS(rhonn_set_covariance(&twin, 1, good, 10), RHONN_OK);
     CHECK(same_future(&net, &twin, 6, 30));
+}
+
+/* The U D U^T form is the same filter as eq. 7 as written, to rounding; its
+ * covariance read back is U D U^T, its factors round-trip bit for bit. */
+static void factored_form_tracks_the_full_form(void)
+{
+    rhonn_t full, ud, copy;
+    rhonn_config c = small_config(), cu = small_config();
+    rhonn_real x[2], u[1], yf[2], yu[2], pf[10], pu[10], f[10];
+    rhonn_health h;
+    double worst = 0.0;
+    size_t k, i, t;
+
+    cu.neurons[0].covariance = cu.neurons[1].covariance = (uint8_t)RHONN_COV_UD;
+    CHECK_STATUS(rhonn_init(&full, &c, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_init(&ud, &cu, NULL), RHONN_OK);
+    for (k = 0; k < 200; ++k) {
+        sample(k, x, u);
+        CHECK_STATUS(rhonn_step(&full, x, u, NULL, yf), RHONN_OK);
+        CHECK_STATUS(rhonn_step(&ud, x, u, NULL, yu), RHONN_OK);
+        for (i = 0; i < 2; ++i) {
+            double e = rel_err((double)yf[i], (double)yu[i]);
+            worst = e > worst ? e : worst;
+        }
+    }
+    CHECK(worst < 1e3 * REL_TOL);
+    for (i = 0; i < 2; ++i) {
+        CHECK_STATUS(rhonn_get_covariance(&full, i, pf, 10), RHONN_OK);
+        CHECK_STATUS(rhonn_get_covariance(&ud, i, pu, 10), RHONN_OK);
+        for (t = 0; t < 10; ++t) {
+            CHECK(fabs((double)pf[t] - (double)pu[t]) <= 1e4 * EPS * (fabs((double)pf[t]) + 1e-3));
+        }
+        CHECK_STATUS(rhonn_get_health(&ud, i, &h), RHONN_OK);
+        CHECK(h.updates == 199 && h.rejected == 0 && h.trace_p > 0);
+    }
+    /* factors out and back in: the same future, bit for bit */
+    CHECK_STATUS(rhonn_init(&copy, &cu, NULL), RHONN_OK);
+    copy = ud;
+    for (i = 0; i < 2; ++i) {
+        CHECK_STATUS(rhonn_get_factors(&ud, i, f, 10), RHONN_OK);
+        CHECK_STATUS(rhonn_set_factors(&copy, i, f, 10), RHONN_OK);
+    }
+    CHECK(same_future(&ud, &copy, 200, 30));
+    /* a factor with D <= 0 is refused */
+    f[0] = 0;
+    CHECK_STATUS(rhonn_set_factors(&copy, 0, f, 10), RHONN_E_VALUE);
+    /* an unknown covariance form is refused */
+    c.neurons[0].covariance = 2;
+    CHECK_STATUS(rhonn_validate_config(&c, NULL), RHONN_E_CONFIG);
+}
+
+static void restart_learns_nothing_on_the_next_step(void)
+{
+    rhonn_t net, fresh;
+    rhonn_config c = small_config();
+    rhonn_real x[2], u[1], y[2], yf[2], w[4], p[10];
+    observed before, after;
+    size_t k, i;
+
+    CHECK_STATUS(rhonn_init(&net, &c, NULL), RHONN_OK);
+    for (k = 0; k < 20; ++k) {
+        sample(k, x, u);
+        CHECK_STATUS(rhonn_step(&net, x, u, NULL, y), RHONN_OK);
+    }
+    CHECK_STATUS(rhonn_restart(&net), RHONN_OK);
+    CHECK_STATUS(rhonn_restart(NULL), RHONN_E_NULL);
+    before = observe(&net);
+    CHECK_STATUS(rhonn_init(&fresh, &c, NULL), RHONN_OK);
+    for (i = 0; i < 2; ++i) {
+        CHECK_STATUS(rhonn_get_weights(&net, i, w, 4), RHONN_OK);
+        CHECK_STATUS(rhonn_set_weights(&fresh, i, w, 4), RHONN_OK);
+        CHECK_STATUS(rhonn_get_covariance(&net, i, p, 10), RHONN_OK);
+        CHECK_STATUS(rhonn_set_covariance(&fresh, i, p, 10), RHONN_OK);
+    }
+    sample(40, x, u); /* samples 20..39 never arrived */
+    CHECK_STATUS(rhonn_step(&net, x, u, NULL, y), RHONN_OK);
+    CHECK_STATUS(rhonn_step(&fresh, x, u, NULL, yf), RHONN_OK);
+    after = observe(&net);
+    CHECK(memcmp(before.w, after.w, sizeof before.w) == 0);
+    CHECK(memcmp(before.p, after.p, sizeof before.p) == 0);
+    CHECK(memcmp(y, yf, sizeof y) == 0);
+}
+
+static void health_rejects_bad_arguments(void)
+{
+    rhonn_t net;
+    rhonn_config c = small_config();
+    rhonn_health h;
+    CHECK_STATUS(rhonn_init(&net, &c, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_get_health(&net, 0, NULL), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_get_health(&net, 2, &h), RHONN_E_ARGUMENT);
+    CHECK_STATUS(rhonn_get_health(NULL, 0, &h), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_get_health(&net, 0, &h), RHONN_OK);
+    CHECK(h.updates == 0 && h.trace_p > 39 && h.trace_p < 41);
 }
 
 static void overflowing_covariance_reports_covariance_error(void)
@@ -572,7 +677,10 @@ int main(void)
     RUN(nonfinite_input_leaves_filter_unchanged);
     RUN(invalid_measurement_may_be_nan_and_is_not_learned);
     RUN(learning_off_freezes_weights_and_still_predicts);
-    RUN(indefinite_covariance_reports_innovation_and_keeps_state);
+    RUN(indefinite_covariance_is_refused_by_the_setters_and_by_the_step);
+    RUN(factored_form_tracks_the_full_form);
+    RUN(restart_learns_nothing_on_the_next_step);
+    RUN(health_rejects_bad_arguments);
     RUN(overflowing_covariance_reports_covariance_error);
     RUN(overflowing_prediction_reports_divergence);
     RUN(setters_reject_bad_values);

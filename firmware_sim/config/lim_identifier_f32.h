@@ -28,11 +28,12 @@ static const rhonn_config LIM_IDENTIFIER = {
             .r = 0x1.0c6f7a0000000p-20f,
             .q = {0x1.ad7f2a0000000p-24f, 0x1.ad7f2a0000000p-24f},
             .w0 = {0x0.0p+0f, 0x0.0p+0f},
-            .p0 = {0x1.0000000000000p+0f, 0x0.0p+0f, 0x1.0000000000000p+0f},
+            .p0 = {0x1.9000000000000p+6f, 0x0.0p+0f, 0x1.9000000000000p+6f},
             .terms = {
                 {1, {{1, 0, 0, 1}}},
                 {1, {{1, 1, 0, 1}}},
             },
+            .covariance = RHONN_COV_UD,
         },
         [1] = { /* x2 + S(x2) + S(x1) + S(x3)*S(x6) + S(x4)*S(x5) + S(x3)*S(x5) + S(x4)*S(x6) */
             .n_terms = 7,

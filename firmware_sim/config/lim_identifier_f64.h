@@ -28,11 +28,12 @@ static const rhonn_config LIM_IDENTIFIER = {
             .r = 0x1.0c6f7a0b5ed8dp-20,
             .q = {0x1.ad7f29abcaf48p-24, 0x1.ad7f29abcaf48p-24},
             .w0 = {0x0.0p+0, 0x0.0p+0},
-            .p0 = {0x1.0000000000000p+0, 0x0.0p+0, 0x1.0000000000000p+0},
+            .p0 = {0x1.9000000000000p+6, 0x0.0p+0, 0x1.9000000000000p+6},
             .terms = {
                 {1, {{1, 0, 0, 1}}},
                 {1, {{1, 1, 0, 1}}},
             },
+            .covariance = RHONN_COV_UD,
         },
         [1] = { /* x2 + S(x2) + S(x1) + S(x3)*S(x6) + S(x4)*S(x5) + S(x3)*S(x5) + S(x4)*S(x6) */
             .n_terms = 7,

@@ -1,0 +1,254 @@
+"""The covariance stays a covariance: after every step that returns RHONN_OK
+each committed P_i is positive definite at working precision, in float32
+first (the firmware's precision); the factored U D U^T form runs where the
+full form must refuse; windup protection bounds the gain after a quiet
+stretch; automatic recovery resets a neuron that keeps failing."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pyrhonn import Activation, CovarianceForm, Identifier, IdentifierConfig, IdentifierError, terms
+from pyrhonn.configfile import load_shipped
+from pyrhonn.reference import ReferenceIdentifier
+
+from strategies import configs, trajectory
+
+FULL, UD = CovarianceForm.FULL, CovarianceForm.UD
+
+
+def with_neurons(config: IdentifierConfig, **fields) -> IdentifierConfig:
+    return config.replace(neurons=tuple(replace(nr, **fields) for nr in config.neurons))
+
+
+def snapshot(ident: Identifier) -> tuple:
+    return (tuple(w.tobytes() for w in ident.weights), tuple(P.tobytes() for P in ident.covariances),
+            ident.prediction.tobytes(), ident.steps)
+
+
+def assert_definite(ident: Identifier) -> None:
+    """Cholesky succeeds at the identifier's own precision (numpy keeps float32 in float32)."""
+    for i, P in enumerate(ident.covariances):
+        assert P.dtype == ident.dtype
+        np.testing.assert_array_equal(P, P.T)
+        try:
+            np.linalg.cholesky(P)
+        except np.linalg.LinAlgError:
+            pytest.fail(f"P_{i} is not positive definite at {ident.dtype}: eigenvalues "
+                        f"{np.linalg.eigvalsh(P.astype(np.float64))}")
+
+
+def moving_lim(T: int, dtype: str = "float32") -> tuple[np.ndarray, np.ndarray]:
+    """A LIM already moving at the first sample: q_m = 0.5 + 0.3 t, the rest
+    constant, constant input; 0.3 ms sampling."""
+    t = 0.3e-3 * np.arange(T)
+    X = np.empty((T, 6))
+    X[:, 0] = 0.5 + 0.3 * t
+    X[:, 1:] = [0.3, 0.1, 0.1, 1.0, 1.0]
+    return X.astype(dtype), np.full((T, 2), 10.0, dtype=dtype)
+
+
+def test_example3_in_float32_runs_a_moving_start_with_the_position_neuron_factored() -> None:
+    config = load_shipped("example3").config.replace(dtype="float32")
+    assert config.neurons[0].covariance is UD
+    ident = Identifier(config)
+    X, U = moving_lim(20_000)
+    ident.run(X, U)
+    assert_definite(ident)
+    assert all(h.rejected == 0 for h in ident.healths)
+
+
+def test_the_full_form_refuses_the_update_that_would_leave_p_indefinite_and_commits_nothing() -> None:
+    """The moving start that once committed P_0 = [[26.47, -44.12], [-44.12, 73.53]]
+    (an eigenvalue of -3.6e-6) with RHONN_OK in float32."""
+    config = load_shipped("example3").config.replace(dtype="float32")
+    config = config.replace(neurons=(replace(config.neurons[0], covariance=FULL),) + config.neurons[1:])
+    ident = Identifier(config)
+    X, U = moving_lim(50)
+    refused = None
+    for k in range(50):
+        before = snapshot(ident)
+        try:
+            ident.step(X[k], U[k])
+        except IdentifierError as exc:
+            refused = exc
+            assert snapshot(ident) == before
+            break
+        assert_definite(ident)
+    assert refused is not None and refused.status == "RHONN_E_NOT_PD"
+    assert "neurons[0]" in str(refused) and 'covariance = "ud"' in str(refused)
+    assert ident.health(0).rejected == 1
+
+
+@pytest.mark.parametrize("form", [FULL, UD])
+def test_a_large_p0_with_a_bias_and_no_q_never_commits_a_zero_covariance(form: CovarianceForm) -> None:
+    """P0 = 6.8e6, R = 0.06, Q = 0, a bias term: the full form's cancellation
+    once drove P to exactly 0 with RHONN_OK, and learning stopped silently."""
+    config = IdentifierConfig.uniform(terms.bias(), n_states=1, n_inputs=0, p0=6.8e6, q=0.0, r=0.06,
+                                      covariance=form, dtype="float32")
+    ident = Identifier(config)
+    x = np.array([0.25], dtype=np.float32)
+    for _ in range(200):
+        try:
+            ident.step(x)
+        except IdentifierError as exc:
+            assert form is FULL and exc.status == "RHONN_E_NOT_PD"
+            continue
+        assert ident.get_covariance(0)[0, 0] > 0
+    if form is UD:
+        # RLS without process noise: P shrinks like R / k, never to 0
+        assert 0.06 / 400 < float(ident.get_covariance(0)[0, 0]) < 0.06 / 100
+        assert ident.health(0).rejected == 0
+
+
+def test_a_p0_near_the_float32_limit_is_refused_not_committed_negative() -> None:
+    """P0 near FLT_MAX once gave P00 = -2e31 with RHONN_OK."""
+    config = IdentifierConfig.uniform(terms.first_order(1, 0) + terms.bias(), n_states=1, n_inputs=0,
+                                      p0=3.0e38, q=0.0, r=1.0, dtype="float32")
+    ident = Identifier(config)
+    x = np.array([0.5], dtype=np.float32)
+    ident.step(x)
+    for _ in range(5):
+        with pytest.raises(IdentifierError):
+            ident.step(x)
+        assert_definite(ident)
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+@pytest.mark.parametrize("form", [FULL, UD])
+@settings(max_examples=25, deadline=None)
+@given(config=configs(), seed=st.integers(0, 2**31 - 1), data=st.data())
+def test_after_every_ok_step_every_covariance_is_positive_definite(config: IdentifierConfig, seed: int,
+                                                                   data: st.DataObject, form: CovarianceForm,
+                                                                   dtype: str) -> None:
+    config = with_neurons(config.replace(dtype=dtype), covariance=form)
+    ident = Identifier(config)
+    X, U, valid = trajectory(seed, 60, config.n_states, config.n_inputs, dropout=0.1, dtype=dtype)
+    scale = data.draw(st.sampled_from([1.0, 1e3, 1e-3]))
+    X = np.where(valid, X * np.asarray(scale, dtype=dtype), X)
+    for k in range(60):
+        before = snapshot(ident)
+        try:
+            ident.step(X[k], U[k], valid[k])
+        except IdentifierError:
+            assert snapshot(ident) == before
+            continue
+        assert_definite(ident)
+        for h in ident.healths:
+            assert h.nis >= 0.0
+
+
+@settings(max_examples=20, deadline=None)
+@given(config=configs(), seed=st.integers(0, 2**31 - 1))
+def test_the_factored_form_is_the_same_filter_as_eq7_in_float64(config: IdentifierConfig, seed: int) -> None:
+    """U D U^T (Bierman + Thornton) against the NumPy reference's full P."""
+    config = with_neurons(config, covariance=UD)
+    ident, ref = Identifier(config), ReferenceIdentifier(config)
+    X, U, valid = trajectory(seed, 40, config.n_states, config.n_inputs, dropout=0.1)
+    got = ident.run(X, U, valid)
+    want = ref.run(X, U, valid)
+    np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-8)
+    for P, Pr in zip(ident.covariances, ref.covariances):
+        np.testing.assert_allclose(P, Pr, rtol=1e-7, atol=1e-9 * float(np.max(np.abs(Pr))))
+
+
+@pytest.mark.parametrize("form", [FULL, UD])
+def test_forgetting_and_the_trace_ceiling_follow_the_reference(form: CovarianceForm) -> None:
+    config = IdentifierConfig.uniform(terms.first_order(3, 1) + terms.bias(), n_states=3, n_inputs=1,
+                                      activation=Activation.BIPOLAR, beta=0.5, p0=10.0, q=1e-2, r=0.1,
+                                      covariance=form, forgetting=0.98, p_trace_max=50.0)
+    ident, ref = Identifier(config), ReferenceIdentifier(config)
+    X, U, _ = trajectory(11, 300, 3, 1)
+    U[100:250] = 0.0
+    X[100:250] = X[100]  # a quiet stretch: the ceiling binds
+    np.testing.assert_allclose(ident.run(X, U), ref.run(X, U), rtol=1e-8, atol=1e-10)
+    for P, Pr in zip(ident.covariances, ref.covariances):
+        np.testing.assert_allclose(P, Pr, rtol=1e-7, atol=1e-9)
+    assert all(h.bounded > 0 for h in ident.healths)
+    assert all(float(np.trace(P)) <= 50.0 * (1 + 1e-12) for P in ident.covariances)
+
+
+def example1_windup_run(quiet: int, protect: bool) -> float:
+    """Example 1 (eq. 20 tuning) in float32: `quiet` samples of a plant at
+    rest under a constant input, then 1,000 excited samples; the largest
+    weight change of one step among those 1,000."""
+    config = load_shipped("example1").config.replace(dtype="float32")
+    if protect:
+        trace0 = [float(np.trace(nr.p0_matrix())) for nr in config.neurons]
+        config = config.replace(neurons=tuple(replace(nr, p_trace_max=t) for nr, t in zip(config.neurons, trace0)))
+    ident = Identifier(config)
+    X, U, _ = trajectory(7, 1100, 4, 1, dtype="float32")
+    ident.run(X[:100], U[:100])  # learnt a little first
+    if quiet:
+        ident.run(np.repeat(X[99:100], quiet, axis=0), np.repeat(U[99:100], quiet, axis=0))
+    largest = 0.0
+    w = np.concatenate(ident.weights)
+    for k in range(100, 1100):
+        ident.step(X[k], U[k])
+        w_new = np.concatenate(ident.weights)
+        largest = max(largest, float(np.max(np.abs(w_new - w))))
+        w = w_new
+    return largest
+
+
+def test_windup_protection_keeps_the_first_excited_steps_as_calm_as_without_a_quiet_stretch() -> None:
+    reference = example1_windup_run(quiet=0, protect=True)
+    protected = example1_windup_run(quiet=1_000_000, protect=True)
+    unprotected = example1_windup_run(quiet=1_000_000, protect=False)
+    assert protected <= 2.0 * reference
+    assert unprotected > 4.0 * protected  # the burst the ceiling removes
+
+
+@pytest.mark.parametrize("form", [FULL, UD])
+def test_reset_after_replaces_the_nth_refusal_in_a_row_by_a_covariance_reset(form: CovarianceForm) -> None:
+    config = IdentifierConfig.uniform(terms.first_order(2, 1), n_states=2, n_inputs=1, p0=10.0, q=1e-3, r=0.1,
+                                      covariance=form, reset_after=3, dtype="float32")
+    ident = Identifier(config)
+    X, U, _ = trajectory(2, 30, 2, 1, dtype="float32")
+    ident.run(X[:20], U[:20])
+    big = np.finfo(np.float32).max / 4
+    bad = np.array([big, X[20, 1]], dtype=np.float32)  # neuron 0's update overflows
+    w0 = ident.get_weights(0)
+    for failures in (1, 2):
+        with pytest.raises(IdentifierError):
+            ident.step(bad, U[20])
+        assert ident.health(0).fail_run == failures
+    ident.step(bad, U[20])  # the third refusal in a row: P_0 back to P0, weights kept, step goes on
+    h = ident.health(0)
+    assert (h.resets, h.rejected, h.fail_run) == (1, 3, 0)
+    np.testing.assert_array_equal(ident.get_weights(0), w0)
+    np.testing.assert_allclose(ident.get_covariance(0), 10.0 * np.eye(3), rtol=0, atol=0)
+    assert ident.health(1).updates == 20
+
+
+def test_protection_fields_are_validated_with_the_field_named() -> None:
+    base = dict(terms=terms.first_order(1, 0), p0=4.0)
+    from pyrhonn import NeuronConfig
+
+    for kwargs, field in [(dict(forgetting=0.0), "forgetting"), (dict(forgetting=1.5), "forgetting"),
+                          (dict(forgetting=float("nan")), "forgetting"), (dict(p_trace_max=3.9), "p_trace_max"),
+                          (dict(p_trace_max=-1.0), "p_trace_max"), (dict(reset_after=-1), "reset_after"),
+                          (dict(reset_after=70000), "reset_after"), (dict(reset_after=1.0), "reset_after"),
+                          (dict(covariance="ud"), "covariance")]:
+        with pytest.raises(ValueError, match=rf"^{field}"):
+            NeuronConfig(**base, **kwargs)
+
+
+def test_the_firmware_lim_position_neuron_runs_with_p0_100_and_r_1e_6_in_float32() -> None:
+    config = load_shipped("firmware-lim").config
+    position = config.neurons[0]
+    assert config.dtype == "float32"
+    assert (position.covariance, float(position.p0), position.r) == (UD, 100.0, 1e-6)
+    ident = Identifier(config)
+    X, U = moving_lim(20_000)
+    ident.run(X, U)
+    assert_definite(ident)
+    assert all(h.rejected == 0 for h in ident.healths)
+    # eq. 7 as written cannot: the moving start makes [q_m, v]'s P indefinite at once
+    full = Identifier(config.replace(neurons=(replace(position, covariance=FULL),) + config.neurons[1:]))
+    with pytest.raises(IdentifierError, match="RHONN_E_NOT_PD"):
+        full.run(X, U)
