@@ -210,6 +210,28 @@ def test_health_frames_follow_every_diagnostics_frame_with_the_cores_health() ->
         assert h.trace_p is not None and h.trace_p > 0 and h.nis is not None and h.nis >= 0
 
 
+def _trace_p0(neuron) -> float:
+    p0 = np.asarray(neuron.p0, dtype=np.float64)
+    return float(np.trace(p0)) if p0.ndim == 2 else float(np.sum(np.broadcast_to(p0, (neuron.n_terms,))))
+
+
+def test_health_frames_carry_the_bounded_covariance_count_of_a_trace_ceiling() -> None:
+    # forgetting inflates P_i each step; the ceiling scales it back: "bounded" counts it
+    config = CONFIG.replace(neurons=tuple(dataclasses.replace(n, forgetting=0.9, p_trace_max=1.5 * _trace_p0(n))
+                                          for n in CONFIG.neurons))
+    app = FirmwareApp(None, config)
+    ref = Identifier(config)
+    for t in range(60):
+        msg = _frame(t, t)
+        app.handle(msg)
+        ref.step(*_decoded(msg))
+    _, health = _diag_and_health(app.send_diagnostics())
+    assert sum(h.bounded for h in health) > 0
+    for i, h in enumerate(health):
+        want = ref.health(i)
+        assert (h.bounded, h.resets, h.updates, h.trace_p) == (want.bounded, want.resets, want.updates, want.trace_p)
+
+
 def test_a_health_value_that_does_not_fit_is_flagged_saturated_never_sent_as_a_value() -> None:
     # P0 = 3e38 I: trace P_i = L 3e38 overflows float32 to inf
     config = CONFIG.replace(neurons=tuple(dataclasses.replace(n, p0=3e38) for n in CONFIG.neurons))
