@@ -4,7 +4,7 @@
   while the rig sends more than its small receive queue holds; after SIGCONT
   the kernel's SO_RXQ_OVFL count reaches the firmware (RxDrops), the Seq
   gap is counted as lost frames, and every frame sent is accounted for:
-  sent = accepted + lost + rejected Seq jumps, the lost ones being exactly
+  sent = accepted + lost + rejected Seq jumps, the lost ones being among
   the kernel's drops. On udp_multicast here; on SocketCAN (vcan0) in the VM
   tier.
 - Only datagrams addressed to the multicast group reach the firmware: a
@@ -147,7 +147,8 @@ def test_frames_the_kernel_drops_while_the_runner_is_stopped_are_counted_and_eve
         rig.close()
         stats, out = _stop(proc, report)
     assert stats["rx_drops"] > 0, stats
-    assert stats["lost_frames"] == stats["rx_drops"], "every lost frame here was a kernel drop"
+    # every lost Measurement here was a kernel drop (the runner's own frames handed back may be dropped too)
+    assert 0 < stats["lost_frames"] <= stats["rx_drops"]
     assert sent == stats["measurements"] + stats["lost_frames"] + stats["rejected_seq_jump"] + \
         stats["rejected_seq_repeat"]
     assert stats["rejected_seq_jump"] == stats["seq_gaps"] == stats["restarts"] >= 1
