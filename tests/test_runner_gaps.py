@@ -151,7 +151,8 @@ def test_frames_the_kernel_drops_while_the_runner_is_stopped_are_counted_and_eve
     assert 0 < stats["lost_frames"] <= stats["rx_drops"]
     assert sent == stats["measurements"] + stats["lost_frames"] + stats["rejected_seq_jump"] + \
         stats["rejected_seq_repeat"]
-    assert stats["rejected_seq_jump"] == stats["seq_gaps"] == stats["restarts"] >= 1
+    # one rejection per gap; a restart per gap unless two gaps come back to back
+    assert stats["rejected_seq_jump"] == stats["seq_gaps"] >= stats["restarts"] >= 1
     assert stats["measurements"] < sent - 500  # the queue held only a few of the burst
     assert f"kernel drops {stats['rx_drops']}" in out and f"lost {stats['lost_frames']} in" in out
 
