@@ -8,7 +8,7 @@ bound, serves until SIGTERM/SIGINT or ``--duration``, then prints one JSON
 line: the firmware's counters and cyclictest-style statistics of its own side
 (interval between Measurement arrivals, handling time per frame).
 udp_multicast hands a sender its own frames back, so frames with the
-firmware's own identifiers (Estimate, ControlAck, Diagnostics) are skipped.
+firmware's own identifiers (Estimate, ControlAck, Diagnostics, Health) are skipped.
 """
 from __future__ import annotations
 
@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"firmware_node: cannot open {args.interface} {args.channel}: {exc}", file=sys.stderr)
         return 2
     app = FirmwareApp(bus, lim_config())
-    own = {v for k, v in ids().items() if k in ("Estimate", "ControlAck", "Diagnostics")}
+    own = {v for k, v in ids().items() if k in ("Estimate", "ControlAck", "Diagnostics", "Health")}
     meas_id = ids()["Measurement"]
     stop = False
 

@@ -73,7 +73,8 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
     fw = report.get("firmware")
     if fw:
         lines.append(f"{'firmware (Diagnostics)':<22}measurements {fw['measurements']}  rejected {fw['rejected']}  "
-                     f"seq errors {fw['seq_errors']}  overruns {fw['overruns']}  step max {fw['step_time_max_us']:.1f} us")
+                     f"seq errors {fw['seq_errors']}  lost {fw['lost_frames']}  kernel drops {fw['rx_drops']}  "
+                     f"overruns {fw['overruns']}  step max {fw['step_time_max_us']:.1f} us")
     ident = report.get("identification")
     if ident:
         lines += ["", f"{'identification':<22}{'RMSE':>11}{'abs. dev.':>11}{'Table 7':>11}{'Table 7':>11}"

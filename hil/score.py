@@ -185,6 +185,8 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
               "measurements": (b["Measurements"] - a["Measurements"]) & 0xFFFFFFFF,
               "step_errors": (b["StepErrors"] - a["StepErrors"]) & 0xFFFF,
               "overruns": (b["Overruns"] - a["Overruns"]) & 0xFFFF,
+              "lost_frames": (b["LostFrames"] - a["LostFrames"]) & 0xFFFFFFFF,
+              "rx_drops": (b["RxDrops"] - a["RxDrops"]) & 0xFFFFFFFF,
               "step_time_max_us": b["StepTimeMax"], "last_step_time_us": b["StepTime"]}
         out["firmware"] = fw
         n_foreign = sum(foreign.values())
@@ -321,8 +323,8 @@ def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndar
                      raw: np.ndarray) -> dict:
     """Identifier.run (float32) on the decoded frames the firmware accepted
     (every sent frame but the Seq jumps: it steps on them whether or not
-    their estimate reached the rig), scaled as the DBC, compared on the
-    answered ones."""
+    their estimate reached the rig), restarted at every gap as the firmware
+    does, scaled as the DBC, compared on the answered ones."""
     from pyrhonn import Identifier
     from pyrhonn.firmware import INPUT_SIGNALS, STATE_SIGNALS, VALID_SIGNALS, database
 
@@ -339,7 +341,13 @@ def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndar
         X[i] = [d[s] for s in STATE_SIGNALS]
         U[i] = [d[s] for s in INPUT_SIGNALS]
         V[i] = [bool(d[s]) for s in VALID_SIGNALS]
-    xhat = Identifier(config).run(X, U, V)
+    # the firmware restarts its identifier on the first frame it accepts after a gap (no learning across it)
+    ident, parts = Identifier(config), []
+    for i, seg in enumerate(np.split(np.arange(ks.size), np.flatnonzero(np.diff(ks) > 1) + 1)):
+        if i:
+            ident.restart()
+        parts.append(ident.run(X[seg], U[seg], V[seg]))
+    xhat = np.concatenate(parts)
     on = answered[ks]
     ks, xhat = ks[on], xhat[on]
     want = np.empty_like(raw[ks])

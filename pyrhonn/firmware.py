@@ -17,10 +17,12 @@ SocketCAN is absent::
     replies = app.handle(msg)            # one frame in, the frames the firmware sends out
 
 The rig's side of the protocol (encode a measurement, decode an estimate,
-control and weight-transfer frames) is here too, on cantools and the DBC
-embedded in the extension at build time: :func:`database`,
-:func:`measurement_message`, :func:`decode_estimate`,
-:func:`control_message`, :func:`weight_load_messages`. Bit-rate figures of
+control and weight-transfer frames, the Diagnostics and per-neuron Health
+frames) is here too, on cantools and the DBC embedded in the extension at
+build time: :func:`database`, :func:`measurement_message`,
+:func:`decode_estimate`, :func:`control_message`,
+:func:`weight_load_messages`, :func:`decode_diagnostics`,
+:func:`decode_health`. Bit-rate figures of
 the design come from :func:`fd_frame_bits` and :func:`cycle_bus_time`.
 
 Control and WeightLoad frames are authenticated as AUTOSAR SecOC does
@@ -52,6 +54,7 @@ __all__ = [
     "Estimate",
     "FirmwareApp",
     "FirmwareError",
+    "Health",
     "INPUT_SIGNALS",
     "SECOC_ENABLED",
     "STATE_SIGNALS",
@@ -62,7 +65,9 @@ __all__ = [
     "control_message",
     "cycle_bus_time",
     "database",
+    "decode_diagnostics",
     "decode_estimate",
+    "decode_health",
     "fd_frame_bits",
     "measurement_message",
     "status_name",
@@ -86,7 +91,7 @@ _COUNTERS = ("frames_in", "frames_out", "rejected", "rejected_unknown_id", "reje
              "rejected_seq_repeat", "rejected_seq_jump", "rejected_state", "rejected_weights", "measurements",
              "step_errors", "commands", "weight_chunks", "hal_errors", "overruns", "cycle_time_ns", "step_time_ns",
              "step_time_max_ns", "step_time_worst_ns", "last_reject", "last_step_status", "rejected_auth",
-             "rejected_freshness")
+             "rejected_freshness", "lost_frames", "seq_gaps", "restarts", "rx_drops")
 
 
 class FirmwareError(ValueError):
@@ -222,6 +227,49 @@ def decode_estimate(msg: can.Message, *, scaling: bool = True) -> Estimate:
     return Estimate(seq=int(d["Seq"]), step_status=int(d["StepStatus"]), learning=bool(d["Learning"]),
                     saturated=bool(d["Saturated"]), resync=bool(d["Resync"]),
                     xhat=np.array([d[s] for s in ESTIMATE_SIGNALS], dtype=np.float64 if scaling else np.int64))
+
+
+def decode_diagnostics(msg: can.Message) -> dict[str, int | float]:
+    """Decode a Diagnostics frame into its signals (times in us, the rest
+    as integers; ValueError for any other frame)."""
+    m = database().get_message_by_name("Diagnostics")
+    if msg.arbitration_id != m.frame_id or msg.is_extended_id:
+        raise ValueError(f"msg: not a Diagnostics frame (id 0x{msg.arbitration_id:x})")
+    d = m.decode(bytes(msg.data), decode_choices=False)
+    return {k: (float(v) if k in ("CycleTime", "StepTime", "StepTimeMax") else int(v)) for k, v in d.items()}
+
+
+@dataclass(frozen=True)
+class Health:
+    """A decoded Health frame: the filter health of one neuron, as the
+    firmware's rhonn_get_health gave it. ``innovation``, ``nis`` and
+    ``trace_p`` are None when the firmware flagged the value as saturated
+    (it did not fit the frame's float32): a limit, not a measurement."""
+
+    neuron: int
+    innovation: float | None
+    nis: float | None
+    trace_p: float | None
+    updates: int
+    rejected: int
+    resets: int
+    bounded: int
+    fail_run: int
+
+
+def decode_health(msg: can.Message) -> Health:
+    """Decode a Health frame (ValueError for any other frame)."""
+    m = database().get_message_by_name("Health")
+    if msg.arbitration_id != m.frame_id or msg.is_extended_id:
+        raise ValueError(f"msg: not a Health frame (id 0x{msg.arbitration_id:x})")
+    d = m.decode(bytes(msg.data), decode_choices=False)
+
+    def value(name: str) -> float | None:
+        return None if d[f"{name}Sat"] else float(d[name])
+
+    return Health(neuron=int(d["Neuron"]), innovation=value("Innovation"), nis=value("Nis"),
+                  trace_p=value("TraceP"), updates=int(d["Updates"]), rejected=int(d["Rejected"]),
+                  resets=int(d["Resets"]), bounded=int(d["Bounded"]), fail_run=int(d["FailRun"]))
 
 
 def _secured(name: str, values: dict[str, Any], sender: SecOCSender, *, strict: bool = True) -> can.Message:
@@ -467,12 +515,21 @@ class FirmwareApp:
         return handled
 
     def send_diagnostics(self) -> list[can.Message]:
-        """A Diagnostics frame now (returned, not sent)."""
+        """A Diagnostics frame now, followed by one Health frame per neuron
+        (returned, not sent)."""
         self._check(_lib.fw_app_send_diagnostics(self._app), "send_diagnostics")
         return self._drain()
 
     def note_overrun(self) -> None:
         self._check(_lib.fw_app_note_overrun(self._app), "note_overrun")
+
+    def note_rx_drops(self, dropped: int) -> None:
+        """Count frames the platform's receive queue dropped (``dropped`` in
+        0..2**32-1), as the Linux runner does with the kernel's SO_RXQ_OVFL
+        count."""
+        if isinstance(dropped, bool) or not isinstance(dropped, (int, np.integer)) or not 0 <= dropped < 2 ** 32:
+            raise ValueError(f"dropped: expected an integer in 0..{2 ** 32 - 1}, got {dropped!r}")
+        self._check(_lib.fw_app_note_rx_drops(self._app, int(dropped)), "note_rx_drops")
 
     # -- looking inside -----------------------------------------------------------------------
 

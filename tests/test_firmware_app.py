@@ -315,8 +315,9 @@ def test_control_frames_on_a_live_bus_with_the_app_serving_from_a_thread() -> No
                 d = ack(call(firmware.control_message("WeightsCommit", 4, sender=tx), 1), "WeightsCommit", 4)
                 assert d["Result"] == 0 and d["Missing"] == 0
             if t == 120:
-                replies = call(firmware.control_message("DiagRequest", 5, sender=tx), 2)
+                replies = call(firmware.control_message("DiagRequest", 5, sender=tx), 2 + 6)  # and one Health per neuron
                 assert ack(replies, "DiagRequest", 5)["Result"] == 0
+                assert [firmware.decode_health(r).neuron for r in replies[2:]] == list(range(6))
                 diag = DB.decode_message("Diagnostics", bytes(replies[1].data), decode_choices=False)
                 assert diag["Measurements"] == 120 and diag["LastSeq"] == 119 and diag["Rejected"] == 0
                 assert diag["Synced"] == 1 and diag["Learning"] == 1 and diag["Started"] == 1
@@ -354,7 +355,8 @@ def test_diagnostics_on_a_simulated_clock() -> None:
         app.clock_ns = t * 300_000
         out = app.handle_frame(0x100, bytes(msg.data), now_ns=t * 300_000)
         assert out[0].arbitration_id == EST.frame_id
-        diags += [DB.decode_message("Diagnostics", bytes(m.data), decode_choices=False) for m in out[1:]]
+        diags += [DB.decode_message("Diagnostics", bytes(m.data), decode_choices=False) for m in out[1:]
+                  if m.arbitration_id == DB.get_message_by_name("Diagnostics").frame_id]
         if t == 30:
             app.handle(firmware.control_message(99, sender=firmware.SecOCSender(firmware.TEST_KEY)))  # out of range
     assert [d["Counter"] for d in diags] == [0, 1]
@@ -363,7 +365,8 @@ def test_diagnostics_on_a_simulated_clock() -> None:
     assert d["StepTime"] == pytest.approx(5.0) and d["StepTimeMax"] == pytest.approx(5.0)
     assert d["Overruns"] == 50 and d["Rejected"] == 1 and d["LastReject"] == int(firmware._lib.FW_E_RANGE)
     app.note_overrun()
-    (extra,) = app.send_diagnostics()
+    extra, *health = app.send_diagnostics()
+    assert [firmware.decode_health(h).neuron for h in health] == list(range(6))
     e = DB.decode_message("Diagnostics", bytes(extra.data), decode_choices=False)
     assert e["Counter"] == 2 and e["Overruns"] == 61 and e["StepTimeMax"] == pytest.approx(5.0)
     assert app.counters["step_time_worst_ns"] == 5_000 and math.isclose(app.counters["cycle_time_ns"], 300_000)

@@ -81,7 +81,7 @@ def test_extension_embeds_the_repository_dbc() -> None:
 
 def test_messages_are_can_fd_with_11_bit_ids_and_fd_lengths() -> None:
     names = {m.name: m for m in DB.messages}
-    assert set(names) == {"Measurement", "Estimate", "Control", "ControlAck", "WeightLoad", "Diagnostics"}
+    assert set(names) == {"Measurement", "Estimate", "Control", "ControlAck", "WeightLoad", "Diagnostics", "Health"}
     assert len({m.frame_id for m in DB.messages}) == len(DB.messages)
     for m in DB.messages:
         assert m.is_fd and not m.is_extended_frame and m.frame_id <= 0x7FF, m.name

@@ -29,6 +29,7 @@ from pyrhonn import Identifier  # noqa: E402
 from pyrhonn import firmware  # noqa: E402
 from pyrhonn.cli import main as pyrhonn_main  # noqa: E402
 
+from hil import report  # noqa: E402
 from hil.rig import BusLost, FirmwareTimeout, LogWriteError, Rig, read_log, write_log  # noqa: E402
 from hil.scenario import ENCODER_SENC50, Scenario  # noqa: E402
 from hil.score import score  # noqa: E402
@@ -43,7 +44,8 @@ SCENARIO = Scenario(duration=0.45, start=0.9, input_start=1.0, frame_loss=0.02, 
 
 def _independent_bit_exact(rec) -> int:
     """Not hil.score's check: pair the logged frames by Seq here and run the
-    offline identifier on the Measurements that were answered."""
+    offline identifier on the Measurements that were answered, restarted
+    where the Seq breaks."""
     sent, answers = {}, {}
     for _, d, m in rec.events:
         if d == "tx" and m.arbitration_id == MEAS.frame_id and len(m.data) == MEAS.length:
@@ -58,7 +60,14 @@ def _independent_bit_exact(rec) -> int:
         X.append([d[n] for n in firmware.STATE_SIGNALS])
         U.append([d[n] for n in firmware.INPUT_SIGNALS])
         V.append([bool(d[n]) for n in firmware.VALID_SIGNALS])
-    xhat = Identifier(lim_config()).run(np.array(X, np.float32), np.array(U, np.float32), np.array(V, bool))
+    X, U, V = np.array(X, np.float32), np.array(U, np.float32), np.array(V, bool)
+    # a Seq that does not follow the last answered one: the firmware restarted its identifier there
+    ident, parts = Identifier(lim_config()), []
+    for i, seg in enumerate(np.split(np.arange(len(seqs)), np.flatnonzero(np.diff(seqs) != 1) + 1)):
+        if i:
+            ident.restart()
+        parts.append(ident.run(X[seg], U[seg], V[seg]))
+    xhat = np.concatenate(parts)
     for j, name in enumerate(firmware.ESTIMATE_SIGNALS):
         sig = EST.get_signal_by_name(name)
         lo, hi = int(sig.scaled_to_raw(sig.minimum)), int(sig.scaled_to_raw(sig.maximum))
@@ -132,6 +141,10 @@ def test_estimates_over_the_bus_are_identifier_run_bit_for_bit_and_every_lost_fr
     assert f["duplicates"] == f["unexpected"] == f["step_errors"] == 0
     assert r["firmware"]["rejected"] == r["firmware"]["seq_errors"] == f["rejected_seq_jump"]
     assert r["firmware"]["measurements"] == f["answered"]
+    # the firmware counts every injected loss a later frame revealed (none before its first frame or after its last)
+    lead, trail = int(np.argmax(~plan.lost)), int(np.argmax(~plan.lost[::-1]))
+    assert r["firmware"]["lost_frames"] == n_lost - lead - trail and r["firmware"]["rx_drops"] == 0
+    assert f"lost {n_lost - lead - trail}  kernel drops 0" in report.table(r)
     assert f["accounted"]
     assert r["bit_exact"] == {"checked": f["answered"], "mismatches": 0, "equal": True, "first_mismatch_cycle": None}
     assert _independent_bit_exact(rec) == f["answered"]

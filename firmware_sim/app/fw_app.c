@@ -7,6 +7,7 @@
 
 #include "fw_secoc_key.h"
 #include "rhonn_id.h"
+#include "rhonn_id_limits.h"
 
 #define FW_APP_MAGIC 0x46574150u /* "FWAP" */
 
@@ -40,6 +41,11 @@ FW_STATIC_ASSERT(diag_table,
                  RHONN_ID_DIAGNOSTICS_LAST_REJECT_EMPTY_CHOICE == RHONN_ID_CONTROL_ACK_RESULT_EMPTY_CHOICE);
 /* Estimate.StepStatus carries rhonn_status in 4 bits. */
 FW_STATIC_ASSERT(step_status, RHONN_E_VALUE == RHONN_ID_ESTIMATE_STEP_STATUS_VALUE_CHOICE && RHONN_E_VALUE <= 15);
+FW_STATIC_ASSERT(step_status_not_pd, RHONN_E_NOT_PD == RHONN_ID_ESTIMATE_STEP_STATUS_NOT_PD_CHOICE &&
+                                         RHONN_E_NOT_PD == RHONN_ID_DIAGNOSTICS_STEP_STATUS_NOT_PD_CHOICE &&
+                                         RHONN_E_NOT_PD <= 15);
+/* One Health frame per neuron, indexed by Health.Neuron. */
+FW_STATIC_ASSERT(health_neurons, FW_N_STATES - 1u == RHONN_ID_HEALTH_NEURON_RAW_MAX);
 FW_STATIC_ASSERT(frame_sizes,
                  RHONN_ID_WEIGHT_LOAD_LENGTH <= FW_MAX_FRAME_LEN && RHONN_ID_MEASUREMENT_LENGTH <= FW_MAX_FRAME_LEN);
 FW_STATIC_ASSERT(missing_fits, RHONN_MAX_STATES * RHONN_MAX_TERMS <= 65535);
@@ -192,14 +198,31 @@ static fw_status on_measurement(fw_app *app, const uint8_t *data, size_t len, ui
         return reject(app, st);
     }
     if (app->anchored) {
-        if (m.seq == app->last_seq) {
+        /* d = Seq - last mod 65536: 1 continues, 0 repeats, 2..32768 skipped
+         * d - 1 frames, above that the counter went back (see fw_app.h). */
+        uint16_t d = (uint16_t)(m.seq - app->last_seq);
+        if (d == 0u) {
             return reject(app, FW_E_SEQ_REPEAT);
         }
-        if (m.seq != (uint16_t)(app->last_seq + 1u)) {
+        if (d != 1u) {
+            if (d <= 0x8000u) {
+                c->lost_frames += (uint32_t)d - 1u;
+                ++c->seq_gaps;
+            }
             app->last_seq = m.seq; /* re-anchor: the next consecutive frame is accepted */
             app->resync = 1;
             return reject(app, FW_E_SEQ_JUMP);
         }
+    }
+    /* After a break, x_hat(k) was predicted for a sample that never came:
+     * learning this one against it (eq. 9) would train on a wrong error.
+     * Restart: this step learns nothing and refills the delayed taps. A
+     * filter that never stepped since init/Reset is in that state already. */
+    if (app->resync && app->started) {
+        if (rhonn_restart(&app->net) != RHONN_OK) {
+            return reject(app, FW_E_STATE); /* not reached: the app holds an initialised identifier */
+        }
+        ++c->restarts;
     }
 
     /* Accepted: exactly one step. */
@@ -471,6 +494,59 @@ fw_status fw_app_poll(fw_app *app, uint32_t max_frames, uint32_t *handled)
     return st;
 }
 
+/* The range of Health's float32 signals in the DBC. */
+#define FW_HEALTH_LIMIT 3.4e38f
+
+/* A health value as Health's float32 signal: one outside the signal's
+ * range (+-3.4e38, infinities included) or NaN goes out as the nearest
+ * limit (0 for NaN) with its Sat flag set, never as a measurement. */
+static float health_value(rhonn_real v, uint8_t *sat)
+{
+    if (v != v) {
+        *sat = 1;
+        return 0.0f;
+    }
+    if (v > (rhonn_real)FW_HEALTH_LIMIT || v < -(rhonn_real)FW_HEALTH_LIMIT) {
+        *sat = 1;
+        return v > 0 ? FW_HEALTH_LIMIT : -FW_HEALTH_LIMIT;
+    }
+    *sat = 0;
+    return (float)v;
+}
+
+/* One Health frame per neuron. */
+static fw_status send_health(fw_app *app)
+{
+    struct rhonn_id_health_t h;
+    uint8_t frame[RHONN_ID_HEALTH_LENGTH];
+    rhonn_health nh;
+    fw_status st = FW_OK;
+    uint8_t i;
+
+    for (i = 0; i < app->n_states; ++i) {
+        if (rhonn_get_health(&app->net, i, &nh) != RHONN_OK) {
+            return FW_E_STATE; /* not reached: i < n_states of an initialised identifier */
+        }
+        (void)rhonn_id_health_init(&h);
+        h.neuron = i;
+        h.innovation = health_value(nh.innovation, &h.innovation_sat);
+        h.nis = health_value(nh.nis, &h.nis_sat);
+        h.trace_p = health_value(nh.trace_p, &h.trace_p_sat);
+        h.fail_run = nh.fail_run;
+        h.updates = nh.updates;
+        h.rejected = nh.rejected;
+        h.resets = nh.resets;
+        h.bounded = nh.bounded;
+        if (rhonn_id_health_pack(frame, &h, sizeof frame) != (int)RHONN_ID_HEALTH_LENGTH) {
+            return FW_E_LENGTH; /* not reached */
+        }
+        if (send_frame(app, RHONN_ID_HEALTH_FRAME_ID, frame, (uint8_t)RHONN_ID_HEALTH_LENGTH) != FW_OK) {
+            st = FW_E_HAL;
+        }
+    }
+    return st;
+}
+
 fw_status fw_app_send_diagnostics(fw_app *app)
 {
     struct rhonn_id_diagnostics_t d;
@@ -502,10 +578,15 @@ fw_status fw_app_send_diagnostics(fw_app *app)
     d.synced = app->anchored;
     d.measurements = c->measurements;
     d.seq_errors = (uint16_t)((c->rejected_seq_repeat + c->rejected_seq_jump) & 0xFFFFu);
+    d.lost_frames = c->lost_frames;
+    d.rx_drops = c->rx_drops;
     if (rhonn_id_diagnostics_pack(frame, &d, sizeof frame) != (int)RHONN_ID_DIAGNOSTICS_LENGTH) {
         return FW_E_LENGTH; /* not reached */
     }
     st = send_frame(app, RHONN_ID_DIAGNOSTICS_FRAME_ID, frame, (uint8_t)RHONN_ID_DIAGNOSTICS_LENGTH);
+    if (send_health(app) != FW_OK) {
+        st = FW_E_HAL;
+    }
     app->diag_counter = (uint8_t)(app->diag_counter + 1u);
     app->since_diag = 0;
     app->counters.step_time_max_ns = 0;
@@ -521,6 +602,18 @@ fw_status fw_app_note_overrun(fw_app *app)
         return FW_E_NOT_INIT;
     }
     ++app->counters.overruns;
+    return FW_OK;
+}
+
+fw_status fw_app_note_rx_drops(fw_app *app, uint32_t dropped)
+{
+    if (app == NULL) {
+        return FW_E_NULL;
+    }
+    if (!app_ready(app)) {
+        return FW_E_NOT_INIT;
+    }
+    app->counters.rx_drops += dropped; /* wraps, as the other totals */
     return FW_OK;
 }
 

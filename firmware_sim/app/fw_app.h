@@ -12,8 +12,9 @@
  *                by a ControlAck
  *   WeightLoad   indexed chunk of the staged weights (applied on commit)
  *
- * and sends a Diagnostics frame every diag_period accepted measurements.
- * The messages are those of firmware_sim/rhonn_id.dbc.
+ * and sends a Diagnostics frame every diag_period accepted measurements,
+ * each followed by one Health frame per neuron (rhonn_get_health). The
+ * messages are those of firmware_sim/rhonn_id.dbc.
  *
  * REJECTION. A frame with an unknown identifier, a length other than the
  * DBC's, a signal outside its DBC range, a sequence counter that repeats or
@@ -37,8 +38,31 @@
  * with any Seq (Estimate.Resync = 1). After that a Measurement must carry
  * last + 1 (mod 65536). Seq == last is a repeat (rejected). Anything else is
  * a jump: rejected, and the counter is re-anchored at the jumped value, so
- * the next consecutive frame is accepted again (with Resync = 1). A lost
- * frame therefore costs one more frame; a random stream is never accepted.
+ * the next consecutive frame is accepted again (with Resync = 1). A random
+ * stream is never accepted.
+ *
+ * GAPS. The filter never learns a sample against a prediction made for
+ * another one: the first Measurement accepted after a jump restarts the
+ * identifier (rhonn_restart: weights, covariances, learning switch and
+ * x_hat kept; that step learns nothing and refills the delayed taps with its
+ * own sample) and says Resync = 1. The frame that reveals the gap is
+ * rejected, as any jump: it alone could be a stray or stale frame, and the
+ * rig's accounting (one rejection per gap, then answers again) stays as it
+ * was. So a gap costs the lost frames plus one.
+ *
+ * LOST FRAMES. A jump d = Seq - last (mod 65536) with 2 <= d <= 32768 is a
+ * forward gap: d - 1 frames were lost (lost_frames += d - 1, seq_gaps += 1),
+ * also across the wrap 65535 -> 0. A repeat (d = 0) or a backward jump
+ * (d > 32768: a reordered or late frame, a restarted sender) loses nothing
+ * and counts only as a rejection; a gap of more than 32767 frames (9.8 s at
+ * 0.3 ms) cannot be told from a backward jump and is counted as one. The
+ * platform adds the frames its receive queue dropped (fw_app_note_rx_drops,
+ * e.g. the kernel's SO_RXQ_OVFL count): rx_drops. A dropped Measurement is
+ * also in lost_frames once a later one reveals its gap, so on a link that
+ * loses nothing else lost_frames == rx_drops, and every Measurement sent is
+ * accepted, lost, or rejected: sent = measurements + lost_frames +
+ * rejected_seq_repeat + rejected_seq_jump (for a well-formed stream; plus
+ * drops at the very end of a stream, which no later frame has revealed yet).
  *
  * TIMING. now_ns is the frame's reception time on the HAL's monotonic clock.
  * CycleTime is the time between two accepted measurements; StepTime runs
@@ -107,6 +131,10 @@ typedef struct {
     uint8_t last_step_status;   /* rhonn_status of the last step */
     uint32_t rejected_auth;     /* command frames whose MAC did not verify */
     uint32_t rejected_freshness;/* command frames replayed, stale or too far ahead */
+    uint32_t lost_frames;       /* Measurements the Seq skipped (forward gaps; see LOST FRAMES) */
+    uint32_t seq_gaps;          /* forward gaps seen (each also in rejected_seq_jump) */
+    uint32_t restarts;          /* identifier restarts after a jump (rhonn_restart) */
+    uint32_t rx_drops;          /* frames the platform's receive queue dropped (fw_app_note_rx_drops) */
 } fw_counters;
 
 /* The application. Caller-owned (static on a target); treat the fields as
@@ -163,6 +191,10 @@ fw_status fw_app_send_diagnostics(fw_app *app);
 
 /* Count one overrun detected by the platform (e.g. a late loop wake-up). */
 fw_status fw_app_note_overrun(fw_app *app);
+
+/* Count frames the platform's receive queue dropped before the application
+ * saw them (e.g. the increase of the kernel's SO_RXQ_OVFL count). */
+fw_status fw_app_note_rx_drops(fw_app *app, uint32_t dropped);
 
 /* Copy the counters. */
 fw_status fw_app_get_counters(const fw_app *app, fw_counters *out);

@@ -16,10 +16,12 @@
  * Besides crashes and sanitizer reports (build with
  * -fsanitize=fuzzer,address,undefined), the target aborts when a frame the
  * application REJECTS changes the identifier in any byte: rejection must
- * leave the filter untouched. With authentication on (FW_SECOC), it also
- * aborts when a Control or WeightLoad frame the harness did not secure gets
- * past the authentication (any status but FW_E_LENGTH, FW_E_AUTH,
- * FW_E_FRESHNESS) or moves the freshness value: only the key holder commands.
+ * leave the filter untouched. It aborts when the first Measurement accepted
+ * after a Seq jump moves a weight (no learning across a gap). With
+ * authentication on (FW_SECOC), it also aborts when a Control or WeightLoad
+ * frame the harness did not secure gets past the authentication (any status
+ * but FW_E_LENGTH, FW_E_AUTH, FW_E_FRESHNESS) or moves the freshness value:
+ * only the key holder commands.
  */
 #include <stdint.h>
 #include <stdlib.h>
@@ -36,7 +38,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 static const uint32_t known_ids[] = {
     RHONN_ID_MEASUREMENT_FRAME_ID, RHONN_ID_MEASUREMENT_FRAME_ID, RHONN_ID_MEASUREMENT_FRAME_ID,
     RHONN_ID_CONTROL_FRAME_ID,     RHONN_ID_WEIGHT_LOAD_FRAME_ID, RHONN_ID_ESTIMATE_FRAME_ID,
-    RHONN_ID_CONTROL_ACK_FRAME_ID, RHONN_ID_DIAGNOSTICS_FRAME_ID,
+    RHONN_ID_CONTROL_ACK_FRAME_ID, RHONN_ID_DIAGNOSTICS_FRAME_ID, RHONN_ID_HEALTH_FRAME_ID,
 };
 
 static fw_app app;
@@ -44,6 +46,20 @@ static fw_mem_hal mem;
 static rhonn_t before;
 static fw_cmac_key rig_key;
 static uint8_t secured[FW_MAX_FRAME_LEN];
+
+/* Every weight of the identifier, in order; n of them. */
+static size_t all_weights(const rhonn_t *net, rhonn_real *w, size_t cap)
+{
+    size_t i, n = 0;
+    for (i = 0; i < LIM_IDENTIFIER.n_states; ++i) {
+        size_t L = LIM_IDENTIFIER.neurons[i].n_terms;
+        if (n + L > cap || rhonn_get_weights(net, i, w + n, L) != RHONN_OK) {
+            abort();
+        }
+        n += L;
+    }
+    return n;
+}
 
 static int is_rejection(fw_status st)
 {
@@ -90,6 +106,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         const uint8_t *payload;
         int signed_here = 0;
         uint64_t fv_before = 0, fv_after = 0;
+        fw_counters c0, c1;
+        rhonn_real w0[RHONN_MAX_STATES * RHONN_MAX_TERMS], w1[RHONN_MAX_STATES * RHONN_MAX_TERMS];
+        size_t nw;
 
         pos += 2u;
         if (sel < 0xF0u) {
@@ -127,6 +146,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             pos += len;
         }
         memcpy(&before, net, sizeof before);
+        nw = all_weights(net, w0, sizeof w0 / sizeof w0[0]);
+        (void)fw_app_get_counters(&app, &c0);
         t += 300000u;
         st = fw_app_on_frame(&app, id, payload, len, t);
         if (is_rejection(st) && memcmp(&before, net, sizeof before) != 0) {
@@ -143,6 +164,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 #endif
         if (signed_here && st == FW_E_AUTH) {
             abort(); /* the rig's own frames must verify */
+        }
+        (void)fw_app_get_counters(&app, &c1);
+        if (c1.restarts != c0.restarts &&
+            (all_weights(net, w1, sizeof w1 / sizeof w1[0]) != nw || memcmp(w0, w1, nw * sizeof w0[0]) != 0)) {
+            abort(); /* learnt across a gap */
         }
         while (fw_mem_hal_pop(&mem, &out) == FW_OK) {
             /* keep the outbox from filling up */

@@ -1758,11 +1758,11 @@ int rhonn_id_diagnostics_pack(
     const struct rhonn_id_diagnostics_t *src_p,
     size_t size)
 {
-    if (size < 24u) {
+    if (size < 32u) {
         return (-EINVAL);
     }
 
-    memset(&dst_p[0], 0, 24);
+    memset(&dst_p[0], 0, 32);
 
     dst_p[0] |= pack_left_shift_u8(src_p->counter, 0u, 0xffu);
     dst_p[1] |= pack_left_shift_u16(src_p->last_seq, 0u, 0xffu);
@@ -1791,8 +1791,16 @@ int rhonn_id_diagnostics_pack(
     dst_p[20] |= pack_right_shift_u32(src_p->measurements, 24u, 0xffu);
     dst_p[21] |= pack_left_shift_u16(src_p->seq_errors, 0u, 0xffu);
     dst_p[22] |= pack_right_shift_u16(src_p->seq_errors, 8u, 0xffu);
+    dst_p[23] |= pack_left_shift_u32(src_p->lost_frames, 0u, 0xffu);
+    dst_p[24] |= pack_right_shift_u32(src_p->lost_frames, 8u, 0xffu);
+    dst_p[25] |= pack_right_shift_u32(src_p->lost_frames, 16u, 0xffu);
+    dst_p[26] |= pack_right_shift_u32(src_p->lost_frames, 24u, 0xffu);
+    dst_p[27] |= pack_left_shift_u32(src_p->rx_drops, 0u, 0xffu);
+    dst_p[28] |= pack_right_shift_u32(src_p->rx_drops, 8u, 0xffu);
+    dst_p[29] |= pack_right_shift_u32(src_p->rx_drops, 16u, 0xffu);
+    dst_p[30] |= pack_right_shift_u32(src_p->rx_drops, 24u, 0xffu);
 
-    return (24);
+    return (32);
 }
 
 int rhonn_id_diagnostics_unpack(
@@ -1800,7 +1808,7 @@ int rhonn_id_diagnostics_unpack(
     const uint8_t *src_p,
     size_t size)
 {
-    if (size < 24u) {
+    if (size < 32u) {
         return (-EINVAL);
     }
 
@@ -1831,6 +1839,14 @@ int rhonn_id_diagnostics_unpack(
     dst_p->measurements |= unpack_left_shift_u32(src_p[20], 24u, 0xffu);
     dst_p->seq_errors = unpack_right_shift_u16(src_p[21], 0u, 0xffu);
     dst_p->seq_errors |= unpack_left_shift_u16(src_p[22], 8u, 0xffu);
+    dst_p->lost_frames = unpack_right_shift_u32(src_p[23], 0u, 0xffu);
+    dst_p->lost_frames |= unpack_left_shift_u32(src_p[24], 8u, 0xffu);
+    dst_p->lost_frames |= unpack_left_shift_u32(src_p[25], 16u, 0xffu);
+    dst_p->lost_frames |= unpack_left_shift_u32(src_p[26], 24u, 0xffu);
+    dst_p->rx_drops = unpack_right_shift_u32(src_p[27], 0u, 0xffu);
+    dst_p->rx_drops |= unpack_left_shift_u32(src_p[28], 8u, 0xffu);
+    dst_p->rx_drops |= unpack_left_shift_u32(src_p[29], 16u, 0xffu);
+    dst_p->rx_drops |= unpack_left_shift_u32(src_p[30], 24u, 0xffu);
 
     return (0);
 }
@@ -2184,4 +2200,417 @@ bool rhonn_id_diagnostics_seq_errors_is_in_range(uint16_t value)
 bool rhonn_id_diagnostics_seq_errors_is_in_phys_range(double value)
 {
     return ((value >= 0.0) && (value <= 65535.0));
+}
+
+uint32_t rhonn_id_diagnostics_lost_frames_encode(double value)
+{
+    return (uint32_t)(cantools_unsigned_from_double(value));
+}
+
+double rhonn_id_diagnostics_lost_frames_decode(uint32_t value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_diagnostics_lost_frames_is_in_range(uint32_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool rhonn_id_diagnostics_lost_frames_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 4294967295.0));
+}
+
+uint32_t rhonn_id_diagnostics_rx_drops_encode(double value)
+{
+    return (uint32_t)(cantools_unsigned_from_double(value));
+}
+
+double rhonn_id_diagnostics_rx_drops_decode(uint32_t value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_diagnostics_rx_drops_is_in_range(uint32_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool rhonn_id_diagnostics_rx_drops_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 4294967295.0));
+}
+
+int rhonn_id_health_pack(
+    uint8_t *dst_p,
+    const struct rhonn_id_health_t *src_p,
+    size_t size)
+{
+    uint32_t innovation;
+    uint32_t nis;
+    uint32_t trace_p;
+
+    if (size < 32u) {
+        return (-EINVAL);
+    }
+
+    memset(&dst_p[0], 0, 32);
+
+    dst_p[0] |= pack_left_shift_u8(src_p->neuron, 0u, 0xffu);
+    dst_p[1] |= pack_left_shift_u8(src_p->innovation_sat, 0u, 0x01u);
+    dst_p[1] |= pack_left_shift_u8(src_p->nis_sat, 1u, 0x02u);
+    dst_p[1] |= pack_left_shift_u8(src_p->trace_p_sat, 2u, 0x04u);
+    dst_p[2] |= pack_left_shift_u16(src_p->fail_run, 0u, 0xffu);
+    dst_p[3] |= pack_right_shift_u16(src_p->fail_run, 8u, 0xffu);
+    memcpy(&innovation, &src_p->innovation, sizeof(innovation));
+    dst_p[4] |= pack_left_shift_u32(innovation, 0u, 0xffu);
+    dst_p[5] |= pack_right_shift_u32(innovation, 8u, 0xffu);
+    dst_p[6] |= pack_right_shift_u32(innovation, 16u, 0xffu);
+    dst_p[7] |= pack_right_shift_u32(innovation, 24u, 0xffu);
+    memcpy(&nis, &src_p->nis, sizeof(nis));
+    dst_p[8] |= pack_left_shift_u32(nis, 0u, 0xffu);
+    dst_p[9] |= pack_right_shift_u32(nis, 8u, 0xffu);
+    dst_p[10] |= pack_right_shift_u32(nis, 16u, 0xffu);
+    dst_p[11] |= pack_right_shift_u32(nis, 24u, 0xffu);
+    memcpy(&trace_p, &src_p->trace_p, sizeof(trace_p));
+    dst_p[12] |= pack_left_shift_u32(trace_p, 0u, 0xffu);
+    dst_p[13] |= pack_right_shift_u32(trace_p, 8u, 0xffu);
+    dst_p[14] |= pack_right_shift_u32(trace_p, 16u, 0xffu);
+    dst_p[15] |= pack_right_shift_u32(trace_p, 24u, 0xffu);
+    dst_p[16] |= pack_left_shift_u32(src_p->updates, 0u, 0xffu);
+    dst_p[17] |= pack_right_shift_u32(src_p->updates, 8u, 0xffu);
+    dst_p[18] |= pack_right_shift_u32(src_p->updates, 16u, 0xffu);
+    dst_p[19] |= pack_right_shift_u32(src_p->updates, 24u, 0xffu);
+    dst_p[20] |= pack_left_shift_u32(src_p->rejected, 0u, 0xffu);
+    dst_p[21] |= pack_right_shift_u32(src_p->rejected, 8u, 0xffu);
+    dst_p[22] |= pack_right_shift_u32(src_p->rejected, 16u, 0xffu);
+    dst_p[23] |= pack_right_shift_u32(src_p->rejected, 24u, 0xffu);
+    dst_p[24] |= pack_left_shift_u32(src_p->resets, 0u, 0xffu);
+    dst_p[25] |= pack_right_shift_u32(src_p->resets, 8u, 0xffu);
+    dst_p[26] |= pack_right_shift_u32(src_p->resets, 16u, 0xffu);
+    dst_p[27] |= pack_right_shift_u32(src_p->resets, 24u, 0xffu);
+    dst_p[28] |= pack_left_shift_u32(src_p->bounded, 0u, 0xffu);
+    dst_p[29] |= pack_right_shift_u32(src_p->bounded, 8u, 0xffu);
+    dst_p[30] |= pack_right_shift_u32(src_p->bounded, 16u, 0xffu);
+    dst_p[31] |= pack_right_shift_u32(src_p->bounded, 24u, 0xffu);
+
+    return (32);
+}
+
+int rhonn_id_health_unpack(
+    struct rhonn_id_health_t *dst_p,
+    const uint8_t *src_p,
+    size_t size)
+{
+    uint32_t innovation;
+    uint32_t nis;
+    uint32_t trace_p;
+
+    if (size < 32u) {
+        return (-EINVAL);
+    }
+
+    dst_p->neuron = unpack_right_shift_u8(src_p[0], 0u, 0xffu);
+    dst_p->innovation_sat = unpack_right_shift_u8(src_p[1], 0u, 0x01u);
+    dst_p->nis_sat = unpack_right_shift_u8(src_p[1], 1u, 0x02u);
+    dst_p->trace_p_sat = unpack_right_shift_u8(src_p[1], 2u, 0x04u);
+    dst_p->fail_run = unpack_right_shift_u16(src_p[2], 0u, 0xffu);
+    dst_p->fail_run |= unpack_left_shift_u16(src_p[3], 8u, 0xffu);
+    innovation = unpack_right_shift_u32(src_p[4], 0u, 0xffu);
+    innovation |= unpack_left_shift_u32(src_p[5], 8u, 0xffu);
+    innovation |= unpack_left_shift_u32(src_p[6], 16u, 0xffu);
+    innovation |= unpack_left_shift_u32(src_p[7], 24u, 0xffu);
+    memcpy(&dst_p->innovation, &innovation, sizeof(dst_p->innovation));
+    nis = unpack_right_shift_u32(src_p[8], 0u, 0xffu);
+    nis |= unpack_left_shift_u32(src_p[9], 8u, 0xffu);
+    nis |= unpack_left_shift_u32(src_p[10], 16u, 0xffu);
+    nis |= unpack_left_shift_u32(src_p[11], 24u, 0xffu);
+    memcpy(&dst_p->nis, &nis, sizeof(dst_p->nis));
+    trace_p = unpack_right_shift_u32(src_p[12], 0u, 0xffu);
+    trace_p |= unpack_left_shift_u32(src_p[13], 8u, 0xffu);
+    trace_p |= unpack_left_shift_u32(src_p[14], 16u, 0xffu);
+    trace_p |= unpack_left_shift_u32(src_p[15], 24u, 0xffu);
+    memcpy(&dst_p->trace_p, &trace_p, sizeof(dst_p->trace_p));
+    dst_p->updates = unpack_right_shift_u32(src_p[16], 0u, 0xffu);
+    dst_p->updates |= unpack_left_shift_u32(src_p[17], 8u, 0xffu);
+    dst_p->updates |= unpack_left_shift_u32(src_p[18], 16u, 0xffu);
+    dst_p->updates |= unpack_left_shift_u32(src_p[19], 24u, 0xffu);
+    dst_p->rejected = unpack_right_shift_u32(src_p[20], 0u, 0xffu);
+    dst_p->rejected |= unpack_left_shift_u32(src_p[21], 8u, 0xffu);
+    dst_p->rejected |= unpack_left_shift_u32(src_p[22], 16u, 0xffu);
+    dst_p->rejected |= unpack_left_shift_u32(src_p[23], 24u, 0xffu);
+    dst_p->resets = unpack_right_shift_u32(src_p[24], 0u, 0xffu);
+    dst_p->resets |= unpack_left_shift_u32(src_p[25], 8u, 0xffu);
+    dst_p->resets |= unpack_left_shift_u32(src_p[26], 16u, 0xffu);
+    dst_p->resets |= unpack_left_shift_u32(src_p[27], 24u, 0xffu);
+    dst_p->bounded = unpack_right_shift_u32(src_p[28], 0u, 0xffu);
+    dst_p->bounded |= unpack_left_shift_u32(src_p[29], 8u, 0xffu);
+    dst_p->bounded |= unpack_left_shift_u32(src_p[30], 16u, 0xffu);
+    dst_p->bounded |= unpack_left_shift_u32(src_p[31], 24u, 0xffu);
+
+    return (0);
+}
+
+int rhonn_id_health_init(struct rhonn_id_health_t *msg_p)
+{
+    if (msg_p == NULL) return -1;
+
+    memset(msg_p, 0, sizeof(struct rhonn_id_health_t));
+
+    return 0;
+}
+
+uint8_t rhonn_id_health_neuron_encode(double value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(value));
+}
+
+double rhonn_id_health_neuron_decode(uint8_t value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_health_neuron_is_in_range(uint8_t value)
+{
+    return (value <= 5u);
+}
+
+bool rhonn_id_health_neuron_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 5.0));
+}
+
+uint8_t rhonn_id_health_innovation_sat_encode(double value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(value));
+}
+
+double rhonn_id_health_innovation_sat_decode(uint8_t value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_health_innovation_sat_is_in_range(uint8_t value)
+{
+    return (value <= 1u);
+}
+
+bool rhonn_id_health_innovation_sat_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 1.0));
+}
+
+uint8_t rhonn_id_health_nis_sat_encode(double value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(value));
+}
+
+double rhonn_id_health_nis_sat_decode(uint8_t value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_health_nis_sat_is_in_range(uint8_t value)
+{
+    return (value <= 1u);
+}
+
+bool rhonn_id_health_nis_sat_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 1.0));
+}
+
+uint8_t rhonn_id_health_trace_p_sat_encode(double value)
+{
+    return (uint8_t)(cantools_unsigned_from_double(value));
+}
+
+double rhonn_id_health_trace_p_sat_decode(uint8_t value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_health_trace_p_sat_is_in_range(uint8_t value)
+{
+    return (value <= 1u);
+}
+
+bool rhonn_id_health_trace_p_sat_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 1.0));
+}
+
+uint16_t rhonn_id_health_fail_run_encode(double value)
+{
+    return (uint16_t)(cantools_unsigned_from_double(value));
+}
+
+double rhonn_id_health_fail_run_decode(uint16_t value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_health_fail_run_is_in_range(uint16_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool rhonn_id_health_fail_run_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 65535.0));
+}
+
+float rhonn_id_health_innovation_encode(double value)
+{
+    return (float)(value);
+}
+
+double rhonn_id_health_innovation_decode(float value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_health_innovation_is_in_range(float value)
+{
+    return ((value >= -3.4e+38f) && (value <= 3.4e+38f));
+}
+
+bool rhonn_id_health_innovation_is_in_phys_range(double value)
+{
+    return ((value >= -3.4e+38) && (value <= 3.4e+38));
+}
+
+float rhonn_id_health_nis_encode(double value)
+{
+    return (float)(value);
+}
+
+double rhonn_id_health_nis_decode(float value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_health_nis_is_in_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 3.4e+38f));
+}
+
+bool rhonn_id_health_nis_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 3.4e+38));
+}
+
+float rhonn_id_health_trace_p_encode(double value)
+{
+    return (float)(value);
+}
+
+double rhonn_id_health_trace_p_decode(float value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_health_trace_p_is_in_range(float value)
+{
+    return ((value >= 0.0f) && (value <= 3.4e+38f));
+}
+
+bool rhonn_id_health_trace_p_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 3.4e+38));
+}
+
+uint32_t rhonn_id_health_updates_encode(double value)
+{
+    return (uint32_t)(cantools_unsigned_from_double(value));
+}
+
+double rhonn_id_health_updates_decode(uint32_t value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_health_updates_is_in_range(uint32_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool rhonn_id_health_updates_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 4294967295.0));
+}
+
+uint32_t rhonn_id_health_rejected_encode(double value)
+{
+    return (uint32_t)(cantools_unsigned_from_double(value));
+}
+
+double rhonn_id_health_rejected_decode(uint32_t value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_health_rejected_is_in_range(uint32_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool rhonn_id_health_rejected_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 4294967295.0));
+}
+
+uint32_t rhonn_id_health_resets_encode(double value)
+{
+    return (uint32_t)(cantools_unsigned_from_double(value));
+}
+
+double rhonn_id_health_resets_decode(uint32_t value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_health_resets_is_in_range(uint32_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool rhonn_id_health_resets_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 4294967295.0));
+}
+
+uint32_t rhonn_id_health_bounded_encode(double value)
+{
+    return (uint32_t)(cantools_unsigned_from_double(value));
+}
+
+double rhonn_id_health_bounded_decode(uint32_t value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_health_bounded_is_in_range(uint32_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool rhonn_id_health_bounded_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 4294967295.0));
 }

@@ -51,6 +51,7 @@ extern "C" {
 #define RHONN_ID_CONTROL_ACK_FRAME_ID (0x111u)
 #define RHONN_ID_WEIGHT_LOAD_FRAME_ID (0x120u)
 #define RHONN_ID_DIAGNOSTICS_FRAME_ID (0x130u)
+#define RHONN_ID_HEALTH_FRAME_ID (0x131u)
 
 /* Frame lengths in bytes. */
 #define RHONN_ID_MEASUREMENT_LENGTH (20u)
@@ -58,7 +59,8 @@ extern "C" {
 #define RHONN_ID_CONTROL_LENGTH (16u)
 #define RHONN_ID_CONTROL_ACK_LENGTH (8u)
 #define RHONN_ID_WEIGHT_LOAD_LENGTH (64u)
-#define RHONN_ID_DIAGNOSTICS_LENGTH (24u)
+#define RHONN_ID_DIAGNOSTICS_LENGTH (32u)
+#define RHONN_ID_HEALTH_LENGTH (32u)
 
 /* Extended or standard frame types. */
 #define RHONN_ID_MEASUREMENT_IS_EXTENDED (0)
@@ -67,6 +69,7 @@ extern "C" {
 #define RHONN_ID_CONTROL_ACK_IS_EXTENDED (0)
 #define RHONN_ID_WEIGHT_LOAD_IS_EXTENDED (0)
 #define RHONN_ID_DIAGNOSTICS_IS_EXTENDED (0)
+#define RHONN_ID_HEALTH_IS_EXTENDED (0)
 
 /* Frame cycle times in milliseconds. */
 
@@ -82,6 +85,7 @@ extern "C" {
 #define RHONN_ID_ESTIMATE_STEP_STATUS_COVARIANCE_CHOICE (7u)
 #define RHONN_ID_ESTIMATE_STEP_STATUS_DIVERGED_CHOICE (8u)
 #define RHONN_ID_ESTIMATE_STEP_STATUS_VALUE_CHOICE (9u)
+#define RHONN_ID_ESTIMATE_STEP_STATUS_NOT_PD_CHOICE (10u)
 
 #define RHONN_ID_CONTROL_COMMAND_RESET_CHOICE (1u)
 #define RHONN_ID_CONTROL_COMMAND_LEARNING_OFF_CHOICE (2u)
@@ -143,6 +147,7 @@ extern "C" {
 #define RHONN_ID_DIAGNOSTICS_STEP_STATUS_COVARIANCE_CHOICE (7u)
 #define RHONN_ID_DIAGNOSTICS_STEP_STATUS_DIVERGED_CHOICE (8u)
 #define RHONN_ID_DIAGNOSTICS_STEP_STATUS_VALUE_CHOICE (9u)
+#define RHONN_ID_DIAGNOSTICS_STEP_STATUS_NOT_PD_CHOICE (10u)
 
 /* Frame Names. */
 #define RHONN_ID_MEASUREMENT_NAME "Measurement"
@@ -151,6 +156,7 @@ extern "C" {
 #define RHONN_ID_CONTROL_ACK_NAME "ControlAck"
 #define RHONN_ID_WEIGHT_LOAD_NAME "WeightLoad"
 #define RHONN_ID_DIAGNOSTICS_NAME "Diagnostics"
+#define RHONN_ID_HEALTH_NAME "Health"
 
 /* Signal Names. */
 #define RHONN_ID_MEASUREMENT_SEQ_NAME "Seq"
@@ -220,11 +226,25 @@ extern "C" {
 #define RHONN_ID_DIAGNOSTICS_SYNCED_NAME "Synced"
 #define RHONN_ID_DIAGNOSTICS_MEASUREMENTS_NAME "Measurements"
 #define RHONN_ID_DIAGNOSTICS_SEQ_ERRORS_NAME "SeqErrors"
+#define RHONN_ID_DIAGNOSTICS_LOST_FRAMES_NAME "LostFrames"
+#define RHONN_ID_DIAGNOSTICS_RX_DROPS_NAME "RxDrops"
+#define RHONN_ID_HEALTH_NEURON_NAME "Neuron"
+#define RHONN_ID_HEALTH_INNOVATION_SAT_NAME "InnovationSat"
+#define RHONN_ID_HEALTH_NIS_SAT_NAME "NisSat"
+#define RHONN_ID_HEALTH_TRACE_P_SAT_NAME "TracePSat"
+#define RHONN_ID_HEALTH_FAIL_RUN_NAME "FailRun"
+#define RHONN_ID_HEALTH_INNOVATION_NAME "Innovation"
+#define RHONN_ID_HEALTH_NIS_NAME "Nis"
+#define RHONN_ID_HEALTH_TRACE_P_NAME "TraceP"
+#define RHONN_ID_HEALTH_UPDATES_NAME "Updates"
+#define RHONN_ID_HEALTH_REJECTED_NAME "Rejected"
+#define RHONN_ID_HEALTH_RESETS_NAME "Resets"
+#define RHONN_ID_HEALTH_BOUNDED_NAME "Bounded"
 
 /**
  * Signals in message Measurement.
  *
- * One sample x(k), u(k) per 0.3 ms cycle. Rejected without touching the filter when: the length is not 20, a valid state or any input is outside its range, or Seq repeats the last one or jumps (is not last + 1 mod 65536). A jump re-anchors the counter at the jumped value: the stream is accepted again from the next consecutive frame. The first Measurement after start or Reset is accepted with any Seq. Bits 22-23 are reserved (sent as 0, ignored).
+ * One sample x(k), u(k) per 0.3 ms cycle. Rejected without touching the filter when: the length is not 20, a valid state or any input is outside its range, or Seq repeats the last one or jumps (is not last + 1 mod 65536). A jump re-anchors the counter at the jumped value: the stream is accepted again from the next consecutive frame, which restarts the identifier (rhonn_restart: nothing is learnt from it, its sample refills the delayed taps; weights and covariances are kept). A forward jump of d (1 < d <= 32768, mod 65536) counts d - 1 lost frames; a backward jump counts none. The first Measurement after start or Reset is accepted with any Seq. Bits 22-23 are reserved (sent as 0, ignored).
  *
  * All signal values are as on the CAN bus.
  */
@@ -383,7 +403,7 @@ struct rhonn_id_estimate_t {
     uint16_t seq;
 
     /**
-     * rhonn_status of the step: 0 OK, 5 INPUT_NONFINITE, 6 INNOVATION, 7 COVARIANCE, 8 DIVERGED (see csrc/include/rhonn.h).
+     * rhonn_status of the step: 0 OK, 5 INPUT_NONFINITE, 6 INNOVATION, 7 COVARIANCE, 8 DIVERGED, 10 NOT_PD (see csrc/include/rhonn.h).
      *
      * Range: 0..15 (0..15 -)
      * Scale: 1
@@ -410,7 +430,7 @@ struct rhonn_id_estimate_t {
     uint8_t saturated;
 
     /**
-     * 1: this sample does not continue the previous accepted one (first after start or Reset, or after a Seq jump).
+     * 1: this sample does not continue the previous accepted one (first after start or Reset, or after a Seq jump): the identifier restarted on it and learnt nothing from it.
      *
      * Range: 0..1 (0..1 -)
      * Scale: 1
@@ -700,7 +720,7 @@ struct rhonn_id_weight_load_t {
 /**
  * Signals in message Diagnostics.
  *
- * Sent every diag_period accepted Measurements (firmware configuration) and on DiagRequest. Counters are totals since start and wrap; StepTimeMax is the maximum since the previous Diagnostics frame.
+ * Sent every diag_period accepted Measurements (firmware configuration) and on DiagRequest, each time followed by one Health frame per neuron. Counters are totals since start and wrap; StepTimeMax is the maximum since the previous Diagnostics frame.
  *
  * All signal values are as on the CAN bus.
  */
@@ -848,6 +868,141 @@ struct rhonn_id_diagnostics_t {
      * Offset: 0
      */
     uint16_t seq_errors;
+
+    /**
+     * Measurements the Seq skipped: the sum of every forward gap (a jump of d counts d - 1; a repeat or a backward jump counts 0). Frames the platform's receive queue dropped are among them.
+     *
+     * Range: 0..4294967295 (0..4294967295 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint32_t lost_frames;
+
+    /**
+     * Frames the platform's receive queue dropped (the kernel's SO_RXQ_OVFL count on SocketCAN and on the udp_multicast runner; 0 where the platform cannot tell). Any frame id: a dropped Measurement also shows in LostFrames.
+     *
+     * Range: 0..4294967295 (0..4294967295 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint32_t rx_drops;
+};
+
+/**
+ * Signals in message Health.
+ *
+ * Filter health of one neuron (rhonn_get_health), one frame per neuron after every Diagnostics frame. A value that does not fit its float32 signal (beyond +-3.4e38, or not a number) is sent as the nearest limit of the range (0 for not a number) with its Sat flag set: it is not a measurement.
+ *
+ * All signal values are as on the CAN bus.
+ */
+struct rhonn_id_health_t {
+    /**
+     * Neuron (state) index, 0..5.
+     *
+     * Range: 0..5 (0..5 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t neuron;
+
+    /**
+     * 1: Innovation did not fit and is not a measurement.
+     *
+     * Range: 0..1 (0..1 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t innovation_sat;
+
+    /**
+     * 1: Nis did not fit and is not a measurement.
+     *
+     * Range: 0..1 (0..1 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t nis_sat;
+
+    /**
+     * 1: TraceP did not fit and is not a measurement.
+     *
+     * Range: 0..1 (0..1 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint8_t trace_p_sat;
+
+    /**
+     * Refused learning updates in a row, up to now.
+     *
+     * Range: 0..65535 (0..65535 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint16_t fail_run;
+
+    /**
+     * e_i of the last learning update (eq. 9), in the state's unit; 0 before the first.
+     *
+     * Range: -3.4e+38..3.4e+38 (-3.4e+38..3.4e+38 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    float innovation;
+
+    /**
+     * Normalised innovation squared e_i^2 / s_i of the last learning update (s_i = R_i + z^T P_i z, eq. 8); about 1 on average for a consistent filter.
+     *
+     * Range: 0.0..3.4e+38 (0..3.4e+38 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    float nis;
+
+    /**
+     * Trace of the committed covariance P_i.
+     *
+     * Range: 0.0..3.4e+38 (0..3.4e+38 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    float trace_p;
+
+    /**
+     * Learning updates committed since start (Reset keeps it); wraps.
+     *
+     * Range: 0..4294967295 (0..4294967295 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint32_t updates;
+
+    /**
+     * Learning updates refused (a step that returned an error); wraps.
+     *
+     * Range: 0..4294967295 (0..4294967295 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint32_t rejected;
+
+    /**
+     * Automatic covariance resets; wraps.
+     *
+     * Range: 0..4294967295 (0..4294967295 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint32_t resets;
+
+    /**
+     * Updates whose P_i was scaled down to the trace bound; wraps.
+     *
+     * Range: 0..4294967295 (0..4294967295 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint32_t bounded;
 };
 
 /**
@@ -3751,6 +3906,603 @@ bool rhonn_id_diagnostics_seq_errors_is_in_range(uint16_t value);
  * @return true if in range, false otherwise.
  */
 bool rhonn_id_diagnostics_seq_errors_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint32_t rhonn_id_diagnostics_lost_frames_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_diagnostics_lost_frames_decode(uint32_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_diagnostics_lost_frames_is_in_range(uint32_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_diagnostics_lost_frames_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint32_t rhonn_id_diagnostics_rx_drops_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_diagnostics_rx_drops_decode(uint32_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_diagnostics_rx_drops_is_in_range(uint32_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_diagnostics_rx_drops_is_in_phys_range(double value);
+
+/**
+ * Pack message Health.
+ *
+ * @param[out] dst_p Buffer to pack the message into.
+ * @param[in] src_p Data to pack.
+ * @param[in] size Size of dst_p.
+ *
+ * @return Size of packed data, or negative error code.
+ */
+int rhonn_id_health_pack(
+    uint8_t *dst_p,
+    const struct rhonn_id_health_t *src_p,
+    size_t size);
+
+/**
+ * Unpack message Health.
+ *
+ * @param[out] dst_p Object to unpack the message into.
+ * @param[in] src_p Message to unpack.
+ * @param[in] size Size of src_p.
+ *
+ * @return zero(0) or negative error code.
+ */
+int rhonn_id_health_unpack(
+    struct rhonn_id_health_t *dst_p,
+    const uint8_t *src_p,
+    size_t size);
+
+/**
+ * Init message fields to default values from Health.
+ *
+ * @param[in] msg_p Message to init.
+ *
+ * @return zero(0) on success or (-1) in case of nullptr argument.
+ */
+int rhonn_id_health_init(struct rhonn_id_health_t *msg_p);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t rhonn_id_health_neuron_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_health_neuron_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_neuron_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_neuron_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t rhonn_id_health_innovation_sat_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_health_innovation_sat_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_innovation_sat_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_innovation_sat_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t rhonn_id_health_nis_sat_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_health_nis_sat_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_nis_sat_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_nis_sat_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint8_t rhonn_id_health_trace_p_sat_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_health_trace_p_sat_decode(uint8_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_trace_p_sat_is_in_range(uint8_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_trace_p_sat_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint16_t rhonn_id_health_fail_run_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_health_fail_run_decode(uint16_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_fail_run_is_in_range(uint16_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_fail_run_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+float rhonn_id_health_innovation_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_health_innovation_decode(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_innovation_is_in_range(float value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_innovation_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+float rhonn_id_health_nis_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_health_nis_decode(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_nis_is_in_range(float value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_nis_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+float rhonn_id_health_trace_p_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_health_trace_p_decode(float value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_trace_p_is_in_range(float value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_trace_p_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint32_t rhonn_id_health_updates_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_health_updates_decode(uint32_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_updates_is_in_range(uint32_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_updates_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint32_t rhonn_id_health_rejected_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_health_rejected_decode(uint32_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_rejected_is_in_range(uint32_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_rejected_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint32_t rhonn_id_health_resets_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_health_resets_decode(uint32_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_resets_is_in_range(uint32_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_resets_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint32_t rhonn_id_health_bounded_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_health_bounded_decode(uint32_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_bounded_is_in_range(uint32_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_bounded_is_in_phys_range(double value);
 
 
 #ifdef __cplusplus

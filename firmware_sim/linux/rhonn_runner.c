@@ -10,7 +10,8 @@
  *
  *   rhonn_runner --interface vcan0 [--period-us 300] [--cycles N | --duration S]
  *                [--fifo PRIO] [--json FILE] [--rx tick|arrival] [--spin-us N] [--diag-period N]
- *   rhonn_runner --udp-multicast GROUP:PORT ...  python-can's udp_multicast bus
+ *                [--rcvbuf BYTES]
+ *   rhonn_runner --udp-multicast GROUP:PORT [--multicast-ttl N] ...  python-can's udp_multicast bus
  *   rhonn_runner --bus-less [--cycles N] ...     timing without a bus
  *
  * Buses. --interface: a raw SocketCAN CAN FD socket. --udp-multicast: the
@@ -20,8 +21,25 @@
  * SO_REUSEPORT, multicast loop on, hop limit 1), so it shares the port with
  * python-can processes on the same host. The group hands every member its
  * own datagrams back: frames carrying the firmware's own identifiers
- * (Estimate, ControlAck, Diagnostics) are skipped, and malformed datagrams
- * are counted by reason and dropped (the application never sees them).
+ * (Estimate, ControlAck, Diagnostics, Health) are skipped, and malformed
+ * datagrams are counted by reason and dropped (the application never sees
+ * them).
+ *
+ * Who may talk to it (udp_multicast). The socket is bound to the group
+ * address itself, not to the wildcard: the kernel hands it only datagrams
+ * addressed to the group, so a unicast datagram to one of the host's
+ * addresses and the port (127.0.0.1, a LAN address) never reaches the
+ * firmware. Its own frames leave with a multicast TTL (hop limit) of 1 by
+ * default, so they do not cross a router; --multicast-ttl 0 keeps them on
+ * this host. Loopback stays on, so the rig may run on the same host.
+ *
+ * Lost frames. SO_RXQ_OVFL is set on the bus socket (SocketCAN and
+ * udp_multicast): every datagram or frame read carries the kernel's
+ * cumulative count of frames its receive queue dropped, and the increase
+ * goes to the application (fw_app_note_rx_drops: Diagnostics.RxDrops).
+ * --rcvbuf BYTES sets the receive queue's size (SO_RCVBUF; the kernel
+ * doubles it and caps it at net.core.rmem_max; default 4 MiB on
+ * udp_multicast, the system's default on SocketCAN).
  *
  * Reception (--rx). tick (the default on --interface): the frames waiting
  * are taken once per period, right after the wake-up. arrival (the default
@@ -178,6 +196,8 @@ typedef struct {
     uint64_t malformed;             /* datagrams rejected by the codec, or longer than UDP_RX_BUFFER */
     uint64_t oversized;
     uint64_t malformed_by[UDP_CAN_N_STATUS];
+    uint32_t rxq_ovfl;              /* the kernel's last SO_RXQ_OVFL count (cumulative) */
+    uint64_t rx_drops;              /* its increases since the socket was opened */
     uint8_t rx[UDP_RX_BUFFER];
 } platform;
 
@@ -190,8 +210,14 @@ static int own_frame(const udp_can_msg *m)
 {
     return !m->is_extended_id && (m->arbitration_id == RHONN_ID_ESTIMATE_FRAME_ID ||
                                   m->arbitration_id == RHONN_ID_CONTROL_ACK_FRAME_ID ||
-                                  m->arbitration_id == RHONN_ID_DIAGNOSTICS_FRAME_ID);
+                                  m->arbitration_id == RHONN_ID_DIAGNOSTICS_FRAME_ID ||
+                                  m->arbitration_id == RHONN_ID_HEALTH_FRAME_ID);
 }
+
+/* Frames the kernel dropped since the last look: SO_RXQ_OVFL carries its
+ * cumulative uint32 count (sk_drops) with each frame read; the increase,
+ * modulo 2^32, is what was lost in between. */
+static void note_rxq_ovfl(platform *p, struct msghdr *mh);
 
 static uint64_t realtime_ns(void)
 {
@@ -241,7 +267,7 @@ static fw_status udp_receive(platform *p, fw_frame *frame)
     unsigned burst;
     for (burst = 0; burst < UDP_RX_BURST; ++burst) {
         union {
-            char buf[CMSG_SPACE(sizeof(struct timespec))];
+            char buf[CMSG_SPACE(sizeof(struct timespec)) + CMSG_SPACE(sizeof(uint32_t))];
             struct cmsghdr align;
         } ctl;
         struct iovec iov;
@@ -270,6 +296,7 @@ static fw_status udp_receive(platform *p, fw_frame *frame)
             return FW_E_HAL;
         }
         p->datagrams += 1u;
+        note_rxq_ovfl(p, &mh); /* whatever the datagram holds: the count is the socket's */
         if (mh.msg_flags & MSG_TRUNC) {
             p->malformed += 1u;
             p->oversized += 1u;
@@ -335,6 +362,12 @@ static fw_status hal_receive(void *ctx, fw_frame *frame)
 {
     platform *p = (platform *)ctx;
     struct canfd_frame cf;
+    union {
+        char buf[CMSG_SPACE(sizeof(uint32_t))];
+        struct cmsghdr align;
+    } ctl;
+    struct iovec iov;
+    struct msghdr mh;
     ssize_t n;
     if (p->kind == BUS_NONE) {
         return FW_E_EMPTY;
@@ -342,7 +375,17 @@ static fw_status hal_receive(void *ctx, fw_frame *frame)
     if (p->kind == BUS_UDP) {
         return udp_receive(p, frame);
     }
-    n = read(p->fd, &cf, sizeof cf);
+    iov.iov_base = &cf;
+    iov.iov_len = sizeof cf;
+    memset(&mh, 0, sizeof mh);
+    mh.msg_iov = &iov;
+    mh.msg_iovlen = 1;
+    mh.msg_control = ctl.buf;
+    mh.msg_controllen = sizeof ctl.buf;
+    n = recvmsg(p->fd, &mh, 0); /* the socket is non-blocking */
+    if (n >= 0) {
+        note_rxq_ovfl(p, &mh);
+    }
     if (n < 0) {
         if (errno == EAGAIN || errno == EWOULDBLOCK) {
             return FW_E_EMPTY;
@@ -360,6 +403,25 @@ static fw_status hal_receive(void *ctx, fw_frame *frame)
     return FW_OK;
 }
 
+static fw_app app;
+
+static void note_rxq_ovfl(platform *p, struct msghdr *mh)
+{
+    struct cmsghdr *cm;
+    for (cm = CMSG_FIRSTHDR(mh); cm != NULL; cm = CMSG_NXTHDR(mh, cm)) {
+        if (cm->cmsg_level == SOL_SOCKET && cm->cmsg_type == SO_RXQ_OVFL) {
+            uint32_t count, more;
+            memcpy(&count, CMSG_DATA(cm), sizeof count);
+            more = count - p->rxq_ovfl;
+            p->rxq_ovfl = count;
+            if (more != 0u) {
+                p->rx_drops += more;
+                (void)fw_app_note_rx_drops(&app, more);
+            }
+        }
+    }
+}
+
 static fw_status hal_now(void *ctx, uint64_t *ns)
 {
     (void)ctx;
@@ -369,7 +431,7 @@ static fw_status hal_now(void *ctx, uint64_t *ns)
 
 /* Open a raw CAN FD socket on the interface, non-blocking. Returns the fd,
  * or -1 after printing why (no SocketCAN, no such interface, no CAN FD). */
-static int open_can(const char *ifname)
+static int open_can(const char *ifname, int rcvbuf)
 {
     struct sockaddr_can addr;
     struct ifreq ifr;
@@ -401,6 +463,13 @@ static int open_can(const char *ifname)
     }
     if (setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FD_FRAMES, &on, sizeof on) < 0) {
         fprintf(stderr, "rhonn_runner: %s does not take CAN FD frames: %s\n", ifname, strerror(errno));
+        close(fd);
+        return -1;
+    }
+    if (setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on) < 0 ||
+        (rcvbuf > 0 && setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf) < 0)) {
+        fprintf(stderr, "rhonn_runner: %s: %s: %s\n", ifname, rcvbuf > 0 ? "SO_RXQ_OVFL/SO_RCVBUF" : "SO_RXQ_OVFL",
+                strerror(errno));
         close(fd);
         return -1;
     }
@@ -471,15 +540,16 @@ static int parse_group(const char *spec, platform *p)
     return 0;
 }
 
-/* A UDP socket on p->group's port, member of the group, configured as
- * python-can configures its own. Returns the fd, or -1 after printing why. */
-static int open_udp(platform *p, const char *spec)
+/* A UDP socket bound to p->group itself (address and port: only datagrams
+ * addressed to the group arrive), member of the group, configured as
+ * python-can configures its own except for the multicast TTL (ttl).
+ * Returns the fd, or -1 after printing why. */
+static int open_udp(platform *p, const char *spec, int ttl, int rcvbuf)
 {
-    const int on = 1, hops = 1, rcvbuf = 4 << 20;
+    const int on = 1, hops = ttl;
     int fd, af = p->group.ss_family;
     const char *step;
     if (af == AF_INET) {
-        struct sockaddr_in any;
         struct ip_mreq mreq;
         const struct sockaddr_in *g = (const struct sockaddr_in *)&p->group;
         fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
@@ -487,10 +557,6 @@ static int open_udp(platform *p, const char *spec)
             step = "socket";
             goto fail;
         }
-        memset(&any, 0, sizeof any);
-        any.sin_family = AF_INET;
-        any.sin_addr.s_addr = htonl(INADDR_ANY);
-        any.sin_port = g->sin_port;
         memset(&mreq, 0, sizeof mreq);
         mreq.imr_multiaddr = g->sin_addr;
         mreq.imr_interface.s_addr = htonl(INADDR_ANY);
@@ -499,12 +565,12 @@ static int open_udp(platform *p, const char *spec)
             (step = "SO_REUSEADDR", setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &on, sizeof on)) < 0 ||
             (step = "SO_REUSEPORT", setsockopt(fd, SOL_SOCKET, SO_REUSEPORT, &on, sizeof on)) < 0 ||
             (step = "SO_TIMESTAMPNS", setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on)) < 0 ||
-            (step = "bind", bind(fd, (const struct sockaddr *)&any, sizeof any)) < 0 ||
+            (step = "SO_RXQ_OVFL", setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on)) < 0 ||
+            (step = "bind", bind(fd, (const struct sockaddr *)g, sizeof *g)) < 0 ||
             (step = "IP_ADD_MEMBERSHIP", setsockopt(fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &mreq, sizeof mreq)) < 0) {
             goto fail;
         }
     } else {
-        struct sockaddr_in6 any;
         struct ipv6_mreq mreq;
         const struct sockaddr_in6 *g = (const struct sockaddr_in6 *)&p->group;
         fd = socket(AF_INET6, SOCK_DGRAM | SOCK_CLOEXEC, 0);
@@ -512,10 +578,6 @@ static int open_udp(platform *p, const char *spec)
             step = "socket";
             goto fail;
         }
-        memset(&any, 0, sizeof any);
-        any.sin6_family = AF_INET6;
-        any.sin6_addr = in6addr_any;
-        any.sin6_port = g->sin6_port;
         memset(&mreq, 0, sizeof mreq);
         mreq.ipv6mr_multiaddr = g->sin6_addr;
         mreq.ipv6mr_interface = 0;
@@ -524,7 +586,8 @@ static int open_udp(platform *p, const char *spec)
             (step = "SO_REUSEADDR", setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &on, sizeof on)) < 0 ||
             (step = "SO_REUSEPORT", setsockopt(fd, SOL_SOCKET, SO_REUSEPORT, &on, sizeof on)) < 0 ||
             (step = "SO_TIMESTAMPNS", setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on)) < 0 ||
-            (step = "bind", bind(fd, (const struct sockaddr *)&any, sizeof any)) < 0 ||
+            (step = "SO_RXQ_OVFL", setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on)) < 0 ||
+            (step = "bind", bind(fd, (const struct sockaddr *)g, sizeof *g)) < 0 ||
             (step = "IPV6_JOIN_GROUP", setsockopt(fd, IPPROTO_IPV6, IPV6_JOIN_GROUP, &mreq, sizeof mreq)) < 0) {
             goto fail;
         }
@@ -606,14 +669,14 @@ static void usage(FILE *f)
 {
     fprintf(f, "usage: rhonn_runner (--interface IF | --udp-multicast GROUP:PORT | --bus-less)\n"
                "                    [--period-us US] [--cycles N] [--duration S] [--rx tick|arrival]\n"
-               "                    [--spin-us N] [--diag-period N] [--fifo PRIO] [--json FILE] [--quiet]\n");
+               "                    [--spin-us N] [--diag-period N] [--fifo PRIO] [--json FILE] [--quiet]\n"
+               "                    [--rcvbuf BYTES] [--multicast-ttl N]\n");
 }
 
 static histogram wake_hist = {"wake-up", 0, 0, 0, 0, {0}};
 static histogram step_hist = {"step", 0, 0, 0, 0, {0}};
 static histogram rx_wait_hist = {"rx-wait", 0, 0, 0, 0, {0}};   /* datagram queued -> taken (udp) */
 static histogram interval_hist = {"interval", 0, 0, 0, 0, {0}}; /* between measurement hand-overs */
-static fw_app app;
 static platform plat;
 static uint64_t last_measurement_ns;
 static uint64_t period_ns_now;      /* the loop's period */
@@ -690,6 +753,55 @@ static int serve_until(uint64_t deadline)
     }
 }
 
+/* The identifier's filter health, per neuron (rhonn_get_health): the
+ * values the Health frames carry. */
+static void print_health(FILE *f)
+{
+    const rhonn_t *net;
+    rhonn_health h;
+    size_t i;
+    if (fw_app_get_identifier(&app, &net) != FW_OK) {
+        return;
+    }
+    fprintf(f, "health:  neuron %12s %12s %12s %10s %8s %6s %7s %8s\n", "innovation", "e^2/s", "trace P", "updates",
+            "refused", "resets", "bounded", "fail run");
+    for (i = 0; rhonn_get_health(net, i, &h) == RHONN_OK; ++i) {
+        fprintf(f, "         %6zu %12.4g %12.4g %12.4g %10u %8u %6u %7u %8u\n", i, (double)h.innovation, (double)h.nis,
+                (double)h.trace_p, h.updates, h.rejected, h.resets, h.bounded, (unsigned)h.fail_run);
+    }
+}
+
+/* A number for JSON: non-finite values (not JSON) as null. */
+static void json_number(FILE *f, double v)
+{
+    if (isfinite(v)) {
+        fprintf(f, "%.9g", v);
+    } else {
+        fprintf(f, "null");
+    }
+}
+
+static void json_health(FILE *f)
+{
+    const rhonn_t *net;
+    rhonn_health h;
+    size_t i;
+    fprintf(f, "\"health\": [");
+    if (fw_app_get_identifier(&app, &net) == FW_OK) {
+        for (i = 0; rhonn_get_health(net, i, &h) == RHONN_OK; ++i) {
+            fprintf(f, "%s{\"neuron\": %zu, \"innovation\": ", i ? ", " : "", i);
+            json_number(f, (double)h.innovation);
+            fprintf(f, ", \"nis\": ");
+            json_number(f, (double)h.nis);
+            fprintf(f, ", \"trace_p\": ");
+            json_number(f, (double)h.trace_p);
+            fprintf(f, ", \"updates\": %u, \"rejected\": %u, \"resets\": %u, \"bounded\": %u, \"fail_run\": %u}",
+                    h.updates, h.rejected, h.resets, h.bounded, (unsigned)h.fail_run);
+        }
+    }
+    fprintf(f, "]");
+}
+
 static void json_string(FILE *f, const char *s)
 {
     fputc('"', f);
@@ -713,10 +825,12 @@ int main(int argc, char **argv)
         {"period-us", required_argument, 0, 'p'}, {"cycles", required_argument, 0, 'n'},
         {"duration", required_argument, 0, 'd'},  {"fifo", required_argument, 0, 'f'},
         {"json", required_argument, 0, 'j'},      {"quiet", no_argument, 0, 'q'},
+        {"rcvbuf", required_argument, 0, 'R'},    {"multicast-ttl", required_argument, 0, 'T'},
         {"help", no_argument, 0, 'h'},            {0, 0, 0, 0}};
     const char *ifname = NULL, *udp_spec = NULL, *json_path = NULL, *where = "bus-less", *mode = "bus-less";
     int bus_less = 0, fifo = 0, quiet = 0, opt, rx_arrival = -1;
     long diag_period = 1000;
+    int rcvbuf = 0, ttl = 1;
     double spin_us = 0.0;
     double period_us = 300.0, duration_s = 0.0;
     unsigned long long max_cycles = 0, count = 0;
@@ -737,7 +851,7 @@ int main(int argc, char **argv)
     memset(&plat, 0, sizeof plat);
     plat.kind = BUS_NONE;
     plat.fd = -1;
-    while ((opt = getopt_long(argc, argv, "i:bu:r:D:S:p:n:d:f:j:qh", options, NULL)) != -1) {
+    while ((opt = getopt_long(argc, argv, "i:bu:r:D:S:p:n:d:f:j:qR:T:h", options, NULL)) != -1) {
         /* an option given twice is a mistake in a script, not "the last one wins" */
         if (opt > 0 && opt < 128 && opt != '?' && opt != 'h') {
             if (seen[opt]) {
@@ -806,6 +920,20 @@ int main(int argc, char **argv)
             break;
         case 'j': json_path = optarg; break;
         case 'q': quiet = 1; break;
+        case 'R':
+            if (parse_count(optarg, 1u, 1073741824u, &count) < 0) {
+                fprintf(stderr, "rhonn_runner: --rcvbuf takes a number of bytes in 1..1073741824, got '%s'\n", optarg);
+                return 2;
+            }
+            rcvbuf = (int)count;
+            break;
+        case 'T':
+            if (parse_count(optarg, 0u, 255u, &count) < 0) {
+                fprintf(stderr, "rhonn_runner: --multicast-ttl takes 0..255, got '%s'\n", optarg);
+                return 2;
+            }
+            ttl = (int)count;
+            break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
@@ -826,6 +954,14 @@ int main(int argc, char **argv)
     if (udp_spec != NULL && parse_group(udp_spec, &plat) < 0) {
         return 2;
     }
+    if (seen['T'] && udp_spec == NULL) {
+        fprintf(stderr, "rhonn_runner: --multicast-ttl is an option of --udp-multicast\n");
+        return 2;
+    }
+    if (seen['R'] && bus_less) {
+        fprintf(stderr, "rhonn_runner: --rcvbuf needs a bus (--interface or --udp-multicast)\n");
+        return 2;
+    }
     if (rx_arrival < 0) {
         rx_arrival = udp_spec != NULL; /* the udp_multicast rig waits for its answer; SocketCAN keeps the tick */
     }
@@ -839,7 +975,7 @@ int main(int argc, char **argv)
         return 2;
     }
     if (ifname != NULL) {
-        plat.fd = open_can(ifname);
+        plat.fd = open_can(ifname, rcvbuf);
         if (plat.fd < 0) {
             return 1;
         }
@@ -847,7 +983,7 @@ int main(int argc, char **argv)
         where = ifname;
         mode = "socketcan";
     } else if (udp_spec != NULL) {
-        plat.fd = open_udp(&plat, udp_spec);
+        plat.fd = open_udp(&plat, udp_spec, ttl, rcvbuf > 0 ? rcvbuf : 4 << 20);
         if (plat.fd < 0) {
             return 1;
         }
@@ -990,6 +1126,11 @@ int main(int argc, char **argv)
                "commands failing authentication %u, replayed or stale %u\n",
                (unsigned long long)overruns, cycle ? 100.0 * (double)overruns / (double)cycle : 0.0,
                c.frames_in, c.frames_out, c.rejected, c.step_errors, c.rejected_auth, c.rejected_freshness);
+        printf("sequence: measurements %u, lost %u in %u gaps, seq rejected %u (jump) %u (repeat), restarts %u, "
+               "kernel drops %u\n",
+               c.measurements, c.lost_frames, c.seq_gaps, c.rejected_seq_jump, c.rejected_seq_repeat, c.restarts,
+               c.rx_drops);
+        print_health(stdout);
         if (plat.kind == BUS_UDP) {
             printf("udp: datagrams %llu, own skipped %llu, malformed %llu", (unsigned long long)plat.datagrams,
                    (unsigned long long)plat.own_skipped, (unsigned long long)plat.malformed);
@@ -1029,6 +1170,11 @@ int main(int argc, char **argv)
                    "\"rejected_auth\": %u, \"rejected_freshness\": %u, \"send_errors\": %llu, \"bus_failed\": %s",
                 c.frames_in, c.frames_out, c.rejected, c.step_errors, c.rejected_auth, c.rejected_freshness,
                 (unsigned long long)plat.send_errors, bus_failed ? "true" : "false");
+        fprintf(f, ", \"measurements\": %u, \"lost_frames\": %u, \"seq_gaps\": %u, \"rejected_seq_jump\": %u, "
+                   "\"rejected_seq_repeat\": %u, \"restarts\": %u, \"rx_drops\": %u, \"multicast_ttl\": %d, ",
+                c.measurements, c.lost_frames, c.seq_gaps, c.rejected_seq_jump, c.rejected_seq_repeat, c.restarts,
+                c.rx_drops, plat.kind == BUS_UDP ? ttl : -1);
+        json_health(f);
         if (plat.kind == BUS_UDP) {
             fprintf(f, ", \"udp\": {\"datagrams\": %llu, \"own_skipped\": %llu, \"malformed\": %llu, "
                        "\"oversized\": %llu, \"malformed_by\": {",

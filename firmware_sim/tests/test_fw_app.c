@@ -103,6 +103,26 @@ static fw_frame pop(void)
     return f;
 }
 
+/* The Health frames that follow every Diagnostics frame: one per neuron,
+ * in order, each the neuron's rhonn_get_health. */
+static void pop_health(void)
+{
+    uint8_t i;
+    for (i = 0; i < N; ++i) {
+        struct rhonn_id_health_t h;
+        rhonn_health want;
+        fw_frame f = pop();
+        CHECK(f.id == RHONN_ID_HEALTH_FRAME_ID && f.len == RHONN_ID_HEALTH_LENGTH);
+        CHECK(rhonn_id_health_unpack(&h, f.data, f.len) == 0);
+        CHECK_STATUS(rhonn_get_health(net_of(&app), i, &want), RHONN_OK);
+        CHECK(h.neuron == i && h.updates == want.updates && h.rejected == want.rejected);
+        CHECK(h.resets == want.resets && h.bounded == want.bounded && h.fail_run == want.fail_run);
+        CHECK(h.innovation_sat == 0 && h.nis_sat == 0 && h.trace_p_sat == 0);
+        CHECK(h.innovation == (float)want.innovation && h.nis == (float)want.nis);
+        CHECK(h.trace_p == (float)want.trace_p);
+    }
+}
+
 static void drain(void)
 {
     fw_frame f;
@@ -389,7 +409,7 @@ static void test_rejections_leave_the_filter_bit_for_bit_unchanged(void)
     uint8_t all_valid[N] = {1, 1, 1, 1, 1, 1};
     meas_frame good;
     int j;
-    size_t T_ref = 0;
+    size_t T_ref = 0, T_gap;
     size_t done = 0;
 
     setup(0, 0);
@@ -574,13 +594,16 @@ static void test_rejections_leave_the_filter_bit_for_bit_unchanged(void)
         CHECK_FW(send_control(RHONN_ID_CONTROL_COMMAND_DIAG_REQUEST_CHOICE, 9), FW_OK);
         (void)pop_ack();
         CHECK(pop().id == RHONN_ID_DIAGNOSTICS_FRAME_ID);
+        pop_health();
         CHECK_FW(send_control(RHONN_ID_CONTROL_COMMAND_WEIGHTS_ABORT_CHOICE, 10), FW_OK);
         CHECK(pop_ack().result == 0);
         CHECK(memcmp(net_of(&app), &net_before, sizeof net_before) == 0);
         CHECK(outbox_count() == 0u);
     }
 
-    /* A jump: rejected, the counter re-anchors at the jumped value. */
+    /* A jump: rejected, the counter re-anchors at the jumped value. The
+     * backward one loses nothing; the forward one, counted from the
+     * re-anchored value, skipped 24 frames. */
     {
         meas_frame jump = pack_measurement((uint16_t)(seq + 5u), &s, all_valid);
         meas_frame back = pack_measurement((uint16_t)(seq - 20u), &s, all_valid);
@@ -591,11 +614,14 @@ static void test_rejections_leave_the_filter_bit_for_bit_unchanged(void)
         CHECK(memcmp(net_of(&app), &net_before, sizeof net_before) == 0);
         CHECK(outbox_count() == 0u);
         CHECK(counters().rejected_seq_jump == 2u);
+        CHECK(counters().lost_frames == 24u && counters().seq_gaps == 1u && counters().restarts == 0u);
         seq = (uint16_t)(seq + 6u);
     }
 
     /* The stream goes on (from the re-anchored counter) exactly as if the
-     * bad frames had never been sent. */
+     * bad frames had never been sent and the identifier had been restarted
+     * at the break: the first frame after it learns nothing. */
+    T_gap = T_ref;
     for (k = 0; k < 30; ++k, ++seq) {
         fw_measurement m;
         fw_frame est;
@@ -612,8 +638,12 @@ static void test_rejections_leave_the_filter_bit_for_bit_unchanged(void)
         ++T_ref;
         s = walk_next();
     }
+    CHECK(counters().restarts == 1u);
     CHECK_STATUS(rhonn_init(&ref, &LIM_IDENTIFIER, NULL), RHONN_OK);
-    CHECK_STATUS(rhonn_run(&ref, T_ref, &X[0][0], &U[0][0], &V[0][0], &XHAT[0][0], &done), RHONN_OK);
+    CHECK_STATUS(rhonn_run(&ref, T_gap, &X[0][0], &U[0][0], &V[0][0], &XHAT[0][0], &done), RHONN_OK);
+    CHECK_STATUS(rhonn_restart(&ref), RHONN_OK);
+    CHECK_STATUS(rhonn_run(&ref, T_ref - T_gap, &X[T_gap][0], &U[T_gap][0], &V[T_gap][0], &XHAT[T_gap][0], &done),
+                 RHONN_OK);
     {
         snapshot a, b;
         take(net_of(&app), &a);
@@ -867,6 +897,11 @@ static void test_diagnostics_report_counters_and_timing(void)
             CHECK(d.last_reject == (k == 9 ? 0u : (uint8_t)FW_E_SEQ_REPEAT));
             CHECK(d.learning == 1 && d.started == 1 && d.synced == 1 && d.weights_open == 0);
             CHECK(d.step_errors == 0 && d.step_status == 0);
+            CHECK(d.lost_frames == 0u && d.rx_drops == (k == 9 ? 0u : 7u));
+            pop_health();
+        }
+        if (k == 15) {
+            CHECK_FW(fw_app_note_rx_drops(&app, 7u), FW_OK);
         }
         CHECK(outbox_count() == 0u);
     }
@@ -1009,6 +1044,8 @@ static void test_init_and_api_guards(void)
     CHECK_FW(fw_app_on_frame(&other, RHONN_ID_MEASUREMENT_FRAME_ID, NULL, 0, 0), FW_E_NOT_INIT);
     CHECK_FW(fw_app_poll(&other, 1, NULL), FW_E_NOT_INIT);
     CHECK_FW(fw_app_send_diagnostics(&other), FW_E_NOT_INIT);
+    CHECK_FW(fw_app_note_rx_drops(&other, 1u), FW_E_NOT_INIT);
+    CHECK_FW(fw_app_note_rx_drops(NULL, 1u), FW_E_NULL);
     CHECK_FW(fw_app_note_overrun(&other), FW_E_NOT_INIT);
     CHECK_FW(fw_app_get_counters(&other, &c), FW_E_NOT_INIT);
     CHECK_FW(fw_app_get_identifier(&other, &net), FW_E_NOT_INIT);
