@@ -19,10 +19,14 @@
 /* Beyond this, exp(-a) is below the smallest normal float: return 0. */
 #define RHONN_EXP_CUTOFF 87.0f
 #define RHONN_MAX_REAL 3.402823466e38f
+#define RHONN_EPSILON 1.1920928955e-7f
+#define RHONN_MIN_NORMAL 1.1754943508e-38f
 #else
 #define R(c) c
 #define RHONN_EXP_CUTOFF 708.0
 #define RHONN_MAX_REAL 1.7976931348623157e308
+#define RHONN_EPSILON 2.220446049250313e-16
+#define RHONN_MIN_NORMAL 2.2250738585072014e-308
 #endif
 
 #if defined(__GNUC__) || defined(__clang__)
@@ -162,7 +166,7 @@ static size_t packed_size(size_t L)
     return L * (L + 1u) / 2u;
 }
 
-RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHONN_RESTRICT F, const size_t L);
+RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L);
 static rhonn_real full_trace(const rhonn_real *P, size_t L);
 static void load_p0(const rhonn_t *net, size_t i, rhonn_real *dst);
 
@@ -222,12 +226,9 @@ rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *
                 }
             }
         }
-        {
-            /* P0 is a covariance (eq. 10): positive definite at this precision */
-            rhonn_real scratch[RHONN_MAX_PACKED];
-            if (!udu_factor(nc->p0, scratch, L)) {
-                return config_error(where, RHONN_FIELD_P0, i, 0, 0);
-            }
+        /* P0 is a covariance (eq. 10): positive definite at this precision */
+        if (!pd_check(nc->p0, L)) {
+            return config_error(where, RHONN_FIELD_P0, i, 0, 0);
         }
         if (nc->covariance != (uint8_t)RHONN_COV_FULL &&
             (nc->covariance != (uint8_t)RHONN_COV_UD || !RHONN_WITH_UD)) {
@@ -471,14 +472,20 @@ static size_t row_start(size_t r, size_t L)
 
 /* U D U^T factorisation of the packed symmetric P into F (D on the diagonal,
  * U's strict upper triangle beside it), from the last column back. Returns 1
- * when every pivot d_j is a positive finite number (P is positive definite
- * at working precision), else 0 with F partly written. About L^3/6
+ * when every pivot d_j is finite and above 8 L eps P_jj, else 0 with F
+ * partly written. The margin is what "positive definite at working
+ * precision" means here: the rounding error of a pivot is below about
+ * 2 L eps P_jj (its terms U(j,k)^2 d_k sum to at most P_jj), so a pivot
+ * above the margin is positive in exact arithmetic too, and a matrix that
+ * is singular but for rounding ([[a, -a], [-a, a]] gives a pivot of a few
+ * ulps of a) is refused whatever the order of the operations. About L^3/6
  * multiply-adds and L divisions; the row offsets are tabulated once so the
  * inner loops are plain strided dot products. */
 RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHONN_RESTRICT F, const size_t L)
 {
     rhonn_real t[RHONN_MAX_TERMS], d[RHONN_MAX_TERMS];
     size_t rs[RHONN_MAX_TERMS];
+    const rhonn_real margin = (rhonn_real)(8u * L) * RHONN_EPSILON;
     size_t j, r;
     rs[0] = 0;
     RHONN_UNROLL_LOOP
@@ -499,7 +506,7 @@ RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHON
         }
         /* false for NaN too, and -Inf: a non-finite entry anywhere in P
          * reaches some pivot as NaN or -Inf (U(i,k)^2 d_k >= 0) */
-        if (!(dj > R(0.0)) || !is_finite(dj)) {
+        if (!(dj > margin * P[rs[j]]) || !(dj > R(0.0)) || !is_finite(dj)) {
             return 0;
         }
         d[j] = dj;
@@ -517,6 +524,75 @@ RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHON
         }
     }
     return 1;
+}
+
+/* 2^-h with h = floor(e / 2) for v = m 2^e, m in [1, 2): v times its
+ * square is in [1, 4). Built from the bits, so scaling by it is exact. */
+static rhonn_real half_exponent_scale(rhonn_real v)
+{
+#ifdef RHONN_SINGLE
+    union { float f; uint32_t u; } b;
+    int e, h;
+    b.f = v;
+    e = (int)((b.u >> 23) & 0xFFu) - 127;
+    h = e >= 0 ? e / 2 : -((1 - e) / 2);
+    b.u = (uint32_t)(127 - h) << 23;
+#else
+    union { double f; uint64_t u; } b;
+    int e, h;
+    b.f = v;
+    e = (int)((b.u >> 52) & 0x7FFu) - 1023;
+    h = e >= 0 ? e / 2 : -((1 - e) / 2);
+    b.u = (uint64_t)(1023 - h) << 52;
+#endif
+    return b.f;
+}
+
+/* Is the packed symmetric P positive definite at working precision? P is
+ * first scaled symmetrically by powers of two (exactly) to a diagonal in
+ * [1, 4), so that "small" means small against 1 whatever the units of the
+ * terms (without it, entries of 1e8 beside a pivot of -4 are "factorised"
+ * through rounding errors larger than the pivot), then factorised with the
+ * pivot margin of udu_factor. This is a working-precision verdict, not a
+ * proof: a matrix indefinite by less than the rounding of its own
+ * factorisation (an ill-conditioned one) can pass, as with any floating-point
+ * Cholesky test. A proof (Rump's shifted Cholesky) would refuse the
+ * covariances an ordinary float32 filter reaches after one update with a
+ * small R (eigenvalues of 1e-6 of the diagonal); where that matters, the
+ * U D U^T form keeps P definite by construction. Every 2 x 2 minor must be positive as well
+ * (|C_ij| < sqrt(C_ii C_jj), a cheap necessary condition that also keeps the
+ * elimination of an indefinite matrix from growing). A diagonal below the
+ * normal range is refused: such a P is singular at this precision. */
+RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L)
+{
+    rhonn_real C[RHONN_MAX_PACKED], F[RHONN_MAX_PACKED], sc[RHONN_MAX_TERMS], cd[RHONN_MAX_TERMS];
+    size_t i, j, idx;
+    for (i = 0, idx = 0; i < L; idx += L - i, ++i) {
+        const rhonn_real v = P[idx];
+        if (!(v >= RHONN_MIN_NORMAL) || !is_finite(v)) {
+            return 0;
+        }
+        sc[i] = half_exponent_scale(v);
+    }
+    RHONN_UNROLL_LOOP
+    for (i = 0, idx = 0; i < L; ++i) {
+        RHONN_UNROLL_LOOP
+        for (j = i; j < L; ++j, ++idx) {
+            C[idx] = (P[idx] * sc[i]) * sc[j];
+        }
+        cd[i] = C[idx - (L - i)];
+    }
+    RHONN_UNROLL_LOOP
+    for (i = 0, idx = 0; i < L; ++i) {
+        ++idx; /* the diagonal */
+        RHONN_UNROLL_LOOP
+        for (j = i + 1u; j < L; ++j, ++idx) {
+            if (!(C[idx] * C[idx] < cd[i] * cd[j])) {
+                return 0;
+            }
+        }
+    }
+    return udu_factor(C, F, L);
 }
 
 /* trace(U D U^T) = sum_j d_j (1 + sum_{i<j} U(i,j)^2) */
@@ -586,7 +662,6 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
     const rhonn_real *RHONN_RESTRICT w = net->w[i][b];
     rhonn_real *RHONN_RESTRICT wn = net->w[i][b ^ 1u];
     rhonn_real pz[RHONN_MAX_TERMS];
-    rhonn_real scratch[RHONN_MAX_PACKED];
     rhonn_real s, inv_s, gain;
     const rhonn_real inv_lambda = inverse_forgetting(nc);
     size_t r, c, len;
@@ -655,7 +730,7 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
     if (nc->p_trace_max > R(0.0)) {
         bound_trace(Pn, L, nc->p_trace_max, bounded);
     }
-    if (!udu_factor(Pn, scratch, L)) {
+    if (!pd_check(Pn, L)) {
         /* which way it failed, off the hot path */
         return neuron_fault(net, i, any_nonfinite(Pn, packed_size(L)) ? RHONN_E_COVARIANCE : RHONN_E_NOT_PD);
     }
@@ -1198,7 +1273,8 @@ rhonn_status rhonn_set_covariance(rhonn_t *net, size_t neuron, const rhonn_real 
         return st;
     }
     /* a covariance: finite and positive definite at working precision */
-    if (any_nonfinite(p, len) || !udu_factor(p, F, net->cfg.neurons[neuron].n_terms)) {
+    if (any_nonfinite(p, len) || !pd_check(p, net->cfg.neurons[neuron].n_terms) ||
+        !udu_factor(p, F, net->cfg.neurons[neuron].n_terms)) {
         return RHONN_E_VALUE;
     }
     copy_reals(net->p[neuron][net->bank[neuron]], is_ud(net, neuron) ? F : p, len);

@@ -1,0 +1,354 @@
+/*
+ * Coverage-guided fuzz target (libFuzzer) for the core's public API: a
+ * configuration and a sequence of calls, both taken from the input.
+ *
+ * Input: a configuration header, then records, each [op][payload...]:
+ *   op % 8 == 0..4  rhonn_step with x, u and valid flags from the next bytes
+ *   op % 8 == 5     rhonn_restart
+ *   op % 8 == 6     rhonn_set_learning (on or off from the op's high bit)
+ *   op % 8 == 7     rhonn_set_covariance with a matrix from the next bytes
+ * Reals come from two bytes each: a sign, a mantissa byte and an exponent
+ * spread over 10^-12..10^12 (and, for a few codes, 0, NaN, +-Inf and values
+ * near the top of the range), so well-scaled and hostile data both occur.
+ *
+ * Besides crashes and sanitizer reports (build with
+ * -fsanitize=fuzzer,address,undefined), the target aborts when a promise of
+ * rhonn.h is broken:
+ *   - after every RHONN_OK step, each committed P_i is positive definite:
+ *     a Cholesky factorisation at working precision, written here
+ *     independently of the core, finds no pivot below zero by more than its
+ *     rounding (full form; see cholesky_ok), or every factor d_j is a
+ *     positive finite number and U is finite (U D U^T form);
+ *   - every learning update the step committed used an innovation variance
+ *     s_i = R_i + z^T P_i z >= R_i (read back from the health record as
+ *     e_i^2 / (e_i^2 / s_i));
+ *   - a call that does not return RHONN_OK leaves weights, covariances,
+ *     prediction and history exactly as they were (only health counters and
+ *     the fault diagnostic may change).
+ */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "rhonn.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+typedef struct {
+    const uint8_t *p;
+    size_t n;
+} reader;
+
+static uint8_t byte(reader *r)
+{
+    uint8_t b = 0;
+    if (r->n > 0u) {
+        b = *r->p++;
+        r->n--;
+    }
+    return b;
+}
+
+static rhonn_real pow10i(int e)
+{
+    rhonn_real v = 1;
+    rhonn_real f = e < 0 ? (rhonn_real)0.1 : (rhonn_real)10;
+    int k = e < 0 ? -e : e;
+    while (k-- > 0) {
+        v *= f;
+    }
+    return v;
+}
+
+/* A real from two bytes: hostile codes first, else sign, mantissa, exponent. */
+static rhonn_real real(reader *r, int lo, int hi)
+{
+    const uint8_t a = byte(r), b = byte(r);
+    const rhonn_real big = (rhonn_real)(sizeof(rhonn_real) == 4 ? 3.0e38 : 1.0e308);
+    switch (a) {
+    case 0xFF: return (rhonn_real)0;
+    case 0xFE: return big;
+    case 0xFD: return -big;
+    case 0xFC: return big * (rhonn_real)10; /* +Inf */
+    case 0xFB: return (big * (rhonn_real)10) - (big * (rhonn_real)10); /* NaN */
+    default: break;
+    }
+    {
+        const int e = lo + (int)(b % (uint8_t)(hi - lo + 1));
+        const rhonn_real m = (rhonn_real)1 + (rhonn_real)(a & 0x7Fu) / (rhonn_real)128;
+        return (a & 0x80u ? -m : m) * pow10i(e);
+    }
+}
+
+static rhonn_real positive(reader *r, int lo, int hi)
+{
+    rhonn_real v = real(r, lo, hi);
+    return v < 0 ? -v : v;
+}
+
+static void make_config(reader *r, rhonn_config *c)
+{
+    size_t i, t, f;
+    memset(c, 0, sizeof *c);
+    c->n_states = (uint8_t)(1u + byte(r) % 4u);
+    c->n_inputs = (uint8_t)(byte(r) % 3u);
+    for (i = 0; i < c->n_states; ++i) {
+        rhonn_neuron_config *nc = &c->neurons[i];
+        const uint8_t flags = byte(r);
+        const size_t L = 1u + byte(r) % 6u;
+        size_t k = 0;
+        nc->n_terms = (uint8_t)L;
+        nc->activation = (uint8_t)(flags & 1u);
+        nc->covariance = (uint8_t)((flags >> 1) & 1u);
+        nc->beta = positive(r, -3, 2);
+        nc->eta = positive(r, -2, 0);
+        nc->r = positive(r, -12, 6);
+        if (flags & 0x04u) {
+            nc->forgetting = (rhonn_real)0.9 + (rhonn_real)(byte(r) % 100u) / (rhonn_real)1000;
+        }
+        if (flags & 0x08u) {
+            nc->reset_after = (uint16_t)(1u + byte(r) % 4u);
+        }
+        for (t = 0; t < L; ++t) {
+            const rhonn_real p = positive(r, -3, 9);
+            nc->q[t] = (flags & 0x10u) ? (rhonn_real)0 : positive(r, -14, 3);
+            nc->w0[t] = real(r, -3, 1);
+            nc->p0[k] = p;
+            k += L - t;
+        }
+        if (flags & 0x20u) {
+            rhonn_real tr = 0;
+            for (t = 0, k = 0; t < L; k += L - t, ++t) {
+                tr += nc->p0[k];
+            }
+            nc->p_trace_max = tr * (rhonn_real)(1u + byte(r) % 8u);
+        }
+        for (t = 0; t < L; ++t) {
+            rhonn_term *term = &nc->terms[t];
+            const uint8_t nf = (uint8_t)(1u + byte(r) % 2u);
+            term->n_factors = nf;
+            for (f = 0; f < nf; ++f) {
+                rhonn_factor *fa = &term->factors[f];
+                const uint8_t code = byte(r);
+                fa->kind = (uint8_t)(code % 4u);
+                fa->power = (uint8_t)(1u + (code >> 2) % 3u);
+                if (fa->kind == RHONN_FACTOR_U) {
+                    fa->index = (uint8_t)(c->n_inputs ? (code >> 4) % c->n_inputs : 0u);
+                    if (c->n_inputs == 0u) {
+                        fa->kind = RHONN_FACTOR_ONE;
+                    }
+                } else if (fa->kind != RHONN_FACTOR_ONE) {
+                    fa->index = (uint8_t)((code >> 4) % c->n_states);
+                    fa->delay = (uint8_t)((code >> 6) % 3u);
+                }
+            }
+        }
+    }
+}
+
+/* 2^-floor(e/2) for v = m 2^e, by repeated halving (independent of the
+ * core's bit manipulation): v times its square lies in [1, 4). */
+static rhonn_real pow2_scale(rhonn_real v)
+{
+    rhonn_real s = 1;
+    while (v * s * s >= 4) {
+        s *= (rhonn_real)0.5;
+    }
+    while (v * s * s < 1) {
+        s *= 2;
+    }
+    return s;
+}
+
+/* Cholesky L L^T of the packed upper triangle at working precision, written
+ * apart from the core (top-down, where the core factorises bottom-up), on P
+ * scaled by powers of two to a diagonal in [1, 4): 0 when a pivot is below
+ * zero by more than 16 L eps. Near singularity a pivot comes out a few ulps
+ * above or below zero depending on the order of the operations (float
+ * [[388673, -195308.188], [-195308.188, 98142.3672]], determinant 177 against
+ * products of 3.8e10, passes bottom-up and fails top-down), so "positive
+ * definite at working precision" can only be asked to that tolerance; a
+ * pivot inside it is taken as a rounding zero. */
+static int cholesky_ok(const rhonn_real *p, size_t L)
+{
+    const rhonn_real eps = sizeof(rhonn_real) == 4 ? (rhonn_real)1.2e-7 : (rhonn_real)2.3e-16;
+    rhonn_real a[RHONN_MAX_TERMS][RHONN_MAX_TERMS], sc[RHONN_MAX_TERMS];
+    size_t i, j, k, idx = 0;
+    for (i = 0; i < L; idx += L - i, ++i) {
+        if (!(p[idx] > 0) || p[idx] - p[idx] != 0) {
+            return 0;
+        }
+        sc[i] = pow2_scale(p[idx]);
+    }
+    for (i = 0, idx = 0; i < L; ++i) {
+        for (j = i; j < L; ++j, ++idx) {
+            a[i][j] = a[j][i] = p[idx] * sc[i] * sc[j];
+        }
+    }
+    for (j = 0; j < L; ++j) {
+        rhonn_real d = a[j][j], s, prev = 0;
+        int it;
+        for (k = 0; k < j; ++k) {
+            d -= a[j][k] * a[j][k];
+        }
+        if (d != d || d - d != d - d || d < -16 * (rhonn_real)L * eps) {
+            return 0;
+        }
+        if (!(d > 1e-30f)) {
+            d = (rhonn_real)1e-30; /* a rounding zero */
+        }
+        /* sqrt without libm: Newton from above */
+        s = d > 1 ? d : 1;
+        for (it = 0; it < 400 && s != prev; ++it) {
+            prev = s;
+            s = (rhonn_real)0.5 * (s + d / s);
+        }
+        a[j][j] = s;
+        for (i = j + 1u; i < L; ++i) {
+            rhonn_real v = a[i][j];
+            for (k = 0; k < j; ++k) {
+                v -= a[i][k] * a[j][k];
+            }
+            a[i][j] = v / a[j][j];
+        }
+    }
+    return 1;
+}
+
+static void check_invariants(const rhonn_t *net, const uint32_t *updates_before)
+{
+    const long double eps = sizeof(rhonn_real) == 4 ? 1.2e-7L : 2.3e-16L;
+    size_t i, r, c;
+    for (i = 0; i < net->cfg.n_states; ++i) {
+        const rhonn_neuron_config *nc = &net->cfg.neurons[i];
+        const size_t L = nc->n_terms, np = L * (L + 1u) / 2u;
+        rhonn_real f[RHONN_MAX_PACKED], p[RHONN_MAX_PACKED];
+        rhonn_health h;
+        size_t idx;
+        if (rhonn_get_factors(net, i, f, np) != RHONN_OK || rhonn_get_covariance(net, i, p, np) != RHONN_OK ||
+            rhonn_get_health(net, i, &h) != RHONN_OK) {
+            abort();
+        }
+        if (nc->covariance == RHONN_COV_UD) {
+            for (r = 0, idx = 0; r < L; ++r) {
+                for (c = r; c < L; ++c, ++idx) {
+                    if (f[idx] - f[idx] != f[idx] - f[idx] || (c == r && !(f[idx] > 0))) {
+                        abort(); /* a factor D <= 0 or a non-finite U after RHONN_OK */
+                    }
+                }
+            }
+        } else if (!cholesky_ok(p, L)) {
+            abort(); /* a committed full P that is not positive definite */
+        }
+        /* the update this step committed used s = R + z^T P z >= R:
+         * s = e^2 / (e^2 / s) from the health record, to a few ulps */
+        if (updates_before != NULL && h.updates != updates_before[i] && h.nis - h.nis == 0 &&
+            (long double)h.nis >= (sizeof(rhonn_real) == 4 ? 1.2e-38L : 2.3e-308L) && h.innovation != 0) {
+            /* (an e^2 / s that overflowed or fell below the normal range
+             * cannot be read back to a few ulps) */
+            const long double e = (long double)h.innovation;
+            const long double s = e * e / (long double)h.nis;
+            if (s < (long double)nc->r * (1.0L - 16.0L * eps)) {
+                abort(); /* an update committed with s below R */
+            }
+        }
+    }
+}
+
+/* The committed state (the inactive bank is scratch that a refused step may
+ * have written, by design). */
+typedef struct {
+    rhonn_real w[RHONN_MAX_STATES][RHONN_MAX_TERMS];
+    rhonn_real p[RHONN_MAX_STATES][RHONN_MAX_PACKED];
+    uint8_t bank[RHONN_MAX_STATES];
+    rhonn_real xhat[RHONN_MAX_STATES];
+    rhonn_real xh[RHONN_HISTORY_LEN][RHONN_MAX_STATES];
+    uint8_t head, started, learning, zbank;
+    uint32_t steps;
+} filter_state;
+
+static void capture(const rhonn_t *net, filter_state *s)
+{
+    size_t i;
+    memset(s, 0, sizeof *s);
+    for (i = 0; i < RHONN_MAX_STATES; ++i) {
+        memcpy(s->w[i], net->w[i][net->bank[i]], sizeof s->w[i]);
+        memcpy(s->p[i], net->p[i][net->bank[i]], sizeof s->p[i]);
+    }
+    memcpy(s->bank, net->bank, sizeof s->bank);
+    memcpy(s->xhat, net->xhat, sizeof s->xhat);
+    memcpy(s->xh, net->xh, sizeof s->xh);
+    s->head = net->head;
+    s->started = net->started;
+    s->learning = net->learning;
+    s->zbank = net->zbank;
+    s->steps = net->steps;
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    static rhonn_t net;
+    rhonn_config cfg;
+    reader r;
+    size_t ops = 0;
+
+    r.p = data;
+    r.n = size;
+    make_config(&r, &cfg);
+    if (rhonn_init(&net, &cfg, NULL) != RHONN_OK) {
+        return 0;
+    }
+    check_invariants(&net, NULL);
+    while (r.n > 0u && ops++ < 512u) {
+        const uint8_t op = byte(&r);
+        filter_state before, after;
+        uint32_t updates[RHONN_MAX_STATES];
+        rhonn_status st;
+        size_t j;
+        capture(&net, &before);
+        for (j = 0; j < RHONN_MAX_STATES; ++j) {
+            updates[j] = net.health[j].updates;
+        }
+        switch (op % 8u) {
+        case 5:
+            st = rhonn_restart(&net);
+            break;
+        case 6:
+            st = rhonn_set_learning(&net, op >> 7);
+            break;
+        case 7: {
+            const size_t i = (size_t)(op >> 3) % cfg.n_states;
+            const size_t L = cfg.neurons[i].n_terms;
+            rhonn_real p[RHONN_MAX_PACKED];
+            for (j = 0; j < L * (L + 1u) / 2u; ++j) {
+                p[j] = real(&r, -6, 6);
+            }
+            st = rhonn_set_covariance(&net, i, p, L * (L + 1u) / 2u);
+            break;
+        }
+        default: {
+            rhonn_real x[RHONN_MAX_STATES], u[RHONN_MAX_INPUTS + 1], y[RHONN_MAX_STATES];
+            uint8_t valid[RHONN_MAX_STATES];
+            const uint8_t mask = byte(&r);
+            for (j = 0; j < cfg.n_states; ++j) {
+                x[j] = real(&r, -4, 3);
+                valid[j] = (uint8_t)(((mask >> j) & 1u) ? 0u : 1u);
+            }
+            for (j = 0; j < cfg.n_inputs; ++j) {
+                u[j] = real(&r, -3, 3);
+            }
+            st = rhonn_step(&net, x, u, valid, y);
+            break;
+        }
+        }
+        if (st == RHONN_OK) {
+            check_invariants(&net, updates);
+        } else {
+            capture(&net, &after);
+            if (memcmp(&before, &after, sizeof before) != 0) {
+                abort(); /* a refused call changed the filter */
+            }
+        }
+    }
+    return 0;
+}
