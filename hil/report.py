@@ -48,6 +48,28 @@ def _e(v: float | None) -> str:
     return f"{'-':>11}" if v is None else f"{v:11.3e}"
 
 
+def _inside(hold: dict[str, Any], unit: str) -> str:
+    """The hold line's tail: inside the hold, the identifier against the held frames."""
+    est, frames = hold.get("estimate_rmse_inside"), hold.get("frames_rmse_inside")
+    if est is None or frames is None or not (math.isfinite(est) and math.isfinite(frames)) or frames <= 0:
+        return ""
+    return (f"; inside the hold the estimates are {est:.3e} {unit} RMSE off it, the held frames {frames:.3e} "
+            f"({100 * est / frames:.1f} %)")
+
+
+_WHY = {"held": "held", "derived": "derived from a held or missing reading"}
+
+
+def _not_valid(counts: dict[str, dict[str, int]] | None) -> list[str]:
+    """The line saying how many samples the rig sent not valid, per signal and why."""
+    if not counts:
+        return []
+    parts = [f"{name} {sum(why.values())} (" + ", ".join(f"{n} {_WHY.get(k, k)}" for k, n in why.items() if n) + ")"
+             for name, why in counts.items()]
+    return ["  not valid: " + "; ".join(parts) + " - neither learnt nor used: the identifier predicts them from "
+            "its own outputs"]
+
+
 def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
     f = report["frames"]
     served = (report.get("firmware_side") or {}).get("firmware")
@@ -88,8 +110,9 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
                   *(f"  hold: {name} held for {ident[name]['hold']['cycles']} cycles, in which it moved up to "
                     f"{ident[name]['hold']['travel_max']:.3g} {unit} unobserved; the frames themselves, held values "
                     f"included, are {ident[name]['hold']['frames_rmse']:.3e} {unit} RMSE off the truth (Table 7: "
-                    f"{ident[name]['table7_rmse']:.3e})"
+                    f"{ident[name]['table7_rmse']:.3e})" + _inside(ident[name]["hold"], unit)
                     for name, unit in (("position", "m"), ("velocity", "m/s")) if ident[name]["hold"]["cycles"]),
+                  *_not_valid(report.get("not_valid")),
                   f"  note: {ident['note']}"]
     be = report.get("bit_exact")
     if be:

@@ -194,6 +194,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
         out["firmware"] = None
         f["accounted"] = bool(f["missing"] == 0 and f["sent_plus_lost_is_cycles"])
     out["identification"] = _identification(plan, answered, phys) if answered.sum() >= 2 else None
+    out["not_valid"] = plan.not_valid          # Valid flags the rig cleared, per state and reason
     out["latency_us"] = stats_us(latency)
     out["latency_us"]["within_period"] = float(np.mean(latency <= T)) if latency.size else math.nan
     out["latency_us"]["stamp"] = rec.meta.get("rx_stamp", "recv")
@@ -244,7 +245,10 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
       largest gap between the held value and the truth) and the RMSE of the
       frames themselves against the truth over the answered cycles, held
       ones included: what following the rig's signal scores in this
-      scenario, the scale against which to read Table 7's figure.
+      scenario, the scale against which to read Table 7's figure; and
+      inside the hold alone (the cycles whose target is held), the
+      identifier's RMSE beside the held frames' own: how much of the
+      dropout it bridges.
     """
     truth_all = np.asarray(plan.truth_next)
     X, V = np.asarray(plan.X), np.asarray(plan.valid)
@@ -267,7 +271,7 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
             "vs_measurement": _errors(X[1:, j][vs_meas], phys[:-1, j][vs_meas]),
             "measurement_vs_truth": _errors(truth_all[:-1, j][sensed], X[1:, j][sensed]),
             "signal_peak": float(np.max(np.abs(truth))), "signal_rms": float(np.sqrt(np.mean(truth ** 2))),
-            "hold": _hold(truth_all[:-1, j], X[1:, j], next_fresh[:-1, j], answered[:-1])}
+            "hold": _hold(truth_all[:-1, j], X[1:, j], next_fresh[:-1, j], answered[:-1], phys[:-1, j])}
         ident[name]["at_or_below_table7"] = bool(ident[name]["rmse"] <= t7["rmse"])
     if plan.scenario.trajectory:
         ident["truth"] = "the trajectory file's x(k+1)"
@@ -281,13 +285,17 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
     return ident
 
 
-def _hold(truth: np.ndarray, frame: np.ndarray, fresh: np.ndarray, answered: np.ndarray) -> dict[str, Any]:
+def _hold(truth: np.ndarray, frame: np.ndarray, fresh: np.ndarray, answered: np.ndarray,
+          est: np.ndarray) -> dict[str, Any]:
     """For cycles k = 0..N-2: the next frame's value ``frame`` (held or
-    fresh) against the truth x(k+1); see :func:`_identification`."""
+    fresh) and the estimate ``est`` against the truth x(k+1); see
+    :func:`_identification`."""
     held = answered & ~fresh
     gap = np.abs(frame - truth)
+    rms = (lambda a: float(np.sqrt(np.mean(a ** 2)))) if held.any() else (lambda a: math.nan)
     return {"cycles": int(held.sum()), "travel_max": float(gap[held].max()) if held.any() else 0.0,
-            "frames_rmse": float(np.sqrt(np.mean(gap[answered] ** 2))) if answered.any() else math.nan}
+            "frames_rmse": float(np.sqrt(np.mean(gap[answered] ** 2))) if answered.any() else math.nan,
+            "frames_rmse_inside": rms(gap[held]), "estimate_rmse_inside": rms(est[held] - truth[held])}
 
 
 def compare_runs(recorded: dict[str, Any], replayed: dict[str, Any], log: str) -> dict[str, Any]:

@@ -29,6 +29,7 @@ from pyrhonn import Identifier  # noqa: E402
 from pyrhonn import firmware  # noqa: E402
 from pyrhonn.cli import main as pyrhonn_main  # noqa: E402
 
+from hil import report  # noqa: E402
 from hil.rig import BusLost, FirmwareTimeout, LogWriteError, Rig, read_log, write_log  # noqa: E402
 from hil.scenario import ENCODER_SENC50, Scenario  # noqa: E402
 from hil.score import score  # noqa: E402
@@ -94,9 +95,64 @@ def test_the_scenario_is_validated_seeded_and_models_the_rig() -> None:
     counts = plan.X[moving, 1] * 3e-4 / 10e-6  # whole counts per period: 0, 1, ... (the high-frequency content)
     assert np.allclose(counts, np.round(counts), atol=1e-6) and len(set(np.round(counts))) >= 2
     held = (plan.t >= 1.1 - 1e-9)
-    assert not plan.valid[held, 0].any() and plan.valid[~held, 0].all() and plan.valid[:, 1:].all()
+    assert not plan.valid[held, 0].any() and plan.valid[~held, 0].all() and plan.valid[:, 2:].all()
+    assert np.array_equal(plan.valid[:, 1], plan.valid[:, 0])   # the velocity is differenced from the position
     assert np.all(plan.X[held, 0] == plan.X[np.argmax(held) - 1, 0])  # the last valid reading, held
     assert np.abs(plan.truth_next[:, 0] - plan.X[:, 0]).max() > 1e-3  # the truth is not what was sent
+
+
+def test_a_velocity_differenced_from_a_held_or_missing_position_is_marked_not_valid() -> None:
+    # 0 .. 0.9 s: the motor moves from 0.1 s, the position is held 0.5 .. 0.6 s
+    plan = Scenario(duration=0.9, input_start=0.1, hold_start=0.5, hold_duration=0.1).build()
+    k = np.arange(plan.cycles)
+    held = (k >= round(0.5 / 3e-4)) & (k < round(0.6 / 3e-4))
+    assert np.array_equal(plan.valid[:, 0], ~held)
+    first_after = int(np.flatnonzero(held)[-1]) + 1
+    stale_v = held.copy()
+    stale_v[first_after] = True          # its difference spans the whole hold
+    stale_v[0] = True                    # no reading before the first one
+    assert np.array_equal(plan.valid[:, 1], ~stale_v) and plan.valid[:, 2:].all()
+    assert np.array_equal(plan.derived[:, 1], stale_v) and not plan.derived[:, [0, 2, 3, 4, 5]].any()
+    assert plan.not_valid == {"Qm": {"held": int(held.sum()), "derived": 0},
+                              "V": {"held": 0, "derived": int(stale_v.sum())}}
+    # a fresh velocity is the difference of two fresh positions; a stale one goes out as the last fresh value
+    fresh = np.flatnonzero(plan.valid[:, 1])
+    np.testing.assert_allclose(plan.X[fresh, 1], (plan.X[fresh, 0] - plan.X[fresh - 1, 0]) / 3e-4, atol=1e-9)
+    assert np.all(plan.X[first_after, 1] == plan.X[np.flatnonzero(held)[0] - 1, 1])
+    # a velocity held on its own is held, not derived; without differencing nothing is derived
+    alone = Scenario(duration=0.9, input_start=0.1, hold_start=0.5, hold_duration=0.1, hold_states=(1,)).build()
+    assert alone.valid[:, 0].all() and alone.not_valid["V"]["held"] == int(held.sum())
+    sensed = Scenario(duration=0.9, hold_start=0.5, hold_duration=0.1, velocity_from_position=False).build()
+    assert sensed.valid[:, 1].all() and not sensed.derived.any() and list(sensed.not_valid) == ["Qm"]
+
+
+def test_during_a_hold_the_firmware_bridges_on_its_own_predictions_instead_of_learning_stale_values() -> None:
+    # the motor moves from 1.0 s; the position is held 2.5 .. 3.0 s, where it travels about 0.12 m
+    sc = Scenario(duration=3.2, input_start=1.0, hold_start=2.5, hold_duration=0.5)
+    plan = sc.build()
+    rec = run_replay(sc, "virtual")
+    r = score(rec, reference=lim_config())
+    assert r["frames"]["answered"] == sc.cycles and r["bit_exact"]["equal"]
+    # what went over the bus: position and velocity not valid through the hold, the velocity also on the
+    # first frame after it (and on frame 0, which has no reading before it)
+    sent = {}
+    for _, d, m in rec.events[rec.meta["first_run_event"]:]:
+        if d == "tx" and m.arbitration_id == MEAS.frame_id:
+            f = MEAS.decode(bytes(m.data), decode_choices=False)
+            sent[int(f["Seq"])] = (int(f["ValidQm"]), int(f["ValidV"]))
+    inside = [k for k in range(sc.cycles) if 2.5 - 1e-9 <= plan.t[k] < 3.0 - 1e-9]
+    after = inside[-1] + 1
+    assert len(inside) == 1666 and all(sent[k] == (0, 0) for k in inside)
+    assert sent[after] == (1, 0) and sent[after + 1] == (1, 1) and sent[inside[0] - 1] == (1, 1)
+    assert sum(v == 0 for k in sent for v in sent[k]) == 1666 + 1666 + 2
+    assert r["not_valid"] == {"Qm": {"held": 1666, "derived": 0}, "V": {"held": 0, "derived": 1668}}
+    # inside the hold the identifier's position is far closer to the truth than the held frames
+    hold = r["identification"]["position"]["hold"]
+    assert hold["cycles"] == 1666
+    assert hold["estimate_rmse_inside"] < 0.5 * hold["frames_rmse_inside"]
+    text = report.table(r)
+    assert "not valid: Qm 1666 (1666 held); V 1668 (1668 derived from a held or missing reading)" in text
+    assert f"the held frames {hold['frames_rmse_inside']:.3e}" in text
 
 
 # -- end to end -----------------------------------------------------------------------------------
