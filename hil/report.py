@@ -84,6 +84,12 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
              f"{'':<22}duplicates {f['duplicates']}  unexpected {f['unexpected']}  foreign sent "
              f"{sum(f['foreign_sent'].values())}  step errors {f['step_errors']}  -> "
              f"{'all accounted for' if f['accounted'] else 'NOT ACCOUNTED FOR'}"]
+    lost = [f.get(k, 0) for k in ("lost_to_firmware", "rejected_after_loss", "lost_from_firmware")]
+    drops = f.get("kernel_drops")
+    if any(lost) or (drops and any(drops.values())):
+        lines.append(f"{'':<22}full receive queues: lost to the firmware {lost[0]} (then rejected as Seq jumps "
+                     f"{lost[1]}), lost from the firmware {lost[2]}; datagrams the kernel dropped"
+                     + (f": rig {drops['rig']}, firmware {drops['firmware']}" if drops else ": not counted here"))
     drain = report.get("drain") or {}
     if drain.get("capped"):
         lines.append(f"{'':<22}the drain stopped after {drain['s']:.1f} s with estimates still coming in: "
@@ -117,7 +123,9 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
     be = report.get("bit_exact")
     if be:
         lines.append(f"{'bit exact vs offline':<22}{be['checked']} estimates checked against Identifier.run: "
-                     f"{'equal' if be['equal'] else str(be['mismatches']) + ' differ'}")
+                     f"{'equal' if be['equal'] else str(be['mismatches']) + ' differ'}"
+                     + (f"; not checked from cycle {be['unknown_from']} on (frames lost both ways: which ones the "
+                        "firmware stepped on is not known)" if be.get("unknown_from") is not None else ""))
     reg = report.get("regression")
     if reg:
         if reg["equal"]:
