@@ -1,4 +1,4 @@
-"""hil/: the LIM rig replayed against the firmware over python-can (issue 6),
+"""hil/: the LIM rig replayed against the firmware over python-can,
 on the host transports (virtual in-process, udp_multicast between processes,
 where the firmware is the C runner or the Python node).
 

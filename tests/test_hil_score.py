@@ -1,4 +1,4 @@
-"""hil.score's identification figures (issue 6, Table 7): each measure is
+"""hil.score's identification figures (Table 7): each measure is
 recomputed here from the scenario's plan and the estimates, with numpy and
 nothing from hil.score or pyrhonn.metrics."""
 from __future__ import annotations
