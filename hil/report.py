@@ -174,8 +174,11 @@ def figures(report: dict[str, Any], out: Path) -> list[Path]:
         if len(k):
             ax.plot(t[k] + T, est[:, j], lw=0.8, ls="--", label="identified (firmware over the bus)")
         sc = report["scenario"]
-        if sc["hold_duration"] > 0 and j in sc["hold_states"]:
-            ax.axvspan(sc["hold_start"], sc["hold_start"] + sc["hold_duration"], color="0.9", label="measurement held")
+        # the velocity differenced from a held position is not valid through the hold either
+        derived = j == 1 and sc.get("velocity_from_position", False) and 0 in sc["hold_states"]
+        if sc["hold_duration"] > 0 and (j in sc["hold_states"] or derived):
+            ax.axvspan(sc["hold_start"], sc["hold_start"] + sc["hold_duration"], color="0.9",
+                       label="measurement held" if j in sc["hold_states"] else "not valid (from the held position)")
         ax.set_xlabel("time (s)")
         ax.set_ylabel(f"{name} ({unit})")
         ax.set_title(f"LIM {name}: real vs identified (cf. Fig. {fig_no}), {report['transport']}")
