@@ -211,16 +211,19 @@ class Rig:
         return BusLost(f"the bus ({self.transport} {self.channel}) went away while {doing} after {sent} frames sent "
                        f"and {received} received: {exc}", rec)
 
-    def _control(self, command: str, token: int, timeout: float) -> bool:
+    def _control(self, command: str, token: int, timeout: float, *, progress: bool = False) -> bool:
         """Send a Control frame; True when its ControlAck came back (for a
         DiagRequest: and the Diagnostics frame after it). Sent again every
         0.25 s until then: the firmware may still be binding, and on a busy
-        host a full receive queue may drop the request or the answers."""
+        host a full receive queue may drop the request or the answers.
+        ``progress``: any frame received restarts the ``timeout`` (a firmware
+        still answering a backlog is behind, not gone), up to MAX_WAIT_S."""
         from pyrhonn.firmware import control_message, database
 
         want = ids()
         ack_id, diag_id = want["ControlAck"], want["Diagnostics"]
-        end = time.perf_counter_ns() + int(timeout * 1e9)
+        start = time.perf_counter_ns()
+        end = start + int(timeout * 1e9)
         seen = len(self._events)
         acked = False
         resend = 0
@@ -228,7 +231,10 @@ class Rig:
             if time.perf_counter_ns() >= resend:
                 self._send(control_message(command, token))
                 resend = time.perf_counter_ns() + 250_000_000
+            n = self._n_rx
             self._take(self._recv(0.02), time.perf_counter_ns())
+            if progress and self._n_rx != n:
+                end = min(time.perf_counter_ns() + int(timeout * 1e9), start + int(MAX_WAIT_S * 1e9))
             for _, d, m in self._events[seen:]:
                 if d != "rx":
                     continue
@@ -270,8 +276,9 @@ class Rig:
                 gc.enable()
             gc.unfreeze()
         drain_s, drain_capped = self._drain_estimates()
-        # a firmware still working through a deep receive queue answers once it is through: wait as the drain
-        diag_ok = self._control("DiagRequest", 0x5A, self.reply_timeout + DRAIN_CAP * self.drain)
+        # a firmware still working through a deep receive queue answers once it is through: while its
+        # estimates keep coming it is behind, not gone
+        diag_ok = self._control("DiagRequest", 0x5A, self.reply_timeout + DRAIN_CAP * self.drain, progress=True)
         drops = None
         if drops0 is not None and self.kernel_drops is not None:
             drops1 = self.kernel_drops()

@@ -176,6 +176,50 @@ def test_a_bus_that_never_goes_quiet_is_drained_for_at_most_the_cap(clock) -> No
     assert capped and took == pytest.approx(DRAIN_CAP * 0.01) and rig._n_rx == pytest.approx(DRAIN_CAP * 10, abs=1)
 
 
+def _frame(name: str, **values: int) -> can.Message:
+    from pyrhonn.firmware import database
+
+    m = database().get_message_by_name(name)
+    data = m.encode({sig.name: values.get(sig.name, 0) for sig in m.signals})
+    return can.Message(arbitration_id=m.frame_id, data=data, is_fd=True, is_extended_id=False)
+
+
+class _BehindBus(_QueuedBus):
+    """A firmware ``queued`` estimates behind on a busy host: it answers a
+    DiagRequest (its ControlAck, then Diagnostics) once it has sent them."""
+
+    def __init__(self, clock: _Clock, queued: int, per_frame: float) -> None:
+        super().__init__(clock, queued, per_frame)
+        self.answers: list[can.Message] = []
+
+    def send(self, msg: can.Message) -> None:
+        if msg.arbitration_id == ids()["Control"] and not self.answers:
+            self.answers = [_frame("ControlAck", Token=msg.data[1], Command=7), _frame("Diagnostics")]
+
+    def recv(self, timeout: float | None = None) -> can.Message | None:
+        if self.queued == 0 and self.answers:
+            return self.answers.pop(0)
+        return super().recv(timeout)
+
+
+def test_the_final_diagnostics_wait_for_a_firmware_still_answering_its_backlog(clock) -> None:
+    from pyrhonn.firmware import control_message
+
+    assert control_message("DiagRequest", 0x5A).data[1] == 0x5A    # the Token byte _BehindBus echoes
+    # 30 estimates still to come, 0.5 s apart: 15 s in all, far beyond 2 s of silence
+    rig = Rig(_BehindBus(clock, 30, 0.5), PLAN, transport="virtual")
+    assert rig._control("DiagRequest", 0x5A, 2.0, progress=True)
+    assert rig._n_rx == 32                                        # every estimate, the ack, the Diagnostics
+    # a firmware that has gone quiet is still given up after the timeout
+    quiet = _BehindBus(clock, 0, 0.5)
+    quiet.send = lambda msg: None                                # never answers
+    t0 = clock.ns
+    assert not Rig(quiet, PLAN, transport="virtual")._control("DiagRequest", 0x5A, 2.0, progress=True)
+    assert clock.ns - t0 == pytest.approx(2e9, abs=3e7)
+    # without progress the same backlog is given up while its estimates still come
+    assert not Rig(_BehindBus(clock, 30, 0.5), PLAN, transport="virtual")._control("DiagRequest", 0x5A, 2.0)
+
+
 @pytest.mark.parametrize("kwargs, match", [({"drain": -1.0}, "drain: must be >= 0"),
                                            ({"drain": float("inf")}, "drain: must be finite"),
                                            ({"reply_timeout": 0.0}, "reply_timeout: must be > 0"),
