@@ -1,6 +1,7 @@
 """The firmware as a process on a python-can bus (the udp_multicast transport).
 
     python -m hil.firmware_node --channel GROUP --port PORT [--interface udp_multicast] [--duration S]
+                                [--receive-buffer BYTES]
 
 Runs :class:`pyrhonn.firmware.FirmwareApp` (the exact firmware logic) with
 firmware_sim's LIM identifier, prints ``ready`` on stdout once its socket is
@@ -9,6 +10,10 @@ line: the firmware's counters and cyclictest-style statistics of its own side
 (interval between Measurement arrivals, handling time per frame).
 udp_multicast hands a sender its own frames back, so frames with the
 firmware's own identifiers (Estimate, ControlAck, Diagnostics, Health) are skipped.
+Its socket gets a deep receive queue (``--receive-buffer``, default 32 MiB
+where the kernel allows it), so that a stall of this process on a busy host
+delays frames instead of dropping them; what a full queue still drops, the
+rig counts (hil.accounting).
 """
 from __future__ import annotations
 
@@ -34,13 +39,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--channel", required=True)
     ap.add_argument("--port", type=int, default=None)
     ap.add_argument("--duration", type=float, default=3600.0)
+    ap.add_argument("--receive-buffer", type=int, default=None, metavar="BYTES",
+                    help="the socket's receive buffer (default: hil.transport's deep one)")
     args = ap.parse_args(argv)
     import can
 
     from pyrhonn.firmware import FirmwareApp
 
     from .rig import ids
-    from .transport import lim_config
+    from .transport import _deep_receive_buffer, lim_config
 
     kw = {"fd": True}
     if args.port is not None:
@@ -50,6 +57,14 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, can.CanError, ValueError) as exc:
         print(f"firmware_node: cannot open {args.interface} {args.channel}: {exc}", file=sys.stderr)
         return 2
+    # a deep receive queue: a stall of this process on a busy host delays frames instead of dropping them
+    sock = getattr(getattr(bus, "_multicast", None), "_socket", None)
+    if args.receive_buffer is None:
+        _deep_receive_buffer(sock)
+    elif sock is not None:
+        import socket
+
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, args.receive_buffer)
     app = FirmwareApp(bus, lim_config())
     own = {v for k, v in ids().items() if k in ("Estimate", "ControlAck", "Diagnostics", "Health")}
     meas_id = ids()["Measurement"]

@@ -50,6 +50,28 @@ def _e(v: float | None) -> str:
     return f"{'-':>11}" if v is None else f"{v:11.3e}"
 
 
+def _inside(hold: dict[str, Any], unit: str) -> str:
+    """The hold line's tail: inside the hold, the identifier against the held frames."""
+    est, frames = hold.get("estimate_rmse_inside"), hold.get("frames_rmse_inside")
+    if est is None or frames is None or not (math.isfinite(est) and math.isfinite(frames)) or frames <= 0:
+        return ""
+    return (f"; inside the hold the estimates are {est:.3e} {unit} RMSE off it, the held frames {frames:.3e} "
+            f"({100 * est / frames:.1f} %)")
+
+
+_WHY = {"held": "held", "derived": "derived from a held or missing reading"}
+
+
+def _not_valid(counts: dict[str, dict[str, int]] | None) -> list[str]:
+    """The line saying how many samples the rig sent not valid, per signal and why."""
+    if not counts:
+        return []
+    parts = [f"{name} {sum(why.values())} (" + ", ".join(f"{n} {_WHY.get(k, k)}" for k, n in why.items() if n) + ")"
+             for name, why in counts.items()]
+    return ["  not valid: " + "; ".join(parts) + " - neither learnt nor used: the identifier predicts them from "
+            "its own outputs"]
+
+
 def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
     f = report["frames"]
     served = (report.get("firmware_side") or {}).get("firmware")
@@ -66,6 +88,12 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
              f"{'all accounted for' if f['accounted'] else 'NOT ACCOUNTED FOR'}"]
     if report.get("partial"):
         lines.append(f"{'':<22}PARTIAL LOG: {report['partial']}; the cycles it never sent count as unaccounted")
+    lost = [f.get(k, 0) for k in ("lost_to_firmware", "rejected_after_loss", "lost_from_firmware")]
+    drops = f.get("kernel_drops")
+    if any(lost) or (drops and any(drops.values())):
+        lines.append(f"{'':<22}full receive queues: lost to the firmware {lost[0]} (then rejected as Seq jumps "
+                     f"{lost[1]}), lost from the firmware {lost[2]}; datagrams the kernel dropped"
+                     + (f": rig {drops['rig']}, firmware {drops['firmware']}" if drops else ": not counted here"))
     drain = report.get("drain") or {}
     if drain.get("capped"):
         lines.append(f"{'':<22}the drain stopped after {drain['s']:.1f} s with estimates still coming in: "
@@ -93,13 +121,16 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
                   *(f"  hold: {name} held for {ident[name]['hold']['cycles']} cycles, in which it moved up to "
                     f"{ident[name]['hold']['travel_max']:.3g} {unit} unobserved; the frames themselves, held values "
                     f"included, are {ident[name]['hold']['frames_rmse']:.3e} {unit} RMSE off the truth (Table 7: "
-                    f"{ident[name]['table7_rmse']:.3e})"
+                    f"{ident[name]['table7_rmse']:.3e})" + _inside(ident[name]["hold"], unit)
                     for name, unit in (("position", "m"), ("velocity", "m/s")) if ident[name]["hold"]["cycles"]),
+                  *_not_valid(report.get("not_valid")),
                   f"  note: {ident['note']}"]
     be = report.get("bit_exact")
     if be:
         lines.append(f"{'bit exact vs offline':<22}{be['checked']} estimates checked against Identifier.run: "
-                     f"{'equal' if be['equal'] else str(be['mismatches']) + ' differ'}")
+                     f"{'equal' if be['equal'] else str(be['mismatches']) + ' differ'}"
+                     + (f"; not checked from cycle {be['unknown_from']} on (frames lost both ways: which ones the "
+                        "firmware stepped on is not known)" if be.get("unknown_from") is not None else ""))
     reg = report.get("regression")
     if reg:
         if reg["equal"]:
@@ -148,8 +179,11 @@ def figures(report: dict[str, Any], out: Path) -> list[Path]:
         if len(k):
             ax.plot(t[k] + T, est[:, j], lw=0.8, ls="--", label="identified (firmware over the bus)")
         sc = report["scenario"]
-        if sc["hold_duration"] > 0 and j in sc["hold_states"]:
-            ax.axvspan(sc["hold_start"], sc["hold_start"] + sc["hold_duration"], color="0.9", label="measurement held")
+        # the velocity differenced from a held position is not valid through the hold either
+        derived = j == 1 and sc.get("velocity_from_position", False) and 0 in sc["hold_states"]
+        if sc["hold_duration"] > 0 and (j in sc["hold_states"] or derived):
+            ax.axvspan(sc["hold_start"], sc["hold_start"] + sc["hold_duration"], color="0.9",
+                       label="measurement held" if j in sc["hold_states"] else "not valid (from the held position)")
         ax.set_xlabel("time (s)")
         ax.set_ylabel(f"{name} ({unit})")
         ax.set_title(f"LIM {name}: real vs identified (cf. Fig. {fig_no}), {report['transport']}")

@@ -154,7 +154,8 @@ class Rig:
 
     def __init__(self, bus: can.BusABC, plan: Plan, *, transport: str = "?", channel: str = "?",
                  spin_ns: int = 100_000, reply_timeout: float = 1.0, drain: float = 0.5,
-                 extra_frames: Callable[[int], list[can.Message]] | None = None) -> None:
+                 extra_frames: Callable[[int], list[can.Message]] | None = None,
+                 kernel_drops: Callable[[], dict[str, int]] | None = None) -> None:
         self.bus = bus
         self.plan = plan
         self.transport = transport
@@ -163,6 +164,9 @@ class Rig:
         self.reply_timeout = check_seconds("reply_timeout", reply_timeout, zero=False)
         self.drain = check_seconds("drain", drain, zero=True)
         self.extra_frames = extra_frames  # fault injection: frames sent right after Measurement k
+        # udp_multicast: the kernel's count of datagrams dropped on the rig's and the firmware's sockets
+        # (a receive queue that overflowed on a busy host), read before and after the run
+        self.kernel_drops = kernel_drops
         ident = ids()
         self._accept = {ident["Estimate"], ident["ControlAck"], ident["Diagnostics"]}
         self._t0 = 0
@@ -233,10 +237,15 @@ class Rig:
         return BusLost(f"the bus ({self.transport} {self.channel}) went away while {doing} after {sent} frames sent "
                        f"and {received} received: {exc}", rec)
 
-    def _control(self, command: str, token: int, timeout: float) -> bool:
+    def _control(self, command: str, token: int, timeout: float, *, progress: bool = False) -> bool:
         """Send a Control frame, authenticated with the firmware's public test
-        key (each resend with the next freshness value: the firmware refuses a
-        replay); True when its ControlAck came back."""
+        key; True when its ControlAck came back (for a DiagRequest: and the
+        Diagnostics frame after it). Sent again every 0.25 s until then, each
+        time with the next freshness value (the firmware refuses a replay):
+        the firmware may still be binding, and on a busy host a full receive
+        queue may drop the request or the answers. ``progress``: any frame
+        received restarts the ``timeout`` (a firmware still answering a
+        backlog is behind, not gone), up to MAX_WAIT_S."""
         from pyrhonn.firmware import TEST_KEY, SecOCSender, control_message, database
 
         if not hasattr(self, "_secoc"):  # one freshness counter per rig, as per firmware run
@@ -244,22 +253,32 @@ class Rig:
                 raise RuntimeError("pyrhonn._fwapp was built with a provisioned SecOC key: hil knows only the "
                                    "public test key of the simulations")
             self._secoc = SecOCSender(TEST_KEY)
-        ack_id = ids()["ControlAck"]
-        end = time.perf_counter_ns() + int(timeout * 1e9)
-        n0 = len(self._events)
+        want = ids()
+        ack_id, diag_id = want["ControlAck"], want["Diagnostics"]
+        start = time.perf_counter_ns()
+        end = start + int(timeout * 1e9)
+        seen = len(self._events)
+        acked = False
         resend = 0
         while time.perf_counter_ns() < end:
-            if time.perf_counter_ns() >= resend:  # again every 0.25 s: the firmware may still be binding
+            if time.perf_counter_ns() >= resend:
                 self._send(control_message(command, token, sender=self._secoc))
                 resend = time.perf_counter_ns() + 250_000_000
+            n = self._n_rx
             self._take(self._recv(0.02), time.perf_counter_ns())
-            for _, d, m in self._events[n0:]:
-                if d == "rx" and m.arbitration_id == ack_id:
+            if progress and self._n_rx != n:
+                end = min(time.perf_counter_ns() + int(timeout * 1e9), start + int(MAX_WAIT_S * 1e9))
+            for _, d, m in self._events[seen:]:
+                if d != "rx":
+                    continue
+                if m.arbitration_id == ack_id:
                     a = database().decode_message("ControlAck", bytes(m.data), decode_choices=False)
-                    if a["Token"] == token and a["Command"] == {"DiagRequest": 7, "Reset": 1}[command]:
-                        # the Diagnostics frame follows the ack: give it a moment
-                        self._wait_until(time.perf_counter_ns() + 20_000_000)
-                        return True
+                    acked = acked or (a["Token"] == token and a["Command"] == {"DiagRequest": 7, "Reset": 1}[command])
+                elif m.arbitration_id == diag_id and acked:
+                    return True
+            seen = len(self._events)
+            if acked and command != "DiagRequest":
+                return True
         return False
 
     # -- the run -----------------------------------------------------------------------------
@@ -286,6 +305,7 @@ class Rig:
         if not self._control("DiagRequest", 0xA5, self.reply_timeout):
             raise FirmwareTimeout(f"no answer from the firmware on {where} within {self.reply_timeout:g} s "
                                   "(is the firmware running, on this channel/port?)")
+        drops0 = self.kernel_drops() if self.kernel_drops is not None else None
         wall0 = time.time()
         t0 = time.perf_counter_ns() + 10_000_000
         self._first_run_event = len(self._events)
@@ -300,9 +320,15 @@ class Rig:
                 gc.enable()
             gc.unfreeze()
         drain_s, drain_capped = self._drain_estimates()
-        diag_ok = self._control("DiagRequest", 0x5A, self.reply_timeout)
+        # a firmware still working through a deep receive queue answers once it is through: while its
+        # estimates keep coming it is behind, not gone
+        diag_ok = self._control("DiagRequest", 0x5A, self.reply_timeout + DRAIN_CAP * self.drain, progress=True)
+        drops = None
+        if drops0 is not None and self.kernel_drops is not None:
+            drops1 = self.kernel_drops()
+            drops = {side: drops1[side] - drops0[side] for side in drops0}
         return self._recording({"wall_start": wall0, "rig_overruns": overruns, "final_diagnostics": diag_ok,
-                                "drain_s": drain_s, "drain_capped": drain_capped})
+                                "drain_s": drain_s, "drain_capped": drain_capped, "kernel_drops": drops})
 
     def _drain_estimates(self) -> tuple[float, bool]:
         """The last estimates: read until the bus has been quiet for ``drain``

@@ -19,6 +19,15 @@ signals before they reached the identifier:
    are not updated for ``hold_duration`` from ``hold_start`` (the real-time
    test: from 1.1 s, lim.paper_holds); held samples go out with their
    Valid flag cleared and the last valid reading.
+   **A value derived from a held or missing one is not valid either**: the
+   differenced velocity v(k) needs fresh positions at k and k-1, so it is
+   marked not valid through the position hold and on the first sample after
+   it (whose difference spans the whole hold), and on the very first sample
+   of the trajectory (no previous reading). Otherwise the rig would send the
+   difference of two held readings, 0, as a fresh velocity, and the
+   identifier would learn that the motor stopped. During a dropout the
+   firmware replaces each invalid state by its own prediction and learns
+   nothing from it. ``Plan.not_valid`` counts the flags cleared, by reason.
 4. **Random frame loss**: each Measurement frame is lost on the wire with
    probability ``frame_loss`` (seeded); the rig never sends it, so the
    firmware sees a sequence-counter jump on the next one.
@@ -202,7 +211,9 @@ class Plan:
     ``X`` (N, 6), ``U`` (N, 2), ``valid`` (N, 6): what Measurement k carries
     (Seq = k mod 65536); ``truth_next`` (N, 6): the noise-free x(k+1) that
     Estimate k predicts; ``lost`` (N,): frames lost on the wire; ``t`` (N,):
-    sampling instants.
+    sampling instants; ``derived`` (N, 6): the flags of ``valid`` cleared
+    because the value is derived from a held or missing reading (the
+    differenced velocity), not held itself.
     """
 
     scenario: Scenario
@@ -212,10 +223,22 @@ class Plan:
     valid: np.ndarray
     truth_next: np.ndarray
     lost: np.ndarray
+    derived: np.ndarray
 
     @property
     def cycles(self) -> int:
         return int(self.t.shape[0])
+
+    @property
+    def not_valid(self) -> dict[str, dict[str, int]]:
+        """Per state signal with any flag cleared, how many samples went out
+        not valid and why: ``held`` (the measurement hold) and ``derived``
+        (computed from a held or missing reading)."""
+        from pyrhonn.firmware import STATE_SIGNALS
+
+        held = ~self.valid & ~self.derived
+        return {name: {"held": int(held[:, j].sum()), "derived": int(self.derived[:, j].sum())}
+                for j, name in enumerate(STATE_SIGNALS) if not self.valid[:, j].all()}
 
     def frames(self) -> list:
         """The Measurement frames (python-can messages), lost ones included."""
@@ -260,20 +283,28 @@ def _build(sc: Scenario) -> Plan:
         levels = Xtrue[:, 0] / sc.encoder_resolution
         levels = np.floor(levels) if sc.quantiser == "floor" else np.round(levels)
         reading[:, 0] = levels * sc.encoder_resolution
-    if sc.velocity_from_position:
-        reading[1:, 1] = np.diff(reading[:, 0]) / sc.period
-        reading[0, 1] = 0.0
     T = Xtrue.shape[0]
     valid = np.ones((T, 6), dtype=bool)
     if sc.hold_duration > 0:
         for j in sc.hold_states:
             valid[HoldWindow(j, sc.hold_start, sc.hold_duration).mask(t, sc.period), j] = False
+    derived = np.zeros((T, 6), dtype=bool)
+    if sc.velocity_from_position:
+        reading[1:, 1] = np.diff(reading[:, 0]) / sc.period
+        reading[0, 1] = 0.0
+        # v(k) is fresh only if both positions it differences are: not through a hold of the position,
+        # nor on the first sample after it (the difference spans the hold), nor at sample 0 (no q(-1))
+        fresh = valid[:, 0].copy()
+        fresh[1:] &= valid[:-1, 0]
+        fresh[0] = False
+        derived[:, 1] = valid[:, 1] & ~fresh
+        valid[:, 1] &= fresh
     idx = np.where(valid, np.arange(T)[:, None], -1)
     np.maximum.accumulate(idx, axis=0, out=idx)
     held = np.take_along_axis(reading, np.maximum(idx, 0), axis=0)
     held[idx < 0] = 0.0                      # invalid before any valid reading: ignored by the firmware
     sl = slice(k0, k0 + N)
-    X, Uk, V = held[sl].copy(), U[sl].copy(), valid[sl].copy()
+    X, Uk, V, D = held[sl].copy(), U[sl].copy(), valid[sl].copy(), derived[sl].copy()
     # the DBC's ranges: refuse a scenario the protocol cannot carry, naming where
     msg = database().get_message_by_name("Measurement")
     for j, name in enumerate(STATE_SIGNALS + INPUT_SIGNALS):
@@ -290,10 +321,11 @@ def _build(sc: Scenario) -> Plan:
                              f"[{s.minimum}, {s.maximum}] ({why})")
     rng = np.random.default_rng(np.random.SeedSequence([sc.seed, 0x4811]))
     lost = rng.random(N) < sc.frame_loss if sc.frame_loss > 0 else np.zeros(N, dtype=bool)
-    for a in (X, Uk, V, lost):
+    for a in (X, Uk, V, D, lost):
         a.setflags(write=False)
     truth_next = Xtrue[k0 + 1:k0 + N + 1].copy()
     truth_next.setflags(write=False)
     tk = t[sl].copy()
     tk.setflags(write=False)
-    return Plan(scenario=sc, t=tk, X=X, U=Uk, valid=V, truth_next=truth_next, lost=lost)
+    return Plan(scenario=sc, t=tk, X=X, U=Uk, valid=V, truth_next=truth_next, lost=lost,
+                derived=D)

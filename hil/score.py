@@ -14,6 +14,10 @@ same numbers.
   a loss or after a foreign Measurement); *missing* is anything else
   unanswered. The firmware's own Diagnostics (requested before and after the
   run) give its count of rejections, which must equal rejected + foreign.
+  Over udp_multicast a busy host's kernel may drop datagrams at a full
+  receive queue: such losses, corroborated by the firmware's counts and the
+  kernel's drop counters, are counted apart (lost to / from the firmware,
+  rejected after a loss; hil.accounting) instead of missing.
 - Identification: RMSE and absolute deviation (pyrhonn.metrics) of position
   and velocity, Estimate k (x̂(k+1), after the DBC's scaling) against the
   noise-free x(k+1), over the answered cycles; Table 7 alongside; the same
@@ -32,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from .accounting import kernel_losses, stepped
 from .rig import Recording, ids
 from .scenario import TABLE7
 
@@ -84,6 +89,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     raw = np.zeros((N, 6), dtype=np.int64)
     phys = np.zeros((N, 6), dtype=np.float64)
     status = np.zeros(N, dtype=np.int64)
+    resync = np.zeros(N, dtype=bool)
     expect_reject = np.zeros(N, dtype=bool)
     meas_data: dict[int, bytes] = {}
     by_seq: dict[int, int] = {}
@@ -150,6 +156,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
             raw[k] = e.xhat
             phys[k] = decode_estimate(m).xhat
             status[k] = e.step_status
+            resync[k] = e.resync
 
     lost = np.asarray(plan.lost)
     was_sent = sent_ns >= 0
@@ -190,12 +197,16 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
               "step_time_max_us": b["StepTimeMax"], "last_step_time_us": b["StepTime"]}
         out["firmware"] = fw
         n_foreign = sum(foreign.values())
-        f["accounted"] = bool(fw["measurements"] == f["answered"] and fw["rejected"] == f["rejected_seq_jump"]
-                              + n_foreign and f["missing"] == 0 and f["sent_plus_lost_is_cycles"])
+        f.update(_kernel_losses(f, fw, n_foreign, rec.meta))
+        f["accounted"] = bool(fw["measurements"] == f["answered"] + f["lost_from_firmware"]
+                              and fw["rejected"] == f["rejected_seq_jump"] + n_foreign + f["rejected_after_loss"]
+                              and f["missing"] == 0 and f["sent_plus_lost_is_cycles"])
     else:
         out["firmware"] = None
+        f.update(_kernel_losses(f, None, 0, rec.meta))
         f["accounted"] = bool(f["missing"] == 0 and f["sent_plus_lost_is_cycles"])
     out["identification"] = _identification(plan, answered, phys) if answered.sum() >= 2 else None
+    out["not_valid"] = plan.not_valid          # Valid flags the rig cleared, per state and reason
     out["latency_us"] = stats_us(latency)
     out["latency_us"]["within_period"] = float(np.mean(latency <= T)) if latency.size else math.nan
     out["latency_us"]["stamp"] = rec.meta.get("rx_stamp", "recv")
@@ -209,7 +220,9 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     out["rig_overruns"] = rec.meta.get("rig_overruns")
     out["drain"] = {"s": rec.meta.get("drain_s"), "capped": bool(rec.meta.get("drain_capped", False))}
     if reference is not None:
-        out["bit_exact"] = _reference_check(reference, meas_data, was_sent & ~expect_reject, answered, raw)
+        steps, unknown_from = stepped(was_sent, answered, resync, expect_reject, f,
+                                      out["firmware"]["measurements"] if out["firmware"] else None)
+        out["bit_exact"] = _reference_check(reference, meas_data, steps, answered, raw, unknown_from)
     out["_series"] = {"k": np.flatnonzero(answered), "est": phys[answered], "truth": np.asarray(plan.truth_next),
                       "latency_ns": latency, "t": np.asarray(plan.t)}
     return out
@@ -246,7 +259,10 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
       largest gap between the held value and the truth) and the RMSE of the
       frames themselves against the truth over the answered cycles, held
       ones included: what following the rig's signal scores in this
-      scenario, the scale against which to read Table 7's figure.
+      scenario, the scale against which to read Table 7's figure; and
+      inside the hold alone (the cycles whose target is held), the
+      identifier's RMSE beside the held frames' own: how much of the
+      dropout it bridges.
     """
     truth_all = np.asarray(plan.truth_next)
     X, V = np.asarray(plan.X), np.asarray(plan.valid)
@@ -269,7 +285,7 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
             "vs_measurement": _errors(X[1:, j][vs_meas], phys[:-1, j][vs_meas]),
             "measurement_vs_truth": _errors(truth_all[:-1, j][sensed], X[1:, j][sensed]),
             "signal_peak": float(np.max(np.abs(truth))), "signal_rms": float(np.sqrt(np.mean(truth ** 2))),
-            "hold": _hold(truth_all[:-1, j], X[1:, j], next_fresh[:-1, j], answered[:-1])}
+            "hold": _hold(truth_all[:-1, j], X[1:, j], next_fresh[:-1, j], answered[:-1], phys[:-1, j])}
         ident[name]["at_or_below_table7"] = bool(ident[name]["rmse"] <= t7["rmse"])
     if plan.scenario.trajectory:
         ident["truth"] = "the trajectory file's x(k+1)"
@@ -283,13 +299,17 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
     return ident
 
 
-def _hold(truth: np.ndarray, frame: np.ndarray, fresh: np.ndarray, answered: np.ndarray) -> dict[str, Any]:
+def _hold(truth: np.ndarray, frame: np.ndarray, fresh: np.ndarray, answered: np.ndarray,
+          est: np.ndarray) -> dict[str, Any]:
     """For cycles k = 0..N-2: the next frame's value ``frame`` (held or
-    fresh) against the truth x(k+1); see :func:`_identification`."""
+    fresh) and the estimate ``est`` against the truth x(k+1); see
+    :func:`_identification`."""
     held = answered & ~fresh
     gap = np.abs(frame - truth)
+    rms = (lambda a: float(np.sqrt(np.mean(a ** 2)))) if held.any() else (lambda a: math.nan)
     return {"cycles": int(held.sum()), "travel_max": float(gap[held].max()) if held.any() else 0.0,
-            "frames_rmse": float(np.sqrt(np.mean(gap[answered] ** 2))) if answered.any() else math.nan}
+            "frames_rmse": float(np.sqrt(np.mean(gap[answered] ** 2))) if answered.any() else math.nan,
+            "frames_rmse_inside": rms(gap[held]), "estimate_rmse_inside": rms(est[held] - truth[held])}
 
 
 def compare_runs(recorded: dict[str, Any], replayed: dict[str, Any], log: str) -> dict[str, Any]:
@@ -319,20 +339,37 @@ def compare_runs(recorded: dict[str, Any], replayed: dict[str, Any], log: str) -
             "first_difference": first, "equal": bool(common.size > 0 and same.all())}
 
 
+def _kernel_losses(f: dict[str, Any], fw: dict[str, Any] | None, n_foreign: int,
+                   meta: dict[str, Any]) -> dict[str, Any]:
+    """The frames' entries for the losses a busy host's kernel caused
+    (hil.accounting): the counted ones no longer missing."""
+    split = kernel_losses(f, fw, n_foreign, meta)
+    counted = split["lost_to_firmware"] + split["rejected_after_loss"] + split["lost_from_firmware"]
+    return {"kernel_drops": split["kernel_drops"], "lost_to_firmware": split["lost_to_firmware"],
+            "rejected_after_loss": split["rejected_after_loss"], "lost_from_firmware": split["lost_from_firmware"],
+            "missing": f["missing"] - counted}
+
+
 def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndarray, answered: np.ndarray,
-                     raw: np.ndarray) -> dict:
-    """Identifier.run (float32) on the decoded frames the firmware accepted
-    (every sent frame but the Seq jumps: it steps on them whether or not
-    their estimate reached the rig), restarted at every gap as the firmware
-    does, scaled as the DBC, compared on the answered ones."""
+                     raw: np.ndarray, unknown_from: int | None = None) -> dict:
+    """Identifier.run (float32) on the decoded frames the firmware stepped
+    on (``accepted``, hil.accounting.stepped: whether or not their estimate
+    reached the rig), restarted at every gap as the firmware does, scaled as
+    the DBC, compared on the answered ones before ``unknown_from``, the first
+    cycle whose fate the rig cannot tell (``checked`` then stops short of the
+    answered count)."""
     from pyrhonn import Identifier
     from pyrhonn.firmware import INPUT_SIGNALS, STATE_SIGNALS, VALID_SIGNALS, database
+
+    if unknown_from is not None:
+        accepted, answered = accepted.copy(), answered.copy()
+        accepted[unknown_from:] = answered[unknown_from:] = False
 
     db = database()
     M, E = db.get_message_by_name("Measurement"), db.get_message_by_name("Estimate")
     ks = np.flatnonzero(accepted)
     if ks.size == 0 or not answered.any():
-        return {"checked": 0, "mismatches": 0, "equal": False}
+        return {"checked": 0, "mismatches": 0, "equal": False, "unknown_from": unknown_from}
     X = np.empty((ks.size, 6), dtype=np.float32)
     U = np.empty((ks.size, 2), dtype=np.float32)
     V = np.empty((ks.size, 6), dtype=bool)
@@ -357,4 +394,5 @@ def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndar
         want[:, j] = [min(max(sig.scaled_to_raw(float(v)), lo), hi) for v in xhat[:, j]]
     bad = np.any(want != raw[ks], axis=1)
     return {"checked": int(ks.size), "mismatches": int(bad.sum()), "equal": bool(not bad.any()),
+            "unknown_from": unknown_from,
             "first_mismatch_cycle": int(ks[np.argmax(bad)]) if bad.any() else None}

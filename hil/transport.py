@@ -114,20 +114,68 @@ class FirmwareUnavailable(OSError):
     """The firmware process cannot be had here (no runner and no way to build one)."""
 
 
+#: receive buffer asked for the rig's and the Python node's sockets: a small datagram takes a few kB of
+#: it, so 32 MiB queue some 10,000 frames, seconds of a stalled process at 0.3 ms (two frames a cycle)
+RECEIVE_BUFFER = 32 << 20
+
+
 def _deep_receive_buffer(sock: Any) -> None:
-    """8 MiB of receive buffer for the rig's socket, so that a stall of the
-    rig process (tens of ms on a busy host) delays frames instead of dropping
-    them: SO_RCVBUFFORCE (root), else SO_RCVBUF up to net.core.rmem_max."""
+    """RECEIVE_BUFFER bytes of receive buffer for a socket, so that a stall
+    of its process (tens of ms to seconds on a busy host) delays frames
+    instead of dropping them: SO_RCVBUFFORCE (root), else SO_RCVBUF up to
+    net.core.rmem_max. What a full queue still drops is counted
+    (udp_socket_drops)."""
     import socket
 
     if sock is None:
         return
     for opt in (33, socket.SO_RCVBUF):
         try:
-            sock.setsockopt(socket.SOL_SOCKET, opt, 8 << 20)
+            sock.setsockopt(socket.SOL_SOCKET, opt, RECEIVE_BUFFER)
             return
         except (OSError, AttributeError):
             continue
+
+
+def udp_socket_drops(port: int) -> dict[int, int]:
+    """inode -> datagrams the kernel dropped, of every UDP socket on this host
+    bound to ``port`` (/proc/net/udp and udp6: the socket's sk_drops, the
+    counter SO_RXQ_OVFL reports, which python-can's udp_multicast cannot
+    enable: it refuses an unexpected control message). A receive queue that
+    overflows drops what arrives; {} where /proc has no such table."""
+    drops: dict[int, int] = {}
+    for table in ("/proc/net/udp", "/proc/net/udp6"):
+        try:
+            with open(table, encoding="ascii") as f:
+                lines = f.read().splitlines()[1:]
+        except OSError:
+            continue
+        for line in lines:
+            cols = line.split()
+            try:
+                if len(cols) >= 13 and int(cols[1].rsplit(":", 1)[1], 16) == port:
+                    drops[int(cols[9])] = int(cols[-1])
+            except ValueError:
+                continue
+    return drops
+
+
+def _drop_counter(sock: Any, port: int) -> Callable[[], dict[str, int]] | None:
+    """{"rig": n, "firmware": n}: the kernel's drops on the rig's socket and
+    on every other socket bound to the run's own port (the firmware's), or
+    None where the rig's socket is not in /proc/net/udp."""
+    try:
+        inode = os.fstat(sock.fileno()).st_ino
+    except (AttributeError, OSError, ValueError):
+        return None
+    if inode not in udp_socket_drops(port):
+        return None
+
+    def count() -> dict[str, int]:
+        d = udp_socket_drops(port)
+        return {"rig": d.get(inode, 0), "firmware": sum(v for k, v in d.items() if k != inode)}
+
+    return count
 
 
 def _check_cpu(name: str, cpu: object) -> int:
@@ -307,7 +355,9 @@ def _udp(channel: str | None, port: int | None, firmware: str | None, runner: st
         _stop_runner(proc, report)
         raise OSError(f"udp_multicast {channel}:{port}: cannot open it ({exc})") from exc
     # the rig's socket also gets its own Measurements back (multicast loop): twice the traffic to buffer
-    _deep_receive_buffer(getattr(getattr(rig, "_multicast", None), "_socket", None))
+    sock = getattr(getattr(rig, "_multicast", None), "_socket", None)
+    _deep_receive_buffer(sock)
+    rig.hil_kernel_drops = _drop_counter(sock, port)   # what a receive queue that overflowed dropped
 
     def firmware_side() -> dict:
         if proc is None:
@@ -442,7 +492,7 @@ def run_replay(scenario: Scenario, transport: str = "virtual", channel: str | No
     with open_transport(transport, channel, port=port, firmware=firmware, runner=runner,
                         firmware_cpu=firmware_cpu, runner_spin_us=runner_spin_us) as (bus, where, side):
         rig = Rig(bus, plan, transport=transport, channel=where, spin_ns=spin_ns, reply_timeout=reply_timeout,
-                  drain=drain, extra_frames=extra_frames)
+                  drain=drain, extra_frames=extra_frames, kernel_drops=getattr(bus, "hil_kernel_drops", None))
         rec = rig.run()
         try:
             rec.meta["firmware_side"] = side()

@@ -28,10 +28,14 @@ def _estimate(timestamp: float) -> can.Message:
 @pytest.mark.parametrize("transport", ["udp_multicast", "socketcan"])
 def test_a_kernel_stamp_dates_the_arrival_back_to_when_the_socket_got_it(transport) -> None:
     rig = Rig(None, PLAN, transport=transport)
+    before = time.perf_counter_ns()
+    stamp = time.time() - 0.002                 # the kernel stamped it 2 ms before this line ran
+    after = time.perf_counter_ns()
     now = time.perf_counter_ns()
-    rig._take(_estimate(time.time() - 0.002), now)
+    rig._take(_estimate(stamp), now)
     arrived, direction, _ = rig._events[-1]
-    assert direction == "rx" and 1_900_000 <= now - arrived <= 50_000_000   # about 2 ms earlier
+    # on the rig's clock: 2 ms before that line (up to 1 ms for pairing the two clocks), however long ago
+    assert direction == "rx" and before - 3_000_000 <= arrived <= after - 1_000_000
     (pickup,) = rig._pickup
     assert now - arrived <= pickup <= time.perf_counter_ns() - arrived  # read when the frame was taken
 
@@ -55,7 +59,7 @@ def test_a_udp_replay_reports_socket_arrival_and_pick_up_apart_and_every_estimat
     from pyrhonn.firmware import decode_estimate
 
     sc = Scenario(duration=0.15, start=1.95, seed=9)
-    rec = run_replay(sc, "udp_multicast")
+    rec = run_replay(sc, "udp_multicast", reply_timeout=30.0)
     sent: dict[int, float] = {}
     for t, d, m in rec.events[rec.meta["first_run_event"]:]:
         if d == "tx" and m.arbitration_id == ids()["Measurement"]:
@@ -121,34 +125,99 @@ def test_the_udp_bench_compares_the_runner_asleep_and_busy_polling_with_the_pyth
     assert bad.returncode == 2 and "--rounds" in bad.stderr
 
 
-class _QueuedBus:
-    """A bus whose rig is slow: each frame still queued takes ``per_frame`` s to read."""
+class _Clock:
+    """hil.rig's clock, advanced only by the fake bus below: the drain's waits
+    are counted, not timed, so a busy host cannot change them."""
 
-    def __init__(self, queued: int, per_frame: float) -> None:
-        self.queued, self.per_frame = queued, per_frame
+    def __init__(self) -> None:
+        self.ns = 10**12
+
+    def perf_counter_ns(self) -> int:
+        return self.ns
+
+
+class _QueuedBus:
+    """A bus whose rig is slow: each frame still queued takes ``per_frame`` s
+    (of ``clock``) to read; an empty queue waits out the timeout."""
+
+    def __init__(self, clock: _Clock, queued: int, per_frame: float) -> None:
+        self.clock, self.queued, self.per_frame = clock, queued, per_frame
 
     def recv(self, timeout: float | None = None) -> can.Message | None:
         if self.queued == 0:
-            time.sleep(timeout or 0.0)
+            self.clock.ns += int((timeout or 0.0) * 1e9)
             return None
         self.queued -= 1
-        time.sleep(self.per_frame)
+        self.clock.ns += int(self.per_frame * 1e9)
         return _estimate(0.0)
 
 
-def test_the_drain_reads_a_slow_queue_to_its_end_not_for_a_fixed_time() -> None:
+@pytest.fixture
+def clock(monkeypatch) -> _Clock:
+    import hil.rig
+
+    c = _Clock()
+    monkeypatch.setattr(hil.rig, "time", c)
+    return c
+
+
+def test_the_drain_reads_a_slow_queue_to_its_end_not_for_a_fixed_time(clock) -> None:
     # 12 frames at 20 ms each: 0.24 s of reading, far beyond the 50 ms of quiet the drain waits for
-    rig = Rig(_QueuedBus(12, 0.02), PLAN, transport="virtual", drain=0.05)
+    rig = Rig(_QueuedBus(clock, 12, 0.02), PLAN, transport="virtual", drain=0.05)
     took, capped = rig._drain_estimates()
-    assert rig._n_rx == 12 and not capped and took >= 0.24 + 0.05
+    assert rig._n_rx == 12 and not capped and took == pytest.approx(0.24 + 0.05)
 
 
-def test_a_bus_that_never_goes_quiet_is_drained_for_at_most_the_cap() -> None:
+def test_a_bus_that_never_goes_quiet_is_drained_for_at_most_the_cap(clock) -> None:
     from hil.rig import DRAIN_CAP
 
-    rig = Rig(_QueuedBus(10**9, 0.001), PLAN, transport="virtual", drain=0.01)
+    rig = Rig(_QueuedBus(clock, 10**9, 0.001), PLAN, transport="virtual", drain=0.01)
     took, capped = rig._drain_estimates()
-    assert capped and DRAIN_CAP * 0.01 <= took < DRAIN_CAP * 0.01 + 0.5
+    assert capped and took == pytest.approx(DRAIN_CAP * 0.01) and rig._n_rx == pytest.approx(DRAIN_CAP * 10, abs=1)
+
+
+def _frame(name: str, **values: int) -> can.Message:
+    from pyrhonn.firmware import database
+
+    m = database().get_message_by_name(name)
+    data = m.encode({sig.name: values.get(sig.name, 0) for sig in m.signals})
+    return can.Message(arbitration_id=m.frame_id, data=data, is_fd=True, is_extended_id=False)
+
+
+class _BehindBus(_QueuedBus):
+    """A firmware ``queued`` estimates behind on a busy host: it answers a
+    DiagRequest (its ControlAck, then Diagnostics) once it has sent them."""
+
+    def __init__(self, clock: _Clock, queued: int, per_frame: float) -> None:
+        super().__init__(clock, queued, per_frame)
+        self.answers: list[can.Message] = []
+
+    def send(self, msg: can.Message) -> None:
+        if msg.arbitration_id == ids()["Control"] and not self.answers:
+            self.answers = [_frame("ControlAck", Token=msg.data[1], Command=7), _frame("Diagnostics")]
+
+    def recv(self, timeout: float | None = None) -> can.Message | None:
+        if self.queued == 0 and self.answers:
+            return self.answers.pop(0)
+        return super().recv(timeout)
+
+
+def test_the_final_diagnostics_wait_for_a_firmware_still_answering_its_backlog(clock) -> None:
+    from pyrhonn.firmware import control_message
+
+    assert control_message("DiagRequest", 0x5A).data[1] == 0x5A    # the Token byte _BehindBus echoes
+    # 30 estimates still to come, 0.5 s apart: 15 s in all, far beyond 2 s of silence
+    rig = Rig(_BehindBus(clock, 30, 0.5), PLAN, transport="virtual")
+    assert rig._control("DiagRequest", 0x5A, 2.0, progress=True)
+    assert rig._n_rx == 32                                        # every estimate, the ack, the Diagnostics
+    # a firmware that has gone quiet is still given up after the timeout
+    quiet = _BehindBus(clock, 0, 0.5)
+    quiet.send = lambda msg: None                                # never answers
+    t0 = clock.ns
+    assert not Rig(quiet, PLAN, transport="virtual")._control("DiagRequest", 0x5A, 2.0, progress=True)
+    assert clock.ns - t0 == pytest.approx(2e9, abs=3e7)
+    # without progress the same backlog is given up while its estimates still come
+    assert not Rig(_BehindBus(clock, 30, 0.5), PLAN, transport="virtual")._control("DiagRequest", 0x5A, 2.0)
 
 
 @pytest.mark.parametrize("kwargs, match", [({"drain": -1.0}, "drain: must be >= 0"),

@@ -1,4 +1,4 @@
-"""hil.score's identification figures (issue 6, Table 7): each measure is
+"""hil.score's identification figures (Table 7): each measure is
 recomputed here from the scenario's plan and the estimates, with numpy and
 nothing from hil.score or pyrhonn.metrics."""
 from __future__ import annotations
@@ -59,9 +59,17 @@ def test_truth_no_hold_measured_and_sensor_errors_are_the_documented_comparisons
     assert pos["hold"]["travel_max"] > 1e-3                 # the motor moves from 2.0 s, the hold ends at 2.1 s
     assert pos["hold"]["frames_rmse"] == pytest.approx(_rmse(X[1:, 0], truth[:-1, 0]), rel=1e-12)
     assert f"position held for {int(held.sum())} cycles" in text and f"{pos['hold']['frames_rmse']:.3e}" in text
-    assert r["identification"]["velocity"]["hold"] == {"cycles": 0, "travel_max": 0.0, "frames_rmse": pytest.approx(
-        _rmse(X[1:, 1], truth[:-1, 1]), rel=1e-12)}
-    assert "velocity held" not in text
+    # inside the hold alone: the estimates and the held frames against the truth, the same cycles
+    assert pos["hold"]["estimate_rmse_inside"] == pytest.approx(_rmse(est[:-1, 0][held], truth[:-1, 0][held]),
+                                                                rel=1e-12)
+    assert pos["hold"]["frames_rmse_inside"] == pytest.approx(_rmse(X[1:, 0][held], truth[:-1, 0][held]), rel=1e-12)
+    ratio = 100 * pos["hold"]["estimate_rmse_inside"] / pos["hold"]["frames_rmse_inside"]
+    assert f"the held frames {pos['hold']['frames_rmse_inside']:.3e} ({ratio:.1f} %)" in text
+    # the velocity, differenced from the held position, is not fresh through the hold and one frame after
+    vel = r["identification"]["velocity"]["hold"]
+    assert vel["cycles"] == int(held.sum()) + 1 and f"velocity held for {vel['cycles']} cycles" in text
+    assert r["not_valid"] == {"Qm": {"held": int((~V[:, 0]).sum()), "derived": 0},
+                              "V": {"held": 0, "derived": int((~V[:, 1]).sum())}}
 
 
 def test_the_sensor_error_is_the_encoders_quantisation_and_zero_without_it() -> None:
