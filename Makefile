@@ -70,10 +70,15 @@ test-c-sanitize:
 # FUZZ_SECONDS from a seed corpus: a crash, a sanitizer report or a rejected
 # frame that changes the filter fails the run (firmware_sim/fuzz/). Then the
 # runner's udp_multicast codec for FUZZ_UDP_SECONDS, seeded with python-can's
-# own datagrams: an accepted datagram must re-encode to itself.
+# own datagrams: an accepted datagram must re-encode to itself. Then the core
+# (csrc/fuzz/fuzz_core.c), float and double: a committed covariance that is not
+# positive definite, an update with s < R or a refused call that changed the
+# filter fails the run.
 CLANG ?= clang-14
 FUZZ_SECONDS ?= 60
 FUZZ_UDP_SECONDS ?= 30
+# the core's public API (csrc/fuzz/fuzz_core.c), per precision; 600 for a real campaign
+FUZZ_CORE_SECONDS ?= 45
 FW_FLAGS = -std=c99 -ffp-contract=off -DRHONN_SINGLE -Icsrc/include -Ifirmware_sim/app \
 	-Ifirmware_sim/generated -Ifirmware_sim/config
 FW_SOURCES = firmware_sim/app/fw_app.c firmware_sim/app/fw_protocol.c firmware_sim/app/fw_hal_mem.c \
@@ -99,6 +104,15 @@ test-fuzz:
 	$(BUILD)/fuzz/fuzz_udp_can -max_total_time=$(FUZZ_UDP_SECONDS) -print_final_stats=1 \
 	  -artifact_prefix=$(BUILD)/fuzz/udp- $(BUILD)/fuzz/udp-corpus > $(BUILD)/fuzz/udp-log 2>&1; \
 	  rc=$$?; tail -n 8 $(BUILD)/fuzz/udp-log; exit $$rc
+	for prec in f32 f64; do \
+	  mkdir -p $(BUILD)/fuzz/core-$$prec-corpus && \
+	  $(CLANG) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -std=c99 -ffp-contract=off \
+	    $$( [ $$prec = f32 ] && echo -DRHONN_SINGLE ) -Icsrc/include csrc/fuzz/fuzz_core.c csrc/src/rhonn.c \
+	    -o $(BUILD)/fuzz/fuzz_core_$$prec && \
+	  $(BUILD)/fuzz/fuzz_core_$$prec -max_total_time=$(FUZZ_CORE_SECONDS) -print_final_stats=1 \
+	    -artifact_prefix=$(BUILD)/fuzz/core-$$prec- $(BUILD)/fuzz/core-$$prec-corpus > $(BUILD)/fuzz/core-$$prec-log 2>&1; \
+	  rc=$$?; tail -n 4 $(BUILD)/fuzz/core-$$prec-log; [ $$rc -eq 0 ] || exit $$rc; \
+	done
 
 # This kernel may have no CAN: the vcan-marked tests run in a QEMU VM with
 # the host's userspace (hil/vm/run_in_vm.py installs what it needs).

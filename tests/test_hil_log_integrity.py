@@ -107,8 +107,9 @@ def test_a_log_changed_after_it_was_written_is_refused_by_its_checksum(run_log, 
     write_log(read_log(run_log), log)
     lines = log.read_bytes().split(b"\n")
     i = next(i for i, ln in enumerate(lines) if b" Tx        100 " in ln)  # a Measurement frame
-    lines[i] = lines[i].replace(b" 3F ", b" 3E ", 1)                     # one data byte changed
-    assert lines[i].count(b" 3E ") == 1
+    changed = lines[i].replace(b" 20 00 00 ", b" 20 01 00 ", 1)            # one data byte (Seq) changed
+    assert changed != lines[i]
+    lines[i] = changed
     log.write_bytes(b"\n".join(lines))
     for err in _refusals(log, cli_error):
         assert "its SHA-256 does not match the one its sidecar run.asc.json records" in err

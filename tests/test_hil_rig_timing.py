@@ -203,9 +203,9 @@ class _BehindBus(_QueuedBus):
 
 
 def test_the_final_diagnostics_wait_for_a_firmware_still_answering_its_backlog(clock) -> None:
-    from pyrhonn.firmware import control_message
+    from pyrhonn.firmware import TEST_KEY, SecOCSender, control_message
 
-    assert control_message("DiagRequest", 0x5A).data[1] == 0x5A    # the Token byte _BehindBus echoes
+    assert control_message("DiagRequest", 0x5A, sender=SecOCSender(TEST_KEY)).data[1] == 0x5A  # the Token _BehindBus echoes
     # 30 estimates still to come, 0.5 s apart: 15 s in all, far beyond 2 s of silence
     rig = Rig(_BehindBus(clock, 30, 0.5), PLAN, transport="virtual")
     assert rig._control("DiagRequest", 0x5A, 2.0, progress=True)

@@ -16,9 +16,11 @@
  * rhonn.h is broken:
  *   - after every RHONN_OK step, each committed P_i is positive definite:
  *     a Cholesky factorisation at working precision, written here
- *     independently of the core, finds no pivot below zero by more than its
- *     rounding (full form; see cholesky_ok), or every factor d_j is a
- *     positive finite number and U is finite (U D U^T form);
+ *     independently of the core, succeeds on P scaled to a unit-order
+ *     diagonal with a rounding allowance of 64 L eps on it (full form: no
+ *     eigenvalue clearly below zero; see cholesky_ok), or every factor d_j
+ *     is a positive finite number and U is finite (U D U^T form, definite by
+ *     construction);
  *   - every learning update the step committed used an innovation variance
  *     s_i = R_i + z^T P_i z >= R_i (read back from the health record as
  *     e_i^2 / (e_i^2 / s_i));
@@ -160,19 +162,21 @@ static rhonn_real pow2_scale(rhonn_real v)
     return s;
 }
 
-/* Cholesky L L^T of the packed upper triangle at working precision, written
- * apart from the core (top-down, where the core factorises bottom-up), on P
- * scaled by powers of two to a diagonal in [1, 4): 0 when a pivot is below
- * zero by more than 16 L eps. Near singularity a pivot comes out a few ulps
- * above or below zero depending on the order of the operations (float
+/* Cholesky L L^T at working precision, written apart from the core
+ * (top-down, where the core factorises bottom-up), of P scaled by powers of
+ * two to a diagonal in [1, 4) and shifted by the rounding allowance
+ * delta = 64 L eps trace: 0 when it fails, i.e. when the scaled P has an
+ * eigenvalue below about -delta, clearly indefinite at this precision. The
+ * allowance is needed because no working-precision test agrees with another
+ * near singularity: a covariance the core's own factorisation finds
+ * positive can give a slightly negative pivot in another order (float
  * [[388673, -195308.188], [-195308.188, 98142.3672]], determinant 177 against
- * products of 3.8e10, passes bottom-up and fails top-down), so "positive
- * definite at working precision" can only be asked to that tolerance; a
- * pivot inside it is taken as a rounding zero. */
+ * products of 3.8e10), and a float32 filter reaches such nearly singular
+ * covariances after one update with a small R. */
 static int cholesky_ok(const rhonn_real *p, size_t L)
 {
     const rhonn_real eps = sizeof(rhonn_real) == 4 ? (rhonn_real)1.2e-7 : (rhonn_real)2.3e-16;
-    rhonn_real a[RHONN_MAX_TERMS][RHONN_MAX_TERMS], sc[RHONN_MAX_TERMS];
+    rhonn_real a[RHONN_MAX_TERMS][RHONN_MAX_TERMS], sc[RHONN_MAX_TERMS], tr = 0, delta;
     size_t i, j, k, idx = 0;
     for (i = 0; i < L; idx += L - i, ++i) {
         if (!(p[idx] > 0) || p[idx] - p[idx] != 0) {
@@ -184,6 +188,11 @@ static int cholesky_ok(const rhonn_real *p, size_t L)
         for (j = i; j < L; ++j, ++idx) {
             a[i][j] = a[j][i] = p[idx] * sc[i] * sc[j];
         }
+        tr += a[i][i];
+    }
+    delta = 64 * (rhonn_real)L * eps * tr;
+    for (i = 0; i < L; ++i) {
+        a[i][i] += delta;
     }
     for (j = 0; j < L; ++j) {
         rhonn_real d = a[j][j], s, prev = 0;
@@ -191,11 +200,8 @@ static int cholesky_ok(const rhonn_real *p, size_t L)
         for (k = 0; k < j; ++k) {
             d -= a[j][k] * a[j][k];
         }
-        if (d != d || d - d != d - d || d < -16 * (rhonn_real)L * eps) {
+        if (!(d > 0) || d - d != d - d) {
             return 0;
-        }
-        if (!(d > 1e-30f)) {
-            d = (rhonn_real)1e-30; /* a rounding zero */
         }
         /* sqrt without libm: Newton from above */
         s = d > 1 ? d : 1;

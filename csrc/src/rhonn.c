@@ -472,20 +472,13 @@ static size_t row_start(size_t r, size_t L)
 
 /* U D U^T factorisation of the packed symmetric P into F (D on the diagonal,
  * U's strict upper triangle beside it), from the last column back. Returns 1
- * when every pivot d_j is finite and above 8 L eps P_jj, else 0 with F
- * partly written. The margin is what "positive definite at working
- * precision" means here: the rounding error of a pivot is below about
- * 2 L eps P_jj (its terms U(j,k)^2 d_k sum to at most P_jj), so a pivot
- * above the margin is positive in exact arithmetic too, and a matrix that
- * is singular but for rounding ([[a, -a], [-a, a]] gives a pivot of a few
- * ulps of a) is refused whatever the order of the operations. About L^3/6
- * multiply-adds and L divisions; the row offsets are tabulated once so the
- * inner loops are plain strided dot products. */
+ * when every pivot d_j is a positive finite number, else 0 with F partly
+ * written. About L^3/6 multiply-adds and L divisions; the row offsets are
+ * tabulated once so the inner loops are plain strided dot products. */
 RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHONN_RESTRICT F, const size_t L)
 {
     rhonn_real t[RHONN_MAX_TERMS], d[RHONN_MAX_TERMS];
     size_t rs[RHONN_MAX_TERMS];
-    const rhonn_real margin = (rhonn_real)(8u * L) * RHONN_EPSILON;
     size_t j, r;
     rs[0] = 0;
     RHONN_UNROLL_LOOP
@@ -506,7 +499,7 @@ RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHON
         }
         /* false for NaN too, and -Inf: a non-finite entry anywhere in P
          * reaches some pivot as NaN or -Inf (U(i,k)^2 d_k >= 0) */
-        if (!(dj > margin * P[rs[j]]) || !(dj > R(0.0)) || !is_finite(dj)) {
+        if (!(dj > R(0.0)) || !is_finite(dj)) {
             return 0;
         }
         d[j] = dj;
@@ -548,24 +541,24 @@ static rhonn_real half_exponent_scale(rhonn_real v)
     return b.f;
 }
 
-/* Is the packed symmetric P positive definite at working precision? P is
- * first scaled symmetrically by powers of two (exactly) to a diagonal in
- * [1, 4), so that "small" means small against 1 whatever the units of the
- * terms (without it, entries of 1e8 beside a pivot of -4 are "factorised"
- * through rounding errors larger than the pivot), then factorised with the
- * pivot margin of udu_factor. This is a working-precision verdict, not a
- * proof: a matrix indefinite by less than the rounding of its own
- * factorisation (an ill-conditioned one) can pass, as with any floating-point
- * Cholesky test. A proof (Rump's shifted Cholesky) would refuse the
- * covariances an ordinary float32 filter reaches after one update with a
- * small R (eigenvalues of 1e-6 of the diagonal); where that matters, the
- * U D U^T form keeps P definite by construction. Every 2 x 2 minor must be positive as well
- * (|C_ij| < sqrt(C_ii C_jj), a cheap necessary condition that also keeps the
- * elimination of an indefinite matrix from growing). A diagonal below the
- * normal range is refused: such a P is singular at this precision. */
+/* Is the packed symmetric P positive definite at working precision: does
+ * its U D U^T factorisation succeed? P is first scaled symmetrically by
+ * powers of two (exactly) to a diagonal in [1, 4): the factorisation then
+ * works on unit-order numbers whatever the units of the terms, so it can
+ * neither overflow nor underflow on a P near the ends of the range.
+ *
+ * This is a working-precision verdict, as any floating-point Cholesky test:
+ * a nearly singular P passes or fails by a few ulps, and one indefinite by
+ * less than its own rounding can pass. A certificate (Rump's shifted
+ * Cholesky, or a pivot margin) would refuse the covariances an ordinary
+ * float32 filter reaches with a small R: at rest, 15 updates of
+ * firmware-lim's velocity neuron leave eigenvalues near eps of the diagonal.
+ * Where that matters, the U D U^T form keeps P definite by construction.
+ * A diagonal below the normal range is refused: such a P is singular at
+ * this precision. */
 RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L)
 {
-    rhonn_real C[RHONN_MAX_PACKED], F[RHONN_MAX_PACKED], sc[RHONN_MAX_TERMS], cd[RHONN_MAX_TERMS];
+    rhonn_real C[RHONN_MAX_PACKED], F[RHONN_MAX_PACKED], sc[RHONN_MAX_TERMS];
     size_t i, j, idx;
     for (i = 0, idx = 0; i < L; idx += L - i, ++i) {
         const rhonn_real v = P[idx];
@@ -579,17 +572,6 @@ RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L)
         RHONN_UNROLL_LOOP
         for (j = i; j < L; ++j, ++idx) {
             C[idx] = (P[idx] * sc[i]) * sc[j];
-        }
-        cd[i] = C[idx - (L - i)];
-    }
-    RHONN_UNROLL_LOOP
-    for (i = 0, idx = 0; i < L; ++i) {
-        ++idx; /* the diagonal */
-        RHONN_UNROLL_LOOP
-        for (j = i + 1u; j < L; ++j, ++idx) {
-            if (!(C[idx] * C[idx] < cd[i] * cd[j])) {
-                return 0;
-            }
         }
     }
     return udu_factor(C, F, L);

@@ -446,6 +446,39 @@ static void restart_learns_nothing_on_the_next_step(void)
     CHECK(memcmp(y, yf, sizeof y) == 0);
 }
 
+/* Found by csrc/fuzz/fuzz_core.c (with an exact check): entries of 1e8
+ * beside a pivot that is -0.022 of its diagonal in exact arithmetic. The
+ * setters and the config check refuse it in double. (In float the matrix is
+ * singular to working precision: its fourth pivot is 1.1e-6 of its
+ * diagonal, ten eps, so either verdict is within rounding there, and the
+ * float build does not assert one.) */
+static void a_badly_scaled_indefinite_covariance_is_refused(void)
+{
+    rhonn_t net;
+    rhonn_config c = small_config();
+    rhonn_real p[15] = {(rhonn_real)184199.5625, (rhonn_real)-141691.953125, (rhonn_real)-19925.43359375,
+                        (rhonn_real)-22582.158203125, (rhonn_real)-0.022582164034247398, (rhonn_real)285009440,
+                        (rhonn_real)-133531672, (rhonn_real)-151335920, (rhonn_real)-151.33590698242188,
+                        (rhonn_real)154833232, (rhonn_real)-21281612, (rhonn_real)-21.281614303588867,
+                        (rhonn_real)172640128, (rhonn_real)-24.119163513183594, (rhonn_real)196.75926208496094};
+    size_t t;
+    c.neurons[0].n_terms = 5;
+    c.neurons[0].terms[4] = c.neurons[0].terms[0];
+    c.neurons[0].terms[4].factors[0].power = 2;
+    for (t = 0; t < 15; ++t) {
+        c.neurons[0].p0[t] = (rhonn_real)0;
+    }
+    c.neurons[0].p0[0] = c.neurons[0].p0[5] = c.neurons[0].p0[9] = c.neurons[0].p0[12] = c.neurons[0].p0[14] = 1;
+    CHECK_STATUS(rhonn_init(&net, &c, NULL), RHONN_OK);
+#ifndef RHONN_SINGLE
+    CHECK_STATUS(rhonn_set_covariance(&net, 0, p, 15), RHONN_E_VALUE);
+    memcpy(c.neurons[0].p0, p, sizeof p);
+    CHECK_STATUS(rhonn_validate_config(&c, NULL), RHONN_E_CONFIG);
+#else
+    (void)p;
+#endif
+}
+
 static void health_rejects_bad_arguments(void)
 {
     rhonn_t net;
@@ -681,6 +714,7 @@ int main(void)
     RUN(factored_form_tracks_the_full_form);
     RUN(restart_learns_nothing_on_the_next_step);
     RUN(health_rejects_bad_arguments);
+    RUN(a_badly_scaled_indefinite_covariance_is_refused);
     RUN(overflowing_covariance_reports_covariance_error);
     RUN(overflowing_prediction_reports_divergence);
     RUN(setters_reject_bad_values);
