@@ -103,6 +103,12 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
         lines.append(f"{'firmware (Diagnostics)':<22}measurements {fw['measurements']}  rejected {fw['rejected']}  "
                      f"seq errors {fw['seq_errors']}  lost {fw['lost_frames']}  kernel drops {fw['rx_drops']}  "
                      f"overruns {fw['overruns']}  step max {fw['step_time_max_us']:.1f} us")
+    for h in report.get("health") or []:
+        def num(v: float | None) -> str:
+            return "saturated" if v is None else f"{v:.3g}"
+        lines.append(f"{'filter health' if h['neuron'] == 0 else '':<22}neuron {h['neuron']}  e^2/s {num(h['nis'])}  "
+                     f"trace P {num(h['trace_p'])}  updates {h['updates']}  refused {h['rejected']}  "
+                     f"resets {h['resets']}  bounded {h['bounded']}")
     ident = report.get("identification")
     if ident:
         lines += ["", f"{'identification':<22}{'RMSE':>11}{'abs. dev.':>11}{'Table 7':>11}{'Table 7':>11}"

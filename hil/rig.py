@@ -105,6 +105,9 @@ class BusLost(OSError):
         self.recording = recording
 
 
+HEALTH_FRAMES = 6  #: one Health frame per neuron of the LIM firmware follows each Diagnostics frame
+
+
 def ids() -> dict[str, int]:
     from pyrhonn.firmware import database
 
@@ -168,7 +171,7 @@ class Rig:
         # (a receive queue that overflowed on a busy host), read before and after the run
         self.kernel_drops = kernel_drops
         ident = ids()
-        self._accept = {ident["Estimate"], ident["ControlAck"], ident["Diagnostics"]}
+        self._accept = {ident["Estimate"], ident["ControlAck"], ident["Diagnostics"], ident["Health"]}
         self._t0 = 0
         # socketcan and udp_multicast give each received frame the kernel's receive timestamp: an
         # estimate counts as back when it reached the rig's socket, not when this process got to it
@@ -254,14 +257,16 @@ class Rig:
                                    "public test key of the simulations")
             self._secoc = SecOCSender(TEST_KEY)
         want = ids()
-        ack_id, diag_id = want["ControlAck"], want["Diagnostics"]
+        ack_id, diag_id, health_id = want["ControlAck"], want["Diagnostics"], want["Health"]
         start = time.perf_counter_ns()
         end = start + int(timeout * 1e9)
         seen = len(self._events)
         acked = False
+        diag_at: int | None = None
+        healths = health_end = 0
         resend = 0
         while time.perf_counter_ns() < end:
-            if time.perf_counter_ns() >= resend:
+            if time.perf_counter_ns() >= resend and diag_at is None:
                 self._send(control_message(command, token, sender=self._secoc))
                 resend = time.perf_counter_ns() + 250_000_000
             n = self._n_rx
@@ -275,8 +280,15 @@ class Rig:
                     a = database().decode_message("ControlAck", bytes(m.data), decode_choices=False)
                     acked = acked or (a["Token"] == token and a["Command"] == {"DiagRequest": 7, "Reset": 1}[command])
                 elif m.arbitration_id == diag_id and acked:
-                    return True
+                    diag_at = len(self._events)
+                elif m.arbitration_id == health_id and diag_at is not None:
+                    healths += 1
             seen = len(self._events)
+            # the Diagnostics frame is followed by one Health frame per neuron: read them too, briefly
+            if diag_at is not None and health_end == 0:
+                health_end = time.perf_counter_ns() + 1_000_000_000
+            if diag_at is not None and (healths >= HEALTH_FRAMES or time.perf_counter_ns() > health_end):
+                return True
             if acked and command != "DiagRequest":
                 return True
         return False

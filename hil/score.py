@@ -31,6 +31,8 @@ same numbers.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import math
 from typing import Any
 
@@ -68,7 +70,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     """The report of a run as a JSON-able dict. ``reference``: an
     IdentifierConfig to also check the estimates bit for bit against
     ``Identifier.run`` on the accepted Measurement frames (None: skipped)."""
-    from pyrhonn.firmware import database, decode_estimate
+    from pyrhonn.firmware import database, decode_estimate, decode_health
 
     sc = rec.scenario
     plan = sc.build()
@@ -98,6 +100,8 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     foreign: dict[str, int] = {}
     unexpected = duplicates = mismatched = 0
     diags: list[dict[str, int]] = []
+    health: dict[int, dict[str, Any]] = {}
+    HEALTH = ident["Health"]
     plan_bytes: dict[int, bytes] = {}
 
     def plan_frame(k: int) -> bytes:
@@ -137,6 +141,13 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
             continue
         if m.arbitration_id == DIAG:
             diags.append(_diag(m))
+            continue
+        if m.arbitration_id == HEALTH:
+            try:
+                h = decode_health(m)
+            except ValueError:
+                continue
+            health[h.neuron] = dataclasses.asdict(h)   # the last one per neuron: after the final Diagnostics
             continue
         if m.arbitration_id != EST:
             continue
@@ -207,6 +218,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
         f["accounted"] = bool(f["missing"] == 0 and f["sent_plus_lost_is_cycles"])
     out["identification"] = _identification(plan, answered, phys) if answered.sum() >= 2 else None
     out["not_valid"] = plan.not_valid          # Valid flags the rig cleared, per state and reason
+    out["health"] = [health[i] for i in sorted(health)]   # the firmware's filter health at the end, per neuron
     out["latency_us"] = stats_us(latency)
     out["latency_us"]["within_period"] = float(np.mean(latency <= T)) if latency.size else math.nan
     out["latency_us"]["stamp"] = rec.meta.get("rx_stamp", "recv")

@@ -390,7 +390,7 @@ def _socketcan(channel: str | None, runner: str | None, cpu: int | None = None,
     if runner:
         # each frame as it arrives (the runner's SocketCAN default is once per tick: up to a period late)
         proc, report = _start_runner(str(runner), ["--interface", channel], f"socketcan {channel}", cpu, spin_us)
-    wanted = [{"can_id": ids()[n], "can_mask": 0x7FF} for n in ("Estimate", "ControlAck", "Diagnostics")]
+    wanted = [{"can_id": ids()[n], "can_mask": 0x7FF} for n in ("Estimate", "ControlAck", "Diagnostics", "Health")]
     try:
         rig = can.Bus(interface="socketcan", channel=channel, fd=True, can_filters=wanted)
     except (OSError, can.CanError) as exc:

@@ -231,6 +231,10 @@ def test_estimates_over_the_bus_are_identifier_run_bit_for_bit_and_every_lost_fr
         lead, trail = int(np.argmax(~plan.lost)), int(np.argmax(~plan.lost[::-1]))
         assert r["firmware"]["lost_frames"] == n_lost - lead - trail and r["firmware"]["rx_drops"] == 0
         assert f"lost {n_lost - lead - trail}  kernel drops 0" in report.table(r)
+        # the firmware's filter health, from the Health frames after its final Diagnostics
+        assert [h["neuron"] for h in r["health"]] == list(range(6))
+        assert all(h["updates"] > 0 and h["rejected"] == 0 for h in r["health"])
+        assert "filter health         neuron 0  e^2/s " in report.table(r)
     ident = r["identification"]
     assert all(np.isfinite(ident[s]["rmse"]) for s in ("position", "velocity"))
     assert r["latency_us"]["n"] == f["answered"] and r["latency_us"]["min"] > 0
