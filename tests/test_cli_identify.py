@@ -350,21 +350,22 @@ def test_identify_killed_into_an_existing_out_leaves_whole_files_and_marks_a_mix
     out.mkdir()
     for name, data in runs[7].items():
         (out / name).write_bytes(data)
-    root = Path(__file__).resolve().parent.parent
-    env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
     rng = np.random.default_rng(3)
+    started = 0
 
     def listing() -> list[tuple[str, int, int]]:
         return sorted((e.name, e.stat().st_size, e.stat().st_mtime_ns) for e in os.scandir(out))
 
     for _ in range(5):
         before = listing()
+        # the pyrhonn this interpreter imports (the installed one), from a folder that cannot shadow it
         proc = subprocess.Popen([sys.executable, "-m", "pyrhonn.cli", "identify", str(tmp_path / "d8.csv"),
-                                 "--config", "example1", "--out", str(out)], env=env,
+                                 "--config", "example1", "--out", str(out)], cwd=str(tmp_path),
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         try:
             while proc.poll() is None and listing() == before:  # until it starts writing
                 time.sleep(0.002)
+            started += listing() != before
             time.sleep(float(rng.uniform(0.0, 1.5)))
             proc.send_signal(signal.SIGKILL)
         finally:
@@ -375,6 +376,7 @@ def test_identify_killed_into_an_existing_out_leaves_whole_files_and_marks_a_mix
             assert data in (runs[7][name], runs[8][name]), f"{name}: neither run's whole file"
         if not marked:
             assert now in (runs[7], runs[8]), "a folder not marked INCOMPLETE mixes two runs"
+    assert started == 5  # every process got as far as writing into --out (it was killed, not broken)
     # a run that finishes removes the marker and leaves the new outputs
     assert main(["identify", str(tmp_path / "d8.csv"), "--config", "example1", "--out", str(out)]) == 0
     assert _outputs(out) == runs[8]

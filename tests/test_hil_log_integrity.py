@@ -166,10 +166,10 @@ def test_sigint_and_sigterm_during_a_replay_leave_a_whole_log_marked_partial(tmp
 def test_a_signal_sent_to_a_replay_process_leaves_a_partial_log(tmp_path, cli_error, signum, code) -> None:
     """The same from outside, as a user or a service manager does it, on a real process."""
     log = tmp_path / "run.blf"
-    env = dict(os.environ, PYTHONPATH=f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+    # the pyrhonn this interpreter imports (the installed one; the source tree has no compiled core)
     proc = subprocess.Popen([sys.executable, "-m", "pyrhonn.cli", "hil", "replay", "--transport", "virtual",
-                             "--duration", "10", "--log", str(log)], stderr=subprocess.PIPE, text=True, env=env,
-                            stdout=subprocess.DEVNULL)
+                             "--duration", "10", "--log", str(log)], stderr=subprocess.PIPE, text=True,
+                            stdout=subprocess.DEVNULL, cwd=str(tmp_path))
     try:
         first = proc.stderr.readline()  # printed once the handlers are in place, right before the run
         assert "cycles over virtual" in first, first

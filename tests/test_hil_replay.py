@@ -262,13 +262,15 @@ def _udp_firmware_node(port: int, receive_buffer: int | None):
     import os
     import subprocess
     import sys
+    import tempfile
 
-    root = Path(__file__).resolve().parent.parent
     argv = [sys.executable, "-m", "hil.firmware_node", "--channel", "239.74.163.2", "--port", str(port)]
     if receive_buffer is not None:
         argv += ["--receive-buffer", str(receive_buffer)]
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])}
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=str(root))
+    # the hil and pyrhonn this interpreter imports (installed: the source tree has no compiled core), run
+    # from a folder that cannot shadow them
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=dict(os.environ),
+                            cwd=tempfile.gettempdir())
     assert proc.stdout is not None and proc.stdout.readline().strip() == "ready", proc.stderr.read()
     return proc
 
