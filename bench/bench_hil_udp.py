@@ -1,4 +1,4 @@
-"""The HIL round trip over udp_multicast (issue 6): the rig (python-can)
+"""The HIL round trip over udp_multicast: the rig (python-can)
 replays N measurement frames at 0.3 ms against the C firmware
 (``rhonn_runner --udp-multicast``), once sleeping between frames (the
 ``hil replay`` default, busy-polling 50 us either side of each expected frame)

@@ -1,4 +1,4 @@
-"""Hardware-in-the-loop replay of the LIM rig (issue 6), on python-can.
+"""Hardware-in-the-loop replay of the LIM rig, on python-can.
 
 The rig side of the paper's real-time LIM experiment (section 6.3.2, Table 7):
 a seeded :class:`~hil.scenario.Scenario` (LIM trajectory at 0.3 ms, encoder

@@ -41,7 +41,7 @@ see them. Metrics always compare against the true state.
 Example 1 horizon: the paper does not state it. 100 s is the oscillator
 module's default (chosen before any identifier was run, see
 :mod:`pyrhonn.plants.oscillator`); :func:`horizon_study` reports every figure
-at 50, 100 and 150 s as well (``/work/shared/plants.md`` §4).
+at 50, 100 and 150 s as well (the plant notes (docs/reproduction.md) §4).
 
 Outputs (:func:`write_outputs`): ``<key>.json`` (all numbers), one PNG per
 identifier / observer with the real and the estimated state per subplot,
@@ -98,8 +98,8 @@ EXAMPLES = ("example1", "example2", "example3")
 HORIZONS = (10.0, 20.0, 50.0, 100.0, 150.0)  #: horizons of the Example 1 study (plants.md §4; 10 s: before x4's first spike)
 DIAGNOSTIC_WARMUP = 10  #: samples skipped by the ``rmse_after_warmup`` diagnostic
 EXAMPLE1_PERIODS = (0.2, 0.02)
-RMSE_TARGET = {"example1": 1.0, "example2": 2.0, "example3": 2.0}  #: issue 4: identifier RMSE / paper
-AD_TARGET = {"example1": 1.0}  #: issue 4: identifier absolute deviation / paper (Example 1 only)
+RMSE_TARGET = {"example1": 1.0, "example2": 2.0, "example3": 2.0}  #: paper-example target: identifier RMSE / paper
+AD_TARGET = {"example1": 1.0}  #: paper-example target: identifier absolute deviation / paper (Example 1 only)
 
 Progress = Callable[[str], None]
 
@@ -691,7 +691,7 @@ def _fmt_ratio(v: float, limit: float | None) -> str:
 def format_table(result: ScenarioResult) -> str:
     """The terminal table: for every state and estimator, the paper's figure,
     ours and ours/paper, for RMSE and absolute deviation. A ratio marked
-    ``!`` misses issue 4's target for an identifier."""
+    ``!`` misses the paper-example target for an identifier."""
     sc = result.scenario
     paper = sc.paper
     ex = sc.example
@@ -715,7 +715,7 @@ def format_table(result: ScenarioResult) -> str:
     rt, at = RMSE_TARGET.get(ex), AD_TARGET.get(ex)
     target = f"identifier RMSE <= {rt:g} x paper" + (f" and AD <= {at:g} x paper" if at else "")
     missed = [t for t in result.targets() if not t["met"]]
-    lines.append(f"target (issue 4): {target}; " + (
+    lines.append(f"target: {target}; " + (
         "met on every state with a paper figure" if not missed else
         "missed: " + ", ".join(f"{t['estimator']} {t['state']} {t['metric']} {t['ratio']:.3g}" for t in missed)))
     return "\n".join(lines)

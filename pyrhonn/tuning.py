@@ -70,7 +70,7 @@ absolute ``(low, high)`` with 0 < low < high, for every neuron.
 Scaling P0, Q and R by one common factor leaves every prediction unchanged
 (the gain K_i = P_i H_i / (R_i + H_i^T P_i H_i) is invariant and P_i scales),
 so (P0, Q, R) has one redundant direction; all three are searched by default,
-as issue 4 asks, and ``params=("p0", "q", "eta", "beta")`` removes the
+as the paper-example targets ask, and ``params=("p0", "q", "eta", "beta")`` removes the
 redundancy (R stays at its base value).
 
 When every searched parameter's base value is a scalar inside its range

@@ -56,7 +56,7 @@ functions, eq. 18 with the OCR's second "h_3" read as h_4:
     h_1 = 0,\\quad h_2(x) = 2\\cos x_1,\\quad h_3 = 0,\\quad
     h_4(x) = 2 (x_1^2 + x_2^2) \\sin x_2
 
-Choices on the paper's ambiguities (``/work/shared/plants.md`` §3)
+Choices on the paper's ambiguities (the plant notes (docs/reproduction.md) §3)
 ------------------------------------------------------------------
 1. **Weight law driven by the output error.** The OCR of eq. 17 prints
    ŷ^T(k); an observer's learning law is driven by ỹ = y - ŷ (otherwise the

@@ -241,7 +241,7 @@ def simulate(
         "inputs": input_meta,
         "horizon": float(horizon),
         "discretisation": "forward Euler",
-        "sources": "/work/shared/plants.md §1: structure MEDIUM-HIGH, all parameters PROPOSED, "
+        "sources": "the plant notes (docs/reproduction.md) §1: structure MEDIUM-HIGH, all parameters PROPOSED, "
                    "A = 170 V PROPOSED (LOW), horizon 5 s / zero initial state / F_L = 0 PROPOSED",
     }
     return build_trajectory(t=t, X=X, U=U, state_names=STATE_NAMES, input_names=INPUT_NAMES, dt=float(dt),

@@ -9,7 +9,7 @@ Continuous-time model (tau = 3 s, u(t) = sin(0.3 t)):
           + 2 (x1(t - tau)^2 + x2(t - tau)^2) sin(x2(t - tau))
     y1 = x1 + x2,   y2 = x3 + x4        (outputs of the HONN observer, not used here)
 
-Sources and confidence (``/work/shared/plants.md`` §3-4): the equations, tau,
+Sources and confidence (the plant notes (docs/reproduction.md) §3-4): the equations, tau,
 x(0) = [1 1 1 1], u(t) and the sampling periods T = 0.2 s and 0.02 s are
 VERIFIED in the paper's text. The history before t = 0 (constant, equal to
 x(0)) and the horizon are NOT stated: PROPOSED here, and configurable.
@@ -249,7 +249,7 @@ def simulate(
         "params": p.to_dict(),
         "horizon": float(horizon),
         "integrator": {"method": "RK4, method of steps, cubic Hermite half-step history", "step": float(step)},
-        "sources": "/work/shared/plants.md §3-4: eq. 15, tau, x(0), u, T VERIFIED; constant history and "
+        "sources": "the plant notes (docs/reproduction.md) §3-4: eq. 15, tau, x(0), u, T VERIFIED; constant history and "
                    "horizon PROPOSED",
     }
     return build_trajectory(t=t, X=X, U=U, state_names=STATE_NAMES, input_names=INPUT_NAMES, dt=float(dt),

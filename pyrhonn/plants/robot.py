@@ -246,7 +246,7 @@ def simulate(
         "inputs": input_meta,
         "horizon": float(horizon),
         "discretisation": "forward Euler",
-        "sources": "/work/shared/plants.md §2: model HIGH/MEDIUM, parameters VERIFIED in "
+        "sources": "the plant notes (docs/reproduction.md) §2: model HIGH/MEDIUM, parameters VERIFIED in "
                    "alfredoaguiararce/rhonn-module-python, chirp and zero initial state PROPOSED",
     }
     return build_trajectory(t=t, X=X, U=U, state_names=STATE_NAMES, input_names=INPUT_NAMES, dt=float(dt),
