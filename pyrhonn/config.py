@@ -38,7 +38,7 @@ class FactorKind(enum.IntEnum):
 
     S = 0  #: S(x_j(k - d)), the activation of a (delayed) state
     X = 1  #: x_j(k - d), the raw (delayed) state
-    U = 2  #: u_j(k), an external input
+    U = 2  #: u_j(k - d), an external input, delayed by the input's dead time
     ONE = 3  #: the constant 1 (a bias term)
 
 
@@ -70,7 +70,8 @@ class Factor:
 
     Build factors with the class methods: ``Factor.s(j)`` for S(x_j(k)),
     ``Factor.s(j, delay=3)`` for S(x_j(k-3)), ``Factor.x(j)`` for the raw
-    state, ``Factor.u(j)`` for an input, ``Factor.one()`` for a bias.
+    state, ``Factor.u(j)`` for an input, ``Factor.u(j, delay=2)`` for
+    u_j(k-2) (an input dead time), ``Factor.one()`` for a bias.
     Ranges of ``index`` are checked against the identifier by
     :class:`IdentifierConfig`.
     """
@@ -86,8 +87,8 @@ class Factor:
         check_int("index", self.index, 0, 254)
         check_int("delay", self.delay, 0, 254)
         check_int("power", self.power, 1, 255)
-        if self.kind in (FactorKind.U, FactorKind.ONE) and self.delay != 0:
-            raise fail("delay", f"a {self.kind.name} factor has no delay, got {self.delay}")
+        if self.kind is FactorKind.ONE and self.delay != 0:
+            raise fail("delay", f"a ONE factor has no delay, got {self.delay}")
         if self.kind is FactorKind.ONE and self.index != 0:
             raise fail("index", f"a ONE factor has index 0, got {self.index}")
 
@@ -100,8 +101,8 @@ class Factor:
         return cls(FactorKind.X, state, delay, power)
 
     @classmethod
-    def u(cls, input_index: int, power: int = 1) -> "Factor":
-        return cls(FactorKind.U, input_index, 0, power)
+    def u(cls, input_index: int, power: int = 1, delay: int = 0) -> "Factor":
+        return cls(FactorKind.U, input_index, delay, power)
 
     @classmethod
     def one(cls) -> "Factor":

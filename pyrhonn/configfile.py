@@ -58,13 +58,14 @@ Rules
   every neuron that uses it (also when it comes from ``[defaults]``).
 - **Terms** (eq. 4) are strings: a product of factors joined by ``*``
   (spaces and tabs allowed around ``*``, nowhere else). A factor is
-  ``S(xJ)``, ``S(xJ(k-D))``, ``xJ``, ``xJ(k-D)``, ``uJ`` or ``1``, each
-  optionally followed by ``^P``: ``S`` is the neuron's activation, ``xJ`` the
-  J-th state, ``uJ`` the J-th input, ``(k-D)`` a delay of D >= 1 samples,
+  ``S(xJ)``, ``S(xJ(k-D))``, ``xJ``, ``xJ(k-D)``, ``uJ``, ``uJ(k-D)`` or ``1``,
+  each optionally followed by ``^P``: ``S`` is the neuron's activation, ``xJ``
+  the J-th state, ``uJ`` the J-th input, ``(k-D)`` a delay of D >= 1 samples
+  (on an input: its dead time),
   ``P`` >= 1 a power. J is **1-based** (as in the paper and as
   :class:`~pyrhonn.config.Factor` prints), J, D, P are written without
-  leading zeros (``x01`` is an error), ``(k-0)`` is written as no delay,
-  inputs have no delay. J refers to the position of the state or input, never
+  leading zeros (``x01`` is an error), ``(k-0)`` is written as no delay.
+  J refers to the position of the state or input, never
   to its name: with ``state_names = ["theta", "omega"]``, ``S(x2)`` is
   S(omega). ``S(x1)^2*u1`` is S(x_1(k))^2 u_1(k). One neuron may not list
   the same product twice (``S(x1)*u1`` and ``u1*S(x1)``, ``S(x1)^2`` and
@@ -131,8 +132,7 @@ MAX_FILE_BYTES = 1 << 20  #: a config file is a few kB; a larger one is not a co
 TUNING_KEYS = ("activation", "beta", "p0", "q", "r", "eta")
 #: Covariance form and windup protection: optional, written by dumps only when not the default.
 PROTECTION_KEYS = ("covariance", "forgetting", "p_trace_max", "reset_after")
-_PROTECTION_DEFAULTS: dict[str, Any] = {"covariance": CovarianceForm.FULL.value, "forgetting": 1.0,
-                                        "p_trace_max": None, "reset_after": 0}
+
 _TOP_KEYS = ("format", "version", "n_states", "n_inputs", "dtype", "state_names", "input_names", "x0",
              "description", "defaults", "neurons")
 _NEURON_KEYS = ("terms", *TUNING_KEYS, *PROTECTION_KEYS, "w0", "why")
@@ -173,20 +173,19 @@ def _parse_factor(text: str, n_states: int | None, n_inputs: int | None) -> Fact
         raise ValueError("whitespace inside a factor (only around '*' is allowed)")
     m = _FACTOR_RE.match(text)
     if m is None:
-        raise ValueError("expected S(xJ), S(xJ(k-D)), xJ, xJ(k-D), uJ or 1, optionally followed by ^P")
+        raise ValueError("expected S(xJ), S(xJ(k-D)), xJ, xJ(k-D), uJ, uJ(k-D) or 1, optionally followed by ^P")
     power = 1 if m["power"] is None else _number(m["power"], "power", 1, 255)
     if m["one"] is not None:
         return Factor(FactorKind.ONE, 0, 0, power)
     if m["var"] == "u":
         if m["s"] is not None:
             raise ValueError("S(...) applies to states only; write an input as uJ")
-        if m["delay"] is not None:
-            raise ValueError("an input factor has no delay; inputs enter at time k only")
         hi = 255 if n_inputs is None else n_inputs
         if hi == 0:
             raise ValueError(f"input u{m['index']} but the identifier has no inputs (n_inputs = 0)")
         j = _number(m["index"], "input index", 1, hi)
-        return Factor(FactorKind.U, j - 1, 0, power)
+        delay = 0 if m["delay"] is None else _number(m["delay"], "delay", 1, 254)
+        return Factor(FactorKind.U, j - 1, delay, power)
     hi = 255 if n_states is None else n_states
     j = _number(m["index"], "state index", 1, hi)
     delay = 0 if m["delay"] is None else _number(m["delay"], "delay", 1, 254)
@@ -581,9 +580,11 @@ def _document(cf: ConfigFile) -> dict[str, Any]:
     if cf.description:
         doc["description"] = cf.description
     dicts = [nr.to_dict() for nr in cfg.neurons]
+    # the protection keys are written only where they differ from NeuronConfig's own defaults (off)
+    off = NeuronConfig(terms=((Factor.one(),),)).to_dict()
     shared = {key: dicts[0][key] for key in TUNING_KEYS if all(d[key] == dicts[0][key] for d in dicts)}
     shared.update({key: dicts[0][key] for key in PROTECTION_KEYS
-                   if dicts[0][key] != _PROTECTION_DEFAULTS[key] and all(d[key] == dicts[0][key] for d in dicts)})
+                   if dicts[0][key] != off[key] and all(d[key] == dicts[0][key] for d in dicts)})
     if shared:
         doc["defaults"] = shared
     neurons = []
@@ -595,7 +596,7 @@ def _document(cf: ConfigFile) -> dict[str, Any]:
             if key not in shared:
                 table[key] = d[key]
         for key in PROTECTION_KEYS:
-            if key not in shared and d[key] != _PROTECTION_DEFAULTS[key]:
+            if key not in shared and d[key] != off[key]:
                 table[key] = d[key]
         if d["w0"] is not None:
             table["w0"] = d["w0"]

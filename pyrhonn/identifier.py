@@ -612,13 +612,25 @@ class Identifier:
 
     # -- state access for the state file (not public API) --------------------------------
 
+    def _sample_offsets(self) -> tuple[int, int]:
+        """Offsets of S(x) group 0 and of u in one sample of the core's history
+        (RHONN_SAMPLE_LEN layout: x, S(x) per activation group, u, 1)."""
+        N = int(self._lib.RHONN_MAX_STATES)
+        return N, N * (N + 1)
+
     @_serialised
-    def _history(self, depth: int) -> np.ndarray:
-        """Effective x(k-d) for d = 0..depth, newest first (after a step)."""
-        net = self._net
+    def _history(self) -> dict[str, np.ndarray]:
+        """What the next step's delayed taps read, newest first, D rows for the
+        config's deepest delay D: ``x`` the effective x(k-d), ``u`` u(k-d),
+        d = 0..D-1."""
+        net, D = self._net, self._config.max_delay
         H = int(self._lib.RHONN_HISTORY_LEN)
-        rows = [[net.xh[(int(net.head) - d) % H][j] for j in range(self._n)] for d in range(depth + 1)]
-        return np.array(rows, dtype=self._dtype)
+        _, u_off = self._sample_offsets()
+        slots = [(int(net.head) - d) % H for d in range(D)]
+        x = np.array([[net.hist[s][j] for j in range(self._n)] for s in slots], dtype=self._dtype).reshape(D, self._n)
+        u = np.array([[net.hist[s][u_off + j] for j in range(self._m)] for s in slots],
+                     dtype=self._dtype).reshape(D, self._m)
+        return {"x": x, "u": u}
 
     @_serialised
     def _stored_covariance(self, neuron: int) -> np.ndarray:
@@ -631,7 +643,8 @@ class Identifier:
 
     @_serialised
     def _restore(self, *, weights: list[np.ndarray], packed_cov: list[np.ndarray], regressors: list[np.ndarray],
-                 prediction: np.ndarray, history: np.ndarray, started: bool, learning: bool, steps: int) -> None:
+                 prediction: np.ndarray, history: dict[str, np.ndarray], started: bool, learning: bool,
+                 steps: int) -> None:
         """Load a mid-run state. Arguments are validated by the caller."""
         lib, net = self._lib, self._net
         self._check(lib.rhonn_reset(net), "reset")
@@ -647,15 +660,19 @@ class Identifier:
         for j in range(self._n):
             net.xhat[j] = float(prediction[j])
         H = int(lib.RHONN_HISTORY_LEN)
+        s_off, u_off = self._sample_offsets()
+        x_hist, u_hist = history["x"], history["u"]
         net.head = 0
-        for d in range(H):
-            row = history[min(d, history.shape[0] - 1)]
+        for d in range(x_hist.shape[0]):
             slot = (-d) % H
             for j in range(self._n):
-                net.xh[slot][j] = float(row[j])
+                net.hist[slot][j] = float(x_hist[d, j])
                 for g in range(int(net.n_groups)):
-                    net.sh[g][slot][j] = lib.rhonn_activate(net.group_activation[g], net.group_beta[g],
-                                                            float(row[j]))
+                    net.hist[slot][s_off * (1 + g) + j] = lib.rhonn_activate(
+                        net.group_activation[g], net.group_beta[g], float(x_hist[d, j]))
+            for j in range(self._m):
+                net.hist[slot][u_off + j] = float(u_hist[d, j])
+            net.hist[slot][u_off + int(lib.RHONN_MAX_INPUTS)] = 1.0
         net.started = 1 if started else 0
         net.learning = 1 if learning else 0
         net.steps = steps

@@ -85,8 +85,8 @@ class ReferenceIdentifier:
     2. Effective state: x_j(k) where valid, else the prediction xhat_j(k)
        (config ``x0`` on the first step), so a dropout neither trains neuron
        j nor poisons the other regressors. Invalid x_j are ignored (may be NaN).
-    3. z_i(k) from the effective x(k), x(k-d) and u(k); before the first
-       sample the history is constant, equal to the first effective sample.
+    3. z_i(k) from the effective x(k), x(k-d), u(k) and u(k-d); before the
+       first sample the history is constant, equal to the first sample.
     4. xhat(k+1) = w(k+1)^T z(k), with the freshly updated weights.
 
     Every step is computed in full and committed only if it succeeded: on
@@ -137,6 +137,7 @@ class ReferenceIdentifier:
         self._xhat = self._config.x0_vector()
         self._z: list[np.ndarray] | None = None  # z(k-1); None before the first step
         self._hist: np.ndarray | None = None  # (depth, n): effective x(k - d) in row d
+        self._uhist: np.ndarray | None = None  # (depth, m): u(k - d) in row d
         self.learning = True
 
     @property
@@ -163,8 +164,8 @@ class ReferenceIdentifier:
     def prediction(self) -> np.ndarray:
         return self._xhat.copy()
 
-    def _regressor(self, i: int, hist: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """z_i(k) of eq. 4 from the effective history and u(k)."""
+    def _regressor(self, i: int, hist: np.ndarray, uhist: np.ndarray) -> np.ndarray:
+        """z_i(k) of eq. 4 from the effective state and input histories."""
         nr = self._config.neurons[i]
         z = np.ones(nr.n_terms)
         for t, term in enumerate(nr.terms):
@@ -174,7 +175,7 @@ class ReferenceIdentifier:
                 elif f.kind is FactorKind.X:
                     v = hist[f.delay, f.index]
                 elif f.kind is FactorKind.U:
-                    v = u[f.index]
+                    v = uhist[f.delay, f.index]
                 else:  # FactorKind.ONE
                     continue
                 z[t] *= np.float64(v) ** f.power
@@ -225,15 +226,17 @@ class ReferenceIdentifier:
         with np.errstate(all="ignore"):  # overflow is detected explicitly below
             w_new, p_new = self._learn(x, valid)
             x_eff = np.where(valid, x, self._xhat)
-            if self._hist is None:
-                hist = np.tile(x_eff, (self._depth, 1))  # constant initial history
+            if self._hist is None:  # constant initial history
+                hist, uhist = (np.tile(v, (self._depth, 1)) for v in (x_eff, u))
             else:
                 hist = np.vstack((x_eff, self._hist[:-1]))
-            z = [self._regressor(i, hist, u) for i in range(n)]
+                uhist = np.vstack((u, self._uhist[:-1]))
+            z = [self._regressor(i, hist, uhist) for i in range(n)]
             xhat = np.array([w_new[i] @ z[i] for i in range(n)])  # eq. 3
         if not np.all(np.isfinite(xhat)):
             raise ValueError(f"neuron {int(np.argmax(~np.isfinite(xhat)))}: prediction is not finite")
         self._w, self._P, self._hist, self._z, self._xhat = w_new, p_new, hist, z, xhat
+        self._uhist = uhist
         return xhat.copy()
 
     def run(self, X: np.ndarray, U: np.ndarray | None = None, valid: np.ndarray | None = None) -> np.ndarray:

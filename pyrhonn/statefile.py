@@ -1,12 +1,12 @@
 """Save and load an identifier's full filter state.
 
-File format ``pyrhonn-state``, version 1: a NumPy ``.npz`` archive (a zip of
+File format ``pyrhonn-state``, version 2: a NumPy ``.npz`` archive (a zip of
 ``.npy`` members, no pickles) holding
 
 ============  ===============  ==================================================
 member        shape / dtype    meaning
 ============  ===============  ==================================================
-``header``    0-d unicode      JSON: ``format`` = "pyrhonn-state", ``version`` = 1,
+``header``    0-d unicode      JSON: ``format`` = "pyrhonn-state", ``version`` = 2,
                                ``config`` (IdentifierConfig.to_dict()), ``dtype``,
                                ``steps``, ``started``, ``learning``
 ``w_<i>``     (L_i,) dtype     weights w_i(k) of neuron i
@@ -16,9 +16,15 @@ member        shape / dtype    meaning
                                diagonal, U's strict upper triangle beside it)
 ``z_<i>``     (L_i,) dtype     regressor z_i(k-1) that produced x̂_i(k)
 ``xhat``      (n,) dtype       x̂(k)
-``history``   (D+1, n) dtype   effective x(k-d), d = 0..D, newest first, where
-                               D is the config's deepest delay
+``history``   (D, n) dtype     effective x(k-d), d = 0..D-1, newest first, where
+                               D is the config's deepest delay (what the next
+                               step's delayed taps read)
+``input_history``  (D, m)      u(k-d), d = 0..D-1, newest first
 ============  ===============  ==================================================
+
+Version 1 files (written before inputs could be delayed) are read too: their
+``history`` has D+1 rows, of which the first D are taken (inputs had no delay
+then, so they hold no past inputs).
 
 ``dtype`` is the identifier's (float64 or float32); the values are stored in
 it exactly, so a loaded identifier continues bit for bit. Readers reject a
@@ -47,7 +53,7 @@ from .identifier import Identifier, IdentifierError, _unpacked, clearly_indefini
 __all__ = ["FORMAT", "VERSION", "save_state", "load_state"]
 
 FORMAT = "pyrhonn-state"
-VERSION = 1
+VERSION = 2
 
 
 def save_state(identifier: Identifier, path: str | Path) -> None:
@@ -72,7 +78,9 @@ def save_state(identifier: Identifier, path: str | Path) -> None:
         members[f"p_{i}"] = identifier._stored_covariance(i)
         members[f"z_{i}"] = regressors[i]
     members["xhat"] = identifier.prediction
-    members["history"] = identifier._history(cfg.max_delay)
+    past = identifier._history()
+    members["history"] = past["x"]
+    members["input_history"] = past["u"]
     # a temporary file renamed over ``path``: a save interrupted at any point (kill -9 included) leaves
     # the previous state file whole, never a truncated archive
     with atomic.replacing(path) as fh:
@@ -167,8 +175,15 @@ def load_state(path: str | Path) -> Identifier:
             covs.append(p)
             regs.append(_member(path, archive, f"z_{i}", (L,), dt))
         xhat = _member(path, archive, "xhat", (n,), dt)
-        history = _member(path, archive, "history", (cfg.max_delay + 1, n), dt)
-        extra = set(archive.files) - {"header", "xhat", "history"} - {f"{k}_{i}" for k in "wpz" for i in range(n)}
+        D, m = cfg.max_delay, cfg.n_inputs
+        if version == 1:
+            history = {"x": _member(path, archive, "history", (D + 1, n), dt)[:D], "u": np.zeros((D, m), dt)}
+            past_members = {"history"}
+        else:
+            history = {"x": _member(path, archive, "history", (D, n), dt),
+                       "u": _member(path, archive, "input_history", (D, m), dt)}
+            past_members = {"history", "input_history"}
+        extra = set(archive.files) - {"header", "xhat"} - past_members - {f"{k}_{i}" for k in "wpz" for i in range(n)}
         if extra:
             raise _fail(path, "archive", f"unexpected members {sorted(extra)}")
     try:

@@ -18,7 +18,7 @@ def factors(draw: st.DrawFn, n: int, m: int, max_delay: int = 3) -> Factor:
     if kind is FactorKind.ONE:
         return Factor.one()
     if kind is FactorKind.U:
-        return Factor.u(draw(st.integers(0, m - 1)), power)
+        return Factor.u(draw(st.integers(0, m - 1)), power, delay=draw(st.integers(0, max_delay)))
     delay = draw(st.integers(0, max_delay))
     return Factor(kind, draw(st.integers(0, n - 1)), delay, power)
 

@@ -59,6 +59,8 @@ w0 = [0.1, -0.2, 0.3]
     ("x3", (Factor.x(2),)),
     ("x1(k-1)", (Factor.x(0, delay=1),)),
     ("u2^3", (Factor.u(1, 3),)),
+    ("u2(k-3)", (Factor.u(1, delay=3),)),
+    ("u1(k-12)^2*S(x1)", (Factor.u(0, 2, delay=12), Factor.s(0))),
     ("1", (Factor.one(),)),
     ("1^2", (Factor(FactorKind.ONE, 0, 0, 2),)),
     ("S(x1)*S(x2)", (Factor.s(0), Factor.s(1))),
@@ -91,7 +93,7 @@ def test_parse_term_reads_each_factor_form(text: str, term: tuple) -> None:
     ("x1^0", "'x1^0': power 0 out of range 1..255"),
     ("x1^256", "power 256 out of range"),
     ("x1^-1", "expected S(xJ)"),
-    ("u1(k-1)", "'u1(k-1)': an input factor has no delay"),
+    ("u1(k-0)", "'u1(k-0)': delay 0 out of range 1..254"),
     ("S(u1)", "'S(u1)': S(...) applies to states only"),
     ("x256", "state index 256 out of range 1..255"),
     ("x\u0661", "expected S(xJ)"),          # a non-ASCII digit

@@ -181,7 +181,7 @@ def test_factor_index_out_of_range_names_the_factor() -> None:
     with pytest.raises(ValueError, match=r"^neurons\[0\]\.terms\[0\]\[0\]\.index: input index 2"):
         IdentifierConfig.uniform(((Factor.u(2),),), n_states=1, n_inputs=2)
     with pytest.raises(ValueError, match=r"^delay"):
-        Factor(Factor.u(0).kind, 0, 1, 1)
+        Factor(Factor.one().kind, 0, 1, 1)
 
 
 @pytest.mark.parametrize("dtype", ["float64", "float32"])

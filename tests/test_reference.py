@@ -94,15 +94,15 @@ def trajectories(draw: st.DrawFn, cfg: IdentifierConfig) -> tuple[np.ndarray, np
 
 # ------------------------------------------- independent filterpy pipeline
 
-def independent_regressor(nr: NeuronConfig, past, u: np.ndarray) -> np.ndarray:
-    """z_i from scratch: past(j, d) is the effective x_j(k - d)."""
+def independent_regressor(nr: NeuronConfig, past, u_past) -> np.ndarray:
+    """z_i from scratch: past(j, d) is the effective x_j(k - d), u_past(j, d) is u_j(k - d)."""
     def S(s: float) -> float:
         if nr.activation is Activation.LOGISTIC:
             return float(expit(nr.beta * s))
         return math.tanh(nr.beta * s / 2.0)  # (1 - e^-bs) / (1 + e^-bs)
 
     value = {FactorKind.S: lambda f: S(past(f.index, f.delay)), FactorKind.X: lambda f: past(f.index, f.delay),
-             FactorKind.U: lambda f: u[f.index], FactorKind.ONE: lambda f: 1.0}
+             FactorKind.U: lambda f: u_past(f.index, f.delay), FactorKind.ONE: lambda f: 1.0}
     return np.array([math.prod(value[f.kind](f) ** f.power for f in term) for term in nr.terms])
 
 
@@ -141,7 +141,8 @@ def test_each_neuron_matches_filterpy_kalman_filter_with_identity_transition(dat
                     kf.predict()
         history.append(np.where(V[k], X[k], xhat))
         past = lambda j, d: history[max(k - d, 0)][j]  # noqa: E731
-        z_prev = [independent_regressor(nr, past, U[k]) for nr in cfg.neurons]
+        u_past = lambda j, d: U[max(k - d, 0), j]  # noqa: E731
+        z_prev = [independent_regressor(nr, past, u_past) for nr in cfg.neurons]
         xhat = np.array([kf.x[:, 0] @ z for kf, z in zip(kfs, z_prev)])
 
         got = ref.step(X[k], U[k], V[k])

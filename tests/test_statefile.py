@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pyrhonn import Identifier, IdentifierConfig, terms
+from pyrhonn import Factor, Identifier, IdentifierConfig, terms
 from pyrhonn.statefile import FORMAT, VERSION
 
 from strategies import trajectory
@@ -41,6 +41,32 @@ def test_state_saved_before_the_first_step_loads_as_fresh(tmp_path: Path) -> Non
     a.save(tmp_path / "s.npz")
     b = Identifier.load(tmp_path / "s.npz")
     np.testing.assert_array_equal(a.run(X, U), b.run(X, U))
+
+
+def test_delayed_inputs_are_saved_and_continue_bit_for_bit(tmp_path: Path) -> None:
+    cfg = IdentifierConfig.uniform(terms.first_order(2, 1) + ((Factor.u(0, delay=3),), (Factor.u(0, 2, delay=1),)),
+                                   n_states=2, n_inputs=1, p0=10.0, q=1e-3, r=0.5)
+    X, U, valid = trajectory(6, 200, 2, 1, 0.1)
+    a = Identifier(cfg)
+    a.run(X[:100], U[:100], valid[:100])
+    a.save(tmp_path / "s.npz")
+    b = Identifier.load(tmp_path / "s.npz")
+    np.testing.assert_array_equal(a.run(X[100:], U[100:], valid[100:]), b.run(X[100:], U[100:], valid[100:]))
+
+
+def test_a_version_1_state_file_still_loads_and_continues(tmp_path: Path) -> None:
+    """Version 1 stored D+1 history rows and no input history (inputs had no delay)."""
+    X, U, valid = trajectory(7, 300, 3, 1, 0.1)
+    a = Identifier(config("float64"))
+    a.run(X[:150], U[:150], valid[:150])
+    a.save(tmp_path / "v2.npz")
+
+    def to_v1(m):
+        header_with(version=1)(m)
+        m["history"] = np.vstack((m["history"], m["history"][-1:]))  # the extra, unread oldest row
+        del m["input_history"]
+    b = Identifier.load(rewrite(tmp_path / "v2.npz", tmp_path / "v1.npz", to_v1))
+    np.testing.assert_array_equal(a.run(X[150:], U[150:], valid[150:]), b.run(X[150:], U[150:], valid[150:]))
 
 
 def saved(tmp_path: Path) -> Path:
@@ -79,7 +105,7 @@ def _indefinite_packed(p: np.ndarray) -> np.ndarray:
 
 @pytest.mark.parametrize("change,message", [
     (header_with(format="other-tool"), r"header\.format"),
-    (header_with(version=VERSION + 1), r"header\.version: version 2 is newer"),
+    (header_with(version=VERSION + 1), rf"header\.version: version {VERSION + 1} is newer"),
     (header_with(version="1"), r"header\.version"),
     (header_with(dtype="float32"), r"header\.dtype"),
     (header_with(steps=-1), r"header\.steps"),
@@ -121,7 +147,7 @@ def test_corrupt_and_foreign_files_are_rejected(tmp_path: Path) -> None:
 
 
 def test_format_is_documented_and_stable() -> None:
-    assert FORMAT == "pyrhonn-state" and VERSION == 1
+    assert FORMAT == "pyrhonn-state" and VERSION == 2
 
 
 def _filter_state(ident: Identifier) -> tuple[bytes, ...]:

@@ -136,7 +136,9 @@ static void make_config(reader *r, rhonn_config *c)
                 fa->power = (uint8_t)(1u + (code >> 2) % 3u);
                 if (fa->kind == RHONN_FACTOR_U) {
                     fa->index = (uint8_t)(c->n_inputs ? (code >> 4) % c->n_inputs : 0u);
+                    fa->delay = (uint8_t)((code >> 6) % 3u); /* input dead time */
                     if (c->n_inputs == 0u) {
+                        fa->delay = 0;
                         fa->kind = RHONN_FACTOR_ONE;
                     }
                 } else if (fa->kind != RHONN_FACTOR_ONE) {
@@ -268,7 +270,7 @@ typedef struct {
     rhonn_real p[RHONN_MAX_STATES][RHONN_MAX_PACKED];
     uint8_t bank[RHONN_MAX_STATES];
     rhonn_real xhat[RHONN_MAX_STATES];
-    rhonn_real xh[RHONN_HISTORY_LEN][RHONN_MAX_STATES];
+    rhonn_real hist[RHONN_HISTORY_LEN][RHONN_SAMPLE_LEN];
     uint8_t head, started, learning, zbank;
     uint32_t steps;
 } filter_state;
@@ -283,7 +285,7 @@ static void capture(const rhonn_t *net, filter_state *s)
     }
     memcpy(s->bank, net->bank, sizeof s->bank);
     memcpy(s->xhat, net->xhat, sizeof s->xhat);
-    memcpy(s->xh, net->xh, sizeof s->xh);
+    memcpy(s->hist, net->hist, sizeof s->hist);
     s->head = net->head;
     s->started = net->started;
     s->learning = net->learning;

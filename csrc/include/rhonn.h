@@ -56,15 +56,16 @@
  *      z_i(k-1) that produced xhat_i(k). No learning happens on the first
  *      step after init/reset (there is no xhat(0) to compare with), nor while
  *      learning is switched off.
- *   2. Form the regressor z(k) from x(k), the delayed samples x(k-d) and
- *      u(k). A state whose measurement is invalid is replaced by its own
- *      prediction xhat_j(k) (on the very first step: config x0), so a
- *      dropout neither trains the neuron nor poisons the other regressors.
+ *   2. Form the regressor z(k) from x(k), the delayed samples x(k-d), u(k)
+ *      and the delayed inputs u(k-d). A state whose measurement is invalid
+ *      is replaced by its own prediction xhat_j(k) (on the very first step:
+ *      config x0), so a dropout neither trains the neuron nor poisons the
+ *      other regressors.
  *   3. Predict xhat(k+1) = w(k+1)^T z(k) with the freshly updated weights and
  *      return it.
  * Before the first step, every delayed tap reads the first sample: the
  * history is taken as constant, as for a delay equation's initial function.
- *
+
  * ERRORS. Every function returns rhonn_status. A step that fails leaves the
  * identifier exactly as it was before the call (weights, covariances,
  * history, prediction): the new values are computed into the inactive half of
@@ -103,7 +104,7 @@ typedef double rhonn_real;
 
 /* Version of this header's API and of rhonn_t's layout. */
 #define RHONN_VERSION_MAJOR 1
-#define RHONN_VERSION_MINOR 1
+#define RHONN_VERSION_MINOR 2
 
 typedef enum {
     RHONN_OK = 0,
@@ -123,7 +124,7 @@ typedef enum {
 typedef enum {
     RHONN_FACTOR_S = 0,   /* S(x_index(k - delay)): activation of a (delayed) state */
     RHONN_FACTOR_X = 1,   /* x_index(k - delay): the raw (delayed) state */
-    RHONN_FACTOR_U = 2,   /* u_index(k): an input, delay must be 0 */
+    RHONN_FACTOR_U = 2,   /* u_index(k - delay): a (delayed) input, input dead time */
     RHONN_FACTOR_ONE = 3  /* the constant 1 (bias); index and delay must be 0 */
 } rhonn_factor_kind;
 
@@ -142,7 +143,7 @@ typedef enum {
 typedef struct {
     uint8_t kind;   /* rhonn_factor_kind */
     uint8_t index;  /* state index (S, X) or input index (U); 0 for ONE */
-    uint8_t delay;  /* d in x(k - d), 0..RHONN_MAX_DELAY; 0 for U and ONE */
+    uint8_t delay;  /* d in x(k - d) or u(k - d), 0..RHONN_MAX_DELAY; 0 for ONE */
     uint8_t power;  /* exponent d_ij, 1..RHONN_MAX_POWER */
 } rhonn_factor;
 
@@ -237,10 +238,22 @@ typedef struct {
     rhonn_real z[2][RHONN_MAX_STATES][RHONN_MAX_TERMS];
     rhonn_real xhat[RHONN_MAX_STATES];        /* xhat(k) */
 
-    /* Ring buffers of the (effective) states and their activations. */
+    /* The terms compiled by rhonn_init (eq. 4): every distinct factor value
+     * x_j(k-d)^p, S(x_j(k-d))^p, u_j(k-d)^p or 1 is an entry, read from
+     * offset entry_off of the sample d back and raised to entry_power once
+     * per step; term t of neuron i is the product of the entries
+     * term_entry[i][t][0..n_factors). */
+    uint16_t n_entries;
+    uint8_t max_delay;              /* deepest tap the configuration reads */
+    uint8_t entry_delay[RHONN_MAX_ENTRIES];
+    uint8_t entry_power[RHONN_MAX_ENTRIES];
+    uint16_t entry_off[RHONN_MAX_ENTRIES];
+    uint16_t term_entry[RHONN_MAX_STATES][RHONN_MAX_TERMS][RHONN_MAX_FACTORS];
+
+    /* Ring buffer of past samples (RHONN_SAMPLE_LEN values each: the
+     * effective x, S(x) per group, u, 1), kept when a tap reads it. */
     uint8_t head;                   /* slot of the newest sample */
-    rhonn_real xh[RHONN_HISTORY_LEN][RHONN_MAX_STATES];
-    rhonn_real sh[RHONN_MAX_STATES][RHONN_HISTORY_LEN][RHONN_MAX_STATES];
+    rhonn_real hist[RHONN_HISTORY_LEN][RHONN_SAMPLE_LEN];
 
     uint8_t started;                /* a step has run since init/reset */
     uint8_t learning;               /* learning on (1) or frozen (0) */

@@ -51,6 +51,20 @@
 /* Ring buffer length: the current sample plus RHONN_MAX_DELAY past ones. */
 #define RHONN_HISTORY_LEN (RHONN_MAX_DELAY + 1)
 
+/* One sample as the regressor reads it: x (RHONN_MAX_STATES), S(x) for each
+ * activation group (RHONN_MAX_STATES groups of RHONN_MAX_STATES), u
+ * (RHONN_MAX_INPUTS) and the constant 1. The history holds these. */
+#define RHONN_SAMPLE_LEN (RHONN_MAX_STATES * (RHONN_MAX_STATES + 1) + RHONN_MAX_INPUTS + 1)
+
+/* Distinct factor values x_j(k-d)^p, S(x_j(k-d))^p, u_j(k-d)^p, 1 that one
+ * configuration reads per step (rhonn_init compiles the terms into a table
+ * of them). The default holds every configuration the other capacities
+ * allow; a firmware build may lower it to what its configuration needs
+ * (the exported capacity header states it). */
+#ifndef RHONN_MAX_ENTRIES
+#define RHONN_MAX_ENTRIES (RHONN_MAX_STATES * RHONN_MAX_TERMS * RHONN_MAX_FACTORS)
+#endif
+
 #if RHONN_MAX_STATES < 1 || RHONN_MAX_STATES > 255
 #error "RHONN_MAX_STATES must be in 1..255"
 #endif
@@ -68,6 +82,13 @@
 #endif
 #if RHONN_MAX_POWER < 1 || RHONN_MAX_POWER > 255
 #error "RHONN_MAX_POWER must be in 1..255"
+#endif
+
+#if RHONN_MAX_ENTRIES < 1 || RHONN_MAX_ENTRIES > 65535
+#error "RHONN_MAX_ENTRIES must be in 1..65535"
+#endif
+#if RHONN_SAMPLE_LEN > 65535
+#error "RHONN_MAX_STATES and RHONN_MAX_INPUTS too large: a sample must fit 65535 values"
 #endif
 
 #endif /* RHONN_CAPACITY_H */

@@ -41,13 +41,11 @@
  * floating-point operations in the same order, so their results are
  * bit-identical; only speed and code size differ (x86-64, -O2: about 9 kB of
  * .text for the generic core, 85 kB unrolled with RHONN_MAX_TERMS = 16).
+ * Sizes above 16 (research capacities) run the generic kernel either way.
  * 0, the default, keeps the core small for firmware; the Python extension
  * unrolls. */
 #ifndef RHONN_UNROLL
 #define RHONN_UNROLL 0
-#endif
-#if RHONN_UNROLL && RHONN_MAX_TERMS > 16
-#error "RHONN_UNROLL supports RHONN_MAX_TERMS up to 16"
 #endif
 #if RHONN_UNROLL && (defined(__GNUC__) || defined(__clang__))
 #define RHONN_INLINE static __inline__ __attribute__((always_inline))
@@ -64,11 +62,28 @@
 #define RHONN_WITH_UD 1
 #endif
 
-/* x - x is 0 for finite x and NaN for NaN or +-Inf; portable without
- * isfinite() (which needs C99 libm macros some freestanding targets lack). */
+/* Finite: the exponent field is not all ones (NaN and +-Inf have it). An
+ * integer test on the bits: no floating-point operation, so no exception
+ * flags and no FPU round trip; portable without isfinite() (which needs C99
+ * libm macros some freestanding targets lack). */
+#ifdef RHONN_SINGLE
+typedef uint32_t rhonn_bits;
+#define RHONN_EXP_MASK 0x7F800000UL
+#else
+typedef uint64_t rhonn_bits;
+#define RHONN_EXP_MASK 0x7FF0000000000000ULL
+#endif
+
+static rhonn_bits bits_of(rhonn_real v)
+{
+    union { rhonn_real f; rhonn_bits u; } b;
+    b.f = v;
+    return b.u;
+}
+
 static int is_finite(rhonn_real v)
 {
-    return (v - v) == (v - v);
+    return (bits_of(v) & (rhonn_bits)RHONN_EXP_MASK) != (rhonn_bits)RHONN_EXP_MASK;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -169,6 +184,52 @@ static size_t packed_size(size_t L)
 RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L);
 static rhonn_real full_trace(const rhonn_real *P, size_t L);
 static void load_p0(const rhonn_t *net, size_t i, rhonn_real *dst);
+#if RHONN_WITH_UD
+static int udu_of(const rhonn_real *P, rhonn_real *F, size_t L);
+#endif
+
+/* Where a factor's value sits in a sample (RHONN_SAMPLE_LEN layout: x, then
+ * S(x) per activation group, then u, then the constant 1). */
+#define OFF_S(g) ((size_t)RHONN_MAX_STATES * (1u + (size_t)(g)))
+#define OFF_U ((size_t)RHONN_MAX_STATES * ((size_t)RHONN_MAX_STATES + 1u))
+#define OFF_ONE (OFF_U + (size_t)RHONN_MAX_INPUTS)
+
+#if RHONN_MAX_ENTRIES < RHONN_MAX_STATES * RHONN_MAX_TERMS * RHONN_MAX_FACTORS
+/* Do factors (i, t, f) and (i2, t2, f2) read the same value, raised to the
+ * same power? S factors of neurons whose activation or beta differ do not. */
+static int same_value(const rhonn_config *cfg, size_t i, const rhonn_factor *a, size_t i2, const rhonn_factor *b)
+{
+    const uint8_t da = a->kind == (uint8_t)RHONN_FACTOR_ONE ? 0u : a->delay;
+    const uint8_t db = b->kind == (uint8_t)RHONN_FACTOR_ONE ? 0u : b->delay;
+    if (a->kind != b->kind || a->index != b->index || da != db || a->power != b->power) {
+        return 0;
+    }
+    return a->kind != (uint8_t)RHONN_FACTOR_S ||
+           (cfg->neurons[i].activation == cfg->neurons[i2].activation &&
+            cfg->neurons[i].beta == cfg->neurons[i2].beta);
+}
+
+/* Does a factor before (i, t, f), in neuron-term-factor order, read the same
+ * value? (Counts distinct values without storage, for validation.) */
+static int seen_before(const rhonn_config *cfg, size_t i, size_t t, size_t f)
+{
+    const rhonn_factor *a = &cfg->neurons[i].terms[t].factors[f];
+    size_t i2, t2, f2;
+    for (i2 = 0; i2 <= i; ++i2) {
+        for (t2 = 0; t2 < cfg->neurons[i2].n_terms && (i2 < i || t2 <= t); ++t2) {
+            for (f2 = 0; f2 < cfg->neurons[i2].terms[t2].n_factors; ++f2) {
+                if (i2 == i && t2 == t && f2 == f) {
+                    return 0;
+                }
+                if (same_value(cfg, i, a, i2, &cfg->neurons[i2].terms[t2].factors[f2])) {
+                    return 1;
+                }
+            }
+        }
+    }
+    return 0;
+}
+#endif
 
 rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *where)
 {
@@ -226,10 +287,19 @@ rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *
                 }
             }
         }
-        /* P0 is a covariance (eq. 10): positive definite at this precision */
+        /* P0 is a covariance (eq. 10): positive definite at this precision
+         * (and, kept as U D U^T, its factors are normal numbers) */
         if (!pd_check(nc->p0, L)) {
             return config_error(where, RHONN_FIELD_P0, i, 0, 0);
         }
+#if RHONN_WITH_UD
+        if (nc->covariance == (uint8_t)RHONN_COV_UD) {
+            rhonn_real F[RHONN_MAX_PACKED];
+            if (!udu_of(nc->p0, F, L)) {
+                return config_error(where, RHONN_FIELD_P0, i, 0, 0);
+            }
+        }
+#endif
         if (nc->covariance != (uint8_t)RHONN_COV_FULL &&
             (nc->covariance != (uint8_t)RHONN_COV_UD || !RHONN_WITH_UD)) {
             return config_error(where, RHONN_FIELD_COVARIANCE, i, 0, 0);
@@ -265,7 +335,7 @@ rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *
                     if (fa->index >= m) {
                         return config_error(where, RHONN_FIELD_FACTOR_INDEX, i, t, f);
                     }
-                    if (fa->delay != 0u) {
+                    if (fa->delay > (size_t)RHONN_MAX_DELAY) {
                         return config_error(where, RHONN_FIELD_FACTOR_DELAY, i, t, f);
                     }
                     break;
@@ -283,6 +353,21 @@ rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *
             }
         }
     }
+#if RHONN_MAX_ENTRIES < RHONN_MAX_STATES * RHONN_MAX_TERMS * RHONN_MAX_FACTORS
+    /* A lowered RHONN_MAX_ENTRIES: the distinct factor values must fit. */
+    {
+        size_t count = 0;
+        for (i = 0; i < n; ++i) {
+            for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
+                for (f = 0; f < cfg->neurons[i].terms[t].n_factors; ++f) {
+                    if (!seen_before(cfg, i, t, f) && ++count > (size_t)RHONN_MAX_ENTRIES) {
+                        return config_error(where, RHONN_FIELD_N_FACTORS, i, t, f);
+                    }
+                }
+            }
+        }
+    }
+#endif
     if (where != NULL) {
         where->field = (uint8_t)RHONN_FIELD_NONE;
         where->neuron = 0;
@@ -290,6 +375,50 @@ rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *
         where->factor = 0;
     }
     return RHONN_OK;
+}
+
+/* Compile the terms (eq. 4) into the entry table: each distinct factor value
+ * once, located by its offset in a sample and its delay, so the step reads
+ * values by index instead of interpreting factor kinds. The configuration
+ * was validated: the entries fit RHONN_MAX_ENTRIES. */
+static void compile_terms(rhonn_t *net)
+{
+    const rhonn_config *cfg = &net->cfg;
+    size_t i, t, f, e;
+    net->n_entries = 0;
+    net->max_delay = 0;
+    for (i = 0; i < cfg->n_states; ++i) {
+        for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
+            for (f = 0; f < cfg->neurons[i].terms[t].n_factors; ++f) {
+                const rhonn_factor *fa = &cfg->neurons[i].terms[t].factors[f];
+                const uint8_t delay = fa->kind == (uint8_t)RHONN_FACTOR_ONE ? 0u : fa->delay;
+                size_t off = OFF_ONE;
+                if (fa->kind == (uint8_t)RHONN_FACTOR_S) {
+                    off = OFF_S(net->group_of[i]) + fa->index;
+                } else if (fa->kind == (uint8_t)RHONN_FACTOR_X) {
+                    off = fa->index;
+                } else if (fa->kind == (uint8_t)RHONN_FACTOR_U) {
+                    off = OFF_U + fa->index;
+                }
+                for (e = 0; e < net->n_entries; ++e) {
+                    if (net->entry_off[e] == off && net->entry_delay[e] == delay &&
+                        net->entry_power[e] == fa->power) {
+                        break;
+                    }
+                }
+                if (e == net->n_entries && e < (size_t)RHONN_MAX_ENTRIES) {
+                    net->entry_off[e] = (uint16_t)off;
+                    net->entry_delay[e] = delay;
+                    net->entry_power[e] = fa->power;
+                    net->n_entries = (uint16_t)(e + 1u);
+                }
+                net->term_entry[i][t][f] = (uint16_t)(e < (size_t)RHONN_MAX_ENTRIES ? e : 0u);
+                if (delay > net->max_delay) {
+                    net->max_delay = delay;
+                }
+            }
+        }
+    }
 }
 
 rhonn_status rhonn_init(rhonn_t *net, const rhonn_config *cfg, rhonn_config_error *where)
@@ -322,6 +451,7 @@ rhonn_status rhonn_init(rhonn_t *net, const rhonn_config *cfg, rhonn_config_erro
         }
         net->group_of[i] = (uint8_t)g;
     }
+    compile_terms(net);
     for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
         rhonn_health *h = &net->health[i];
         h->innovation = R(0.0);
@@ -354,7 +484,7 @@ static rhonn_status check_net(const rhonn_t *net)
 rhonn_status rhonn_reset(rhonn_t *net)
 {
     rhonn_status st = check_net(net);
-    size_t n, i, t, h, g;
+    size_t n, i, t, h;
 
     if (st != RHONN_OK) {
         return st;
@@ -379,11 +509,8 @@ rhonn_status rhonn_reset(rhonn_t *net)
         net->xhat[i] = i < n ? net->cfg.x0[i] : R(0.0);
     }
     for (h = 0; h < (size_t)RHONN_HISTORY_LEN; ++h) {
-        for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
-            net->xh[h][i] = R(0.0);
-            for (g = 0; g < (size_t)RHONN_MAX_STATES; ++g) {
-                net->sh[g][h][i] = R(0.0);
-            }
+        for (i = 0; i < (size_t)RHONN_SAMPLE_LEN; ++i) {
+            net->hist[h][i] = R(0.0);
         }
     }
     net->zbank = 0;
@@ -449,16 +576,15 @@ RHONN_INLINE rhonn_real dot(const rhonn_real *RHONN_RESTRICT a, const rhonn_real
     return s0 + s1;
 }
 
-/* 1 if any of v[0..len) is NaN or +-Inf: v - v is 0 exactly for finite v.
- * An integer OR, so no floating-point chain and no false alarm. */
+/* 1 if any of v[0..len) is NaN or +-Inf: integer tests of the exponent
+ * bits ORed together, so no floating-point chain and no branch per entry. */
 RHONN_INLINE int any_nonfinite(const rhonn_real *v, size_t len)
 {
     int bad = 0;
     size_t c;
     RHONN_UNROLL_LOOP
     for (c = 0; c < len; ++c) {
-        const rhonn_real d = v[c] - v[c];
-        bad |= d != d;
+        bad |= (bits_of(v[c]) & (rhonn_bits)RHONN_EXP_MASK) == (rhonn_bits)RHONN_EXP_MASK;
     }
     return bad;
 }
@@ -556,9 +682,10 @@ static rhonn_real half_exponent_scale(rhonn_real v)
  * Where that matters, the U D U^T form keeps P definite by construction.
  * A diagonal below the normal range is refused: such a P is singular at
  * this precision. */
-RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L)
+RHONN_INLINE int scaled_udu(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHONN_RESTRICT F,
+                            rhonn_real *RHONN_RESTRICT sc, const size_t L)
 {
-    rhonn_real C[RHONN_MAX_PACKED], F[RHONN_MAX_PACKED], sc[RHONN_MAX_TERMS];
+    rhonn_real C[RHONN_MAX_PACKED];
     size_t i, j, idx;
     for (i = 0, idx = 0; i < L; idx += L - i, ++i) {
         const rhonn_real v = P[idx];
@@ -576,6 +703,44 @@ RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L)
     }
     return udu_factor(C, F, L);
 }
+
+RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L)
+{
+    rhonn_real F[RHONN_MAX_PACKED], sc[RHONN_MAX_TERMS];
+    return scaled_udu(P, F, sc, L);
+}
+
+#if RHONN_WITH_UD
+/* The U D U^T factors of P itself, from those of the scaled C = S P S that
+ * pd_check judges (S = diag(sc), powers of two): U = S^-1 U_C S and
+ * D = S^-2 D_C, exact unless a d_j leaves the normal range. Returns 1 when P
+ * passes pd_check and every factor is finite with D > 0, so a covariance is
+ * accepted or refused the same way whatever its form. */
+static int udu_of(const rhonn_real *P, rhonn_real *F, size_t L)
+{
+    rhonn_real sc[RHONN_MAX_TERMS];
+    size_t i, j;
+    if (!scaled_udu(P, F, sc, L)) {
+        return 0;
+    }
+    for (j = 0; j < L; ++j) {
+        const rhonn_real inv = R(1.0) / sc[j];
+        rhonn_real *d = &F[row_start(j, L)];
+        *d = (*d * inv) * inv;
+        if (!(*d >= RHONN_MIN_NORMAL) || !is_finite(*d)) {
+            return 0;
+        }
+        for (i = 0; i < j; ++i) {
+            rhonn_real *u = &F[row_start(i, L) + (j - i)];
+            *u = (*u * sc[j]) / sc[i];
+            if (!is_finite(*u)) {
+                return 0;
+            }
+        }
+    }
+    return 1;
+}
+#endif
 
 /* trace(U D U^T) = sum_j d_j (1 + sum_{i<j} U(i,j)^2) */
 static rhonn_real ud_trace(const rhonn_real *F, size_t L)
@@ -858,6 +1023,15 @@ static rhonn_status ekf_ud_generic(rhonn_t *net, size_t i, rhonn_real e, const r
 
 #define RHONN_KERNEL(n) ekf_kernel(net, i, e, z, nis, bounded, n)
 
+#if RHONN_UNROLL && RHONN_MAX_TERMS > 16
+/* The kernel for L above the unrolled sizes: one loop-based copy. */
+static rhonn_status ekf_kernel_generic(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
+                                       uint8_t *bounded, size_t L)
+{
+    return ekf_kernel(net, i, e, z, nis, bounded, L);
+}
+#endif
+
 /* One neuron's learning update into its inactive bank (eq. 7-9). */
 static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
                                uint8_t *bounded)
@@ -932,7 +1106,11 @@ static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn
 #endif
 #undef RHONN_CASE
     default:
+#if RHONN_MAX_TERMS > 16
+        return ekf_kernel_generic(net, i, e, z, nis, bounded, L);
+#else
         return RHONN_E_NOT_INIT; /* L outside 1..RHONN_MAX_TERMS: rhonn_init never allows it */
+#endif
     }
 #else
     return RHONN_KERNEL(L);
@@ -951,33 +1129,43 @@ static void load_p0(const rhonn_t *net, size_t i, rhonn_real *dst)
     }
 #if RHONN_WITH_UD
     if (nc->covariance == (uint8_t)RHONN_COV_UD) {
-        (void)udu_factor(nc->p0, dst, nc->n_terms);
+        (void)udu_of(nc->p0, dst, nc->n_terms); /* succeeds: the config was validated */
     }
 #endif
 }
 
-rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
-                        const uint8_t *valid, rhonn_real *xhat_next)
+/* The part of a sample the regressor reads: x, S(x) of each group, u, 1. */
+static void store_sample(rhonn_real *RHONN_RESTRICT dst, const rhonn_real *RHONN_RESTRICT src, size_t n,
+                         size_t groups, size_t m)
 {
-    rhonn_real xe[RHONN_MAX_STATES];                       /* effective x(k) */
-    rhonn_real se[RHONN_MAX_STATES][RHONN_MAX_STATES];     /* S(x(k)) per group */
+    size_t g, j;
+    for (g = 0; g <= groups; ++g) { /* x at offset 0, then the groups' S(x) */
+        for (j = 0; j < n; ++j) {
+            dst[(size_t)RHONN_MAX_STATES * g + j] = src[(size_t)RHONN_MAX_STATES * g + j];
+        }
+    }
+    for (j = 0; j <= m; ++j) { /* u, then the constant 1 */
+        dst[OFF_U + j] = src[OFF_U + j];
+    }
+}
+
+/* rhonn_step after the argument checks (rhonn_run makes them once). */
+static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
+                                 const uint8_t *valid, rhonn_real *xhat_next)
+{
+    rhonn_real cur[RHONN_SAMPLE_LEN];                      /* this sample, effective */
+    rhonn_real fv[RHONN_MAX_ENTRIES];                      /* the entries' values */
+    const rhonn_real *vb[RHONN_HISTORY_LEN];               /* sample d back */
     rhonn_real xnew[RHONN_MAX_STATES];
     uint8_t updated[RHONN_MAX_STATES];
     rhonn_real innov[RHONN_MAX_STATES], nis[RHONN_MAX_STATES];
     uint8_t bounded[RHONN_MAX_STATES], recovered[RHONN_MAX_STATES];
-    rhonn_status st = check_net(net);
-    size_t n, m, i, j, g, t, f;
+    const size_t n = net->cfg.n_states, m = net->cfg.n_inputs, groups = net->n_groups;
+    const size_t maxd = net->max_delay;
+    rhonn_status st;
+    size_t i, j, g, t, e, d;
     uint8_t next_head, zb_new;
-    const rhonn_real *zprev;
 
-    if (st != RHONN_OK) {
-        return st;
-    }
-    n = net->cfg.n_states < (uint8_t)RHONN_MAX_STATES ? net->cfg.n_states : (size_t)RHONN_MAX_STATES;
-    m = net->cfg.n_inputs;
-    if (x == NULL || (u == NULL && m > 0u)) {
-        return RHONN_E_NULL;
-    }
     for (j = 0; j < n; ++j) {
         if ((valid == NULL || valid[j] != 0u) && !is_finite(x[j])) {
             return RHONN_E_INPUT_NONFINITE;
@@ -992,14 +1180,13 @@ rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
     /* 1. Learn from e(k) = x(k) - xhat(k) (eq. 9) with z(k-1), into the
      *    inactive banks; nothing is committed until every neuron passed. */
     for (i = 0; i < n; ++i) {
-        int learn = net->started && net->learning && (valid == NULL || valid[i] != 0u);
+        const int learn = net->started && net->learning && (valid == NULL || valid[i] != 0u);
         updated[i] = 0;
         bounded[i] = 0;
         recovered[i] = 0;
         if (learn) {
-            zprev = net->z[net->zbank][i];
             innov[i] = x[i] - net->xhat[i];
-            st = ekf_update(net, i, innov[i], zprev, &nis[i], &bounded[i]);
+            st = ekf_update(net, i, innov[i], net->z[net->zbank][i], &nis[i], &bounded[i]);
             if (st != RHONN_OK) {
                 const rhonn_neuron_config *nc = &net->cfg.neurons[i];
                 rhonn_health *h = &net->health[i];
@@ -1021,56 +1208,57 @@ rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
                 }
                 bounded[i] = 0;
                 recovered[i] = 1;
-                st = RHONN_OK;
             }
             updated[i] = 1;
         }
     }
 
-    /* 2. Effective state: a missing measurement is replaced by its own
-     *    prediction, then S(x_j(k)) once per activation group. */
+    /* 2. This sample as the regressor reads it: a missing measurement is
+     *    replaced by its own prediction, then S(x_j(k)) once per activation
+     *    group, u(k) and 1. */
     for (j = 0; j < n; ++j) {
-        xe[j] = (valid == NULL || valid[j] != 0u) ? x[j] : net->xhat[j];
+        cur[j] = (valid == NULL || valid[j] != 0u) ? x[j] : net->xhat[j];
     }
-    for (g = 0; g < net->n_groups; ++g) {
+    for (g = 0; g < groups; ++g) {
+        rhonn_real *sg = cur + OFF_S(g);
         for (j = 0; j < n; ++j) {
-            se[g][j] = rhonn_activate(net->group_activation[g], net->group_beta[g], xe[j]);
+            sg[j] = rhonn_activate(net->group_activation[g], net->group_beta[g], cur[j]);
         }
     }
+    for (j = 0; j < m; ++j) {
+        cur[OFF_U + j] = u[j];
+    }
+    cur[OFF_ONE] = R(1.0);
 
-    /* 3. z(k) (eq. 4-5) and xhat(k+1) = w(k+1)^T z(k) (eq. 3). Delay d reads
-     *    the ring slot d back; before the first sample the history is the
-     *    first sample itself. */
-    next_head = (uint8_t)((net->head + 1u) % (unsigned)RHONN_HISTORY_LEN);
+    /* 3. The entries (eq. 4's factors with their powers), each once. Delay d
+     *    reads the ring slot d back (the newest stored slot is k-1); before
+     *    the first sample the history is the first sample itself. */
+    vb[0] = cur;
+    for (d = 1; d <= maxd; ++d) {
+        const size_t slot = ((size_t)net->head + (size_t)RHONN_HISTORY_LEN + 1u - d) % (size_t)RHONN_HISTORY_LEN;
+        vb[d] = net->started ? net->hist[slot] : cur;
+    }
+    for (e = 0; e < net->n_entries; ++e) {
+        const rhonn_real v = vb[net->entry_delay[e]][net->entry_off[e]];
+        fv[e] = net->entry_power[e] == 1u ? v : ipow(v, net->entry_power[e]);
+    }
+
+    /* 4. z(k) (eq. 4) and xhat(k+1) = w(k+1)^T z(k) (eq. 3). */
     zb_new = (uint8_t)(net->zbank ^ 1u);
     for (i = 0; i < n; ++i) {
         const rhonn_neuron_config *nc = &net->cfg.neurons[i];
         const size_t L = nc->n_terms;
-        const size_t gi = net->group_of[i];
         const rhonn_real *w = net->w[i][net->bank[i] ^ updated[i]];
         rhonn_real *z = net->z[zb_new][i];
         rhonn_real acc = R(0.0);
 
         for (t = 0; t < L; ++t) {
-            const rhonn_term *term = &nc->terms[t];
-            rhonn_real prod = R(1.0);
-            for (f = 0; f < term->n_factors; ++f) {
-                const rhonn_factor *fa = &term->factors[f];
-                rhonn_real v;
-                if (fa->kind == (uint8_t)RHONN_FACTOR_U) {
-                    v = u[fa->index];
-                } else if (fa->kind == (uint8_t)RHONN_FACTOR_ONE) {
-                    v = R(1.0);
-                } else if (fa->delay == 0u || !net->started) {
-                    v = fa->kind == (uint8_t)RHONN_FACTOR_S ? se[gi][fa->index] : xe[fa->index];
-                } else {
-                    /* slot of x(k - d): the newest stored slot is k-1 */
-                    size_t slot = ((size_t)net->head + (size_t)RHONN_HISTORY_LEN + 1u
-                                   - (size_t)fa->delay) % (size_t)RHONN_HISTORY_LEN;
-                    v = fa->kind == (uint8_t)RHONN_FACTOR_S ? net->sh[gi][slot][fa->index]
-                                                            : net->xh[slot][fa->index];
-                }
-                prod *= fa->power == 1u ? v : ipow(v, fa->power);
+            const uint16_t *te = net->term_entry[i][t];
+            const size_t nf = nc->terms[t].n_factors;
+            rhonn_real prod = fv[te[0]];
+            size_t f;
+            for (f = 1; f < nf; ++f) {
+                prod *= fv[te[f]];
             }
             z[t] = prod;
             acc += w[t] * prod;
@@ -1082,24 +1270,15 @@ rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
         xnew[i] = acc;
     }
 
-    /* Commit. */
-    if (!net->started) {
-        /* Constant initial history: every past slot holds x(0). */
+    /* Commit. The ring is only kept when a tap reads it. */
+    next_head = (uint8_t)((net->head + 1u) % (unsigned)RHONN_HISTORY_LEN);
+    if (maxd > 0u) {
         size_t h;
         for (h = 0; h < (size_t)RHONN_HISTORY_LEN; ++h) {
-            for (j = 0; j < n; ++j) {
-                net->xh[h][j] = xe[j];
-                for (g = 0; g < net->n_groups; ++g) {
-                    net->sh[g][h][j] = se[g][j];
-                }
+            if (net->started && h != (size_t)next_head) {
+                continue; /* after the first sample only the newest slot changes */
             }
-        }
-    } else {
-        for (j = 0; j < n; ++j) {
-            net->xh[next_head][j] = xe[j];
-            for (g = 0; g < net->n_groups; ++g) {
-                net->sh[g][next_head][j] = se[g][j];
-            }
+            store_sample(net->hist[h], cur, n, groups, m);
         }
     }
     net->head = next_head;
@@ -1127,6 +1306,19 @@ rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
     return RHONN_OK;
 }
 
+rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
+                        const uint8_t *valid, rhonn_real *xhat_next)
+{
+    const rhonn_status st = check_net(net);
+    if (st != RHONN_OK) {
+        return st;
+    }
+    if (x == NULL || (u == NULL && net->cfg.n_inputs > 0u)) {
+        return RHONN_E_NULL;
+    }
+    return step_checked(net, x, u, valid, xhat_next);
+}
+
 rhonn_status rhonn_run(rhonn_t *net, size_t T, const rhonn_real *X, const rhonn_real *U,
                        const uint8_t *valid, rhonn_real *Xhat, size_t *done)
 {
@@ -1147,9 +1339,10 @@ rhonn_status rhonn_run(rhonn_t *net, size_t T, const rhonn_real *X, const rhonn_
     if (X == NULL || Xhat == NULL || (U == NULL && m > 0u)) {
         return RHONN_E_NULL;
     }
+    /* the net and the buffers were checked once, above */
     for (k = 0; k < T; ++k) {
-        st = rhonn_step(net, X + k * n, m > 0u ? U + k * m : U, valid != NULL ? valid + k * n : NULL,
-                        Xhat + k * n);
+        st = step_checked(net, X + k * n, m > 0u ? U + k * m : U, valid != NULL ? valid + k * n : NULL,
+                          Xhat + k * n);
         if (st != RHONN_OK) {
             return st;
         }
@@ -1250,16 +1443,25 @@ rhonn_status rhonn_get_covariance(const rhonn_t *net, size_t neuron, rhonn_real 
 rhonn_status rhonn_set_covariance(rhonn_t *net, size_t neuron, const rhonn_real *p, size_t len)
 {
     rhonn_status st = neuron_access(net, p, neuron, len, 1);
-    rhonn_real F[RHONN_MAX_PACKED];
+    const size_t L = net->cfg.neurons[neuron].n_terms;
     if (st != RHONN_OK) {
         return st;
     }
     /* a covariance: finite and positive definite at working precision */
-    if (any_nonfinite(p, len) || !pd_check(p, net->cfg.neurons[neuron].n_terms) ||
-        !udu_factor(p, F, net->cfg.neurons[neuron].n_terms)) {
+    if (any_nonfinite(p, len) || !pd_check(p, L)) {
         return RHONN_E_VALUE;
     }
-    copy_reals(net->p[neuron][net->bank[neuron]], is_ud(net, neuron) ? F : p, len);
+#if RHONN_WITH_UD
+    if (is_ud(net, neuron)) {
+        rhonn_real F[RHONN_MAX_PACKED];
+        if (!udu_of(p, F, L)) {
+            return RHONN_E_VALUE;
+        }
+        copy_reals(net->p[neuron][net->bank[neuron]], F, len);
+        return RHONN_OK;
+    }
+#endif
+    copy_reals(net->p[neuron][net->bank[neuron]], p, len);
     return RHONN_OK;
 }
 

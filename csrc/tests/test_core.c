@@ -198,7 +198,8 @@ static void config_errors_name_the_field(void)
     EXPECT_FIELD(c.neurons[0].terms[2].factors[0].index = 1, RHONN_FIELD_FACTOR_INDEX, 0, 2, 0);
     EXPECT_FIELD(c.neurons[0].terms[3].factors[0].index = 1, RHONN_FIELD_FACTOR_INDEX, 0, 3, 0);
     EXPECT_FIELD(c.neurons[1].terms[1].factors[1].delay = RHONN_MAX_DELAY + 1, RHONN_FIELD_FACTOR_DELAY, 1, 1, 1);
-    EXPECT_FIELD(c.neurons[0].terms[2].factors[0].delay = 1, RHONN_FIELD_FACTOR_DELAY, 0, 2, 0);
+    EXPECT_FIELD(c.neurons[0].terms[2].factors[0].delay = RHONN_MAX_DELAY + 1, RHONN_FIELD_FACTOR_DELAY, 0, 2, 0);
+    EXPECT_FIELD(c.neurons[0].terms[3].factors[0].delay = 1, RHONN_FIELD_FACTOR_DELAY, 0, 3, 0);
     EXPECT_FIELD(c.neurons[0].terms[1].factors[1].power = 0, RHONN_FIELD_FACTOR_POWER, 0, 1, 1);
     EXPECT_FIELD(c.neurons[0].terms[1].factors[1].power = RHONN_MAX_POWER + 1, RHONN_FIELD_FACTOR_POWER, 0, 1, 1);
 #undef EXPECT_FIELD
@@ -694,6 +695,28 @@ static void delayed_tap_reads_the_sample_d_steps_back(void)
     }
 }
 
+static void delayed_input_reads_the_input_d_steps_back(void)
+{
+    rhonn_t net;
+    rhonn_config c = small_config();
+    rhonn_real x[2], u[1], y[2], us[12];
+    size_t k;
+
+    /* neuron 1 term 2 becomes u1(k-2)^2 */
+    c.neurons[1].terms[2].factors[0].delay = 2;
+    c.neurons[1].terms[2].factors[0].power = 2;
+    CHECK_STATUS(rhonn_init(&net, &c, NULL), RHONN_OK);
+    for (k = 0; k < 12; ++k) {
+        rhonn_real v;
+        sample(k, x, u);
+        us[k] = u[0];
+        CHECK_STATUS(rhonn_step(&net, x, u, NULL, y), RHONN_OK);
+        v = us[k >= 2 ? k - 2 : 0]; /* before the first sample: the first input */
+        CHECK(net.z[net.zbank][1][2] == v * v);
+        CHECK(net.z[net.zbank][0][2] == u[0]); /* neuron 0 keeps u1(k) */
+    }
+}
+
 int main(void)
 {
     printf("rhonn core tests (%s, sizeof(rhonn_t) = %u bytes)\n",
@@ -722,5 +745,6 @@ int main(void)
     RUN(reset_restores_the_initial_filter);
     RUN(packed_update_matches_dense_kalman_filter);
     RUN(delayed_tap_reads_the_sample_d_steps_back);
+    RUN(delayed_input_reads_the_input_d_steps_back);
     return CHECK_SUMMARY();
 }
