@@ -2,8 +2,20 @@
 for the firmware application of firmware_sim (``pyrhonn._fwapp``).
 
 ``pyrhonn._rhonn_f64`` and ``pyrhonn._rhonn_f32`` are compiled from the very
-same ``csrc/src/rhonn.c`` that firmware links, with the capacities of
-``csrc/include/rhonn_capacity.h``. The cffi declarations are ``rhonn.h``
+same ``csrc/src/rhonn.c`` that firmware links. Their capacities are larger
+than the firmware default of ``csrc/include/rhonn_capacity.h``, sized for
+structure search on the host (``pyrhonn select``): :data:`CAPACITIES`, which
+the environment variable ``PYRHONN_CAPACITIES`` overrides at build time, e.g.
+``PYRHONN_CAPACITIES="TERMS=32,DELAY=128"`` (names with or without the
+``RHONN_MAX_`` prefix; the ones not given keep their value here).
+``pyrhonn info`` prints what an installed build holds. The firmware
+application (``pyrhonn._fwapp``) keeps the firmware's own capacities.
+
+The EKF kernel is unrolled per neuron size (``RHONN_UNROLL``) only when
+``RHONN_MAX_TERMS`` is at most 16, the most the core unrolls; above that the
+generic kernel runs (same results, bit for bit; see ``bench/``).
+
+The cffi declarations are ``rhonn.h``
 itself, run through the C preprocessor (so sizes are resolved and nothing is
 restated by hand); cffi also checks every struct field's offset when the
 extension is compiled.
@@ -31,8 +43,47 @@ CONSTANTS = (
     "RHONN_VERSION_MAJOR", "RHONN_VERSION_MINOR",
 )
 
+#: Capacities of the Python extension (``RHONN_MAX_*``): room for structure
+#: search (64 terms per neuron, 16 states and inputs, delays up to 64,
+#: products of up to 4 factors). Override with PYRHONN_CAPACITIES.
+CAPACITIES: dict[str, int] = {
+    "RHONN_MAX_STATES": 16, "RHONN_MAX_INPUTS": 16, "RHONN_MAX_TERMS": 64, "RHONN_MAX_FACTORS": 4,
+    "RHONN_MAX_DELAY": 64, "RHONN_MAX_POWER": 8,
+}
+#: The most terms the core's unrolled kernels cover (``RHONN_UNROLL`` in rhonn.c).
+UNROLL_MAX_TERMS = 16
+_LIMITS = {"RHONN_MAX_DELAY": (0, 254)}  # the others are 1..255 (rhonn_capacity.h)
 
-def header_declarations(dtype: str) -> str:
+
+def capacities(spec: str | None = None) -> dict[str, int]:
+    """The capacities to build with: :data:`CAPACITIES` updated by ``spec``
+    (``"NAME=VALUE,..."``; default: the PYRHONN_CAPACITIES environment
+    variable). ValueError naming PYRHONN_CAPACITIES for a bad entry."""
+    text = os.environ.get("PYRHONN_CAPACITIES", "") if spec is None else spec
+    caps = dict(CAPACITIES)
+    for item in (part.strip() for part in text.split(",")):
+        if not item:
+            continue
+        name, sep, value = item.partition("=")
+        key = name.strip().upper()
+        key = key if key.startswith("RHONN_MAX_") else f"RHONN_MAX_{key}"
+        if not sep or key not in caps:
+            raise ValueError(f"PYRHONN_CAPACITIES: {item!r}: expected NAME=VALUE with NAME one of "
+                             f"{', '.join(n[len('RHONN_MAX_'):] for n in caps)}")
+        lo, hi = _LIMITS.get(key, (1, 255))
+        if not value.strip().isdigit() or not lo <= int(value) <= hi:
+            raise ValueError(f"PYRHONN_CAPACITIES: {item!r}: {key} must be a whole number in {lo}..{hi}")
+        caps[key] = int(value)
+    return caps
+
+
+def capacity_macros(caps: dict[str, int]) -> list[tuple[str, str]]:
+    """The -D macros of a build with capacities ``caps`` (unrolled kernels when they fit)."""
+    unroll = "1" if caps["RHONN_MAX_TERMS"] <= UNROLL_MAX_TERMS else "0"
+    return [(name, str(value)) for name, value in caps.items()] + [("RHONN_UNROLL", unroll)]
+
+
+def header_declarations(dtype: str, caps: dict[str, int] | None = None) -> str:
     """rhonn.h run through the C preprocessor for one precision: the exact
     declarations the extension is compiled against, every array size
     resolved, for cffi's cdef. The header is the single source of truth;
@@ -42,6 +93,7 @@ def header_declarations(dtype: str) -> str:
     # (rhonn_capacity.h, which sizes the arrays) is kept.
     body = re.sub(r"^\s*#\s*include\s*<.*>\s*$", "", header, flags=re.M)
     defines = ["-DRHONN_SINGLE"] if dtype == "float32" else []
+    defines += [f"-D{name}={value}" for name, value in (caps or {}).items()]
     cc = shlex.split(os.environ.get("CC", "cc"))
     result = subprocess.run([*cc, "-E", "-P", "-x", "c", f"-I{INCLUDE}", *defines, "-"], input=body,
                             capture_output=True, text=True, check=False)
@@ -50,20 +102,23 @@ def header_declarations(dtype: str) -> str:
     return "".join(f"#define {name} ...\n" for name in CONSTANTS) + result.stdout
 
 
-def make_ffi(dtype: str) -> FFI:
-    """An FFI builder for the float64 or float32 core."""
+def make_ffi(dtype: str, caps: dict[str, int] | None = None) -> FFI:
+    """An FFI builder for the float64 or float32 core with capacities
+    ``caps`` (default :func:`capacities`)."""
     if dtype not in ("float64", "float32"):
         raise ValueError(f"dtype: expected 'float64' or 'float32', got {dtype!r}")
+    caps = capacities() if caps is None else caps
     ffi = FFI()
-    ffi.cdef(header_declarations(dtype))
+    # RHONN_UNROLL is a build option of rhonn.c, not of the header: declared here so `pyrhonn info` can say.
+    ffi.cdef(header_declarations(dtype, caps) + "#define RHONN_UNROLL ...\n")
     # Paths relative to the project root, where setup.py runs.
     ffi.set_source(
         f"pyrhonn._rhonn_{'f64' if dtype == 'float64' else 'f32'}",
         '#include "rhonn.h"',
         sources=["csrc/src/rhonn.c"],
         include_dirs=["csrc/include"],
-        # The host has room for one unrolled EKF kernel per neuron size.
-        define_macros=[("RHONN_UNROLL", "1")] + ([("RHONN_SINGLE", "1")] if dtype == "float32" else []),
+        # The host has room for one unrolled EKF kernel per neuron size (up to 16 terms).
+        define_macros=capacity_macros(caps) + ([("RHONN_SINGLE", "1")] if dtype == "float32" else []),
         extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math"],
     )
     return ffi

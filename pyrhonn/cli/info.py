@@ -1,4 +1,9 @@
-"""``pyrhonn info``: the build the package was compiled with."""
+"""``pyrhonn info``: the build the package was compiled with.
+
+The capacities are those of the Python extension, sized for structure
+search (``pyrhonn select``); firmware builds the core with its own (the
+defaults of ``csrc/include/rhonn_capacity.h`` unless it sets them). The
+README says how to build the extension with other capacities."""
 from __future__ import annotations
 
 import argparse
@@ -21,6 +26,7 @@ def run(args: argparse.Namespace) -> int:
     data = {
         "version": __version__,
         "capacities": capacities("float64"),
+        "unrolled_kernels": bool(getattr(_rhonn_f64.lib, "RHONN_UNROLL", 0)),
         "sizeof_rhonn_t": {"float64": _rhonn_f64.ffi.sizeof("rhonn_t"), "float32": _rhonn_f32.ffi.sizeof("rhonn_t")},
     }
     if args.json:
@@ -29,6 +35,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"pyrhonn {data['version']}")
     for name, value in data["capacities"].items():
         print(f"  {name:18} {value}")
+    print(f"  unrolled EKF kernels: {'yes' if data['unrolled_kernels'] else 'no (RHONN_MAX_TERMS above 16)'}")
     for dtype, size in data["sizeof_rhonn_t"].items():
         print(f"  sizeof(rhonn_t) {dtype}: {size} bytes")
     return 0
