@@ -187,20 +187,22 @@ def test_factor_index_out_of_range_names_the_factor() -> None:
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
 def test_config_over_compiled_capacity_is_rejected_by_name(dtype: str) -> None:
     caps = capacities(dtype)
-    big = tuple((Factor.s(0, delay=k % 4, power=1 + k // 4),) for k in range(caps["RHONN_MAX_TERMS"] + 1))
-    with pytest.raises(ValueError, match=r"^neurons\[0\]\.terms: 17 exceeds the compiled capacity RHONN_MAX_TERMS"):
+    over = caps["RHONN_MAX_TERMS"] + 1
+    taps = caps["RHONN_MAX_DELAY"] + 1
+    big = tuple((Factor.s(0, delay=k % taps, power=1 + k // taps),) for k in range(over))
+    with pytest.raises(ValueError, match=rf"^neurons\[0\]\.terms: {over} exceeds the compiled capacity RHONN_MAX_TERMS"):
         Identifier(IdentifierConfig.uniform(big, n_states=1, n_inputs=0, dtype=dtype))
     n = caps["RHONN_MAX_STATES"] + 1
-    with pytest.raises(ValueError, match=r"^n_states: 9 exceeds"):
+    with pytest.raises(ValueError, match=rf"^n_states: {n} exceeds"):
         Identifier(IdentifierConfig.uniform(terms.bias(), n_states=n, n_inputs=0, dtype=dtype))
     deep = ((Factor.s(0, delay=caps["RHONN_MAX_DELAY"] + 1),),)
-    with pytest.raises(ValueError, match=r"^neurons\[0\]\.terms\[0\]\[0\]\.delay: 9 exceeds"):
+    with pytest.raises(ValueError, match=rf"^neurons\[0\]\.terms\[0\]\[0\]\.delay: {caps['RHONN_MAX_DELAY'] + 1} exceeds"):
         Identifier(IdentifierConfig.uniform(deep, n_states=1, n_inputs=0, dtype=dtype))
     many = ((Factor.s(0),) * (caps["RHONN_MAX_FACTORS"] + 1),)
-    with pytest.raises(ValueError, match=r"factors\): 5 exceeds"):
+    with pytest.raises(ValueError, match=rf"factors\): {caps['RHONN_MAX_FACTORS'] + 1} exceeds"):
         Identifier(IdentifierConfig.uniform(many, n_states=1, n_inputs=0, dtype=dtype))
     high = ((Factor.s(0, power=caps["RHONN_MAX_POWER"] + 1),),)
-    with pytest.raises(ValueError, match=r"power: 9 exceeds"):
+    with pytest.raises(ValueError, match=rf"power: {caps['RHONN_MAX_POWER'] + 1} exceeds"):
         Identifier(IdentifierConfig.uniform(high, n_states=1, n_inputs=0, dtype=dtype))
 
 
