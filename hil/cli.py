@@ -2,7 +2,7 @@
 ``pyrhonn.commands`` entry point; pyrhonn does not import hil).
 
     pyrhonn hil replay [--transport virtual|udp_multicast|socketcan] [--channel CH] [--duration S]
-                       [--seed N] [--frame-loss P] [--out DIR] [--log FILE.blf]
+                       [--seed N] [--frame-loss P] [--out DIR] [--log FILE.blf] [--progress | --quiet]
     pyrhonn hil score LOG [--out DIR] [--json]
     pyrhonn hil bench --cycles N [--transport udp_multicast]
 
