@@ -2,7 +2,7 @@
 ``pyrhonn.commands`` entry point; pyrhonn does not import hil).
 
     pyrhonn hil replay [--transport virtual|udp_multicast|socketcan] [--channel CH] [--duration S]
-                       [--seed N] [--frame-loss P] [--out DIR] [--log FILE.blf]
+                       [--seed N] [--frame-loss P] [--out DIR] [--log FILE.blf] [--progress | --quiet]
     pyrhonn hil score LOG [--out DIR] [--json]
     pyrhonn hil bench --cycles N [--transport udp_multicast]
 
@@ -21,6 +21,7 @@ import os
 import signal
 import sys
 import tempfile
+import time
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable, Iterator
@@ -92,6 +93,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--out", type=Path, default=None, help="directory for report.json, report.txt and the PNGs")
     r.add_argument("--log", type=Path, default=None, help="record the run to FILE.blf or FILE.asc (+ FILE.json)")
     r.add_argument("--json", action="store_true", help="print the JSON report instead of the table")
+    shown = r.add_mutually_exclusive_group()
+    shown.add_argument("--progress", dest="progress", action="store_const", const="always", default="auto",
+                       help="show the replay's progress on stderr (cycles done, estimates back, losses) even when "
+                            "stderr is not a terminal: a line every 2 s (on a terminal it is shown anyway, one "
+                            "line updated every 0.5 s)")
+    shown.add_argument("--quiet", dest="progress", action="store_const", const="never",
+                       help="no progress line on stderr")
     r.set_defaults(func=_replay)
 
     t = hs.add_parser("trajectory", help="write the simulated LIM trajectory as a CSV (the --trajectory format)")
@@ -355,6 +363,7 @@ def _signal_exit(signum: int) -> int:
 
 
 def _replay(args) -> int:
+    from .progress import progress_for
     from .rig import BusLost, Interrupted, LogWriteError, Recording, read_log
     from .score import compare_runs, score
     from .transport import lim_config, run_replay
@@ -372,11 +381,16 @@ def _replay(args) -> int:
     sc.build()  # the frames before anything is sent (cached for the run): a scenario the DBC cannot carry ends here
     keeps = f"; Ctrl-C stops it and keeps the frames so far in {args.log}" if args.log is not None else ""
     print(f"pyrhonn hil replay: {sc.cycles} cycles over {args.transport}{keeps}", file=sys.stderr, flush=True)
+    progress = progress_for(args.progress, sc.cycles)
     try:
         with _stop_on_sigterm():
-            rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
-                             firmware=args.firmware or True, runner_spin_us=spin,
-                             reply_timeout=args.timeout, drain=args.drain)
+            try:
+                rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
+                                 firmware=args.firmware or True, runner_spin_us=spin,
+                                 reply_timeout=args.timeout, drain=args.drain, progress=progress)
+            finally:
+                if progress is not None:
+                    progress.close()
     except BusLost as exc:
         if args.log is not None:  # keep what was recorded up to the loss (a partial log)
             _record(exc.recording, args.log, " (up to the loss; marked partial)")
@@ -387,6 +401,7 @@ def _replay(args) -> int:
         rec = exc.recording if isinstance(exc, Interrupted) else None
         if rec is None:  # before the rig started: --log still ends as this run's log, an empty partial one
             rec = Recording(scenario=sc, meta={"transport": args.transport, "channel": args.channel,
+                                               "wall_time_ns": time.time_ns(),
                                                "partial": f"interrupted by {name} before the first frame"})
         if args.log is not None:
             _record(rec, args.log, f" (up to the {name}; marked partial)")
@@ -523,7 +538,7 @@ def _bench(args) -> int:
     print(row("firmware: Measurement interval", side.get("arrival_interval_us")))
     print(row("firmware: handling per frame", side.get("handling_us")))
     if r.get("firmware"):
-        print(f"{'firmware: StepTimeMax (Diagnostics)':<34} {r['firmware']['step_time_max_us']:.1f}"
+        print(f"{'firmware: StepTimeMax (Diagnostics)':<34} {rep.step_time(r['firmware'])}"
               f"  overruns {r['firmware']['overruns']}")
     if lat.get("n"):
         at = "at the rig's socket (kernel receive timestamp)" if lat.get("stamp") == "kernel" else "received"

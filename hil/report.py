@@ -1,6 +1,7 @@
 """A scored run as a terminal table, JSON, and PNG plots (matplotlib Agg):
-position and velocity real vs identified (as the paper's Fig. 19-20) and a
-latency histogram."""
+position and velocity real vs identified (as the paper's Fig. 19-20), each
+with its error and zooms on the hold and its end, and the latency (a
+histogram with p99 and p99.9, and over the run)."""
 from __future__ import annotations
 
 import json
@@ -12,7 +13,7 @@ import numpy as np
 
 from pyrhonn import atomic
 
-__all__ = ["figures", "table", "to_json", "write"]
+__all__ = ["figures", "step_time", "table", "to_json", "write"]
 
 
 def _clean(obj: Any) -> Any:
@@ -33,6 +34,23 @@ def _clean(obj: Any) -> Any:
 
 def to_json(report: dict[str, Any]) -> str:
     return json.dumps(_clean(report), indent=1, sort_keys=True)
+
+
+LABEL_WIDTH = 24  #: the label column of the table; its values start after it
+
+
+def _label(text: str) -> str:
+    """A row's label, padded to the label column, and at least one space before the value."""
+    return text.ljust(LABEL_WIDTH - 1) + " "
+
+
+def step_time(fw: dict[str, Any], key: str = "step_time_max") -> str:
+    """The firmware's StepTimeMax (``key``: or its last StepTime) from its Diagnostics, in us; a saturated
+    one, at the top of its signal's range, as the lower bound it is: ">= 655.4 us, saturated"."""
+    value = fw[key + "_us"]
+    if fw.get(key + "_saturated"):
+        return f">= {value:,.1f} us, saturated"
+    return f"{value:,.1f} us"
 
 
 def _fmt(stats: dict, keys=("min", "avg", "p99", "p99.9", "max")) -> str:
@@ -81,41 +99,41 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
              + (f", trajectory {report['scenario']['trajectory']}" if report['scenario'].get('trajectory') else
                 ", the simulated LIM"),
              "",
-             f"{'frames':<22}sent {f['sent']}  lost (injected) {f['lost_injected']}  answered {f['answered']}  "
+             f"{_label('frames')}sent {f['sent']}  lost (injected) {f['lost_injected']}  answered {f['answered']}  "
              f"rejected (Seq jump) {f['rejected_seq_jump']}  missing {f['missing']}  late {f['late']}",
-             f"{'':<22}duplicates {f['duplicates']}  unexpected {f['unexpected']}  foreign sent "
+             f"{_label('')}duplicates {f['duplicates']}  unexpected {f['unexpected']}  foreign sent "
              f"{sum(f['foreign_sent'].values())}  step errors {f['step_errors']}  -> "
              f"{'all accounted for' if f['accounted'] else 'NOT ACCOUNTED FOR'}"]
     if report.get("partial"):
-        lines.append(f"{'':<22}PARTIAL LOG: {report['partial']}; the cycles it never sent count as unaccounted")
+        lines.append(f"{_label('')}PARTIAL LOG: {report['partial']}; the cycles it never sent count as unaccounted")
     lost = [f.get(k, 0) for k in ("lost_to_firmware", "rejected_after_loss", "lost_from_firmware")]
     drops = f.get("kernel_drops")
     if any(lost) or (drops and any(drops.values())):
-        lines.append(f"{'':<22}full receive queues: lost to the firmware {lost[0]} (then rejected as Seq jumps "
+        lines.append(f"{_label('')}full receive queues: lost to the firmware {lost[0]} (then rejected as Seq jumps "
                      f"{lost[1]}), lost from the firmware {lost[2]}; datagrams the kernel dropped"
                      + (f": rig {drops['rig']}, firmware {drops['firmware']}" if drops else ": not counted here"))
     drain = report.get("drain") or {}
     if drain.get("capped"):
-        lines.append(f"{'':<22}the drain stopped after {drain['s']:.1f} s with estimates still coming in: "
+        lines.append(f"{_label('')}the drain stopped after {drain['s']:.1f} s with estimates still coming in: "
                      "the missing ones may have been queued unread (a larger --drain reads them)")
     fw = report.get("firmware")
     if fw:
-        lines.append(f"{'firmware (Diagnostics)':<22}measurements {fw['measurements']}  rejected {fw['rejected']}  "
+        lines.append(f"{_label('firmware (Diagnostics)')}measurements {fw['measurements']}  rejected {fw['rejected']}  "
                      f"seq errors {fw['seq_errors']}  lost {fw['lost_frames']}  kernel drops {fw['rx_drops']}  "
-                     f"overruns {fw['overruns']}  step max {fw['step_time_max_us']:.1f} us")
+                     f"overruns {fw['overruns']}  step max {step_time(fw)}")
     for h in report.get("health") or []:
         def num(v: float | None) -> str:
             return "saturated" if v is None else f"{v:.3g}"
-        lines.append(f"{'filter health' if h['neuron'] == 0 else '':<22}neuron {h['neuron']}  e^2/s {num(h['nis'])}  "
+        lines.append(f"{_label('filter health' if h['neuron'] == 0 else '')}neuron {h['neuron']}  e^2/s {num(h['nis'])}  "
                      f"trace P {num(h['trace_p'])}  updates {h['updates']}  refused {h['rejected']}  "
                      f"resets {h['resets']}  bounded {h['bounded']}")
     ident = report.get("identification")
     if ident:
-        lines += ["", f"{'identification':<22}{'RMSE':>11}{'abs. dev.':>11}{'Table 7':>11}{'Table 7':>11}"
+        lines += ["", f"{_label('identification')}{'RMSE':>11}{'abs. dev.':>11}{'Table 7':>11}{'Table 7':>11}"
                       f"{'RMSE':>11}{'RMSE vs':>11}{'sensor':>11}{'peak |x|':>10}",
-                  f"{'':<22}{'(truth)':>11}{'(truth)':>11}{'RMSE':>11}{'abs. dev.':>11}{'no hold':>11}"
+                  f"{_label('')}{'(truth)':>11}{'(truth)':>11}{'RMSE':>11}{'abs. dev.':>11}{'no hold':>11}"
                   f"{'measured':>11}{'RMSE':>11}",
-                  *(f"  {name + ' (' + unit + ')':<20}{_e(ident[name]['rmse'])}{_e(ident[name]['absolute_deviation'])}"
+                  *(f"{_label('  ' + name + ' (' + unit + ')')}{_e(ident[name]['rmse'])}{_e(ident[name]['absolute_deviation'])}"
                     f"{_e(ident[name]['table7_rmse'])}{_e(ident[name]['table7_absolute_deviation'])}"
                     f"{_e(ident[name]['outside_hold']['rmse'])}{_e(ident[name]['vs_measurement']['rmse'])}"
                     f"{_e(ident[name]['measurement_vs_truth']['rmse'])}"
@@ -133,7 +151,7 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
                   f"  note: {ident['note']}"]
     be = report.get("bit_exact")
     if be:
-        lines.append(f"{'bit exact vs offline':<22}{be['checked']} estimates checked against Identifier.run: "
+        lines.append(f"{_label('bit exact vs offline')}{be['checked']} estimates checked against Identifier.run: "
                      f"{'equal' if be['equal'] else str(be['mismatches']) + ' differ'}"
                      + (f"; not checked from cycle {be['unknown_from']} on (frames lost both ways: which ones the "
                         "firmware stepped on is not known)" if be.get("unknown_from") is not None else ""))
@@ -149,23 +167,132 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
                        f"|difference| {reg['max_abs_diff'][worst]:.3g} in {worst})")
         extra = "" if not (reg["only_recorded"] or reg["only_replayed"]) else (
             f" ({reg['only_recorded']} answered in the recorded run only, {reg['only_replayed']} in this one only)")
-        lines.append(f"{'vs recorded run':<22}{reg['compared']} estimates compared with {reg['log']}: {verdict}{extra}")
+        lines.append(f"{_label('vs recorded run')}{reg['compared']} estimates compared with {reg['log']}: {verdict}{extra}")
     lat = report["latency_us"]
-    lines += ["", f"{'timing (us)':<22}",
-              f"  {'latency send->est.':<20}{_fmt(lat)}",
-              f"  {'':<20}within one period: {100 * lat['within_period']:.2f} %"
+    lines += ["", f"{_label('timing (us)')}",
+              f"{_label('  latency send->est.')}{_fmt(lat)}",
+              f"{_label('')}within one period: {100 * lat['within_period']:.2f} %"
               + (f" (picked up by the rig process within one period: {100 * lat['within_period_picked_up']:.2f} %)"
                  if "within_period_picked_up" in lat else "") if lat.get("n") else "",
-              f"  {'(stamped at)':<20}{_stamp(lat.get('stamp'))}",
-              f"  {'rig pick-up':<20}{_fmt(report.get('rig_pickup_us', {}))}",
-              f"  {'rig lateness':<20}{_fmt(report['rig_lateness_us'])}",
-              f"  {'rig period jitter':<20}{_fmt(report['rig_period_jitter_us'], ('avg', 'p99', 'p99.9', 'max_abs'))}"]
+              f"{_label('  (stamped at)')}{_stamp(lat.get('stamp'))}",
+              f"{_label('  rig pick-up')}{_fmt(report.get('rig_pickup_us', {}))}",
+              f"{_label('  rig lateness')}{_fmt(report['rig_lateness_us'])}",
+              f"{_label('  rig period jitter')}{_fmt(report['rig_period_jitter_us'], ('avg', 'p99', 'p99.9', 'max_abs'))}"]
     if timing_note:
         lines += ["", f"note: {timing_note}"]
-    return "\n".join(ln for ln in lines if ln is not None) + "\n"
+    return "\n".join(ln.rstrip() for ln in lines if ln is not None) + "\n"
+
+
+def _hold_window(sc: dict[str, Any], j: int) -> tuple[float, float, str] | None:
+    """(start, end, legend label) of the hold's shading on state ``j``'s plots, or None."""
+    # the velocity differenced from a held position is not valid through the hold either
+    derived = j == 1 and sc.get("velocity_from_position", False) and 0 in sc["hold_states"]
+    if sc["hold_duration"] <= 0 or not (j in sc["hold_states"] or derived):
+        return None
+    label = "measurement held" if j in sc["hold_states"] else "not valid (differenced from the held position)"
+    return sc["hold_start"], sc["hold_start"] + sc["hold_duration"], label
+
+
+def _zooms(sc: dict[str, Any], hold: tuple[float, float, str] | None, t_end: float,
+           t_worst: float) -> list[tuple[str, float, float]]:
+    """The two zoom windows under a state's plot: the hold and its end, where the
+    identifier bridges and then takes the fresh measurements up again; without a
+    hold, the largest error and the end of the run."""
+    if hold is not None:
+        a, b, _ = hold
+        margin = 0.1 * (b - a)
+        return [("the hold", a - margin, b + margin), ("the end of the hold", b - 0.01, b + 0.04)]
+    return [("the largest error", t_worst - 0.015, t_worst + 0.015), ("the end of the run", t_end - 0.03, t_end)]
+
+
+def _state_figure(report: dict[str, Any], j: int, name: str, unit: str, fig_no: int) -> Any:
+    """Real vs identified (top), the error (middle) and two zooms (bottom) of state ``j``."""
+    import matplotlib.pyplot as plt
+
+    s, sc = report["_series"], report["scenario"]
+    T = sc["period"]
+    k, est, truth, t = s["k"], np.asarray(s["est"]), np.asarray(s["truth"]), np.asarray(s["t"])
+    tt, tk = t + T, t[k] + T                    # x(k+1) is due one period after frame k
+    err = est[:, j] - truth[k, j] if len(k) else np.zeros(0)
+    real = "real (trajectory file)" if sc.get("trajectory") else "real (noise-free)"
+    hold = _hold_window(sc, j)
+    fig = plt.figure(figsize=(10, 8.4))
+    grid = fig.add_gridspec(3, 2, height_ratios=(2.2, 1.3, 1.6), hspace=0.5, wspace=0.25)
+    top, mid = fig.add_subplot(grid[0, :]), fig.add_subplot(grid[1, :])
+    worst = float(tk[int(np.argmax(np.abs(err)))]) if err.size else float(tt[len(tt) // 2])
+    zooms = [(fig.add_subplot(grid[2, i]), *w) for i, w in enumerate(_zooms(sc, hold, float(tt[-1]), worst))]
+
+    def traces(ax: Any, lo: float = -np.inf, hi: float = np.inf) -> None:
+        """The identified estimate under the real trace: the noisy one must not hide the real one."""
+        on, onk = (tt >= lo) & (tt <= hi), (tk >= lo) & (tk <= hi)
+        if onk.any():
+            ax.plot(tk[onk], est[onk, j], lw=0.7, color="tab:orange", alpha=0.75,
+                    label="identified (firmware over the bus)", zorder=2)
+        ax.plot(tt[on], truth[on, j], lw=1.4, color="black", label=real, zorder=3)
+
+    def shade(ax: Any, legend: bool) -> None:
+        if hold is not None:
+            ax.axvspan(hold[0], hold[1], color="0.88", zorder=0, label=hold[2] if legend else None)
+
+    traces(top)
+    shade(top, True)
+    top.set_ylabel(f"{name} ({unit})")
+    top.set_xlabel("time (s)")
+    top.set_title(f"LIM {name}: real vs identified (cf. Fig. {fig_no}), {report['transport']}")
+    top.legend(loc="best", fontsize=8)
+
+    mid.plot(tk, err, lw=0.6, color="tab:red", label="identified - real")
+    mid.axhline(0.0, color="0.4", lw=0.6)
+    shade(mid, True)
+    mid.set_ylabel(f"error ({unit})")
+    mid.set_xlabel("time (s)")
+    mid.set_title("error of the identified estimate against the real trace", fontsize=9)
+    mid.legend(loc="best", fontsize=7)
+
+    for ax, what, lo, hi in zooms:
+        traces(ax, lo, hi)
+        shade(ax, False)
+        ax.set_xlim(lo, hi)
+        ax.set_ylabel(f"{name} ({unit})")
+        ax.set_xlabel("time (s)")
+        ax.set_title(f"zoom: {what}", fontsize=9)
+    return fig
+
+
+def _latency_figure(report: dict[str, Any], lat_us: np.ndarray) -> Any:
+    """The latency's histogram with its p99 and p99.9 marked, and the latency over the run
+    (stalls show as bursts in time, not in a histogram)."""
+    import matplotlib.pyplot as plt
+
+    s = report["_series"]
+    T_us = report["scenario"]["period"] * 1e6
+    t = np.asarray(s["t"])[np.asarray(s["k"])]
+    t = t - t[0]
+    p99, p999 = np.percentile(lat_us, [99, 99.9])
+    fig, (hist, over) = plt.subplots(2, 1, figsize=(9, 7.2), gridspec_kw={"hspace": 0.45})
+    marks = ((T_us, "r", "--", f"one period ({T_us:g} us)"), (p99, "tab:purple", ":", f"p99 {p99:.1f} us"),
+             (p999, "tab:green", "-.", f"p99.9 {p999:.1f} us"))
+    hist.hist(lat_us, bins=100, log=True, color="tab:blue")
+    for x, color, ls, label in marks:
+        hist.axvline(x, color=color, ls=ls, lw=1.2, label=label)
+    hist.set_xlabel("latency Measurement sent -> Estimate received (us)")
+    hist.set_ylabel("estimates per bin (count)")
+    hist.set_title(f"latency over {report['transport']} (n = {lat_us.size})")
+    hist.legend(fontsize=8)
+    over.plot(t, lat_us, ".", ms=1.5, color="tab:blue", label="one estimate")
+    for x, color, ls, label in marks:
+        over.axhline(x, color=color, ls=ls, lw=1.0, label=label)
+    over.set_yscale("log")
+    over.set_xlabel("time since the first Measurement (s)")
+    over.set_ylabel("latency (us)")
+    over.set_title("latency over the run: a stall shows as a burst of late estimates", fontsize=9)
+    over.legend(fontsize=7, loc="upper right", markerscale=4)
+    return fig
 
 
 def figures(report: dict[str, Any], out: Path) -> list[Path]:
+    """position.png and velocity.png (real vs identified, the error, zooms on the hold and its end) and
+    latency.png (histogram with p99 and p99.9, the latency over the run) into ``out``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -176,41 +303,15 @@ def figures(report: dict[str, Any], out: Path) -> list[Path]:
         return []
     out.mkdir(parents=True, exist_ok=True)
     paths = []
-    k, est, truth, t = s["k"], s["est"], s["truth"], s["t"]
-    T = report["scenario"]["period"]
     for j, (name, unit, fig_no) in enumerate((("position", "m", 19), ("velocity", "m/s", 20))):
-        fig, ax = plt.subplots(figsize=(8, 3.6))
-        real = "real (trajectory file)" if report["scenario"].get("trajectory") else "real (noise-free)"
-        ax.plot(t + T, truth[:, j], lw=1.2, label=real)
-        if len(k):
-            ax.plot(t[k] + T, est[:, j], lw=0.8, ls="--", label="identified (firmware over the bus)")
-        sc = report["scenario"]
-        # the velocity differenced from a held position is not valid through the hold either
-        derived = j == 1 and sc.get("velocity_from_position", False) and 0 in sc["hold_states"]
-        if sc["hold_duration"] > 0 and (j in sc["hold_states"] or derived):
-            ax.axvspan(sc["hold_start"], sc["hold_start"] + sc["hold_duration"], color="0.9",
-                       label="measurement held" if j in sc["hold_states"] else "not valid (from the held position)")
-        ax.set_xlabel("time (s)")
-        ax.set_ylabel(f"{name} ({unit})")
-        ax.set_title(f"LIM {name}: real vs identified (cf. Fig. {fig_no}), {report['transport']}")
-        ax.legend(loc="best", fontsize=8)
-        fig.tight_layout()
-        p = atomic.save_figure(fig, out / f"{name}.png", dpi=110)
+        fig = _state_figure(report, j, name, unit, fig_no)
+        paths.append(atomic.save_figure(fig, out / f"{name}.png", dpi=100))
         plt.close(fig)
-        paths.append(p)
     lat = np.asarray(s["latency_ns"], dtype=np.float64) / 1e3
     if lat.size:
-        fig, ax = plt.subplots(figsize=(7, 3.6))
-        ax.hist(lat, bins=100, log=True)
-        ax.axvline(T * 1e6, color="r", ls="--", label="one period")
-        ax.set_xlabel("latency Measurement sent -> Estimate received (us)")
-        ax.set_ylabel("frames")
-        ax.set_title(f"latency over {report['transport']} (n = {lat.size})")
-        ax.legend()
-        fig.tight_layout()
-        p = atomic.save_figure(fig, out / "latency.png", dpi=110)
+        fig = _latency_figure(report, lat)
+        paths.append(atomic.save_figure(fig, out / "latency.png", dpi=100))
         plt.close(fig)
-        paths.append(p)
     return paths
 
 

@@ -19,12 +19,21 @@ scheduling, is kept apart (``meta["rx_pickup_us"]``). On the virtual bus the
 stamp is when ``recv`` returned.
 
 Recording. Every frame sent and received is kept in memory during the run
-(with its time relative to t0, the deadline of frame 0) and written to the
-log after it, so the log writer's compression never disturbs the schedule.
-:func:`write_log` writes BLF or ASC through python-can's writers (plus a
-``LOG.json`` sidecar with the scenario and the run's metadata), and
-:func:`read_log` reads a log back into the same :class:`Recording`, which is
-all :mod:`hil.score` needs.
+and written to the log after it, so the log writer's compression never
+disturbs the schedule. The Recording holds the frames in time order (a
+received frame by its arrival at the socket, which may precede a frame the
+rig sent while that one waited to be picked up), each at its time relative
+to the earliest frame, and ``meta["wall_time_ns"]``, the wall clock
+(CLOCK_REALTIME) of that relative 0. :func:`write_log` writes BLF or ASC
+through python-can's writers with absolute times: the file's start (the BLF
+header's start time, the ASC's ``Begin Triggerblock``) is the run's wall
+clock truncated to the millisecond, and each frame's time is its offset
+from it, to the nanosecond in BLF and the microsecond in ASC; plus a
+``LOG.json`` sidecar with the scenario and the run's metadata.
+:func:`read_log` reads a log back into the same :class:`Recording` (the
+relative times, which is all :mod:`hil.score` needs; logs of the format
+before, whose times start at 0 and whose frames are in pick-up order, are
+read as they are).
 
 Integrity. The log is written to a temporary file and renamed into place
 (:mod:`pyrhonn.atomic`), then its sidecar, which records the log's frame
@@ -52,6 +61,7 @@ from typing import Any, Callable
 import can
 import numpy as np
 
+from .diagnostics import LEGACY_PROTOCOL
 from .scenario import Plan, Scenario
 
 __all__ = ["BusLost", "FirmwareTimeout", "Interrupted", "LogWriteError", "Recording", "Rig", "ids", "read_log",
@@ -61,7 +71,10 @@ __all__ = ["BusLost", "FirmwareTimeout", "Interrupted", "LogWriteError", "Record
 DRAIN_CAP = 20  #: the drain after the replay reads for at most this many times ``drain``
 MAX_WAIT_S = 3600.0  #: the longest ``reply_timeout`` or ``drain`` a Rig takes
 SIDECAR_MAX_BYTES = 1 << 20  #: a log's JSON sidecar holds the scenario and a few counters: a few kB
-LOG_FORMAT = "pyrhonn-hil-log 2"  #: 2: the sidecar records the log's frame count, SHA-256 and whether it is partial
+#: 2: the sidecar records the log's frame count, SHA-256 and whether it is partial; 3: the log's frames are in
+#: time order at absolute wall-clock times (``wall_time_ns``), and the sidecar names the protocol (the DBC's version)
+LOG_FORMAT_VERSION = 3
+LOG_FORMAT = f"pyrhonn-hil-log {LOG_FORMAT_VERSION}"
 
 
 def check_seconds(name: str, value: object, *, zero: bool) -> float:
@@ -106,6 +119,7 @@ class BusLost(OSError):
 
 
 HEALTH_FRAMES = 6  #: one Health frame per neuron of the LIM firmware follows each Diagnostics frame
+PROGRESS_EVERY = 256  #: the replay loop offers its progress every this many cycles (77 ms at 0.3 ms)
 
 
 def ids() -> dict[str, int]:
@@ -135,11 +149,14 @@ def _paired_clocks() -> tuple[int, int]:
 @dataclass
 class Recording:
     """A run as frames: ``events`` is the list of (t seconds, direction
-    "tx"/"rx", can.Message) in the order the rig sent and picked them up (a
-    received frame's t is its arrival at the socket where the bus stamps it,
-    so it may precede a frame the rig sent before picking it up); ``meta``
-    holds the transport, the period and anything the rig measured besides
-    frames."""
+    "tx"/"rx", can.Message) in time order (a received frame's t is its
+    arrival at the socket where the bus stamps it, so it may precede a frame
+    the rig sent before picking it up; frames sent keep the order they were
+    sent in). ``meta`` holds the transport, the period, ``wall_time_ns`` (the
+    wall clock of t = 0; absent in logs of the format before) and anything
+    the rig measured besides frames. A log of the format before keeps its
+    frames in the order the rig sent and picked them up: :mod:`hil.score`
+    reads both."""
 
     scenario: Scenario
     events: list[tuple[float, str, can.Message]] = field(default_factory=list)
@@ -158,7 +175,8 @@ class Rig:
     def __init__(self, bus: can.BusABC, plan: Plan, *, transport: str = "?", channel: str = "?",
                  spin_ns: int = 100_000, reply_timeout: float = 1.0, drain: float = 0.5,
                  extra_frames: Callable[[int], list[can.Message]] | None = None,
-                 kernel_drops: Callable[[], dict[str, int]] | None = None) -> None:
+                 kernel_drops: Callable[[], dict[str, int]] | None = None,
+                 progress: "Callable[[int, int, int, int], None] | None" = None) -> None:
         self.bus = bus
         self.plan = plan
         self.transport = transport
@@ -170,7 +188,12 @@ class Rig:
         # udp_multicast: the kernel's count of datagrams dropped on the rig's and the firmware's sockets
         # (a receive queue that overflowed on a busy host), read before and after the run
         self.kernel_drops = kernel_drops
+        # called every PROGRESS_EVERY cycles during the replay with (cycles done, frames sent, estimates
+        # received, frames lost by the scenario); hil.progress decides whether to show anything
+        self.progress = progress
         ident = ids()
+        self._estimate_id = ident["Estimate"]
+        self._n_est = 0
         self._accept = {ident["Estimate"], ident["ControlAck"], ident["Diagnostics"], ident["Health"]}
         self._t0 = 0
         # socketcan and udp_multicast give each received frame the kernel's receive timestamp: an
@@ -179,7 +202,7 @@ class Rig:
         self._ago: dict[int, int] = {}           # id(kernel-stamped frame) -> its pick-up delay, ns
         self._events: list[tuple[int, str, can.Message]] = []
         self._n_rx = 0
-        self._first_run_event = 0
+        self._run_start: int | None = None       # perf_counter_ns where the handshake ended
 
     # -- receiving ---------------------------------------------------------------------------
 
@@ -208,6 +231,8 @@ class Rig:
                 ago = 0
         self._events.append((now - ago, "rx", msg))
         self._n_rx += 1
+        if msg.arbitration_id == self._estimate_id:
+            self._n_est += 1
 
     def _recv(self, timeout: float) -> can.Message | None:
         try:
@@ -320,7 +345,7 @@ class Rig:
         drops0 = self.kernel_drops() if self.kernel_drops is not None else None
         wall0 = time.time()
         t0 = time.perf_counter_ns() + 10_000_000
-        self._first_run_event = len(self._events)
+        self._run_start = time.perf_counter_ns()
         self._t0 = t0
         gc_was = gc.isenabled()
         gc.freeze()
@@ -364,15 +389,20 @@ class Rig:
         lost = self.plan.lost
         n_rx_before = self._n_rx
         first_tx = None
-        overruns = 0
+        overruns = n_sent = n_lost = 0
+        progress = self.progress
         for k in range(self.plan.cycles):
             deadline = t0 + k * T + delay
             if time.perf_counter_ns() > deadline + T:
                 overruns += 1  # the rig itself fell a period behind (counted, frame still sent)
             self._wait_until(deadline)
             if lost[k]:
+                n_lost += 1
                 continue
             sent = self._send(frames[k])
+            n_sent += 1
+            if progress is not None and (k % PROGRESS_EVERY == 0 or k == self.plan.cycles - 1):
+                progress(k + 1, n_sent, self._n_est, n_lost)  # right after a send: the most slack before the next
             if first_tx is None:
                 first_tx = sent
             if self.extra_frames is not None:
@@ -385,23 +415,34 @@ class Rig:
         return overruns
 
     def _recording(self, extra: dict[str, Any]) -> Recording:
-        """The frames so far as a Recording. Log time: seconds from the earliest
-        frame (the handshake), so every timestamp is >= 0 and BLF keeps it to
-        the nanosecond; t0 (deadline of frame 0, without the delay) is in meta."""
+        """The frames so far as a Recording, in time order. Time: seconds from
+        the earliest frame (the handshake), so every timestamp is >= 0 and BLF
+        keeps it to the nanosecond; its wall clock is ``wall_time_ns``; t0
+        (deadline of frame 0, without the delay) is in meta. The handshake is
+        the frames before ``first_run_event``: those stamped before the
+        replay began (an answer to the handshake picked up during the run
+        included)."""
+        from pyrhonn.firmware import database
+
         from .score import stats_us
 
         sc = self.plan.scenario
-        # in the order this process saw them (a frame stamped on arrival by the kernel may carry a time
-        # before a frame sent while it waited to be picked up; the order is what matches Seq to cycles)
-        base = min(e[0] for e in self._events) if self._events else self._t0
-        events = [((ns - base) / 1e9, d, m) for ns, d, m in self._events]
-        pickup = [self._ago.get(id(m), 0) if d == "rx" else 0 for _, d, m in self._events]
+        # time order: a frame the kernel stamped on arrival goes before the frames sent while it waited to be
+        # picked up (a stable sort: frames sent, stamped in sending order, keep it)
+        order = sorted(range(len(self._events)), key=lambda i: self._events[i][0])
+        ordered = [self._events[i] for i in order]
+        base = ordered[0][0] if ordered else self._t0
+        mono, real = _paired_clocks()
+        events = [((ns - base) / 1e9, d, m) for ns, d, m in ordered]
+        pickup = [self._ago.get(id(m), 0) if d == "rx" else 0 for _, d, m in ordered]
         for ts, _, m in events:
             m.timestamp = ts
             m.channel = None
+        first_run = 0 if self._run_start is None else sum(1 for ns, _d, _m in ordered if ns < self._run_start)
         meta = {"transport": self.transport, "channel": self.channel, "period_ns": int(round(sc.period * 1e9)),
                 "delay_ns": int(round(sc.transport_delay * 1e9)), "t0_ns": self._t0 - base,
-                "first_run_event": self._first_run_event, "rx_stamp": "kernel" if self._kernel_stamps else "recv",
+                "wall_time_ns": real - (mono - base), "protocol": database().version,
+                "first_run_event": first_run, "rx_stamp": "kernel" if self._kernel_stamps else "recv",
                 "rx_pickup_us": stats_us(np.asarray(self._pickup, dtype=np.int64)) if self._ago else {"n": 0},
                 "_rx_pickup_ns": pickup, **extra}
         return Recording(scenario=sc, events=events, meta=meta)
@@ -418,6 +459,60 @@ def _writer(path: Path, target: Path) -> can.io.generic.MessageWriter:
     if suffix == ".asc":
         return can.ASCWriter(target)
     raise ValueError(f"log: {path.name}: expected a .blf or .asc file name")
+
+
+ASC_ORIGIN_EVENT = "pyrhonn hil: frame times from the wall clock of this Triggerblock"
+
+
+def _log_origin(rec: Recording) -> tuple[int, int]:
+    """(origin, lead), in ns: the log file's start on the wall clock, ``wall_time_ns`` truncated to the
+    millisecond (what a BLF header and an ASC Triggerblock can hold), and how far the Recording's t = 0
+    lies after it. (0, 0) for a Recording without a wall clock (read from a log of the format before):
+    its log starts at 0 as it did."""
+    wall = rec.meta.get("wall_time_ns")
+    if not isinstance(wall, int) or isinstance(wall, bool) or wall <= 0:
+        return 0, 0
+    origin = wall - wall % 1_000_000
+    return origin, wall - origin
+
+
+class _LogWriter:
+    """Feeds python-can's writer the Recording's frames at absolute times.
+
+    BLF: each object's timestamp is its offset in ns from the file's start
+    (the header's SYSTEMTIME, millisecond resolution). The writer is given
+    the offsets (start 0, so that no float at the wall clock's magnitude,
+    0.24 us apart, rounds them) and, before it writes its header, the
+    absolute start and stop. ASC: lines are seconds from the Triggerblock,
+    microsecond resolution; a first event at the origin sets it, and each
+    frame's time is the origin plus its offset rounded to the microsecond
+    (the float sum is within 0.12 us of it, so the writer's subtraction and
+    6-decimal format give back the exact offset)."""
+
+    def __init__(self, path: Path, target: Path, rec: Recording) -> None:
+        self.blf = path.suffix.lower() == ".blf"
+        self.writer = _writer(path, target)
+        self.origin, self.lead = _log_origin(rec)
+        self.last = 0.0
+        if self.blf:
+            self.writer.start_timestamp = 0.0
+        elif self.origin:
+            self.writer.log_event(ASC_ORIGIN_EVENT, self.origin / 1e9)
+
+    def write(self, ts: float, m: can.Message) -> None:
+        offset_ns = int(round(ts * 1e9)) + self.lead
+        if self.blf:
+            m.timestamp = offset_ns / 1e9 + 0.4e-9  # BLF truncates to whole ns: land on ours
+        else:
+            m.timestamp = self.origin / 1e9 + int(round(offset_ns / 1e3)) / 1e6 if self.origin else ts
+        self.last = offset_ns / 1e9
+        self.writer.on_message_received(m)
+
+    def stop(self) -> None:
+        if self.blf and self.origin:  # the header, written by stop(): the absolute start and stop
+            self.writer.start_timestamp = self.origin / 1e9
+            self.writer.stop_timestamp = self.origin / 1e9 + self.last
+        self.writer.stop()
 
 
 def sidecar(path: Path) -> Path:
@@ -449,6 +544,7 @@ def write_log(rec: Recording, path: str | os.PathLike) -> Path:
     into place: a write that fails or is interrupted leaves the previous log
     (or none), never a part of one; a failure raises :class:`LogWriteError`."""
     from pyrhonn import atomic
+    from pyrhonn.firmware import database
 
     path = Path(path)
     if path.suffix.lower() not in (".blf", ".asc"):
@@ -456,13 +552,11 @@ def write_log(rec: Recording, path: str | os.PathLike) -> Path:
     written = 0
     try:
         with atomic.replacing_path(path) as tmp:
-            writer = _writer(path, tmp)
+            writer = _LogWriter(path, tmp, rec)
             try:
-                nudge = 0.4e-9 if path.suffix.lower() == ".blf" else 0.0  # BLF truncates to whole ns: land on ours
                 for ts, d, m in rec.events:
-                    m.timestamp = ts + nudge
                     m.is_rx = d == "rx"
-                    writer.on_message_received(m)
+                    writer.write(ts, m)
                     written += 1
             finally:
                 writer.stop()
@@ -472,8 +566,11 @@ def write_log(rec: Recording, path: str | os.PathLike) -> Path:
         raise LogWriteError(exc.errno or errno.EIO,
                             f"log: {path}: {what} after {written} of {len(rec.events)} frames; nothing of it is "
                             "kept (a previous log there is unchanged; the run's report is complete)") from exc
+    origin, lead = _log_origin(rec)
     meta = {"format": LOG_FORMAT, "scenario": rec.scenario.to_dict(),
             **{k: v for k, v in rec.meta.items() if not k.startswith("_")},
+            "protocol": rec.meta.get("protocol") or database().version,
+            "wall_time_ns": origin + lead if origin else None,
             "first_timestamp": rec.events[0][0] if rec.events else 0.0, "frames": len(rec.events),
             "sha256": digest, "partial": partial_reason(rec)}
     sc_path = sidecar(path)
@@ -504,6 +601,7 @@ def _read_sidecar(sc_path: Path) -> tuple[Scenario, dict[str, Any]]:
         raise ValueError(f"log: {sc_path}: cannot read it ({exc.strerror or exc})") from None
     if not isinstance(meta, dict):
         raise bad(f"expected a JSON object, got {json.dumps(meta)[:40]}")
+    _read_protocol(meta, _format_version(meta, sc_path), sc_path)
     if "scenario" not in meta:
         raise bad("no 'scenario' entry")
     try:
@@ -532,10 +630,43 @@ def _read_sidecar(sc_path: Path) -> tuple[Scenario, dict[str, Any]]:
         meta["first_timestamp"] = check_real("first_timestamp", meta.get("first_timestamp", 0.0))
     except ValueError as exc:
         raise bad(str(exc)) from None
+    wall = meta.get("wall_time_ns")
+    if wall is not None and (isinstance(wall, bool) or not isinstance(wall, int) or not 0 < wall < 2 ** 63):
+        raise bad(f"wall_time_ns: expected nanoseconds since 1970 or null, got {json.dumps(wall)[:40]}")
     # run-time entries write_log never writes (hil.score would take them for a live run's)
     for key in [k for k in meta if k.startswith("_")]:
         del meta[key]
     return scenario, meta
+
+
+def _format_version(meta: dict[str, Any], sc_path: Path) -> int:
+    """N of the sidecar's ``"format": "pyrhonn-hil-log N"``; a ValueError for a format newer than this
+    hil's or not one of these."""
+    fmt = meta.get("format")
+    prefix = "pyrhonn-hil-log "
+    if not (isinstance(fmt, str) and fmt.startswith(prefix) and fmt[len(prefix):].isdigit()):
+        raise ValueError(f"log: {sc_path}: not a hil log sidecar (format: expected 'pyrhonn-hil-log N', got "
+                         f"{json.dumps(fmt)[:60]})")
+    version = int(fmt[len(prefix):])
+    if version > LOG_FORMAT_VERSION:
+        raise ValueError(f"log: {sc_path}: format {fmt!r} is newer than this pyrhonn reads ({LOG_FORMAT!r} and "
+                         "before); refused")
+    return version
+
+
+def _read_protocol(meta: dict[str, Any], version: int, sc_path: Path) -> None:
+    """``meta["protocol"]``: the DBC version the log's frames were written in (sidecars of format 2 and
+    before name none: the protocol of their time, LEGACY_PROTOCOL); a ValueError for one this hil cannot
+    decode."""
+    from pyrhonn.firmware import database
+
+    current = database().version
+    if version < LOG_FORMAT_VERSION:
+        meta["protocol"] = LEGACY_PROTOCOL
+    proto = meta.get("protocol")
+    if proto not in (current, LEGACY_PROTOCOL):
+        raise ValueError(f"log: {sc_path}: recorded in protocol {json.dumps(proto)[:60]}; this hil decodes "
+                         f"{current!r} and {LEGACY_PROTOCOL!r}; refused")
 
 
 def _read_frames(path: Path, suffix: str) -> tuple[list[can.Message], Exception | None]:
@@ -545,6 +676,10 @@ def _read_frames(path: Path, suffix: str) -> tuple[list[can.Message], Exception 
     reader = None
     try:  # the BLF reader parses the file's header when it is made: a foreign or empty file fails there
         reader = can.BLFReader(path) if suffix == ".blf" else can.ASCReader(path)
+        if suffix == ".blf":
+            # each object's offset from the file's start, to the ns: python-can adds the start (the wall
+            # clock, where a float's step is 0.24 us) to it; read_log anchors the offsets on the sidecar
+            reader.start_timestamp = 0.0
         for m in reader:
             msgs.append(m)
     except Exception as exc:  # noqa: BLE001 - any parse failure of a truncated/foreign file
@@ -597,7 +732,7 @@ def read_log(path: str | os.PathLike, *, partial: bool = False) -> Recording:
         raise ValueError(f"log: {path}: its SHA-256 does not match the one its sidecar {sc_path.name} records: "
                          "changed after it was written (or not the log the sidecar describes); refused")
     shift = 0.0
-    if msgs:  # ASC stores times from its start, BLF from its (ms-truncated) start: anchor on the first frame
+    if msgs:  # offsets from the file's start (the run's wall clock to the ms): anchor on the first frame
         shift = meta["first_timestamp"] - msgs[0].timestamp
     events = [(m.timestamp + shift, "rx" if m.is_rx else "tx", m) for m in msgs]
     meta["frames_read"] = len(events)

@@ -5,9 +5,12 @@ same numbers.
 - Matching: each Measurement frame the rig sent is identified as cycle k of
   the scenario's plan by its Seq (unwrapped past 65535) and its bytes; any
   other frame the rig sent is *foreign* (fault injection: malformed frames, a
-  sequence jump). Each Estimate is matched to the latest sent cycle with its
-  Seq; an Estimate for no sent cycle is *unexpected*, a second one a
-  *duplicate*.
+  sequence jump). Each Estimate is matched to the latest cycle with its Seq
+  sent before it arrived (an Estimate stamped before every such cycle, by a
+  clock-pairing error of a few us, to the first of them): the same whether
+  the frames are in time order (logs since format 3) or in the order the
+  rig picked them up (logs before). An Estimate for no sent cycle is
+  *unexpected*, a second one a *duplicate*.
 - Accounting: cycles = sent + lost (lost: the scenario's injected frame
   loss, never sent); sent = answered + rejected + missing, where *rejected*
   are the cycles the protocol must refuse (a Seq jump: the first frame after
@@ -31,13 +34,14 @@ same numbers.
 """
 from __future__ import annotations
 
+import bisect
 import dataclasses
-
 import math
 from typing import Any
 
 import numpy as np
 
+from . import diagnostics
 from .accounting import kernel_losses, stepped
 from .rig import Recording, ids
 from .scenario import TABLE7
@@ -59,11 +63,9 @@ def _ns(t: float) -> int:
     return int(round(t * 1e9))
 
 
-def _diag(msg) -> dict[str, int]:
-    from pyrhonn.firmware import database
-
-    d = database().decode_message("Diagnostics", bytes(msg.data), decode_choices=False)
-    return {k: (float(v) if k in ("CycleTime", "StepTime", "StepTimeMax") else int(v)) for k, v in d.items()}
+def _diag(msg, protocol: str | None) -> dict[str, Any]:
+    """A Diagnostics frame in the protocol its run spoke (hil.diagnostics)."""
+    return diagnostics.decode(bytes(msg.data), protocol)
 
 
 def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
@@ -81,6 +83,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     MEAS, EST, DIAG = ident["Measurement"], ident["Estimate"], ident["Diagnostics"]
     meas_len = database().get_message_by_name("Measurement").length
     first_run = int(rec.meta.get("first_run_event", 0))
+    protocol = rec.meta.get("protocol")
 
     sent_ns = np.full(N, -1, dtype=np.int64)
     recv_ns = np.full(N, -1, dtype=np.int64)
@@ -94,7 +97,8 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     resync = np.zeros(N, dtype=bool)
     expect_reject = np.zeros(N, dtype=bool)
     meas_data: dict[int, bytes] = {}
-    by_seq: dict[int, int] = {}
+    by_seq: dict[int, list[int]] = {}    # Seq -> the cycles sent with it, in sending order
+    estimates: list[tuple[int, int, Any]] = []   # (event index, arrival ns, Estimate frame)
     last_k = -1
     prev_seq: int | None = None
     foreign: dict[str, int] = {}
@@ -114,7 +118,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     for i, (t, d, m) in enumerate(rec.events):
         if i < first_run:                       # the handshake before the run
             if d == "rx" and m.arbitration_id == DIAG:
-                diags.append(_diag(m))
+                diags.append(_diag(m, protocol))
             continue
         if d == "tx":
             if m.arbitration_id == MEAS and not m.is_extended_id and len(m.data) == meas_len:
@@ -123,7 +127,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
                 if k < N and bytes(m.data) == plan_frame(k):
                     sent_ns[k] = _ns(t)
                     meas_data[k] = bytes(m.data)
-                    by_seq[s] = k
+                    by_seq.setdefault(s, []).append(k)
                     first_accept = prev_seq is None and not (diags and diags[0].get("Synced"))
                     if prev_seq is None and diags and diags[0].get("Synced"):
                         prev_seq = diags[0]["LastSeq"]
@@ -140,7 +144,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
                 foreign[kind] = foreign.get(kind, 0) + 1
             continue
         if m.arbitration_id == DIAG:
-            diags.append(_diag(m))
+            diags.append(_diag(m, protocol))
             continue
         if m.arbitration_id == HEALTH:
             try:
@@ -149,20 +153,22 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
                 continue
             health[h.neuron] = dataclasses.asdict(h)   # the last one per neuron: after the final Diagnostics
             continue
-        if m.arbitration_id != EST:
-            continue
+        if m.arbitration_id == EST:
+            estimates.append((i, _ns(t), m))
+
+    for i, t_ns, m in estimates:   # after every frame sent is known: in time order, its answer may come first
         try:
             e = decode_estimate(m, scaling=False)
         except ValueError:
             mismatched += 1
             continue
-        k = by_seq.get(e.seq)
+        k = _answered_cycle(by_seq.get(e.seq), sent_ns, t_ns)
         if k is None:
             unexpected += 1
         elif recv_ns[k] >= 0:
             duplicates += 1
         else:
-            recv_ns[k] = _ns(t)
+            recv_ns[k] = t_ns
             picked_ns[k] = recv_ns[k] + (int(pickup[i]) if pickup is not None else 0)
             raw[k] = e.xhat
             phys[k] = decode_estimate(m).xhat
@@ -205,7 +211,11 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
               "overruns": (b["Overruns"] - a["Overruns"]) & 0xFFFF,
               "lost_frames": (b["LostFrames"] - a["LostFrames"]) & 0xFFFFFFFF,
               "rx_drops": (b["RxDrops"] - a["RxDrops"]) & 0xFFFFFFFF,
-              "step_time_max_us": b["StepTimeMax"], "last_step_time_us": b["StepTime"]}
+              "step_time_max_us": b["StepTimeMax"], "last_step_time_us": b["StepTime"],
+              # at the top of its signal's range: at least that long, not a measurement
+              "step_time_max_saturated": "StepTimeMax" in b["saturated"],
+              "last_step_time_saturated": "StepTime" in b["saturated"],
+              "protocol": protocol or None}
         out["firmware"] = fw
         n_foreign = sum(foreign.values())
         f.update(_kernel_losses(f, fw, n_foreign, rec.meta))
@@ -238,6 +248,16 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     out["_series"] = {"k": np.flatnonzero(answered), "est": phys[answered], "truth": np.asarray(plan.truth_next),
                       "latency_ns": latency, "t": np.asarray(plan.t)}
     return out
+
+
+def _answered_cycle(cycles: list[int] | None, sent_ns: np.ndarray, t_ns: int) -> int | None:
+    """The cycle an Estimate with these ``cycles``' Seq that arrived at ``t_ns``
+    answers: the latest sent before it, else (stamped a few us early: the
+    kernel's clock paired with the rig's) the first; None: its Seq was never sent."""
+    if not cycles:
+        return None
+    j = bisect.bisect_right([int(sent_ns[k]) for k in cycles], t_ns)
+    return cycles[j - 1] if j else cycles[0]
 
 
 def _errors(target: np.ndarray, est: np.ndarray) -> dict[str, Any]:

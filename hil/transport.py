@@ -479,11 +479,13 @@ def run_replay(scenario: Scenario, transport: str = "virtual", channel: str | No
                port: int | None = None, firmware: bool | str = True, runner: str | None = None,
                firmware_cpu: int | None = None, runner_spin_us: float = RUNNER_SPIN_US,
                spin_ns: int | None = None, reply_timeout: float = 1.0, drain: float = 0.3,
-               extra_frames: Callable[[int], list[can.Message]] | None = None) -> Recording:
+               extra_frames: Callable[[int], list[can.Message]] | None = None,
+               progress: Callable[[int, int, int, int], None] | None = None) -> Recording:
     """Replay ``scenario`` over ``transport`` against the firmware; the Recording
     (its meta holds the firmware side's own report). ``firmware``, ``runner``,
     ``firmware_cpu``, ``runner_spin_us``: see :func:`open_transport`
-    (udp_multicast: the C runner by default)."""
+    (udp_multicast: the C runner by default). ``progress``: the rig's progress
+    hook (hil.progress.Progress)."""
     if not isinstance(scenario, Scenario):
         raise ValueError(f"scenario: expected a Scenario, got {type(scenario).__name__}")
     plan = scenario.build()
@@ -492,7 +494,8 @@ def run_replay(scenario: Scenario, transport: str = "virtual", channel: str | No
     with open_transport(transport, channel, port=port, firmware=firmware, runner=runner,
                         firmware_cpu=firmware_cpu, runner_spin_us=runner_spin_us) as (bus, where, side):
         rig = Rig(bus, plan, transport=transport, channel=where, spin_ns=spin_ns, reply_timeout=reply_timeout,
-                  drain=drain, extra_frames=extra_frames, kernel_drops=getattr(bus, "hil_kernel_drops", None))
+                  drain=drain, extra_frames=extra_frames, kernel_drops=getattr(bus, "hil_kernel_drops", None),
+                  progress=progress)
         rec = rig.run()
         try:
             rec.meta["firmware_side"] = side()

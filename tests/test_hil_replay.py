@@ -234,7 +234,7 @@ def test_estimates_over_the_bus_are_identifier_run_bit_for_bit_and_every_lost_fr
         # the firmware's filter health, from the Health frames after its final Diagnostics
         assert [h["neuron"] for h in r["health"]] == list(range(6))
         assert all(h["updates"] > 0 and h["rejected"] == 0 for h in r["health"])
-        assert "filter health         neuron 0  e^2/s " in report.table(r)
+        assert f"{'filter health':<{report.LABEL_WIDTH}}neuron 0  e^2/s " in report.table(r)
     ident = r["identification"]
     assert all(np.isfinite(ident[s]["rmse"]) for s in ("position", "velocity"))
     assert r["latency_us"]["n"] == f["answered"] and r["latency_us"]["min"] > 0

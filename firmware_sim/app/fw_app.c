@@ -67,6 +67,14 @@ static uint16_t to_10ns(uint32_t ns)
     return v > 0xFFFFu ? (uint16_t)0xFFFFu : (uint16_t)v;
 }
 
+/* StepTimeMax: 10 ns per LSB, saturated at the top of its 24-bit range (the DBC's
+ * 167772.15 us), which the rig reads as "at least", not as a measurement. */
+static uint32_t step_time_max_raw(uint32_t ns)
+{
+    uint32_t v = ns / 10u;
+    return v > RHONN_ID_DIAGNOSTICS_STEP_TIME_MAX_RAW_MAX ? RHONN_ID_DIAGNOSTICS_STEP_TIME_MAX_RAW_MAX : v;
+}
+
 static fw_status reject(fw_app *app, fw_status why)
 {
     fw_counters *c = &app->counters;
@@ -566,7 +574,7 @@ fw_status fw_app_send_diagnostics(fw_app *app)
     d.last_seq = app->last_seq;
     d.cycle_time = to_10ns(c->cycle_time_ns);
     d.step_time = to_10ns(c->step_time_ns);
-    d.step_time_max = to_10ns(c->step_time_max_ns);
+    d.step_time_max = step_time_max_raw(c->step_time_max_ns);
     d.overruns = (uint16_t)(c->overruns & 0xFFFFu);
     d.rejected = (uint16_t)(c->rejected & 0xFFFFu);
     d.last_reject = c->last_reject;

@@ -1771,34 +1771,35 @@ int rhonn_id_diagnostics_pack(
     dst_p[4] |= pack_right_shift_u16(src_p->cycle_time, 8u, 0xffu);
     dst_p[5] |= pack_left_shift_u16(src_p->step_time, 0u, 0xffu);
     dst_p[6] |= pack_right_shift_u16(src_p->step_time, 8u, 0xffu);
-    dst_p[7] |= pack_left_shift_u16(src_p->step_time_max, 0u, 0xffu);
-    dst_p[8] |= pack_right_shift_u16(src_p->step_time_max, 8u, 0xffu);
-    dst_p[9] |= pack_left_shift_u16(src_p->overruns, 0u, 0xffu);
-    dst_p[10] |= pack_right_shift_u16(src_p->overruns, 8u, 0xffu);
-    dst_p[11] |= pack_left_shift_u16(src_p->rejected, 0u, 0xffu);
-    dst_p[12] |= pack_right_shift_u16(src_p->rejected, 8u, 0xffu);
-    dst_p[13] |= pack_left_shift_u8(src_p->last_reject, 0u, 0xffu);
-    dst_p[14] |= pack_left_shift_u16(src_p->step_errors, 0u, 0xffu);
-    dst_p[15] |= pack_right_shift_u16(src_p->step_errors, 8u, 0xffu);
-    dst_p[16] |= pack_left_shift_u8(src_p->step_status, 0u, 0x0fu);
-    dst_p[16] |= pack_left_shift_u8(src_p->learning, 4u, 0x10u);
-    dst_p[16] |= pack_left_shift_u8(src_p->started, 5u, 0x20u);
-    dst_p[16] |= pack_left_shift_u8(src_p->weights_open, 6u, 0x40u);
-    dst_p[16] |= pack_left_shift_u8(src_p->synced, 7u, 0x80u);
-    dst_p[17] |= pack_left_shift_u32(src_p->measurements, 0u, 0xffu);
-    dst_p[18] |= pack_right_shift_u32(src_p->measurements, 8u, 0xffu);
-    dst_p[19] |= pack_right_shift_u32(src_p->measurements, 16u, 0xffu);
-    dst_p[20] |= pack_right_shift_u32(src_p->measurements, 24u, 0xffu);
-    dst_p[21] |= pack_left_shift_u16(src_p->seq_errors, 0u, 0xffu);
-    dst_p[22] |= pack_right_shift_u16(src_p->seq_errors, 8u, 0xffu);
-    dst_p[23] |= pack_left_shift_u32(src_p->lost_frames, 0u, 0xffu);
-    dst_p[24] |= pack_right_shift_u32(src_p->lost_frames, 8u, 0xffu);
-    dst_p[25] |= pack_right_shift_u32(src_p->lost_frames, 16u, 0xffu);
-    dst_p[26] |= pack_right_shift_u32(src_p->lost_frames, 24u, 0xffu);
-    dst_p[27] |= pack_left_shift_u32(src_p->rx_drops, 0u, 0xffu);
-    dst_p[28] |= pack_right_shift_u32(src_p->rx_drops, 8u, 0xffu);
-    dst_p[29] |= pack_right_shift_u32(src_p->rx_drops, 16u, 0xffu);
-    dst_p[30] |= pack_right_shift_u32(src_p->rx_drops, 24u, 0xffu);
+    dst_p[7] |= pack_left_shift_u32(src_p->step_time_max, 0u, 0xffu);
+    dst_p[8] |= pack_right_shift_u32(src_p->step_time_max, 8u, 0xffu);
+    dst_p[9] |= pack_right_shift_u32(src_p->step_time_max, 16u, 0xffu);
+    dst_p[10] |= pack_left_shift_u16(src_p->overruns, 0u, 0xffu);
+    dst_p[11] |= pack_right_shift_u16(src_p->overruns, 8u, 0xffu);
+    dst_p[12] |= pack_left_shift_u16(src_p->rejected, 0u, 0xffu);
+    dst_p[13] |= pack_right_shift_u16(src_p->rejected, 8u, 0xffu);
+    dst_p[14] |= pack_left_shift_u8(src_p->last_reject, 0u, 0xffu);
+    dst_p[15] |= pack_left_shift_u16(src_p->step_errors, 0u, 0xffu);
+    dst_p[16] |= pack_right_shift_u16(src_p->step_errors, 8u, 0xffu);
+    dst_p[17] |= pack_left_shift_u8(src_p->step_status, 0u, 0x0fu);
+    dst_p[17] |= pack_left_shift_u8(src_p->learning, 4u, 0x10u);
+    dst_p[17] |= pack_left_shift_u8(src_p->started, 5u, 0x20u);
+    dst_p[17] |= pack_left_shift_u8(src_p->weights_open, 6u, 0x40u);
+    dst_p[17] |= pack_left_shift_u8(src_p->synced, 7u, 0x80u);
+    dst_p[18] |= pack_left_shift_u32(src_p->measurements, 0u, 0xffu);
+    dst_p[19] |= pack_right_shift_u32(src_p->measurements, 8u, 0xffu);
+    dst_p[20] |= pack_right_shift_u32(src_p->measurements, 16u, 0xffu);
+    dst_p[21] |= pack_right_shift_u32(src_p->measurements, 24u, 0xffu);
+    dst_p[22] |= pack_left_shift_u16(src_p->seq_errors, 0u, 0xffu);
+    dst_p[23] |= pack_right_shift_u16(src_p->seq_errors, 8u, 0xffu);
+    dst_p[24] |= pack_left_shift_u32(src_p->lost_frames, 0u, 0xffu);
+    dst_p[25] |= pack_right_shift_u32(src_p->lost_frames, 8u, 0xffu);
+    dst_p[26] |= pack_right_shift_u32(src_p->lost_frames, 16u, 0xffu);
+    dst_p[27] |= pack_right_shift_u32(src_p->lost_frames, 24u, 0xffu);
+    dst_p[28] |= pack_left_shift_u32(src_p->rx_drops, 0u, 0xffu);
+    dst_p[29] |= pack_right_shift_u32(src_p->rx_drops, 8u, 0xffu);
+    dst_p[30] |= pack_right_shift_u32(src_p->rx_drops, 16u, 0xffu);
+    dst_p[31] |= pack_right_shift_u32(src_p->rx_drops, 24u, 0xffu);
 
     return (32);
 }
@@ -1819,34 +1820,35 @@ int rhonn_id_diagnostics_unpack(
     dst_p->cycle_time |= unpack_left_shift_u16(src_p[4], 8u, 0xffu);
     dst_p->step_time = unpack_right_shift_u16(src_p[5], 0u, 0xffu);
     dst_p->step_time |= unpack_left_shift_u16(src_p[6], 8u, 0xffu);
-    dst_p->step_time_max = unpack_right_shift_u16(src_p[7], 0u, 0xffu);
-    dst_p->step_time_max |= unpack_left_shift_u16(src_p[8], 8u, 0xffu);
-    dst_p->overruns = unpack_right_shift_u16(src_p[9], 0u, 0xffu);
-    dst_p->overruns |= unpack_left_shift_u16(src_p[10], 8u, 0xffu);
-    dst_p->rejected = unpack_right_shift_u16(src_p[11], 0u, 0xffu);
-    dst_p->rejected |= unpack_left_shift_u16(src_p[12], 8u, 0xffu);
-    dst_p->last_reject = unpack_right_shift_u8(src_p[13], 0u, 0xffu);
-    dst_p->step_errors = unpack_right_shift_u16(src_p[14], 0u, 0xffu);
-    dst_p->step_errors |= unpack_left_shift_u16(src_p[15], 8u, 0xffu);
-    dst_p->step_status = unpack_right_shift_u8(src_p[16], 0u, 0x0fu);
-    dst_p->learning = unpack_right_shift_u8(src_p[16], 4u, 0x10u);
-    dst_p->started = unpack_right_shift_u8(src_p[16], 5u, 0x20u);
-    dst_p->weights_open = unpack_right_shift_u8(src_p[16], 6u, 0x40u);
-    dst_p->synced = unpack_right_shift_u8(src_p[16], 7u, 0x80u);
-    dst_p->measurements = unpack_right_shift_u32(src_p[17], 0u, 0xffu);
-    dst_p->measurements |= unpack_left_shift_u32(src_p[18], 8u, 0xffu);
-    dst_p->measurements |= unpack_left_shift_u32(src_p[19], 16u, 0xffu);
-    dst_p->measurements |= unpack_left_shift_u32(src_p[20], 24u, 0xffu);
-    dst_p->seq_errors = unpack_right_shift_u16(src_p[21], 0u, 0xffu);
-    dst_p->seq_errors |= unpack_left_shift_u16(src_p[22], 8u, 0xffu);
-    dst_p->lost_frames = unpack_right_shift_u32(src_p[23], 0u, 0xffu);
-    dst_p->lost_frames |= unpack_left_shift_u32(src_p[24], 8u, 0xffu);
-    dst_p->lost_frames |= unpack_left_shift_u32(src_p[25], 16u, 0xffu);
-    dst_p->lost_frames |= unpack_left_shift_u32(src_p[26], 24u, 0xffu);
-    dst_p->rx_drops = unpack_right_shift_u32(src_p[27], 0u, 0xffu);
-    dst_p->rx_drops |= unpack_left_shift_u32(src_p[28], 8u, 0xffu);
-    dst_p->rx_drops |= unpack_left_shift_u32(src_p[29], 16u, 0xffu);
-    dst_p->rx_drops |= unpack_left_shift_u32(src_p[30], 24u, 0xffu);
+    dst_p->step_time_max = unpack_right_shift_u32(src_p[7], 0u, 0xffu);
+    dst_p->step_time_max |= unpack_left_shift_u32(src_p[8], 8u, 0xffu);
+    dst_p->step_time_max |= unpack_left_shift_u32(src_p[9], 16u, 0xffu);
+    dst_p->overruns = unpack_right_shift_u16(src_p[10], 0u, 0xffu);
+    dst_p->overruns |= unpack_left_shift_u16(src_p[11], 8u, 0xffu);
+    dst_p->rejected = unpack_right_shift_u16(src_p[12], 0u, 0xffu);
+    dst_p->rejected |= unpack_left_shift_u16(src_p[13], 8u, 0xffu);
+    dst_p->last_reject = unpack_right_shift_u8(src_p[14], 0u, 0xffu);
+    dst_p->step_errors = unpack_right_shift_u16(src_p[15], 0u, 0xffu);
+    dst_p->step_errors |= unpack_left_shift_u16(src_p[16], 8u, 0xffu);
+    dst_p->step_status = unpack_right_shift_u8(src_p[17], 0u, 0x0fu);
+    dst_p->learning = unpack_right_shift_u8(src_p[17], 4u, 0x10u);
+    dst_p->started = unpack_right_shift_u8(src_p[17], 5u, 0x20u);
+    dst_p->weights_open = unpack_right_shift_u8(src_p[17], 6u, 0x40u);
+    dst_p->synced = unpack_right_shift_u8(src_p[17], 7u, 0x80u);
+    dst_p->measurements = unpack_right_shift_u32(src_p[18], 0u, 0xffu);
+    dst_p->measurements |= unpack_left_shift_u32(src_p[19], 8u, 0xffu);
+    dst_p->measurements |= unpack_left_shift_u32(src_p[20], 16u, 0xffu);
+    dst_p->measurements |= unpack_left_shift_u32(src_p[21], 24u, 0xffu);
+    dst_p->seq_errors = unpack_right_shift_u16(src_p[22], 0u, 0xffu);
+    dst_p->seq_errors |= unpack_left_shift_u16(src_p[23], 8u, 0xffu);
+    dst_p->lost_frames = unpack_right_shift_u32(src_p[24], 0u, 0xffu);
+    dst_p->lost_frames |= unpack_left_shift_u32(src_p[25], 8u, 0xffu);
+    dst_p->lost_frames |= unpack_left_shift_u32(src_p[26], 16u, 0xffu);
+    dst_p->lost_frames |= unpack_left_shift_u32(src_p[27], 24u, 0xffu);
+    dst_p->rx_drops = unpack_right_shift_u32(src_p[28], 0u, 0xffu);
+    dst_p->rx_drops |= unpack_left_shift_u32(src_p[29], 8u, 0xffu);
+    dst_p->rx_drops |= unpack_left_shift_u32(src_p[30], 16u, 0xffu);
+    dst_p->rx_drops |= unpack_left_shift_u32(src_p[31], 24u, 0xffu);
 
     return (0);
 }
@@ -1948,26 +1950,24 @@ bool rhonn_id_diagnostics_step_time_is_in_phys_range(double value)
     return ((value >= 0.0) && (value <= 655.35));
 }
 
-uint16_t rhonn_id_diagnostics_step_time_max_encode(double value)
+uint32_t rhonn_id_diagnostics_step_time_max_encode(double value)
 {
-    return (uint16_t)(cantools_unsigned_from_double(value / 0.01));
+    return (uint32_t)(cantools_unsigned_from_double(value / 0.01));
 }
 
-double rhonn_id_diagnostics_step_time_max_decode(uint16_t value)
+double rhonn_id_diagnostics_step_time_max_decode(uint32_t value)
 {
     return ((double)value * 0.01);
 }
 
-bool rhonn_id_diagnostics_step_time_max_is_in_range(uint16_t value)
+bool rhonn_id_diagnostics_step_time_max_is_in_range(uint32_t value)
 {
-    (void)value;
-
-    return (true);
+    return (value <= 16777215u);
 }
 
 bool rhonn_id_diagnostics_step_time_max_is_in_phys_range(double value)
 {
-    return ((value >= 0.0) && (value <= 655.35));
+    return ((value >= 0.0) && (value <= 167772.15));
 }
 
 uint16_t rhonn_id_diagnostics_overruns_encode(double value)

@@ -720,7 +720,7 @@ struct rhonn_id_weight_load_t {
 /**
  * Signals in message Diagnostics.
  *
- * Sent every diag_period accepted Measurements (firmware configuration) and on DiagRequest, each time followed by one Health frame per neuron. Counters are totals since start and wrap; StepTimeMax is the maximum since the previous Diagnostics frame.
+ * Sent every diag_period accepted Measurements (firmware configuration) and on DiagRequest, each time followed by one Health frame per neuron. Counters are totals since start and wrap; StepTimeMax is the maximum since the previous Diagnostics frame. A time at the top of its range (CycleTime or StepTime 655.35 us, StepTimeMax 167772.15 us) is saturated: the time was at least that, it is not a measurement. Since rhonn_id 2.1 StepTimeMax is 24 bits wide (it was 16, saturating at 655.35 us) and the signals after it moved up by one byte; the frame is still 32 bytes, every bit used.
  *
  * All signal values are as on the CAN bus.
  */
@@ -744,7 +744,7 @@ struct rhonn_id_diagnostics_t {
     uint16_t last_seq;
 
     /**
-     * Time between the last two accepted Measurements (their reception times). Saturates at 655.35 us.
+     * Time between the last two accepted Measurements (their reception times). Saturates at 655.35 us (raw 65535): that value means at least 655.35 us, not a measurement.
      *
      * Range: 0..65535 (0..655.35 us)
      * Scale: 0.01
@@ -753,7 +753,7 @@ struct rhonn_id_diagnostics_t {
     uint16_t cycle_time;
 
     /**
-     * Last Measurement: reception to Estimate handed to the CAN driver. Saturates at 655.35 us.
+     * Last Measurement: reception to Estimate handed to the CAN driver. Saturates at 655.35 us (raw 65535): that value means at least 655.35 us, not a measurement; StepTimeMax carries longer steps.
      *
      * Range: 0..65535 (0..655.35 us)
      * Scale: 0.01
@@ -762,13 +762,13 @@ struct rhonn_id_diagnostics_t {
     uint16_t step_time;
 
     /**
-     * Largest StepTime since the previous Diagnostics frame.
+     * Largest StepTime since the previous Diagnostics frame, 10 ns per LSB, 24 bits. Saturates at 167772.15 us (raw 16777215): that value means at least 167772.15 us, not a measurement.
      *
-     * Range: 0..65535 (0..655.35 us)
+     * Range: 0..16777215 (0..167772.15 us)
      * Scale: 0.01
      * Offset: 0
      */
-    uint16_t step_time_max;
+    uint32_t step_time_max;
 
     /**
      * Measurements whose StepTime exceeded the deadline, plus overruns reported by the platform loop.
@@ -3434,7 +3434,7 @@ bool rhonn_id_diagnostics_step_time_is_in_phys_range(double value);
  *
  * @return Encoded signal.
  */
-uint16_t rhonn_id_diagnostics_step_time_max_encode(double value);
+uint32_t rhonn_id_diagnostics_step_time_max_encode(double value);
 
 /**
  * Decode given signal by applying scaling and offset.
@@ -3443,7 +3443,7 @@ uint16_t rhonn_id_diagnostics_step_time_max_encode(double value);
  *
  * @return Decoded signal.
  */
-double rhonn_id_diagnostics_step_time_max_decode(uint16_t value);
+double rhonn_id_diagnostics_step_time_max_decode(uint32_t value);
 
 /**
  * Check that given signal is in allowed range.
@@ -3452,7 +3452,7 @@ double rhonn_id_diagnostics_step_time_max_decode(uint16_t value);
  *
  * @return true if in range, false otherwise.
  */
-bool rhonn_id_diagnostics_step_time_max_is_in_range(uint16_t value);
+bool rhonn_id_diagnostics_step_time_max_is_in_range(uint32_t value);
 
 /**
  * Check that given physical value is in allowed range before encoding.
