@@ -73,8 +73,10 @@ def _inside(hold: dict[str, Any], unit: str) -> str:
     est, frames = hold.get("estimate_rmse_inside"), hold.get("frames_rmse_inside")
     if est is None or frames is None or not (math.isfinite(est) and math.isfinite(frames)) or frames <= 0:
         return ""
+    end = hold.get("end_error_max")
+    tail = "" if end is None else f"; the estimate made at the hold's last sample is {end:.3e} {unit} off"
     return (f"; inside the hold the estimates are {est:.3e} {unit} RMSE off it, the held frames {frames:.3e} "
-            f"({100 * est / frames:.1f} %)")
+            f"({100 * est / frames:.1f} %)" + tail)
 
 
 _WHY = {"held": "held", "derived": "derived from a held or missing reading"}
@@ -139,8 +141,8 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
                     f"{_e(ident[name]['measurement_vs_truth']['rmse'])}"
                     f"{ident[name]['signal_peak']:10.3g}"
                     for name, unit in (("position", "m"), ("velocity", "m/s"))),
-                  f"  (truth: against {ident['truth']}; no hold: the same, the cycles whose target is outside "
-                  "the hold; vs measured: against the next Measurement frame where it is fresh; sensor: that Measurement "
+                  f"  (truth: against {ident['truth']}; no hold: the same, the cycles whose sample and target are "
+                  "both measured; vs measured: against the next Measurement frame where it is fresh; sensor: that Measurement "
                   "frame against the truth)",
                   *(f"  hold: {name} held for {ident[name]['hold']['cycles']} cycles, in which it moved up to "
                     f"{ident[name]['hold']['travel_max']:.3g} {unit} unobserved; the frames themselves, held values "

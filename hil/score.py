@@ -275,9 +275,11 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
 
     - against the noise-free truth x(k+1), over every answered cycle (the
       issue's measure; Table 7 beside it);
-    - the same outside the measurement hold (cycles whose target x(k+1)
-      falls outside the held window), which separates the identifier's
-      one-step accuracy from how well it bridges the hold;
+    - the same outside the measurement hold (cycles whose sample x(k) and
+      target x(k+1) are both measured), which separates the identifier's
+      one-step accuracy from how well it bridges the hold; the estimate made
+      at a hold's last sample ends the free run through the hold and is in
+      neither figure: ``hold.end_error_max`` is its error;
     - against the next Measurement frame as the rig sent it (quantised
       position, differenced velocity), over the cycles whose next frame
       carries a fresh value of the state: the one-step error the firmware
@@ -306,7 +308,7 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
     ident: dict[str, Any] = {}
     for j, name in enumerate(("position", "velocity")):
         est, truth = phys[answered, j], truth_all[answered, j]
-        out_hold = next_fresh[answered, j]
+        out_hold = next_fresh[answered, j] & V[answered, j]
         vs_meas = (has_next & next_fresh[:, j])[:-1]
         sensed = next_fresh[:-1, j]
         t7 = TABLE7[name]
@@ -317,7 +319,8 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
             "vs_measurement": _errors(X[1:, j][vs_meas], phys[:-1, j][vs_meas]),
             "measurement_vs_truth": _errors(truth_all[:-1, j][sensed], X[1:, j][sensed]),
             "signal_peak": float(np.max(np.abs(truth))), "signal_rms": float(np.sqrt(np.mean(truth ** 2))),
-            "hold": _hold(truth_all[:-1, j], X[1:, j], next_fresh[:-1, j], answered[:-1], phys[:-1, j])}
+            "hold": _hold(truth_all[:-1, j], X[1:, j], next_fresh[:-1, j], answered[:-1], phys[:-1, j],
+                          V[:-1, j])}
         ident[name]["at_or_below_table7"] = bool(ident[name]["rmse"] <= t7["rmse"])
     if plan.scenario.trajectory:
         ident["truth"] = "the trajectory file's x(k+1)"
@@ -332,16 +335,18 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
 
 
 def _hold(truth: np.ndarray, frame: np.ndarray, fresh: np.ndarray, answered: np.ndarray,
-          est: np.ndarray) -> dict[str, Any]:
+          est: np.ndarray, sampled: np.ndarray) -> dict[str, Any]:
     """For cycles k = 0..N-2: the next frame's value ``frame`` (held or
-    fresh) and the estimate ``est`` against the truth x(k+1); see
-    :func:`_identification`."""
+    fresh) and the estimate ``est`` against the truth x(k+1); ``sampled``:
+    whether x(k) itself was measured; see :func:`_identification`."""
     held = answered & ~fresh
+    end = answered & fresh & ~sampled         # made at a hold's last sample: the free run's end
     gap = np.abs(frame - truth)
     rms = (lambda a: float(np.sqrt(np.mean(a ** 2)))) if held.any() else (lambda a: math.nan)
     return {"cycles": int(held.sum()), "travel_max": float(gap[held].max()) if held.any() else 0.0,
             "frames_rmse": float(np.sqrt(np.mean(gap[answered] ** 2))) if answered.any() else math.nan,
-            "frames_rmse_inside": rms(gap[held]), "estimate_rmse_inside": rms(est[held] - truth[held])}
+            "frames_rmse_inside": rms(gap[held]), "estimate_rmse_inside": rms(est[held] - truth[held]),
+            "end_error_max": float(np.max(np.abs(est[end] - truth[end]))) if end.any() else None}
 
 
 def compare_runs(recorded: dict[str, Any], replayed: dict[str, Any], log: str) -> dict[str, Any]:

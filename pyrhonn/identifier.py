@@ -620,9 +620,10 @@ class Identifier:
 
     @_serialised
     def _history(self) -> dict[str, np.ndarray]:
-        """What the next step's delayed taps read, newest first, D rows for the
-        config's deepest delay D: ``x`` the effective x(k-d), ``u`` u(k-d),
-        d = 0..D-1."""
+        """What the next step reads of the past: ``x`` the effective x(k-d) and
+        ``u`` u(k-d), newest first, d = 0..D-1 for the config's deepest delay
+        D, and ``valid_run``: per state, the samples in a row (up to 255) in
+        which it was measured."""
         net, D = self._net, self._config.max_delay
         H = int(self._lib.RHONN_HISTORY_LEN)
         _, u_off = self._sample_offsets()
@@ -630,7 +631,8 @@ class Identifier:
         x = np.array([[net.hist[s][j] for j in range(self._n)] for s in slots], dtype=self._dtype).reshape(D, self._n)
         u = np.array([[net.hist[s][u_off + j] for j in range(self._m)] for s in slots],
                      dtype=self._dtype).reshape(D, self._m)
-        return {"x": x, "u": u}
+        valid_run = np.array([int(net.valid_run[j]) for j in range(self._n)], dtype=np.uint8)
+        return {"x": x, "u": u, "valid_run": valid_run}
 
     @_serialised
     def _stored_covariance(self, neuron: int) -> np.ndarray:
@@ -673,6 +675,8 @@ class Identifier:
             for j in range(self._m):
                 net.hist[slot][u_off + j] = float(u_hist[d, j])
             net.hist[slot][u_off + int(lib.RHONN_MAX_INPUTS)] = 1.0
+        for j in range(self._n):
+            net.valid_run[j] = int(history["valid_run"][j])
         net.started = 1 if started else 0
         net.learning = 1 if learning else 0
         net.steps = steps

@@ -81,7 +81,11 @@ class ReferenceIdentifier:
     symmetric P and keeps P exactly symmetric. One ``step`` for x(k), u(k):
 
     1. Learn, for each neuron whose x_i(k) is valid (skipped on the first
-       step after construction/reset and while ``learning`` is False).
+       step after construction/reset and while ``learning`` is False), unless
+       its z_i(k-1) read a prediction of its own state in place of a missing
+       x_i (x_i was not measured in each of the samples k-1 .. k-D_i, D_i the
+       deepest delay at which neuron i reads x_i): then x̂_i(k) ends a free
+       run of x_i and e_i(k) is its drift, not a one-step error.
     2. Effective state: x_j(k) where valid, else the prediction xhat_j(k)
        (config ``x0`` on the first step), so a dropout neither trains neuron
        j nor poisons the other regressors. Invalid x_j are ignored (may be NaN).
@@ -127,6 +131,10 @@ class ReferenceIdentifier:
         self._n, self._m = config.n_states, config.n_inputs
         self._depth = config.max_delay + 1  # rows x(k), x(k-1), .., x(k-l)
         self._q = [np.diag(nr.q_diagonal()) for nr in config.neurons]
+        # neuron i reads its own state down to x_i(k - own_need[i] + 1); 0: not at all
+        self._own_need = [max((f.delay + 1 for t in nr.terms for f in t
+                               if f.kind in (FactorKind.S, FactorKind.X) and f.index == i), default=0)
+                          for i, nr in enumerate(config.neurons)]
         self.reset()
 
     def reset(self) -> None:
@@ -138,6 +146,7 @@ class ReferenceIdentifier:
         self._z: list[np.ndarray] | None = None  # z(k-1); None before the first step
         self._hist: np.ndarray | None = None  # (depth, n): effective x(k - d) in row d
         self._uhist: np.ndarray | None = None  # (depth, m): u(k - d) in row d
+        self._valid_run = np.zeros(self._n, dtype=np.int64)  # samples in a row x_j was measured
         self.learning = True
 
     @property
@@ -187,7 +196,7 @@ class ReferenceIdentifier:
         if self._z is None or not self._learning:
             return w_new, p_new
         for i, nr in enumerate(self._config.neurons):
-            if not valid[i]:
+            if not valid[i] or self._valid_run[i] < self._own_need[i]:
                 continue
             H, P = self._z[i], self._P[i]
             e = x[i] - self._xhat[i]  # eq. 9
@@ -235,8 +244,10 @@ class ReferenceIdentifier:
             xhat = np.array([w_new[i] @ z[i] for i in range(n)])  # eq. 3
         if not np.all(np.isfinite(xhat)):
             raise ValueError(f"neuron {int(np.argmax(~np.isfinite(xhat)))}: prediction is not finite")
+        first = self._z is None  # the history was just filled with this sample
         self._w, self._P, self._hist, self._z, self._xhat = w_new, p_new, hist, z, xhat
         self._uhist = uhist
+        self._valid_run = np.where(valid, 255 if first else np.minimum(self._valid_run + 1, 255), 0)
         return xhat.copy()
 
     def run(self, X: np.ndarray, U: np.ndarray | None = None, valid: np.ndarray | None = None) -> np.ndarray:

@@ -20,11 +20,14 @@ member        shape / dtype    meaning
                                D is the config's deepest delay (what the next
                                step's delayed taps read)
 ``input_history``  (D, m)      u(k-d), d = 0..D-1, newest first
+``valid_run`` (n,) uint8       per state, the samples in a row (up to 255) in
+                               which it was measured (a neuron whose own taps
+                               read a prediction does not learn)
 ============  ===============  ==================================================
 
 Version 1 files (written before inputs could be delayed) are read too: their
 ``history`` has D+1 rows, of which the first D are taken (inputs had no delay
-then, so they hold no past inputs).
+then, so they hold no past inputs), and every state counts as measured.
 
 ``dtype`` is the identifier's (float64 or float32); the values are stored in
 it exactly, so a loaded identifier continues bit for bit. Readers reject a
@@ -81,6 +84,7 @@ def save_state(identifier: Identifier, path: str | Path) -> None:
     past = identifier._history()
     members["history"] = past["x"]
     members["input_history"] = past["u"]
+    members["valid_run"] = past["valid_run"]
     # a temporary file renamed over ``path``: a save interrupted at any point (kill -9 included) leaves
     # the previous state file whole, never a truncated archive
     with atomic.replacing(path) as fh:
@@ -177,12 +181,14 @@ def load_state(path: str | Path) -> Identifier:
         xhat = _member(path, archive, "xhat", (n,), dt)
         D, m = cfg.max_delay, cfg.n_inputs
         if version == 1:
-            history = {"x": _member(path, archive, "history", (D + 1, n), dt)[:D], "u": np.zeros((D, m), dt)}
+            history = {"x": _member(path, archive, "history", (D + 1, n), dt)[:D], "u": np.zeros((D, m), dt),
+                       "valid_run": np.full(n, 255, np.uint8)}
             past_members = {"history"}
         else:
             history = {"x": _member(path, archive, "history", (D, n), dt),
-                       "u": _member(path, archive, "input_history", (D, m), dt)}
-            past_members = {"history", "input_history"}
+                       "u": _member(path, archive, "input_history", (D, m), dt),
+                       "valid_run": _member(path, archive, "valid_run", (n,), np.dtype(np.uint8))}
+            past_members = {"history", "input_history", "valid_run"}
         extra = set(archive.files) - {"header", "xhat"} - past_members - {f"{k}_{i}" for k in "wpz" for i in range(n)}
         if extra:
             raise _fail(path, "archive", f"unexpected members {sorted(extra)}")

@@ -36,10 +36,10 @@ def test_truth_no_hold_measured_and_sensor_errors_are_the_documented_comparisons
     for j, name in enumerate(("position", "velocity")):
         got = r["identification"][name]
         assert got["rmse"] == pytest.approx(_rmse(truth[:, j], est[:, j]), rel=1e-12)
-        fresh = np.append(V[1:, j], True)
+        fresh = np.append(V[1:, j], True) & V[:, j]    # sample and target both measured
         assert got["outside_hold"]["cycles"] == int(fresh.sum())
         assert got["outside_hold"]["rmse"] == pytest.approx(_rmse(truth[fresh, j], est[fresh, j]), rel=1e-12)
-        nxt = fresh[:-1]
+        nxt = np.append(V[1:, j], True)[:-1]
         assert got["vs_measurement"]["cycles"] == int(nxt.sum())
         assert got["vs_measurement"]["rmse"] == pytest.approx(_rmse(X[1:, j][nxt], est[:-1, j][nxt]), rel=1e-12)
         assert got["measurement_vs_truth"]["rmse"] == pytest.approx(_rmse(X[1:, j][nxt], truth[:-1, j][nxt]),

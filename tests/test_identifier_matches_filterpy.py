@@ -7,7 +7,7 @@ import numpy as np
 from filterpy.kalman import KalmanFilter
 from hypothesis import given, settings, strategies as st
 
-from pyrhonn import Identifier, IdentifierConfig
+from pyrhonn import FactorKind, Identifier, IdentifierConfig
 
 from strategies import configs, trajectory
 
@@ -40,7 +40,11 @@ def test_every_neuron_update_equals_filterpy_kalman_filter(cfg: IdentifierConfig
     for k in range(T):
         if k > 0:
             for i, (kf, z) in enumerate(zip(filters, ident.regressors)):
-                if valid[k, i]:
+                # no learning where z_i(k-1) read a prediction of x_i at one of its own taps
+                own = [f.delay for t in cfg.neurons[i].terms for f in t
+                       if f.kind in (FactorKind.S, FactorKind.X) and f.index == i]
+                own_measured = all(valid[max(k - 1 - d, 0), i] for d in range(max(own) + 1)) if own else True
+                if valid[k, i] and own_measured:
                     kf.update(np.array([[X[k, i]]]), H=z.reshape(1, -1))
                     kf.predict()
         ident.step(X[k], U[k] if cfg.n_inputs else None, valid[k])

@@ -136,7 +136,11 @@ def test_each_neuron_matches_filterpy_kalman_filter_with_identity_transition(dat
             break  # beyond here the two forms of eq. 7 legitimately differ by more than 1e-9
         if k > 0:
             for i, kf in enumerate(kfs):
-                if V[k, i]:
+                # no learning where z_i(k-1) read a prediction of x_i at one of its own taps
+                own = [f.delay for t in cfg.neurons[i].terms for f in t
+                       if f.kind in (FactorKind.S, FactorKind.X) and f.index == i]
+                own_measured = all(V[max(k - 1 - d, 0), i] for d in range(max(own) + 1)) if own else True
+                if V[k, i] and own_measured:
                     kf.update(X[k, i], H=z_prev[i].reshape(1, -1))
                     kf.predict()
         history.append(np.where(V[k], X[k], xhat))
@@ -227,7 +231,11 @@ def test_first_step_does_not_learn_and_uses_x0_for_invalid_states() -> None:
     for p, p0 in zip(a.covariances, init[1]):
         np.testing.assert_array_equal(p, p0)
     a.step(np.array([0.1, 0.2]), np.array([0.0]))
-    assert not np.array_equal(a.weights[0], init[0][0])  # the second step learns
+    # the second step learns, except neuron 0: z_0(0) read x0 in place of its own missing x_1(0)
+    np.testing.assert_array_equal(a.weights[0], init[0][0])
+    assert not np.array_equal(a.weights[1], init[0][1])
+    a.step(np.array([0.2, 0.1]), np.array([0.0]))
+    assert not np.array_equal(a.weights[0], init[0][0])
     a.reset()
     assert_same_snapshot(snapshot(a), init)
     a.step(np.array([5.0, -5.0]), np.array([1.0]))  # first step again after reset

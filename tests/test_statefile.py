@@ -55,16 +55,17 @@ def test_delayed_inputs_are_saved_and_continue_bit_for_bit(tmp_path: Path) -> No
 
 
 def test_a_version_1_state_file_still_loads_and_continues(tmp_path: Path) -> None:
-    """Version 1 stored D+1 history rows and no input history (inputs had no delay)."""
-    X, U, valid = trajectory(7, 300, 3, 1, 0.1)
+    """Version 1 stored D+1 history rows, no input history (inputs had no delay)
+    and no measured-run counts (read as every state measured, as here)."""
+    X, U, valid = trajectory(7, 300, 3, 1, 0.0)
     a = Identifier(config("float64"))
-    a.run(X[:150], U[:150], valid[:150])
+    a.run(X[:150], U[:150])
     a.save(tmp_path / "v2.npz")
 
     def to_v1(m):
         header_with(version=1)(m)
         m["history"] = np.vstack((m["history"], m["history"][-1:]))  # the extra, unread oldest row
-        del m["input_history"]
+        del m["input_history"], m["valid_run"]
     b = Identifier.load(rewrite(tmp_path / "v2.npz", tmp_path / "v1.npz", to_v1))
     np.testing.assert_array_equal(a.run(X[150:], U[150:], valid[150:]), b.run(X[150:], U[150:], valid[150:]))
 

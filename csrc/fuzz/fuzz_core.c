@@ -271,6 +271,7 @@ typedef struct {
     uint8_t bank[RHONN_MAX_STATES];
     rhonn_real xhat[RHONN_MAX_STATES];
     rhonn_real hist[RHONN_HISTORY_LEN][RHONN_SAMPLE_LEN];
+    uint8_t valid_run[RHONN_MAX_STATES];
     uint8_t head, started, learning, zbank;
     uint32_t steps;
 } filter_state;
@@ -286,6 +287,7 @@ static void capture(const rhonn_t *net, filter_state *s)
     memcpy(s->bank, net->bank, sizeof s->bank);
     memcpy(s->xhat, net->xhat, sizeof s->xhat);
     memcpy(s->hist, net->hist, sizeof s->hist);
+    memcpy(s->valid_run, net->valid_run, sizeof s->valid_run);
     s->head = net->head;
     s->started = net->started;
     s->learning = net->learning;

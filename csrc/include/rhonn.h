@@ -55,7 +55,11 @@
  *      e_i(k) = x_i(k) - xhat_i(k) and update w_i, P_i using the regressor
  *      z_i(k-1) that produced xhat_i(k). No learning happens on the first
  *      step after init/reset (there is no xhat(0) to compare with), nor while
- *      learning is switched off.
+ *      learning is switched off, nor for a neuron whose z_i(k-1) read its own
+ *      state's prediction in place of a missing x_i (at any of its own taps,
+ *      counted down to its deepest one): then xhat_i(k) is the end of a free
+ *      run of x_i, and e_i(k) is that run's accumulated drift, not a one-step
+ *      error; learning it would kick w_i at the end of every dropout.
  *   2. Form the regressor z(k) from x(k), the delayed samples x(k-d), u(k)
  *      and the delayed inputs u(k-d). A state whose measurement is invalid
  *      is replaced by its own prediction xhat_j(k) (on the very first step:
@@ -245,6 +249,11 @@ typedef struct {
      * term_entry[i][t][0..n_factors). */
     uint16_t n_entries;
     uint8_t max_delay;              /* deepest tap the configuration reads */
+    /* Step 1's own-state rule: neuron i reads its own state x_i down to
+     * x_i(k - own_need[i] + 1) (0: not at all); valid_run[j] counts the
+     * samples in a row, up to the newest, in which x_j was measured. */
+    uint8_t own_need[RHONN_MAX_STATES];
+    uint8_t valid_run[RHONN_MAX_STATES];
     uint8_t entry_delay[RHONN_MAX_ENTRIES];
     uint8_t entry_power[RHONN_MAX_ENTRIES];
     uint16_t entry_off[RHONN_MAX_ENTRIES];

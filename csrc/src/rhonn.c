@@ -387,6 +387,9 @@ static void compile_terms(rhonn_t *net)
     size_t i, t, f, e;
     net->n_entries = 0;
     net->max_delay = 0;
+    for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
+        net->own_need[i] = 0;
+    }
     for (i = 0; i < cfg->n_states; ++i) {
         for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
             for (f = 0; f < cfg->neurons[i].terms[t].n_factors; ++f) {
@@ -415,6 +418,10 @@ static void compile_terms(rhonn_t *net)
                 net->term_entry[i][t][f] = (uint16_t)(e < (size_t)RHONN_MAX_ENTRIES ? e : 0u);
                 if (delay > net->max_delay) {
                     net->max_delay = delay;
+                }
+                if ((fa->kind == (uint8_t)RHONN_FACTOR_S || fa->kind == (uint8_t)RHONN_FACTOR_X) &&
+                    fa->index == i && delay >= net->own_need[i]) {
+                    net->own_need[i] = (uint8_t)(delay + 1u);
                 }
             }
         }
@@ -512,6 +519,9 @@ rhonn_status rhonn_reset(rhonn_t *net)
         for (i = 0; i < (size_t)RHONN_SAMPLE_LEN; ++i) {
             net->hist[h][i] = R(0.0);
         }
+    }
+    for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
+        net->valid_run[i] = 0;
     }
     net->zbank = 0;
     net->head = 0;
@@ -1180,7 +1190,8 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
     /* 1. Learn from e(k) = x(k) - xhat(k) (eq. 9) with z(k-1), into the
      *    inactive banks; nothing is committed until every neuron passed. */
     for (i = 0; i < n; ++i) {
-        const int learn = net->started && net->learning && (valid == NULL || valid[i] != 0u);
+        const int learn = net->started && net->learning && (valid == NULL || valid[i] != 0u) &&
+                          net->valid_run[i] >= net->own_need[i];
         updated[i] = 0;
         bounded[i] = 0;
         recovered[i] = 0;
@@ -1282,6 +1293,10 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
         }
     }
     net->head = next_head;
+    for (j = 0; j < n; ++j) {
+        const int ok = valid == NULL || valid[j] != 0u;
+        net->valid_run[j] = !ok ? 0u : (!net->started ? 0xFFu : (uint8_t)(net->valid_run[j] + (net->valid_run[j] < 0xFFu)));
+    }
     for (i = 0; i < n; ++i) {
         if (recovered[i]) {
             net->health[i].resets += 1u;

@@ -717,6 +717,41 @@ static void delayed_input_reads_the_input_d_steps_back(void)
     }
 }
 
+/* The end of a dropout of x1 does not train neuron 0 (its z(k-1) read its
+ * own prediction: e is the free run's drift) but does train neuron 1, which
+ * reads x1 too but whose own state was measured; neuron 0 learns again once
+ * its own taps read measurements only (delay 2: two more samples). */
+static void the_end_of_an_own_state_dropout_is_not_learned(void)
+{
+    rhonn_t net;
+    rhonn_config c = small_config();
+    rhonn_health h0, h1;
+    rhonn_real x[2], u[1], y[2];
+    const uint8_t x1_missing[2] = {0, 1};
+    uint32_t b0, b1;
+    size_t k;
+    /* updates since k = 5 after the steps k = 6..11 (x1 missing at 6, 7) */
+    static const uint32_t want0[6] = {0, 0, 0, 0, 0, 1}, want1[6] = {1, 2, 3, 4, 5, 6};
+
+    CHECK_STATUS(rhonn_init(&net, &c, NULL), RHONN_OK); /* neuron 0 reads S(x1), S(x1(k-2)) */
+    for (k = 0; k < 6; ++k) {
+        sample(k, x, u);
+        CHECK_STATUS(rhonn_step(&net, x, u, NULL, y), RHONN_OK);
+    }
+    CHECK_STATUS(rhonn_get_health(&net, 0, &h0), RHONN_OK);
+    CHECK_STATUS(rhonn_get_health(&net, 1, &h1), RHONN_OK);
+    b0 = h0.updates;
+    b1 = h1.updates;
+    for (k = 6; k < 12; ++k) {
+        sample(k, x, u);
+        CHECK_STATUS(rhonn_step(&net, x, u, k < 8 ? x1_missing : NULL, y), RHONN_OK);
+        CHECK_STATUS(rhonn_get_health(&net, 0, &h0), RHONN_OK);
+        CHECK_STATUS(rhonn_get_health(&net, 1, &h1), RHONN_OK);
+        CHECK(h0.updates == b0 + want0[k - 6u]);
+        CHECK(h1.updates == b1 + want1[k - 6u]);
+    }
+}
+
 int main(void)
 {
     printf("rhonn core tests (%s, sizeof(rhonn_t) = %u bytes)\n",
@@ -746,5 +781,6 @@ int main(void)
     RUN(packed_update_matches_dense_kalman_filter);
     RUN(delayed_tap_reads_the_sample_d_steps_back);
     RUN(delayed_input_reads_the_input_d_steps_back);
+    RUN(the_end_of_an_own_state_dropout_is_not_learned);
     return CHECK_SUMMARY();
 }
