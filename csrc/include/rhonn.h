@@ -220,11 +220,25 @@ typedef struct {
     uint16_t fail_run;      /* refused updates in a row, up to now */
 } rhonn_health;
 
+/* RHONN_CONST_CONFIG=1 (a build option, the same for every translation unit
+ * that sees rhonn_t): rhonn_t refers to the caller's configuration instead of
+ * holding a copy of it, so firmware whose configuration is a static const in
+ * flash does not duplicate it in RAM (sizeof(rhonn_config) bytes saved). The
+ * configuration given to rhonn_init must then outlive the identifier and stay
+ * unchanged: rhonn_init validates it once and the core never re-checks it. */
+#ifndef RHONN_CONST_CONFIG
+#define RHONN_CONST_CONFIG 0
+#endif
+
 /* The identifier. Caller-owned; treat the fields as private and use the
  * functions below. Its size is sizeof(rhonn_t), fixed by the capacities. */
 typedef struct {
     uint32_t magic;                 /* set by rhonn_init */
+#if RHONN_CONST_CONFIG
+    const rhonn_config *cfg;        /* the validated configuration (caller's, constant) */
+#else
     rhonn_config cfg;               /* validated copy of the configuration */
+#endif
 
     /* Neurons that share an activation and beta share their S(x) values. */
     uint8_t n_groups;
@@ -275,7 +289,8 @@ typedef struct {
  * On RHONN_E_CONFIG, *where (if not NULL) names the offending field. */
 rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *where);
 
-/* Validate cfg, copy it into net and reset. On error net is left unchanged. */
+/* Validate cfg, copy it into net (RHONN_CONST_CONFIG: refer to it) and
+ * reset. On error net is left unchanged. */
 rhonn_status rhonn_init(rhonn_t *net, const rhonn_config *cfg, rhonn_config_error *where);
 
 /* Back to w(0), P(0), xhat(0), empty history; learning on. */

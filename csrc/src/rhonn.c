@@ -14,6 +14,14 @@
 
 #define RHONN_MAGIC 0x52484E4EUL /* "RHNN" */
 
+/* The validated configuration: rhonn_t's copy, or the caller's constant
+ * (RHONN_CONST_CONFIG, see rhonn.h). */
+#if RHONN_CONST_CONFIG
+#define CFG(net) ((net)->cfg)
+#else
+#define CFG(net) (&(net)->cfg)
+#endif
+
 #ifdef RHONN_SINGLE
 #define R(c) c##f
 /* Beyond this, exp(-a) is below the smallest normal float: return 0. */
@@ -383,7 +391,7 @@ rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *
  * was validated: the entries fit RHONN_MAX_ENTRIES. */
 static void compile_terms(rhonn_t *net)
 {
-    const rhonn_config *cfg = &net->cfg;
+    const rhonn_config *cfg = CFG(net);
     size_t i, t, f, e;
     net->n_entries = 0;
     net->max_delay = 0;
@@ -440,7 +448,11 @@ rhonn_status rhonn_init(rhonn_t *net, const rhonn_config *cfg, rhonn_config_erro
     if (st != RHONN_OK) {
         return st;
     }
+#if RHONN_CONST_CONFIG
+    net->cfg = cfg; /* the caller's constant: it must outlive net, unchanged */
+#else
     net->cfg = *cfg;
+#endif
     /* Neurons with the same (activation, beta) see the same S(x_j), so the
      * exps of eq. 6/19 are paid once per group, not once per neuron. */
     net->n_groups = 0;
@@ -481,8 +493,8 @@ static rhonn_status check_net(const rhonn_t *net)
     }
     /* The bounds re-check guards against a struct overwritten after init
      * (and lets the compiler see every index below capacity). */
-    if (net->magic != (uint32_t)RHONN_MAGIC || net->cfg.n_states > (uint8_t)RHONN_MAX_STATES ||
-        net->cfg.n_inputs > (uint8_t)RHONN_MAX_INPUTS) {
+    if (net->magic != (uint32_t)RHONN_MAGIC || CFG(net)->n_states > (uint8_t)RHONN_MAX_STATES ||
+        CFG(net)->n_inputs > (uint8_t)RHONN_MAX_INPUTS) {
         return RHONN_E_NOT_INIT;
     }
     return RHONN_OK;
@@ -496,9 +508,9 @@ rhonn_status rhonn_reset(rhonn_t *net)
     if (st != RHONN_OK) {
         return st;
     }
-    n = net->cfg.n_states;
+    n = CFG(net)->n_states;
     for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
-        const rhonn_neuron_config *nc = &net->cfg.neurons[i];
+        const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
         net->bank[i] = 0;
         for (t = 0; t < (size_t)RHONN_MAX_TERMS; ++t) {
             net->w[i][0][t] = (i < n && t < nc->n_terms) ? nc->w0[t] : R(0.0);
@@ -513,7 +525,7 @@ rhonn_status rhonn_reset(rhonn_t *net)
         if (i < n) {
             load_p0(net, i, net->p[i][0]);
         }
-        net->xhat[i] = i < n ? net->cfg.x0[i] : R(0.0);
+        net->xhat[i] = i < n ? CFG(net)->x0[i] : R(0.0);
     }
     for (h = 0; h < (size_t)RHONN_HISTORY_LEN; ++h) {
         for (i = 0; i < (size_t)RHONN_SAMPLE_LEN; ++i) {
@@ -812,7 +824,7 @@ static void bound_trace(rhonn_real *P, size_t L, rhonn_real p_trace_max, uint8_t
 RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
                                       uint8_t *bounded, const size_t L)
 {
-    const rhonn_neuron_config *nc = &net->cfg.neurons[i];
+    const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
     const uint8_t b = net->bank[i];
     const rhonn_real *RHONN_RESTRICT P = net->p[i][b];
     rhonn_real *RHONN_RESTRICT Pn = net->p[i][b ^ 1u];
@@ -909,7 +921,7 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
 RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
                                   uint8_t *bounded, const size_t L)
 {
-    const rhonn_neuron_config *nc = &net->cfg.neurons[i];
+    const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
     const uint8_t bk = net->bank[i];
     const rhonn_real *RHONN_RESTRICT F = net->p[i][bk];
     rhonn_real *RHONN_RESTRICT Fn = net->p[i][bk ^ 1u];
@@ -1046,12 +1058,12 @@ static rhonn_status ekf_kernel_generic(rhonn_t *net, size_t i, rhonn_real e, con
 static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
                                uint8_t *bounded)
 {
-    const size_t L = net->cfg.neurons[i].n_terms;
+    const size_t L = CFG(net)->neurons[i].n_terms;
 #if RHONN_WITH_UD
     /* The factored form is the robust one, not the fast one: specialised
      * for the small neurons where loop overhead would dominate, one
      * generic kernel above (its O(L^3) work is the cost there). */
-    if (net->cfg.neurons[i].covariance == (uint8_t)RHONN_COV_UD) {
+    if (CFG(net)->neurons[i].covariance == (uint8_t)RHONN_COV_UD) {
 #if RHONN_UNROLL
         switch (L) {
         case 1: return ekf_ud(net, i, e, z, nis, bounded, 1);
@@ -1132,7 +1144,7 @@ static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn
  * config was validated, so the factorisation succeeds). */
 static void load_p0(const rhonn_t *net, size_t i, rhonn_real *dst)
 {
-    const rhonn_neuron_config *nc = &net->cfg.neurons[i];
+    const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
     size_t t;
     for (t = 0; t < packed_size(nc->n_terms); ++t) {
         dst[t] = nc->p0[t];
@@ -1170,7 +1182,7 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
     uint8_t updated[RHONN_MAX_STATES];
     rhonn_real innov[RHONN_MAX_STATES], nis[RHONN_MAX_STATES];
     uint8_t bounded[RHONN_MAX_STATES], recovered[RHONN_MAX_STATES];
-    const size_t n = net->cfg.n_states, m = net->cfg.n_inputs, groups = net->n_groups;
+    const size_t n = CFG(net)->n_states, m = CFG(net)->n_inputs, groups = net->n_groups;
     const size_t maxd = net->max_delay;
     rhonn_status st;
     size_t i, j, g, t, e, d;
@@ -1199,7 +1211,7 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
             innov[i] = x[i] - net->xhat[i];
             st = ekf_update(net, i, innov[i], net->z[net->zbank][i], &nis[i], &bounded[i]);
             if (st != RHONN_OK) {
-                const rhonn_neuron_config *nc = &net->cfg.neurons[i];
+                const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
                 rhonn_health *h = &net->health[i];
                 h->rejected += 1u;
                 if (h->fail_run < 0xFFFFu) {
@@ -1257,7 +1269,7 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
     /* 4. z(k) (eq. 4) and xhat(k+1) = w(k+1)^T z(k) (eq. 3). */
     zb_new = (uint8_t)(net->zbank ^ 1u);
     for (i = 0; i < n; ++i) {
-        const rhonn_neuron_config *nc = &net->cfg.neurons[i];
+        const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
         const size_t L = nc->n_terms;
         const rhonn_real *w = net->w[i][net->bank[i] ^ updated[i]];
         rhonn_real *z = net->z[zb_new][i];
@@ -1328,7 +1340,7 @@ rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
     if (st != RHONN_OK) {
         return st;
     }
-    if (x == NULL || (u == NULL && net->cfg.n_inputs > 0u)) {
+    if (x == NULL || (u == NULL && CFG(net)->n_inputs > 0u)) {
         return RHONN_E_NULL;
     }
     return step_checked(net, x, u, valid, xhat_next);
@@ -1346,8 +1358,8 @@ rhonn_status rhonn_run(rhonn_t *net, size_t T, const rhonn_real *X, const rhonn_
     if (st != RHONN_OK) {
         return st;
     }
-    n = net->cfg.n_states;
-    m = net->cfg.n_inputs;
+    n = CFG(net)->n_states;
+    m = CFG(net)->n_inputs;
     if (T == 0u) {
         return RHONN_OK;
     }
@@ -1384,10 +1396,10 @@ static rhonn_status neuron_access(const rhonn_t *net, const void *buf, size_t ne
     if (buf == NULL) {
         return RHONN_E_NULL;
     }
-    if (neuron >= net->cfg.n_states) {
+    if (neuron >= CFG(net)->n_states) {
         return RHONN_E_ARGUMENT;
     }
-    L = net->cfg.neurons[neuron].n_terms;
+    L = CFG(net)->neurons[neuron].n_terms;
     return len == (packed ? packed_size(L) : L) ? RHONN_OK : RHONN_E_ARGUMENT;
 }
 
@@ -1423,7 +1435,7 @@ rhonn_status rhonn_set_weights(rhonn_t *net, size_t neuron, const rhonn_real *w,
 
 static int is_ud(const rhonn_t *net, size_t neuron)
 {
-    return net->cfg.neurons[neuron].covariance == (uint8_t)RHONN_COV_UD;
+    return CFG(net)->neurons[neuron].covariance == (uint8_t)RHONN_COV_UD;
 }
 
 rhonn_status rhonn_get_covariance(const rhonn_t *net, size_t neuron, rhonn_real *p, size_t len)
@@ -1440,7 +1452,7 @@ rhonn_status rhonn_get_covariance(const rhonn_t *net, size_t neuron, rhonn_real 
         return RHONN_OK;
     }
     /* P(r,c) = sum_{k >= c} U(r,k) d_k U(c,k), r <= c, U(k,k) = 1 */
-    L = net->cfg.neurons[neuron].n_terms;
+    L = CFG(net)->neurons[neuron].n_terms;
     for (r = 0; r < L; ++r) {
         const size_t rr = row_start(r, L);
         for (c = r; c < L; ++c) {
@@ -1458,7 +1470,7 @@ rhonn_status rhonn_get_covariance(const rhonn_t *net, size_t neuron, rhonn_real 
 rhonn_status rhonn_set_covariance(rhonn_t *net, size_t neuron, const rhonn_real *p, size_t len)
 {
     rhonn_status st = neuron_access(net, p, neuron, len, 1);
-    const size_t L = net->cfg.neurons[neuron].n_terms;
+    const size_t L = CFG(net)->neurons[neuron].n_terms;
     if (st != RHONN_OK) {
         return st;
     }
@@ -1502,7 +1514,7 @@ rhonn_status rhonn_set_factors(rhonn_t *net, size_t neuron, const rhonn_real *f,
     if (any_nonfinite(f, len)) {
         return RHONN_E_VALUE;
     }
-    L = net->cfg.neurons[neuron].n_terms;
+    L = CFG(net)->neurons[neuron].n_terms;
     for (r = 0; r < L; ++r) {
         if (!(f[row_start(r, L)] > R(0.0))) {
             return RHONN_E_VALUE;
@@ -1523,10 +1535,10 @@ rhonn_status rhonn_get_health(const rhonn_t *net, size_t neuron, rhonn_health *o
     if (out == NULL) {
         return RHONN_E_NULL;
     }
-    if (neuron >= net->cfg.n_states) {
+    if (neuron >= CFG(net)->n_states) {
         return RHONN_E_ARGUMENT;
     }
-    L = net->cfg.neurons[neuron].n_terms;
+    L = CFG(net)->neurons[neuron].n_terms;
     F = net->p[neuron][net->bank[neuron]];
     *out = net->health[neuron];
     out->trace_p = is_ud(net, neuron) ? ud_trace(F, L) : full_trace(F, L);
@@ -1543,7 +1555,7 @@ rhonn_status rhonn_get_prediction(const rhonn_t *net, rhonn_real *xhat, size_t l
     if (xhat == NULL) {
         return RHONN_E_NULL;
     }
-    if (len != net->cfg.n_states) {
+    if (len != CFG(net)->n_states) {
         return RHONN_E_ARGUMENT;
     }
     for (j = 0; j < len; ++j) {
