@@ -74,18 +74,18 @@ _CXX_KEYWORDS = frozenset("""alignas alignof and and_eq asm bitand bitor bool ca
 #: C and C++17 read hexadecimal floating literals; C++11 and C++14 do not.
 _HEX_FLOATS = "#if !defined(__cplusplus) || __cplusplus >= 201703L"
 
-Literal = Callable[[float], str]
+LiteralFormat = Callable[[float], str]
 WarmSamples = Tuple[np.ndarray, Optional[np.ndarray], Optional[np.ndarray]]
 
 
-def _hex_literal(dtype: str) -> Literal:
+def _hex_literal(dtype: str) -> LiteralFormat:
     """Exact: the C99 / C++17 hexadecimal form of the value's bits."""
     if dtype == "float32":
         return lambda v: f"{float(np.float32(v)).hex()}f"
     return lambda v: float(v).hex()
 
 
-def _decimal_literal(dtype: str) -> Literal:
+def _decimal_literal(dtype: str) -> LiteralFormat:
     """The shortest decimal that converts back to the same float32 / float64
     (a correctly rounded conversion gives the exact bits)."""
     if dtype == "float32":
@@ -168,7 +168,8 @@ def capacity_text(source: Identifier | IdentifierConfig, name: str, rhonn_t_size
     caps = min_capacities(cfg)
     guard = f"{name.upper()}_RHONN_CAPACITY_H"
     if isinstance(rhonn_t_size, int):
-        size = [f"/* sizeof(rhonn_t) = {rhonn_t_size} bytes with these capacities ({cfg.dtype}{', RHONN_SINGLE' if cfg.dtype == 'float32' else ''}),",
+        build = f"{cfg.dtype}, RHONN_SINGLE" if cfg.dtype == "float32" else cfg.dtype
+        size = [f"/* sizeof(rhonn_t) = {rhonn_t_size} bytes with these capacities ({build}),",
                 " * measured when exported by compiling rhonn.h with them (host C compiler). Targets that",
                 " * align double to 8 bytes (x86-64, AArch64, Arm EABI: Cortex-M) lay rhonn_t out alike. */"]
     else:
@@ -232,7 +233,7 @@ def measure_rhonn_t_size(capacity_header: str, dtype: str, *, include_dir: str |
 # -- the configuration header ----------------------------------------------------------------------
 
 
-def _reals(values: np.ndarray, lit: Literal) -> str:
+def _reals(values: np.ndarray, lit: LiteralFormat) -> str:
     return "{" + ", ".join(lit(float(v)) for v in np.ravel(values)) + "}"
 
 
@@ -240,7 +241,7 @@ _KIND = {FactorKind.S: "RHONN_FACTOR_S", FactorKind.X: "RHONN_FACTOR_X", FactorK
          FactorKind.ONE: "RHONN_FACTOR_ONE"}
 
 
-def _config_initializer(cfg: IdentifierConfig, name: str, lit: Literal) -> list[str]:
+def _config_initializer(cfg: IdentifierConfig, name: str, lit: LiteralFormat) -> list[str]:
     """``static const rhonn_config NAME = {...};``: every field, in rhonn.h's order."""
     lines = [f"static const rhonn_config {name} = {{",
              f"    {cfg.n_states}, /* n_states */",
@@ -284,7 +285,7 @@ class _WarmState:
     U: np.ndarray   # (D + 1, m)
 
 
-def _warm_initializer(state: _WarmState, name: str, lit: Literal) -> list[str]:
+def _warm_initializer(state: _WarmState, name: str, lit: LiteralFormat) -> list[str]:
     """``static const rhonn_warm_state NAME_warm = {...};`` in rhonn_warm.h's order."""
     def rows(arrays: list[np.ndarray], what: str) -> list[str]:
         return [f"    {{ /* {what} */"] + [f"        {_reals(a, lit)}," for a in arrays] + ["    },"]
@@ -300,7 +301,7 @@ def _warm_initializer(state: _WarmState, name: str, lit: Literal) -> list[str]:
             + ["};"])
 
 
-def _both_precisions_of_literal(render: Callable[[Literal], list[str]], dtype: str) -> list[str]:
+def _both_precisions_of_literal(render: Callable[[LiteralFormat], list[str]], dtype: str) -> list[str]:
     return [_HEX_FLOATS, "/* C, C++17 and later: hexadecimal floating literals, the exact bits */",
             *render(_hex_literal(dtype)),
             "#else",
@@ -333,7 +334,8 @@ def _text(cfg: IdentifierConfig, name: str, warm: _WarmState | None) -> str:
         f'#error "{name}: exported for the rhonn.h {major}.{minor} configuration layout"',
         "#endif",
         f"#if {checks}",
-        f'#error "{name}: the RHONN_MAX_* capacities are too small for this identifier (see its exported capacity header)"',
+        f'#error "{name}: the RHONN_MAX_* capacities are too small for this identifier '
+        '(see its exported capacity header)"',
         "#endif",
         "#ifdef RHONN_SINGLE" if dt == "float64" else "#ifndef RHONN_SINGLE",
         f'#error "{name} was exported as {dt}: build the core '
@@ -342,7 +344,7 @@ def _text(cfg: IdentifierConfig, name: str, warm: _WarmState | None) -> str:
         "",
     ]
 
-    def render(lit: Literal) -> list[str]:
+    def render(lit: LiteralFormat) -> list[str]:
         return _config_initializer(cfg, name, lit) + (_warm_initializer(warm, name, lit) if warm else [])
 
     lines += _both_precisions_of_literal(render, dt)
@@ -360,13 +362,16 @@ def header_text(source: Identifier | IdentifierConfig, name: str) -> str:
 # -- warm start ------------------------------------------------------------------------------------
 
 
-def _require(a: object, what: str, shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
+def _require(a: object, what: str, shape: tuple[int, ...], dtype: np.dtype, *, at_least: bool = False) -> np.ndarray:
+    """``a`` as given, or a ValueError naming it: a numpy array of ``dtype``
+    and ``shape`` (``shape[0]`` rows or more when ``at_least``)."""
     if not isinstance(a, np.ndarray):
         raise ValueError(f"{what}: expected a numpy array, got {type(a).__name__}")
     if a.dtype != dtype:
         raise ValueError(f"{what}: expected dtype {dtype}, got {a.dtype}")
-    if a.ndim != len(shape) or a.shape[1:] != shape[1:] or a.shape[0] < shape[0]:
-        want = f"({shape[0]} or more, {', '.join(map(str, shape[1:]))})"
+    rows_ok = a.ndim >= 1 and (a.shape[0] >= shape[0] if at_least else a.shape[0] == shape[0])
+    if a.ndim != len(shape) or a.shape[1:] != shape[1:] or not rows_ok:
+        want = f"({shape[0]}{' or more' if at_least else ''}, {', '.join(map(str, shape[1:]))})"
         raise ValueError(f"{what}: expected shape {want}, got {a.shape}")
     return a
 
@@ -379,18 +384,14 @@ def _warm_state(ident: Identifier, samples: object) -> _WarmState:
     if not isinstance(samples, tuple) or len(samples) != 3:
         raise ValueError("warm_start: expected (X, U, valid), the samples the identifier last stepped on")
     Xa, Ua, Va = samples
-    X = _require(Xa, "warm_start X", (D + 1, n), ident.dtype)
+    X = _require(Xa, "warm_start X", (D + 1, n), ident.dtype, at_least=True)
     T = X.shape[0]
     if Ua is None and m == 0:
         U = np.zeros((T, 0), dtype=ident.dtype)
     else:
         U = _require(Ua, "warm_start U", (T, m), ident.dtype)
-        if U.shape[0] != T:
-            raise ValueError(f"warm_start U: expected {T} rows as X, got {U.shape[0]}")
     if Va is not None:
         V = _require(Va, "warm_start valid", (T, n), np.dtype(bool))
-        if V.shape[0] != T:
-            raise ValueError(f"warm_start valid: expected {T} rows as X, got {V.shape[0]}")
         bad = np.argwhere(~V[T - D - 1:])
         if bad.size:
             t, j = (int(v) for v in bad[0])

@@ -302,7 +302,8 @@ def test_header_refuses_wrong_precision_small_capacity_and_another_layout(tmp_pa
     major, minor = LAYOUT_VERSION
     rhonn_h = (INCLUDE / "rhonn.h").read_text()
     assert f"#define RHONN_VERSION_MAJOR {major}\n" in rhonn_h and f"#define RHONN_VERSION_MINOR {minor}\n" in rhonn_h
-    (tmp_path / "rhonn.h").write_text(rhonn_h.replace(f"RHONN_VERSION_MAJOR {major}", f"RHONN_VERSION_MAJOR {major + 1}"))
+    (tmp_path / "rhonn.h").write_text(rhonn_h.replace(f"RHONN_VERSION_MAJOR {major}",
+                                                      f"RHONN_VERSION_MAJOR {major + 1}"))
     shutil.copy(INCLUDE / "rhonn_capacity.h", tmp_path)
     other = subprocess.run([CC, "-std=c99", "-fsyntax-only", "-DRHONN_SINGLE", f"-I{tmp_path}", str(src)],
                            capture_output=True, text=True)
@@ -376,6 +377,8 @@ def test_warm_start_refuses_samples_it_cannot_replay_exactly(tmp_path: Path) -> 
         export_header(ident, out, name="EXPORTED", warm_start=(X[:309], U[:309], valid[:309]))
     with pytest.raises(ValueError, match=r"^warm_start X: expected dtype float64, got float32"):
         export_header(ident, out, name="EXPORTED", warm_start=(X[:310].astype("float32"), U[:310], valid[:310]))
+    with pytest.raises(ValueError, match=r"^warm_start U: expected shape \(310, 2\), got \(309, 2\)"):
+        export_header(ident, out, name="EXPORTED", warm_start=(X[:310], U[:309], valid[:310]))
     with pytest.raises(ValueError, match=r"^warm_start X: expected shape \(4 or more, 3\), got \(2, 3\)"):
         export_header(ident, out, name="EXPORTED", warm_start=(X[308:310], U[308:310], valid[308:310]))
     with pytest.raises(ValueError, match=r"^source: a warm start exports an Identifier's running state"):
