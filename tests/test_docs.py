@@ -38,10 +38,11 @@ def checkout() -> Path:
     return ROOT
 
 
-def _grep(pattern: str, *extra: str) -> list[str]:
-    """``file:line:text`` of every text file (tracked or new, not ignored) matching ``pattern``,
-    case-insensitive, this file excluded."""
-    res = _git("grep", "--untracked", "-nIiE", *extra, pattern, "--", ".", f":(exclude){THIS_FILE}")
+def _grep(pattern: str) -> list[str]:
+    """``file:line:text`` of every tracked text file (as it is in the working tree) matching
+    ``pattern``, case-insensitive, this file excluded. Untracked files are left out: run
+    outputs (a reproduce folder, hil logs) may hold this machine's paths and are not shipped."""
+    res = _git("grep", "-nIiE", pattern, "--", ".", f":(exclude){THIS_FILE}")
     assert res.returncode in (0, 1), res.stderr  # 1: no match
     return res.stdout.splitlines()
 
