@@ -3,7 +3,7 @@
 One scenario is: plant (:mod:`pyrhonn.plants`) -> identifier (the C core,
 :meth:`pyrhonn.Identifier.run`) -> metrics (:mod:`pyrhonn.metrics`), side by
 side with the paper's figures. Example 1 also runs the HONN observer of the
-paper's §6.1.1 (:mod:`pyrhonn.baselines.honn_observer`) on the same
+paper's section 6.1.1 (:mod:`pyrhonn.baselines.honn_observer`) on the same
 trajectory, and every scenario carries a naive *persistence* predictor
 x̂(k+1) = x(k) as a scale reference (what predicting "no change" scores).
 
@@ -41,12 +41,14 @@ see them. Metrics always compare against the true state.
 Example 1 horizon: the paper does not state it. 100 s is the oscillator
 module's default (chosen before any identifier was run, see
 :mod:`pyrhonn.plants.oscillator`); :func:`horizon_study` reports every figure
-at 50, 100 and 150 s as well (the plant notes (docs/reproduction.md) §4).
+at 10, 20, 50, 100 and 150 s as well (docs/plants.md#oscillator-horizon).
 
 Outputs (:func:`write_outputs`): ``<key>.json`` (all numbers), one PNG per
 identifier / observer with the real and the estimated state per subplot,
 like the paper's Fig. 1-17 (real: black solid, estimate: grey dotted, hold
 windows shaded), and ``<key>-errors.png`` with the error of every estimator.
+Every y axis carries the state's unit (:data:`STATE_UNITS`), and the legend
+names the shading.
 """
 from __future__ import annotations
 
@@ -81,6 +83,7 @@ __all__ = [
     "horizon_study",
     "PaperFigures",
     "SCENARIOS",
+    "STATE_UNITS",
     "Scenario",
     "ScenarioResult",
     "format_horizon_study",
@@ -95,11 +98,20 @@ __all__ = [
 ]
 
 EXAMPLES = ("example1", "example2", "example3")
-HORIZONS = (10.0, 20.0, 50.0, 100.0, 150.0)  #: horizons of the Example 1 study (plants.md §4; 10 s: before x4's first spike)
+#: horizons of the Example 1 study (docs/plants.md#oscillator-horizon; 10 s: before x4's first spike)
+HORIZONS = (10.0, 20.0, 50.0, 100.0, 150.0)
 DIAGNOSTIC_WARMUP = 10  #: samples skipped by the ``rmse_after_warmup`` diagnostic
 EXAMPLE1_PERIODS = (0.2, 0.02)
 RMSE_TARGET = {"example1": 1.0, "example2": 2.0, "example3": 2.0}  #: paper-example target: identifier RMSE / paper
 AD_TARGET = {"example1": 1.0}  #: paper-example target: identifier absolute deviation / paper (Example 1 only)
+#: Unit of each state, in the order of the plant's state names (docs/plants.md): the oscillator's
+#: states are dimensionless (the paper gives no units), the robot's and the LIM's are SI.
+STATE_UNITS = {
+    "example1": ("dimensionless",) * 4,
+    "example2": ("m", "m", "rad", "rad/s", "rad/s", "A", "A"),
+    "example3": ("m", "m/s", "Wb", "Wb", "A", "A"),
+}
+HOLD_LABEL = "not updated (hold)"  #: legend entry of the shaded samples whose measurement was not valid
 
 Progress = Callable[[str], None]
 
@@ -446,7 +458,8 @@ class ScenarioResult:
         raise fail("key", f"no estimator {key!r}; have {[e.key for e in self.estimators]}")
 
     def targets(self) -> list[dict[str, Any]]:
-        """Issue 4's targets for every identifier: per state, whether met."""
+        """The paper-example targets (:data:`RMSE_TARGET`, :data:`AD_TARGET`) for every
+        identifier: per state, whether met."""
         ex = self.scenario.example
         out = []
         for e in self.estimators:
@@ -739,6 +752,9 @@ def format_horizon_study(result: ScenarioResult) -> str:
 # -- files --------------------------------------------------------------------------------------------
 
 
+HOLD_COLOR = "0.85"
+
+
 def _shade_holds(ax: Any, traj: Trajectory, j: int) -> None:
     invalid = ~traj.valid[:, j]
     if not invalid.any():
@@ -746,7 +762,23 @@ def _shade_holds(ax: Any, traj: Trajectory, j: int) -> None:
     t = traj.t
     edges = np.flatnonzero(np.diff(np.concatenate(([0], invalid.astype(np.int8), [0]))))
     for start, stop in zip(edges[::2], edges[1::2]):
-        ax.axvspan(t[start], t[min(stop, t.shape[0] - 1)], color="0.85", lw=0)
+        ax.axvspan(t[start], t[min(stop, t.shape[0] - 1)], color=HOLD_COLOR, lw=0)
+
+
+def _axis_label(result: ScenarioResult, j: int, prefix: str = "") -> str:
+    """The y-axis label of state j with its unit, e.g. ``v (m/s)``."""
+    return f"{prefix}{result.state_names[j]} ({STATE_UNITS[result.scenario.example][j]})"
+
+
+def _legend(result: ScenarioResult, ax: Any, ncol: int) -> None:
+    """The legend of the top axes: its lines, and the hold shading when any state has one."""
+    from matplotlib.patches import Patch
+
+    handles, labels = ax.get_legend_handles_labels()
+    if not result.trajectory.valid.all():
+        handles.append(Patch(facecolor=HOLD_COLOR, edgecolor="none"))
+        labels.append(HOLD_LABEL)
+    ax.legend(handles, labels, loc="upper left", fontsize=8, ncol=ncol)
 
 
 def _figure(n: int) -> Any:
@@ -769,10 +801,10 @@ def _plot_states(result: ScenarioResult, e: EstimatorResult, path: Path) -> None
         _shade_holds(ax, traj, j)
         ax.plot(t, result.truth[:, j], color="black", lw=1.0, label="real")
         ax.plot(t, e.estimate[:, j], color="0.45", lw=1.2, ls=":", label=verb)
-        ax.set_ylabel(traj.state_names[j])
+        ax.set_ylabel(_axis_label(result, j))
         ax.set_title(f"RMSE {e.rmse[j]:.4g}   AD {e.ad[j]:.4g}", loc="right", fontsize=8, pad=2)
         ax.grid(True, lw=0.3)
-    axes[0].legend(loc="upper left", fontsize=8, ncol=2)
+    _legend(result, axes[0], ncol=3)
     axes[-1].set_xlabel("time (s)")
     fig.suptitle(f"{result.scenario.title}: real (black solid) vs {verb} (grey dotted), {e.label}", fontsize=10)
     fig.tight_layout()
@@ -788,9 +820,9 @@ def _plot_errors(result: ScenarioResult, path: Path) -> None:
         _shade_holds(ax, traj, j)
         for e in shown:
             ax.plot(t, result.truth[:, j] - e.estimate[:, j], lw=0.8, label=e.label)
-        ax.set_ylabel(f"e {traj.state_names[j]}")
+        ax.set_ylabel(_axis_label(result, j, "e "))
         ax.grid(True, lw=0.3)
-    axes[0].legend(loc="upper left", fontsize=8, ncol=len(shown))
+    _legend(result, axes[0], ncol=len(shown) + 1)
     axes[-1].set_xlabel("time (s)")
     fig.suptitle(f"{result.scenario.title}: error x(k+1) - estimate (hold windows shaded)", fontsize=10)
     fig.tight_layout()

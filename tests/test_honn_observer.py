@@ -43,7 +43,8 @@ def test_defaults_are_the_papers_matrices_with_A_rebuilt_for_the_sampling_period
     assert p.h is paper_delay_functions and p.h_times_dt
     np.testing.assert_array_equal(HonnObserverParams(dt=0.02).A, chain_matrix(0.02))
     assert HonnObserverParams(dt=0.02).A[0, 1] == 0.02
-    # plants.md §3's 16-term basis (constant + 5 + 10) is one flag away and gives the paper's l1
+    # the 16-term basis (constant + 5 + 10; docs/plants.md#honn-observer-readings, reading 6) is one flag
+    # away and gives the paper's l1
     assert HonnObserverParams(basis_bias=True).l1 == 16
 
 
@@ -329,6 +330,6 @@ def test_observe_oscillator_rejects_mismatched_inputs(traj_02):
 
 
 def test_constant_basis_term_makes_the_paper_gains_diverge_on_example1(traj_02):
-    # documents choice 6 of the module docstring: plants.md §3's 16-term basis (with the constant)
+    # documents choice 6 of the module docstring: the 16-term basis (with the constant)
     est = observe_oscillator(traj_02, HonnObserverParams(basis_bias=True))
     assert np.max(np.abs(est)) > 1e3 * np.max(np.abs(traj_02.X))

@@ -103,6 +103,7 @@ def test_all_states_reading_of_the_delay_freezes_every_state():
 
 
 def test_derived_constants_match_plants_md():
+    # the k_i that docs/plants.md#lim-parameters lists
     k = LimParams().constants()
     expected = {"k1": 22.8, "k2": 1.79, "k3": 0.357, "k5": 3.27, "k6": 87.6, "k7": 1.11e4, "k8": 1.40e4,
                 "k9": -1453.0, "k10": -173.0}
@@ -111,7 +112,7 @@ def test_derived_constants_match_plants_md():
 
 
 def test_sanity_figures_agree_with_the_independent_run_in_plants_md(paper_run):
-    # plants.md §1.2: over 5 s q_m reaches ~1.06 m, v peaks at ~0.57 m/s, |i| peaks at ~31 A
+    # docs/plants.md#lim-parameters: over 5 s q_m reaches ~1.06 m, v peaks at ~0.57 m/s, |i| peaks at ~31 A
     X = paper_run.X
     assert X[-1, 0] == pytest.approx(1.06, rel=0.02)
     assert X[:, 1].max() == pytest.approx(0.57, rel=0.02)

@@ -69,8 +69,8 @@ def test_pose_is_the_integral_of_the_wheel_speeds_against_a_continuous_reference
     err = np.abs(paper_run.X - ref)
     # the pose follows the continuous integral of the wheel speeds to 0.1% of its range
     assert np.all(err[:, :3].max(axis=0) < 1e-3 * scale[:3]), err[:, :3].max(axis=0) / scale[:3]
-    # the Euler plant stays close overall (RMS < 3% of range) and ends within 2% (plants.md §2);
-    # omega1 ends near zero, so it gets the absolute bound of plants.md (~0.006 rad/s)
+    # the Euler plant stays close overall (RMS < 3% of range) and ends within 2% (docs/plants.md#robot-model);
+    # omega1 ends near zero, so it gets an absolute bound (docs/plants.md: ~0.006 rad/s)
     assert np.all(np.sqrt(np.mean(err ** 2, axis=0)) < 0.03 * scale)
     end = err[-1]
     assert np.all((end < 0.02 * np.abs(ref[-1])) | (end < 0.01)), end
@@ -117,7 +117,7 @@ def test_paper_hold_windows_freeze_ten_samples_of_each_state(paper_run):
 
 
 def test_sanity_figures_agree_with_the_independent_run_in_plants_md(paper_run):
-    # plants.md §2.1: X drifts ~0.7 m, theta ends near -0.71 rad, |omega| < 1 rad/s, |i| < 0.4 A
+    # docs/plants.md#robot-scenario: X drifts ~0.7 m, theta ends near -0.71 rad, |omega| < 1 rad/s, |i| < 0.4 A
     X = paper_run.X
     assert abs(X[-1, 0] - 0.70) < 0.05
     assert abs(X[-1, 2] - (-0.71)) < 0.05

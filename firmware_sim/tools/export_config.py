@@ -12,7 +12,7 @@ lim_identifier.h
     includes the one that matches the build (RHONN_SINGLE or not).
 
 The identifier is the shipped config ``firmware-lim``
-(pyrhonn/configs/firmware-lim.toml: the LIM term sets of plants.md §1.4), so
+(pyrhonn/configs/firmware-lim.toml: the LIM term sets of docs/plants.md#lim-terms), so
 the host application, its Python twin, the M4 image and the HIL harness run
 the same network. tests/test_firmware_protocol.py checks the committed headers are
 what this script writes.

@@ -1,6 +1,6 @@
 """Baselines the paper compares its RHONN identifier against.
 
-- :mod:`pyrhonn.baselines.honn_observer`: the HONN observer of §6.1.1
+- :mod:`pyrhonn.baselines.honn_observer`: the HONN observer of the paper's section 6.1.1
   (eq. 16-19, design of reference [20]), run on Example 1.
 """
 from __future__ import annotations

@@ -1,4 +1,7 @@
-"""The HONN observer of the paper's §6.1.1 (eq. 16-19), design of reference [20].
+"""The HONN observer of the paper's section 6.1.1 (eq. 16-19), design of reference [20].
+
+Described, with the source and status of every value, in
+docs/plants.md#honn-observer.
 
 This is the baseline the paper compares its RHONN identifier against on
 Example 1 (Tables 1-4). It sees only the outputs y = C x and the input u.
@@ -37,8 +40,8 @@ of eq. 19, sigma(s) = (1 - exp(-beta s)) / (1 + exp(-beta s)), beta = 0.01,
     \\Phi_1 = [\\,(1),\\ \\sigma(z_1), \\dots, \\sigma(z_5),\\
               \\sigma(z_i)\\sigma(z_j)\\ (i < j)\\,]
 
-The leading constant (1) is included only with ``basis_bias=True``: that is
-plants.md §3's proposal, 1 + 5 + 10 = 16 = the paper's l1. The default leaves
+The leading constant (1) is included only with ``basis_bias=True``: that
+gives 1 + 5 + 10 = 16 functions, the paper's l1. The default leaves
 it out (5 + 10 = 15 functions); see choice 6 below for why. ``l1`` is derived
 from the basis when None, and checked against it when given.
 
@@ -56,8 +59,8 @@ functions, eq. 18 with the OCR's second "h_3" read as h_4:
     h_1 = 0,\\quad h_2(x) = 2\\cos x_1,\\quad h_3 = 0,\\quad
     h_4(x) = 2 (x_1^2 + x_2^2) \\sin x_2
 
-Choices on the paper's ambiguities (the plant notes (docs/reproduction.md) §3)
-------------------------------------------------------------------
+Choices on the paper's ambiguities (docs/plants.md#honn-observer-readings)
+--------------------------------------------------------------------------
 1. **Weight law driven by the output error.** The OCR of eq. 17 prints
    ŷ^T(k); an observer's learning law is driven by ỹ = y - ŷ (otherwise the
    weights would learn from the estimate alone, even when it is exact), so ŷ
@@ -82,7 +85,7 @@ Choices on the paper's ambiguities (the plant notes (docs/reproduction.md) §3)
    output block at T = 0.2 s but {0.984, -0.284} at T = 0.02 s, i.e. a slow
    mode at the smaller period.
 6. **No constant in Phi1 by default (``basis_bias=False``, l1 = 15).** With
-   the constant (plants.md §3's 16-term basis) and the paper's Gamma1 = 0.2,
+   the constant (the 16-term basis) and the paper's Gamma1 = 0.2,
    sigma1 = 0.6, F = ones(4, 2), the constant's weights become a leaky
    integrator of the output error, W1^T Phi1 ≈ (0.2 / 0.6) (ỹ_1 + ỹ_2) per
    state, which F = ones feeds into all four states. The channel-2 error
@@ -234,8 +237,8 @@ class HonnObserverParams:
     W0:
         (l1, q) initial weights W1(0); None means zeros (PROPOSED).
     basis_bias:
-        Include the constant 1 in Phi1 (default False; True gives plants.md
-        §3's 16-term basis, which diverges at the paper's gains on Example 1
+        Include the constant 1 in Phi1 (default False; True gives the paper's
+        l1 = 16 with a 16-term basis, which diverges at its gains on Example 1
         at T = 0.2 s: module docstring, choice 6).
     basis_products:
         Include the pairwise products sigma(z_i) sigma(z_j), i < j (default True).

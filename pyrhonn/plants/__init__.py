@@ -10,6 +10,9 @@ Sensor effects (noise, quantisation, dropouts, hold windows) are applied in
 one place, :func:`pyrhonn.plants.trajectory.measure`. Every run samples
 through :func:`pyrhonn.plants.trajectory.sample_times`, which refuses a run of
 more than :data:`~pyrhonn.plants.trajectory.MAX_SAMPLES` samples up front.
+
+Every equation and number of the three plants, where each comes from and how
+sure it is: docs/plants.md.
 """
 from __future__ import annotations
 

@@ -1,11 +1,14 @@
 """Example 3 of the paper: the linear induction motor (LIM), alpha-beta model of [11].
 
+Full description, sources and confidence: docs/plants.md#lim (the 0.3 ms
+real-time rig: docs/plants.md#lim-rig).
+
 States x = [q_m, v, lambda_a, lambda_b, i_a, i_b]: position (m), velocity
 (m/s), secondary fluxes (Wb, secondary/moving frame), primary currents (A,
 primary/fixed frame). Inputs u = [u_a, u_b], primary voltages (V).
 rho1 = sin(n_p q_m), rho2 = cos(n_p q_m).
 
-Continuous-time model (plants.md §1.1, DERIVED from the induction-machine
+Continuous-time model (docs/plants.md#lim-model, DERIVED from the induction-machine
 equations; the k_i names RECALLED from the Sanchez/Loukianov/Alanis papers):
 
     q_m' = v
@@ -22,14 +25,14 @@ equations; the k_i names RECALLED from the Sanchez/Loukianov/Alanis papers):
     k10 = L_r / (L_sr^2 - L_s L_r)                            (< 0)
 
 Discrete time: forward Euler at T, x(k+1) = x(k) + T f(x(k), u(k)), the form the
-papers print (structure MEDIUM-HIGH confidence, plants.md §1.1).
+papers print (structure MEDIUM-HIGH confidence, docs/plants.md#lim-model).
 
 Parameters: the Lab-Volt 8228 table was NOT FOUND, so every value in
-:class:`LimParams` is PROPOSED (plants.md §1.2) and configurable.
+:class:`LimParams` is PROPOSED (docs/plants.md#lim-parameters) and configurable.
 
 Inputs (eq. 21-22). The OCR text prints, for t >= 2 s,
 ``u_a = 255(170 cos(0.3t(98.6/6 t - 98.6/3)))`` and the same with sin for u_b,
-and 0 before 2 s. Interpretation used here (plants.md §1.3):
+and 0 before 2 s. Interpretation used here (docs/plants.md#lim-inputs):
 u_a = A cos(phi(t)), u_b = A sin(phi(t)), phi(t) = 0.3 t (98.6 t / 6 - 98.6 / 3),
 a chirp with phi(2) = 0 and instantaneous frequency 9.86 (t - 1) rad/s, so the
 input switches on at 2 s with u_a = A, u_b = 0. A = 170 V (the peak of 120 V
@@ -39,7 +42,7 @@ take it literally). The chirp constants are VERIFIED in the text.
 
 Scenario: T = 1e-4 s (VERIFIED; real time 3e-4 s), horizon 5 s, zero initial
 state, F_L = 0 (PROPOSED). The position measurement is not updated for 1 s
-from 2.1 s (10 000 samples at 1e-4; plants.md §1.3). The paper's sentence
+from 2.1 s (10 000 samples at 1e-4; docs/plants.md#lim-scenario). The paper's sentence
 ("it is not possible to update the information of the LIM states starting at
 2.1 s") can also be read as all states; ``paper_holds(all_states=True)`` gives
 that reading. In the real-time test the delay starts at 1.1 s.
@@ -102,7 +105,7 @@ class LimConstants:
 
 @dataclass(frozen=True)
 class LimParams:
-    """LIM parameters. ALL PROPOSED (plants.md §1.2): the Lab-Volt 8228 table was not found.
+    """LIM parameters. ALL PROPOSED (docs/plants.md#lim-parameters): the Lab-Volt 8228 table was not found.
 
     R_s, R_r, L_s, L_r, L_sr are an unverified recollection of a small-LIM set
     from the LIM-control literature (F.-J. Lin et al.); D_m, R_m are chosen for
@@ -241,7 +244,7 @@ def simulate(
         "inputs": input_meta,
         "horizon": float(horizon),
         "discretisation": "forward Euler",
-        "sources": "the plant notes (docs/reproduction.md) §1: structure MEDIUM-HIGH, all parameters PROPOSED, "
+        "sources": "docs/plants.md#lim: structure MEDIUM-HIGH, all parameters PROPOSED, "
                    "A = 170 V PROPOSED (LOW), horizon 5 s / zero initial state / F_L = 0 PROPOSED",
     }
     return build_trajectory(t=t, X=X, U=U, state_names=STATE_NAMES, input_names=INPUT_NAMES, dt=float(dt),

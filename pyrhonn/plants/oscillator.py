@@ -1,5 +1,7 @@
 """Example 1 of the paper: the chaotic delayed oscillator, eq. 15 (system of [20]).
 
+Full description, sources and confidence: docs/plants.md#oscillator.
+
 Continuous-time model (tau = 3 s, u(t) = sin(0.3 t)):
 
     x1' = x2 + 0.001 x1 u
@@ -9,7 +11,7 @@ Continuous-time model (tau = 3 s, u(t) = sin(0.3 t)):
           + 2 (x1(t - tau)^2 + x2(t - tau)^2) sin(x2(t - tau))
     y1 = x1 + x2,   y2 = x3 + x4        (outputs of the HONN observer, not used here)
 
-Sources and confidence (the plant notes (docs/reproduction.md) §3-4): the equations, tau,
+Sources and confidence (docs/plants.md#oscillator-model): the equations, tau,
 x(0) = [1 1 1 1], u(t) and the sampling periods T = 0.2 s and 0.02 s are
 VERIFIED in the paper's text. The history before t = 0 (constant, equal to
 x(0)) and the horizon are NOT stated: PROPOSED here, and configurable.
@@ -39,7 +41,8 @@ and 33 delays; (3) 500 samples at T = 0.2 s and 5000 at T = 0.02 s; (4) the
 system is chaotic: differences between two integrator step sizes grow
 ~25-fold per 100 s, and beyond ~150 s the "true" trajectory at 1e-3
 precision starts to depend on numerical details, so longer horizons are less
-reproducible. Tables should also be reported at other horizons (plants.md §4).
+reproducible. Tables should also be reported at other horizons
+(docs/plants.md#oscillator-horizon).
 
 Convergence (checked by the tests and by :func:`convergence_error`): over
 100 s, halving h from 5 ms to 2.5 ms changes every sample, at T = 0.2 s and
@@ -249,7 +252,7 @@ def simulate(
         "params": p.to_dict(),
         "horizon": float(horizon),
         "integrator": {"method": "RK4, method of steps, cubic Hermite half-step history", "step": float(step)},
-        "sources": "the plant notes (docs/reproduction.md) §3-4: eq. 15, tau, x(0), u, T VERIFIED; constant history and "
+        "sources": "docs/plants.md#oscillator: eq. 15, tau, x(0), u, T VERIFIED; constant history and "
                    "horizon PROPOSED",
     }
     return build_trajectory(t=t, X=X, U=U, state_names=STATE_NAMES, input_names=INPUT_NAMES, dt=float(dt),

@@ -1,5 +1,7 @@
 """Example 2 of the paper: the electrically driven differential (two-wheeled) mobile robot of [17].
 
+Full description, sources and confidence: docs/plants.md#robot.
+
 States chi = [X, Y, theta, omega1, omega2, i1, i2]: pose of the axle midpoint
 (m, m, rad), right/left wheel angular velocities (rad/s), armature currents
 (A). Inputs u = [u1, u2], motor voltages (V).
@@ -15,7 +17,7 @@ Continuous-time model (block form chi1 = [X, Y, theta], chi2 = omega, chi3 = i):
     C = [[0, c theta'], [-c theta', 0]],  c = r^2/(2 b) m_c d,  theta' = r/(2b) (omega1 - omega2)
     D = diag(d_m1, d_m2)
 
-Discrete time (as in the paper's source, plants.md §2): forward Euler,
+Discrete time (as in the paper's source, docs/plants.md#robot-model): forward Euler,
 chi(k+1) = chi(k) + T f(chi(k), u(k)), T = 0.01 s. This discrete model *is*
 the plant here. Against a fine RK4 solution of the continuous model with the
 same held inputs, the pose agrees to 0.05% of its range and the final states
@@ -23,16 +25,17 @@ to 2% (omega1, which ends near 0, to 0.006 rad/s); the currents differ most in
 the first steps, because T is half the armature time constant L_a/R_a = 19 ms
 (i2 up to 25% of its range at the start, 1.4% RMS over the run).
 
-Scenario (paper §6.2, VERIFIED): T = 0.01 s, 15 s, u1 = sin(c(t)), u2 = cos(c(t))
+Scenario (paper section 6.2, VERIFIED; docs/plants.md#robot-scenario): T = 0.01 s, 15 s, u1 = sin(c(t)), u2 = cos(c(t))
 with c(t) a MATLAB chirp; each state "not updated" for 0.1 s (10 samples)
 starting at 13, 9, 5, 8, 6, 1, 4 s for X, Y, theta, omega1, omega2, i1, i2.
 PROPOSED: c(t) = sin(2 pi (f0 + (f1 - f0) t / (2 t1)) t) with the Simulink
 "Chirp Signal" defaults f0 = 0.1 Hz, f1 = 1 Hz at t1 = 100 s; zero initial
 state; no disturbance.
 
-Sources and confidence (plants.md §2): the equations are HIGH confidence for
-this model family; J, M, m11, m12, m, I and every parameter value are VERIFIED
-in ``alfredoaguiararce/rhonn-module-python:examples/robot.py``; the Coriolis
+Sources and confidence (docs/plants.md#robot-model): the equations are HIGH
+confidence for this model family; J, M, m11, m12, m, I and every parameter
+value are VERIFIED in ``examples/robot.py`` of the public GitHub repository
+``alfredoaguiararce/rhonn-module-python``; the Coriolis
 form C and the actuator equation are the standard Fukao / Das-Kar form
 (RECALLED); that [17] uses exactly this form is MEDIUM. Units are the standard
 ones (PROPOSED; the source states none).
@@ -81,7 +84,9 @@ def paper_holds() -> tuple[HoldWindow, ...]:
 
 @dataclass(frozen=True)
 class RobotParams:
-    """Physical parameters (plants.md §2.1, values VERIFIED in the reference code; units PROPOSED).
+    """Physical parameters: values VERIFIED in a reference implementation, units PROPOSED.
+
+    Sources and units: docs/plants.md#robot-parameters.
 
     Validated on construction: every field finite, lengths/masses/inertias of
     the body and the electrical constants > 0, d, m_w, I_w, I_m, d_m1, d_m2 >= 0
@@ -246,7 +251,7 @@ def simulate(
         "inputs": input_meta,
         "horizon": float(horizon),
         "discretisation": "forward Euler",
-        "sources": "the plant notes (docs/reproduction.md) §2: model HIGH/MEDIUM, parameters VERIFIED in "
+        "sources": "docs/plants.md#robot: model HIGH/MEDIUM, parameters VERIFIED in "
                    "alfredoaguiararce/rhonn-module-python, chirp and zero initial state PROPOSED",
     }
     return build_trajectory(t=t, X=X, U=U, state_names=STATE_NAMES, input_names=INPUT_NAMES, dt=float(dt),

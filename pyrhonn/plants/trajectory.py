@@ -3,7 +3,8 @@
 A plant simulator produces the *true* sampled states ``X`` (what the paper's
 tables compare against) and the *measured* states ``X_meas`` (what the
 identifier is fed). The two differ only through the measurement model in this
-module, which is the one place where sensor effects are applied:
+module, which is the one place where sensor effects are applied
+(docs/plants.md#measurement-model):
 
 1. **Additive Gaussian noise**, per-state standard deviation (``Corruption.noise_std``).
 2. **Encoder-style quantisation** of chosen states, per-state resolution

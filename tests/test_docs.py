@@ -1,0 +1,138 @@
+"""The project stands on its own: no pointers to files outside it, no issue
+numbers, every docs/plants.md section that code or docs link to exists, and
+docs/plants.md states the numbers the code uses."""
+from __future__ import annotations
+
+import re
+import subprocess
+from dataclasses import fields
+from pathlib import Path
+
+import pytest
+
+from pyrhonn.plants import lim, robot
+
+ROOT = Path(__file__).resolve().parents[1]
+PLANTS_MD = ROOT / "docs" / "plants.md"
+THIS_FILE = Path(__file__).resolve().relative_to(ROOT).as_posix()
+
+#: What a user must never see: developers' notes and their numbered sections,
+#: the project's own issue numbers (an upstream "optuna issue #4002" is fine),
+#: and absolute paths of a machine.
+FORBIDDEN = {
+    "developers' plant notes": r"shared/plants|plant notes|plants\.md §",
+    "an issue number": r"\bissue [0-9]",
+    "a machine path": r"/work/|/home/[A-Za-z0-9_.-]+|/root/|/Users/[A-Za-z0-9_.-]+|[A-Za-z]:\\Users\\",
+}
+ANCHOR_REF = re.compile(r"plants\.md#([A-Za-z0-9_-]+)")
+
+
+def _git(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, text=True, check=False)
+
+
+@pytest.fixture(scope="module")
+def checkout() -> Path:
+    if _git("rev-parse", "--is-inside-work-tree").stdout.strip() != "true":
+        pytest.skip("needs the project's git checkout (git grep over its files)")
+    return ROOT
+
+
+def _grep(pattern: str) -> list[str]:
+    """``file:line:text`` of every tracked text file (as it is in the working tree) matching
+    ``pattern``, case-insensitive, this file excluded. Untracked files are left out: run
+    outputs (a reproduce folder, hil logs) may hold this machine's paths and are not shipped."""
+    res = _git("grep", "-nIiE", pattern, "--", ".", f":(exclude){THIS_FILE}")
+    assert res.returncode in (0, 1), res.stderr  # 1: no match
+    return res.stdout.splitlines()
+
+
+def anchors(markdown: str) -> set[str]:
+    """The link targets a Markdown page defines: explicit ``<a id="...">`` and
+    GitHub's heading slugs (lower case, punctuation dropped, spaces to dashes)."""
+    ids = set(re.findall(r'<a\s+id="([^"]+)"', markdown))
+    for heading in re.findall(r"^#{1,6}\s+(.+?)\s*$", markdown, flags=re.M):
+        slug = re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+        ids.add(slug)
+    return ids
+
+
+def test_forbidden_patterns_catch_what_they_are_for():
+    hits = {
+        "developers' plant notes": ["see /x/shared/plants.md", "the plant notes say", "plants.md §1.2"],
+        "an issue number": ["Issue 4's targets", "fixed in issue 12"],
+        "a machine path": ["/work/main/README.md", "/home/alice/x", "/root/.cache", "C:\\Users\\bob"],
+    }
+    for what, texts in hits.items():
+        for text in texts:
+            assert re.search(FORBIDDEN[what], text, flags=re.I), (what, text)
+    for text in ("optuna issue #4002", "docs/plants.md#lim-rig", "the homework", "framework/"):
+        assert not any(re.search(p, text, flags=re.I) for p in FORBIDDEN.values()), text
+
+
+@pytest.mark.parametrize("what", sorted(FORBIDDEN))
+def test_project_references_no_outside_files_or_issue_numbers(checkout, what):
+    hits = _grep(FORBIDDEN[what])
+    assert not hits, f"{what} in the project:\n" + "\n".join(hits)
+
+
+def test_anchor_parser_reads_ids_and_heading_slugs():
+    text = '<a id="lim-rig"></a>\n## The 0.3 ms LIM rig (the real-time test)\n### Model\n'
+    assert anchors(text) == {"lim-rig", "the-03-ms-lim-rig-the-real-time-test", "model"}
+
+
+def test_every_plants_md_anchor_referenced_exists(checkout):
+    defined = anchors(PLANTS_MD.read_text(encoding="utf-8"))
+    refs: dict[str, list[str]] = {}
+    for hit in _grep(r"plants\.md#[A-Za-z0-9_-]+"):
+        where = hit.split(":", 2)
+        for anchor in ANCHOR_REF.findall(where[2]):
+            refs.setdefault(anchor, []).append(f"{where[0]}:{where[1]}")
+    # the plant modules, the observer and the configs all point into the page
+    referring = {loc.split(":")[0] for locs in refs.values() for loc in locs}
+    for path in ("pyrhonn/plants/lim.py", "pyrhonn/plants/robot.py", "pyrhonn/plants/oscillator.py",
+                 "pyrhonn/baselines/honn_observer.py", "pyrhonn/configs/example3.toml"):
+        assert path in referring, f"{path} no longer links to docs/plants.md"
+    missing = {a: locs for a, locs in refs.items() if a not in defined}
+    assert not missing, "docs/plants.md has no section for: " + "; ".join(
+        f"#{a} (from {', '.join(locs)})" for a, locs in sorted(missing.items()))
+
+
+def _section(markdown: str, anchor: str) -> str:
+    """The text of docs/plants.md from ``<a id="anchor">`` to the next explicit anchor."""
+    start = markdown.index(f'<a id="{anchor}"></a>')
+    nxt = markdown.find('<a id="', start + 1)
+    return markdown[start:nxt if nxt >= 0 else None]
+
+
+def _table_values(section: str) -> dict[str, float]:
+    """``{field: value}`` from the rows of a parameter table: the code column
+    (2nd) names the field(s) in backticks, the 4th column holds the number."""
+    out: dict[str, float] = {}
+    for line in section.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) < 4 or not cells[1].startswith("`"):
+            continue
+        for name in re.findall(r"`([A-Za-z_0-9]+)`", cells[1]):
+            out[name] = float(cells[3].replace(",", ""))
+    return out
+
+
+@pytest.mark.parametrize("anchor, params", [("lim-parameters", lim.LimParams()),
+                                            ("robot-parameters", robot.RobotParams())])
+def test_plants_md_parameter_tables_match_the_code_defaults(anchor, params):
+    table = _table_values(_section(PLANTS_MD.read_text(encoding="utf-8"), anchor))
+    names = {f.name for f in fields(params)}
+    assert set(table) == names, f"#{anchor}: table rows {sorted(table)} vs fields {sorted(names)}"
+    for name, value in table.items():
+        assert getattr(params, name) == pytest.approx(value, rel=1e-12), f"#{anchor}: {name}"
+
+
+def test_plants_md_lim_constants_match_the_code():
+    text = _section(PLANTS_MD.read_text(encoding="utf-8"), "lim-parameters")
+    stated = dict(re.findall(r"\b(k\d+) = (-?[0-9]+(?:\.[0-9]+)?(?:e-?[0-9]+)?)", text.split("Derived", 1)[1]))
+    k = lim.LimParams().constants()
+    assert set(stated) == {f.name for f in fields(k)}
+    for name, value in stated.items():
+        digits = len(value.lstrip("-").split("e")[0].replace(".", "").lstrip("0"))
+        assert getattr(k, name) == pytest.approx(float(value), rel=0.6 * 10.0 ** (1 - digits)), name
