@@ -1,8 +1,28 @@
-"""Build hook: compiles the C core into the two cffi extensions.
+"""Build hook: compiles the C core into the two cffi extensions, and ships the
+core's public headers inside the package (``pyrhonn/core_include``), so that
+an installed pyrhonn can measure ``sizeof(rhonn_t)`` for an exported
+identifier (``pyrhonn.export``) without the source tree.
 
 All project metadata lives in pyproject.toml; setuptools reads cffi_modules
-only from setup(), so this file carries that one argument.
+and cmdclass only from setup(), so this file carries those two arguments.
 """
-from setuptools import setup
+import shutil
+from pathlib import Path
 
-setup(cffi_modules=["pyrhonn/_build.py:ffi_f64", "pyrhonn/_build.py:ffi_f32", "pyrhonn/_build.py:ffi_fwapp"])
+from setuptools import setup
+from setuptools.command.build_py import build_py
+
+
+class BuildPyWithCoreHeaders(build_py):
+    """build_py, then csrc/include/*.h copied into the built package."""
+
+    def run(self) -> None:
+        super().run()
+        dst = Path(self.build_lib) / "pyrhonn" / "core_include"
+        dst.mkdir(parents=True, exist_ok=True)
+        for header in sorted(Path("csrc/include").glob("*.h")):
+            shutil.copyfile(header, dst / header.name)
+
+
+setup(cmdclass={"build_py": BuildPyWithCoreHeaders},
+      cffi_modules=["pyrhonn/_build.py:ffi_f64", "pyrhonn/_build.py:ffi_f32", "pyrhonn/_build.py:ffi_fwapp"])

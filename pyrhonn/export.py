@@ -193,8 +193,13 @@ def capacity_text(source: Identifier | IdentifierConfig, name: str, rhonn_t_size
 
 
 def _default_include_dir() -> Path | None:
-    here = Path(__file__).resolve().parent.parent / "csrc" / "include"
-    return here if (here / "rhonn.h").is_file() else None
+    """The core's headers: the source tree's csrc/include, else the copy an
+    installed pyrhonn ships (pyrhonn/core_include, see setup.py)."""
+    for here in (Path(__file__).resolve().parent.parent / "csrc" / "include",
+                 Path(__file__).resolve().parent / "core_include"):
+        if (here / "rhonn.h").is_file():
+            return here
+    return None
 
 
 def measure_rhonn_t_size(capacity_header: str, dtype: str, *, include_dir: str | Path | None = None,
