@@ -618,12 +618,15 @@ static size_t row_start(size_t r, size_t L)
     return r * (2u * L + 1u - r) / 2u;
 }
 
-/* U D U^T factorisation of the packed symmetric P into F (D on the diagonal,
- * U's strict upper triangle beside it), from the last column back. Returns 1
- * when every pivot d_j is a positive finite number, else 0 with F partly
- * written. About L^3/6 multiply-adds and L divisions; the row offsets are
- * tabulated once so the inner loops are plain strided dot products. */
-RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHONN_RESTRICT F, const size_t L)
+/* U D U^T factorisation of the packed symmetric C = S P S, S = diag(sc),
+ * into F (D on the diagonal, U's strict upper triangle beside it), from the
+ * last column back; each entry of C is formed as (P_ij sc_i) sc_j where it
+ * is read, so C is never stored. Returns 1 when every pivot d_j is a
+ * positive finite number, else 0 with F partly written. About L^3/6
+ * multiply-adds and L divisions; the row offsets are tabulated once so the
+ * inner loops are plain strided dot products. */
+RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, const rhonn_real *RHONN_RESTRICT sc,
+                            rhonn_real *RHONN_RESTRICT F, const size_t L)
 {
     rhonn_real t[RHONN_MAX_TERMS], d[RHONN_MAX_TERMS];
     size_t rs[RHONN_MAX_TERMS];
@@ -637,7 +640,7 @@ RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHON
     for (j = L; j-- > 0u;) {
         const rhonn_real *RHONN_RESTRICT uj = F + rs[j] + 1u; /* U(j, j+1..L-1) */
         const size_t tail = L - 1u - j;
-        rhonn_real dj = P[rs[j]], inv;
+        rhonn_real dj = (P[rs[j]] * sc[j]) * sc[j], inv;
         size_t i, k;
         /* t_k = d_k U(j,k) for the columns k > j already factorised */
         RHONN_UNROLL_LOOP
@@ -656,7 +659,7 @@ RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHON
         RHONN_UNROLL_LOOP
         for (i = 0; i < j; ++i) {
             rhonn_real *RHONN_RESTRICT fi = F + rs[i] + (j - i); /* U(i, j..L-1) */
-            rhonn_real a = P[rs[i] + (j - i)];
+            rhonn_real a = (P[rs[i] + (j - i)] * sc[i]) * sc[j];
             RHONN_UNROLL_LOOP
             for (k = 0; k < tail; ++k) {
                 a -= fi[1u + k] * t[k];
@@ -707,8 +710,7 @@ static rhonn_real half_exponent_scale(rhonn_real v)
 RHONN_INLINE int scaled_udu(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHONN_RESTRICT F,
                             rhonn_real *RHONN_RESTRICT sc, const size_t L)
 {
-    rhonn_real C[RHONN_MAX_PACKED];
-    size_t i, j, idx;
+    size_t i, idx;
     for (i = 0, idx = 0; i < L; idx += L - i, ++i) {
         const rhonn_real v = P[idx];
         if (!(v >= RHONN_MIN_NORMAL) || !is_finite(v)) {
@@ -716,14 +718,7 @@ RHONN_INLINE int scaled_udu(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHON
         }
         sc[i] = half_exponent_scale(v);
     }
-    RHONN_UNROLL_LOOP
-    for (i = 0, idx = 0; i < L; ++i) {
-        RHONN_UNROLL_LOOP
-        for (j = i; j < L; ++j, ++idx) {
-            C[idx] = (P[idx] * sc[i]) * sc[j];
-        }
-    }
-    return udu_factor(C, F, L);
+    return udu_factor(P, sc, F, L);
 }
 
 RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L)
