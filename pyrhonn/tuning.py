@@ -123,6 +123,7 @@ import json
 import math
 import os
 import re
+import socket
 import threading
 import warnings
 from concurrent.futures import ThreadPoolExecutor
@@ -1212,7 +1213,10 @@ def _run_trials(study: Any, claim: _Claim, problem: _Problem, config: Identifier
     lock = threading.Lock()
     ran = [0]
 
+    worker_name = f"{socket.gethostname()}:{os.getpid()}"
+
     def objective(trial: Any) -> float:
+        trial.set_user_attr("worker", worker_name)
         if selector is None:
             values = {d.name: trial.suggest_float(d.name, d.low, d.high, log=True) for d in space}
             score = problem.score(apply_values(config, space, values))
