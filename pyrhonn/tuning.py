@@ -565,27 +565,27 @@ def search_space(config: IdentifierConfig, *, params: Sequence[str] = PARAMETERS
 def apply_values(config: IdentifierConfig, space: Sequence[Dimension], values: Mapping[str, float]) -> IdentifierConfig:
     """``config`` with every dimension of ``space`` set to ``values[name]``
     rounded to 3 significant digits (the config :func:`tune` evaluates)."""
-    changes: list[dict[str, float]] = [{} for _ in config.neurons]
-    for dim in space:
-        if dim.name not in values:
-            raise fail("values", f"missing {dim.name!r}")
-        v = _round(check_real(f"values[{dim.name!r}]", values[dim.name], positive=True))
-        for i in dim.neurons:
-            changes[i][dim.param] = v
-    neurons = tuple(replace(nr, **ch) if ch else nr for nr, ch in zip(config.neurons, changes))
-    return config.replace(neurons=neurons)
+    return _apply(config, space, values, relative=False)
 
 
 def apply_factors(config: IdentifierConfig, space: Sequence[Dimension], values: Mapping[str, float]) -> IdentifierConfig:
     """``config`` with every dimension of a relative ``space`` applied as a
     factor (rounded to 3 significant digits) of each neuron's own value
     (structure search: the selected config's P0, Q, R, eta and beta)."""
+    return _apply(config, space, values, relative=True)
+
+
+def _apply(config: IdentifierConfig, space: Sequence[Dimension], values: Mapping[str, float],
+           relative: bool) -> IdentifierConfig:
     changes: list[dict[str, float]] = [{} for _ in config.neurons]
     for dim in space:
         if dim.name not in values:
             raise fail("values", f"missing {dim.name!r}")
         v = _round(check_real(f"values[{dim.name!r}]", values[dim.name], positive=True))
         for i in dim.neurons:
+            if not relative:
+                changes[i][dim.param] = v
+                continue
             own = getattr(config.neurons[i], dim.param)
             if isinstance(own, np.ndarray):
                 raise fail(f"config.neurons[{i}].{dim.param}", "a factor applies to a scalar value, not an array")

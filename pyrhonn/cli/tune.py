@@ -492,9 +492,13 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise _named(exc) from None
     note = _note(result, config_source, traj.label)
-    description = f"{cf.description.rstrip()}\n\n{note}\n" if cf.description.strip() else f"{note}\n"
+    own, why = cf.description, cf.why
+    if result.selection is not None:  # the terms are the selection's: so are the texts that explain them
+        selected = result.selection.config_file(cf.state_names, cf.input_names)
+        own, why = selected.description, selected.why
+    description = f"{own.rstrip()}\n\n{note}\n" if own.strip() else f"{note}\n"
     tuned = ConfigFile(config=result.config, state_names=cf.state_names, input_names=cf.input_names,
-                       description=description, why=cf.why)
+                       description=description, why=why)
     atomic.write_text(opts.out, dumps(tuned))  # replaced whole: an interrupted write leaves the previous file
 
     c = result.counts
