@@ -3,7 +3,9 @@
 :func:`tune` searches the EKF tuning of eq. 7-8 (P_i(0), Q_i, R_i, eta_i)
 and the activation slope beta_i of a base :class:`~pyrhonn.config.IdentifierConfig`
 with optuna's TPE sampler, keeping the base config's terms, activations, w0
-and x0. :func:`held_out_score` is the objective it minimises, usable on its own.
+and x0; with ``structure=`` it searches the terms too, through the selection
+settings of :mod:`pyrhonn.structure` (see Structure search).
+:func:`held_out_score` is the objective it minimises, usable on its own.
 
 The objective (exactly)
 -----------------------
@@ -30,6 +32,21 @@ the mean over states of the held-out one-step-ahead RMSE in units of the
 state's standard deviation over its held-out targets, so that states of
 different magnitudes weigh the same (0 is perfect; predicting each state by
 its held-out mean would score 1). The RMSE is :func:`pyrhonn.metrics.rmse`.
+
+Blocked cross-validation (``folds`` = K > 1)
+---------------------------------------------
+The held-out part N..T-1 is cut into K contiguous blocks (:func:`fold_bounds`:
+b_f = N + floor(f (T - N) / K)). Fold f (1..K) *trains* on samples 0..N_f-1
+(N_f = b_{f-1}) and *scores* samples N_f..E_f-1 (E_f = b_f): the candidate
+runs from sample 0, learning online through the training part and through
+its block, and the objective above is computed on the block's targets alone
+(RMSE_fj / s_fj, s_fj the std of the block's targets). A trial scores the
+mean over folds and states. No fold sees a sample after its block: this is
+forward-chaining (rolling-origin) validation, as the identifier runs online.
+Without structure search every fold's run is a prefix of the same run, so one
+run serves all folds; with it each fold runs the selection made on its own
+training part. K = 1 is the single split. Each fold needs two valid targets
+per state.
 
 A trial *fails* when the C core refuses its config (``ValueError`` at
 construction, e.g. a P0 that float32 cannot hold), when the run stops
@@ -80,13 +97,50 @@ never worse than the base. Whatever happens, :attr:`TuneResult.config` is
 the base config itself when no trial beats it.
 
 The sampler is ``optuna.samplers.TPESampler(seed=seed, multivariate=True,
-n_startup_trials=10, constant_liar=n_jobs > 1)``.
+n_startup_trials=10)`` (seed and ``constant_liar``: see below).
 
-Study file (resuming)
----------------------
-``study_path`` keeps the study in a file, so a later call with the same path
-adds trials to it (the trial count continues; ``n_trials`` is the number of
-*new* trials). The storage follows the suffix:
+Structure search (``structure=StructureSearch(...)``)
+-----------------------------------------------------
+Each trial also draws the selection settings (integers, uniformly by TPE):
+the deepest state tap ``max_delay``, the ``degree`` of the products and the
+most terms per neuron ``max_terms``; the stopping rule (``criterion``,
+default the extended BIC) picks each neuron's terms up to ``max_terms``.
+For each fold, :func:`pyrhonn.structure.select` runs on the fold's training
+part only (samples 0..N_f-1; selections are cached per fold and settings),
+and the selected config (its terms, least-squares w0, and P0, Q, R from its
+fit) is tuned by *factors*: every searched P0, Q, R, eta, beta is the
+selected neuron's own value times a factor drawn log-uniformly in
+:data:`DEFAULT_FACTORS` (``ranges`` then gives factor ranges). The candidate
+is scored as above. The base config is scored as usual and only names the
+states, inputs and dtype; it is the result when no trial beats it. A
+selection that refuses the settings (too few rows for ``max_terms``) fails
+the trial. The written config is the best trial's selection on the training
+part of the last fold (the single split's training part when K = 1) with its
+factors; it scores the last fold's part of the recorded value (exactly the
+recorded value when K = 1).
+
+The study: files, databases, workers
+------------------------------------
+``study_path`` keeps the study, so that a later call, or other workers on
+this or other machines, add trials to it. ``n_trials`` is the number of
+trials the study holds when the call returns: every worker counts all the
+study's trials (scored, failed, errored, running elsewhere; those of
+earlier calls too) and asks for a new one only while there are fewer than
+``n_trials``, holding a lock across the count and the ask (a PostgreSQL
+advisory lock for a database, ``flock`` on the file otherwise, and a thread
+lock), so two workers with ``n_trials = 20`` run 20 together, and a study
+resumes with a larger ``n_trials``. A killed worker's trial stays RUNNING
+and counts. Each trial records the ``worker`` (host:pid) that ran it.
+``study_path`` is a database URL when it has the form ``scheme://...``
+(:func:`check_study`):
+
+- ``postgresql://user[:password]@host[:port]/database`` (SQLAlchemy through
+  optuna's ``RDBStorage``, driver psycopg2 if installed, else psycopg;
+  ``postgresql+psycopg://`` names it): the way to share a study between
+  machines. The database must exist; optuna creates its tables.
+- ``sqlite:///relative/path.db`` or ``sqlite:////absolute/path.db``.
+
+Anything else is a file path, whose suffix chooses the storage:
 
 - ``.log`` (recommended): optuna's ``JournalStorage`` with a
   ``JournalFileBackend``, an append-only JSON-lines file locked with
@@ -100,16 +154,21 @@ adds trials to it (the trial count continues; ``n_trials`` is the number of
   journal file is the better choice.
 
 The study is named :data:`STUDY_NAME` and records the tuning setup (a hash of
-the base config and of the data, the train fraction and the search space) in
+the base config and of the data, the train fraction, the folds, the structure
+search settings and the search space) in
 its user attributes; resuming with a different setup is refused with a
 ``ValueError`` naming what differs (trials of different problems cannot be
-compared). A file that is not a readable study raises ``ValueError``. On
-resuming, the sampler's seed is ``seed + number of trials already in the
-study``, so the random start-up trials are not repeated.
+compared). A file that is not a readable study, a database that cannot be
+reached, and a bad URL raise ``ValueError`` naming ``study_path``. The
+sampler's seed is ``seed + the number of calls that joined the study
+before`` (counted in the study under the same lock), so neither a resumed
+run nor two workers given the same seed repeat each other's random start-up
+trials. TPE runs with ``constant_liar`` whenever other trials may be running
+(``n_jobs`` > 1 or a stored study).
 
 Parallel trials
 ---------------
-``n_jobs`` > 1 runs trials in that many threads (optuna's ``n_jobs``); the C
+``n_jobs`` > 1 runs trials in that many threads of this call; the C
 core releases the GIL while it runs, so long trajectories run in parallel.
 With ``n_jobs = 1`` a seed reproduces the search exactly; with more, the
 order in which trials finish, and so the search, depends on timing.
