@@ -72,14 +72,15 @@ def postgres_url() -> Iterator[str]:
     started = False
     try:
         init = subprocess.run([*as_user, str(bindir / "initdb"), "-D", str(data), "-U", "pyrhonn", "--auth=trust",
-                               "-E", "UTF8", "--no-sync"], capture_output=True, text=True, timeout=120)
+                               "-E", "UTF8", "--no-sync"], capture_output=True, text=True, timeout=120,
+                              cwd=folder)  # a folder 'nobody' may enter (the checkout may be private)
         if init.returncode != 0:
             unavailable(f"initdb failed: {init.stderr.strip()[-300:]}")
         options = (f"-p {port} -k {folder} -c listen_addresses=127.0.0.1 -c fsync=off "
                    "-c synchronous_commit=off -c full_page_writes=off")
         start = subprocess.run([*as_user, str(bindir / "pg_ctl"), "-D", str(data), "-o", options, "-l",
                                 str(folder / "server.log"), "-w", "-t", "60", "start"],
-                               capture_output=True, text=True, timeout=120)
+                               capture_output=True, text=True, timeout=120, cwd=folder)
         started = True  # pg_ctl may have started it even when it reports a failure
         if start.returncode != 0:
             log = (folder / "server.log").read_text(errors="replace") if (folder / "server.log").exists() else ""
@@ -88,7 +89,7 @@ def postgres_url() -> Iterator[str]:
     finally:
         if started:
             stop = subprocess.run([*as_user, str(bindir / "pg_ctl"), "-D", str(data), "-m", "immediate", "-w",
-                                   "-t", "30", "stop"], capture_output=True, text=True, timeout=60)
+                                   "-t", "30", "stop"], capture_output=True, text=True, timeout=60, cwd=folder)
             pidfile = data / "postmaster.pid"
             if stop.returncode != 0 and pidfile.exists():  # last resort: the postmaster by its own pid
                 try:
