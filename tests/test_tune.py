@@ -113,8 +113,10 @@ def test_resuming_a_study_continues_the_trial_count(tmp_path: Path, traj: Trajec
     study = tmp_path / f"study{suffix}"
     first = tuning.tune(base, traj.X_meas, traj.U, n_trials=3, study_path=study)
     assert first.counts.total == 3 and study.is_file()
-    second = tuning.tune(base, traj.X_meas, traj.U, n_trials=2, study_path=study, seed=5)
-    assert second.counts.total == 5 and second.new_trials == 2
+    second = tuning.tune(base, traj.X_meas, traj.U, n_trials=5, study_path=study, seed=5)
+    assert second.counts.total == 5 and second.new_trials == 2  # n_trials is the study's total
+    again = tuning.tune(base, traj.X_meas, traj.U, n_trials=4, study_path=study)
+    assert again.counts.total == 5 and again.new_trials == 0
     assert second.best is not None and first.best is not None and second.best.value <= first.best.value
     with pytest.raises(ValueError, match="different tuning problem.*train fraction"):
         tuning.tune(base, traj.X_meas, traj.U, n_trials=1, study_path=study, train_fraction=0.5)
@@ -228,8 +230,8 @@ def test_cli_resumes_a_study(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     args = ["--example", "example1", "--horizon", "30", "--config", "example1", "--out", str(tmp_path / "t.toml"),
             "--study", str(tmp_path / "s.db"), "--n-jobs", "2"]
     assert run_cli([*args, "--trials", "3"], capsys)[0] == 0
-    code, stdout, _ = run_cli([*args, "--trials", "2"], capsys)
-    assert code == 0 and "2 new trials; the study has 5:" in stdout
+    code, stdout, _ = run_cli([*args, "--trials", "5"], capsys)
+    assert code == 0 and "ran 2 trials; the study has 5:" in stdout
 
 
 @pytest.fixture

@@ -18,9 +18,23 @@ For an example, the reference is the plant's true state at every held-out
 sample (hold windows included, as ``pyrhonn reproduce`` scores); for a data
 file, the measurements at the valid held-out samples.
 
-``--study FILE`` keeps the optuna study in a file (``.log``: an optuna journal
-file, recommended; ``.db``: SQLite, slower per trial) so that running the same command again adds
-``--trials`` more trials to it. ``--per-neuron`` searches one value per
+``--folds K`` scores blocked cross-validation instead: the held-out part is
+cut into K contiguous folds; fold f learns from sample 0 on and is scored on
+its own block, and a trial's score is the mean over the folds
+(:func:`pyrhonn.tuning.fold_bounds`).
+
+``--structure`` also searches the selection settings of ``pyrhonn select``
+(``--max-delay``, ``--degree``, ``--max-terms``, each ``LOW:HIGH`` or one
+value): every trial selects the terms on the training part (of each fold)
+and tunes factors of the selected P0, Q, R, eta and beta.
+
+``--study`` keeps the optuna study: a file (``.log``: an optuna journal
+file, recommended; ``.db``: SQLite, slower per trial) or a database URL
+(``postgresql://user@host/db``, ``sqlite:///path``) that workers on several
+machines share. ``--trials N`` is the number of trials the study holds when
+the command ends, counting those of earlier runs and of every worker sharing
+the study: two workers with ``--trials 20`` run 20 together, and running the
+same command again with a larger N resumes. ``--per-neuron`` searches one value per
 neuron instead of one shared value; ``--params`` limits the searched
 parameters; ``--range NAME=LOW:HIGH`` (repeatable) replaces a default range.
 
@@ -48,7 +62,8 @@ import numpy as np
 from .options import options_named, real_option
 from .. import __version__
 from .. import atomic, tuning
-from ..config import DTYPES
+from ..config import DTYPES, Activation
+from ..structure import FACTOR_NAMES, Criterion
 from ..configfile import ConfigFile, dumps, is_path, load_named
 from ..datafile import check_suffix, read_data
 
@@ -73,11 +88,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--config", metavar="BASE", help="base config: a .toml file or a shipped config name")
     p.add_argument("--out", metavar="TUNED.toml", help="where to write the tuned config")
     p.add_argument("--trials", metavar="N", default=str(DEFAULT_TRIALS),
-                   help=f"new trials to run (default {DEFAULT_TRIALS})")
+                   help=f"trials the study holds when done, counting earlier runs and every worker sharing "
+                        f"--study: two workers with --trials 20 run 20 together (default {DEFAULT_TRIALS})")
     p.add_argument("--n-jobs", metavar="J", default="1", help="trials run in parallel threads (default 1)")
-    p.add_argument("--study", metavar="FILE",
-                   help="optuna study file to create or resume: .log (optuna journal file, fast) or .db "
-                        "(SQLite)")
+    p.add_argument("--study", metavar="FILE|URL",
+                   help="optuna study to create, resume or share: a .log (optuna journal file, fast) or .db "
+                        "(SQLite) file, or a database URL that workers on several machines share: "
+                        "postgresql://user@host/db (needs psycopg) or sqlite:///path")
     p.add_argument("--seed", metavar="S", default="0", help="seed of the TPE sampler (default 0)")
     p.add_argument("--train-fraction", metavar="F", default=str(tuning.DEFAULT_TRAIN_FRACTION),
                    help=f"share of the samples used for training (default {tuning.DEFAULT_TRAIN_FRACTION})")
@@ -87,8 +104,102 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--params", metavar="LIST", default=",".join(tuning.PARAMETERS),
                    help=f"comma-separated parameters to search (default {','.join(tuning.PARAMETERS)})")
     p.add_argument("--range", metavar="NAME=LOW:HIGH", action="append", default=[],
-                   help="absolute log-uniform range of a parameter, e.g. p0=1e4:1e10 (repeatable)")
+                   help="absolute log-uniform range of a parameter, e.g. p0=1e4:1e10 (repeatable); with "
+                        "--structure a range of factors of the selected value, e.g. p0=0.01:100")
+    p.add_argument("--folds", metavar="K", default="1",
+                   help="blocked cross-validation: cut the held-out part into K contiguous folds; fold f "
+                        "learns from sample 0 and is scored on its block; a trial scores the mean over "
+                        "folds (default 1: the single split)")
+    st = p.add_argument_group("structure search (--structure; off by default)")
+    st.add_argument("--structure", action="store_true",
+                    help="also search the settings of pyrhonn select: each trial selects the terms on the "
+                         "training part (of each fold), then runs the online EKF tuned by factors of the "
+                         "selected P0, Q, R, eta, beta; --config then only names the columns and the dtype")
+    defaults = tuning.StructureSearch()
+    for name, option in _STRUCTURE_OPTIONS.items():
+        lo, hi = getattr(defaults, name)
+        what = {"max_delay": "deepest state tap x(k-D)", "degree": "products of up to G factors",
+                "max_terms": "at most L terms per neuron (the stopping rule picks fewer)"}[name]
+        st.add_argument(option, metavar="LOW:HIGH", help=f"{what}, searched in LOW..HIGH, or one value "
+                                                         f"(default {lo}:{hi})")
+    st.add_argument("--delay-step", metavar="S", help="state taps every S samples (default 1)")
+    st.add_argument("--factors", metavar="KINDS",
+                    help="factor kinds among S, x, u, 1 (default S,u,1; S,1 without inputs)")
+    st.add_argument("--activation", metavar="NAMES", help="activations the selection tries (default "
+                                                          "bipolar,logistic)")
+    st.add_argument("--criterion", metavar="RULE", help="stopping rule of the selection: ebic (default), bic, "
+                                                        "aic or holdout")
+    st.add_argument("--holdout", metavar="F", help="with --criterion holdout, the last fraction F of the "
+                                                   "training rows scores the path (default 0.2)")
     p.set_defaults(func=run)
+
+
+_STRUCTURE_OPTIONS = {"max_delay": "--max-delay", "degree": "--degree", "max_terms": "--max-terms"}
+_STRUCTURE_FIELDS = {**_STRUCTURE_OPTIONS, "delay_step": "--delay-step", "factors": "--factors",
+                     "activations": "--activation", "criterion": "--criterion", "holdout": "--holdout"}
+
+
+def _int_range(option: str, text: str) -> tuple[int, int]:
+    low_text, colon, high_text = text.partition(":")
+    try:
+        low = int(low_text)
+        high = int(high_text) if colon else low
+    except ValueError:
+        raise ValueError(f"{option}: expected LOW:HIGH or one whole number, got {text!r}") from None
+    if low > high:
+        raise ValueError(f"{option}: expected LOW <= HIGH, got {text!r}")
+    return low, high
+
+
+def _structure(args: argparse.Namespace, n_inputs: int) -> tuning.StructureSearch | None:
+    given = [opt for opt in _STRUCTURE_FIELDS.values()
+             if getattr(args, opt.removeprefix("--").replace("-", "_")) is not None]
+    if not args.structure:
+        if given:
+            raise ValueError(f"{given[0]}: only with --structure")
+        return None
+    kw: dict[str, object] = {}
+    for name, option in _STRUCTURE_OPTIONS.items():
+        if getattr(args, name) is not None:
+            kw[name] = _int_range(option, getattr(args, name))
+    if args.delay_step is not None:
+        kw["delay_step"] = _int("--delay-step", args.delay_step, 1)
+    if args.factors is not None:
+        names = tuple(f.strip() for f in args.factors.split(","))
+        for f in names:
+            if f not in FACTOR_NAMES:
+                raise ValueError(f"--factors: {f!r} is not a factor kind; expected some of {', '.join(FACTOR_NAMES)}")
+        kw["factors"] = names
+    elif n_inputs == 0:
+        kw["factors"] = ("S", "1")
+    if args.activation is not None:
+        acts = []
+        for name in args.activation.split(","):
+            try:
+                acts.append(Activation(name.strip()))
+            except ValueError:
+                raise ValueError(f"--activation: {name.strip()!r}: expected bipolar or logistic") from None
+        kw["activations"] = tuple(acts)
+    if args.criterion is not None:
+        if args.criterion not in [c.value for c in Criterion]:
+            raise ValueError(f"--criterion: expected one of {', '.join(c.value for c in Criterion)}, got "
+                             f"{args.criterion!r}")
+        kw["criterion"] = Criterion(args.criterion)
+    if args.holdout is not None:
+        kw["holdout"] = real_option("--holdout", args.holdout)
+    try:
+        return tuning.StructureSearch(**kw)  # type: ignore[arg-type]
+    except ValueError as exc:
+        raise _named(exc) from None
+
+
+def _named(exc: ValueError) -> ValueError:
+    """A library error naming a field (``study_path: ...``, ``structure.max_delay: ...``) as its option."""
+    field, sep, rest = str(exc).partition(": ")
+    key = field.removeprefix("structure.").split(".")[0].split("[")[0]
+    option = {"study_path": "--study", "train_fraction": "--train-fraction", "folds": "--folds",
+              **_STRUCTURE_FIELDS}.get(key) if sep else None
+    return ValueError(f"{option}: {rest}") if option else exc
 
 
 # -- options -----------------------------------------------------------------------------------------
@@ -115,7 +226,8 @@ class Options:
     dt: float | None
     horizon: float | None
     out: Path
-    study: Path | None
+    study: tuning.StudyStorage | None
+    folds: int
 
 
 def _check_out(text: str | None) -> Path:
@@ -202,17 +314,18 @@ def _parse(args: argparse.Namespace) -> Options:
             raise ValueError(f"--range: {text!r}: expected 0 < LOW < HIGH")
         ranges[name] = (low, high)
     out = _check_out(args.out)
+    folds = _int("--folds", args.folds, 1)
     study = None
     if args.study is not None:
         try:
-            study = tuning.check_study_path(args.study)
+            study = tuning.check_study(args.study)
         except ValueError as exc:
-            raise ValueError(f"--study: {str(exc).partition(': ')[2]}") from None
-        if study.resolve() == out.resolve():
+            raise _named(exc) from None
+        if study.path is not None and study.path.resolve() == out.resolve():
             raise ValueError("--study and --out name the same file")
     if is_path(args.config) and Path(args.config).resolve() == out.resolve():
         raise ValueError("--out: would overwrite the base config --config; write the tuned config elsewhere")
-    return Options(trials, n_jobs, seed, fraction, params, ranges, dt, horizon, out, study)
+    return Options(trials, n_jobs, seed, fraction, params, ranges, dt, horizon, out, study, folds)
 
 
 # -- the trajectory -------------------------------------------------------------------------------------
@@ -261,18 +374,36 @@ def _data(path: str, cf: ConfigFile, config_source: str, valid_suffix: str) -> T
 
 def _what(result: tuning.TuneResult) -> str:
     names = ", ".join(dict.fromkeys(d.param for d in result.space))
-    return f"{names} ({'one value per neuron' if result.per_neuron else 'shared by all neurons'})"
+    what = f"{names} ({'one value per neuron' if result.per_neuron else 'shared by all neurons'})"
+    if result.structure is None:
+        return what
+    ranges = ", ".join(f"{name.replace('_', ' ')} {lo}..{hi}" for name, lo, hi in result.structure.dimensions())
+    return f"the selection's {ranges} and factors of the selected {what}"
+
+
+def _scheme(split: tuning.Split) -> str:
+    """What is trained and what is scored, in words."""
+    if len(split.folds) <= 1:
+        return (f"learning on samples 0..{split.n_train - 1}, scored one step ahead on samples {split.n_train}.."
+                f"{split.n_samples - 1} with learning on")
+    return (f"{len(split.folds)} folds, fold f learning from sample 0 and scored one step ahead on its block ("
+            + ", ".join(f"{n}..{e - 1}" for n, e in split.folds) + ") with learning on, mean over folds")
 
 
 def _note(result: tuning.TuneResult, config_source: str, label: str) -> str:
     s = result.split
     base = "diverged" if result.base is None else f"{result.base.value:.6g}"
     tuned = f"{result.best.value:.6g}" if result.best is not None else "n/a"
+    structure = ""
+    if result.best_structure:
+        last = s.folds[-1][0] if s.folds else s.n_train
+        structure = (f" Terms selected by pyrhonn select on samples 0..{last - 1} with " + ", ".join(
+            f"{k.replace('_', ' ')} {v}" for k, v in result.best_structure.items())
+                     + f", criterion {result.structure.criterion.value if result.structure else '?'}.")
     head = (f"Tuned by `pyrhonn tune` (pyrhonn {__version__}) from {config_source} on {label}: "
-            f"learning on samples 0..{s.n_train - 1}, scored one step ahead on samples {s.n_train}.."
-            f"{s.n_samples - 1} with learning on; searched {_what(result)} with optuna TPE (seed "
-            f"{result.seed}), {result.counts.total} trials in the study. Held-out score (mean over states "
-            f"of RMSE / std of the held-out targets, pyrhonn.tuning): base {base}, ")
+            f"{_scheme(s)}; searched {_what(result)} with optuna TPE (seed "
+            f"{result.seed}), {result.counts.total} trials in the study.{structure} Held-out score (mean over "
+            f"states of RMSE / std of the held-out targets, pyrhonn.tuning): base {base}, ")
     text = head + (f"tuned {tuned} (trial {result.best_trial})." if result.improved
                    else "no trial beat it: the tuning is the base config's.")
     return textwrap.fill(text, width=90, break_long_words=False, break_on_hyphens=False)
@@ -309,12 +440,16 @@ def _report(result: tuning.TuneResult, cf: ConfigFile) -> str:
     cfg = result.config
     lines.append("tuned values:" if result.improved else "values (base):")
     params = list(dict.fromkeys(d.param for d in result.space))
-    if result.per_neuron:
+    if result.per_neuron or result.selection is not None:
         lines.append("  " + f"{'neuron':<{width}}" + "".join(f"  {p:>10}" for p in params))
         for i, nr in enumerate(cfg.neurons):
             lines.append("  " + f"{names[i]:<{width}}" + "".join(f"  {_value(nr, p):>10}" for p in params))
     else:
         lines.append("  " + ", ".join(f"{p} = {_value(cfg.neurons[0], p)}" for p in params))
+    if result.selection is not None:
+        lines.append("selected structure: " + ", ".join(f"{k.replace('_', ' ')} {v}"
+                                                        for k, v in result.best_structure.items()))
+        lines.append(result.selection.report(list(cf.state_names)))
     return "\n".join(lines)
 
 
@@ -333,6 +468,7 @@ def run(args: argparse.Namespace) -> int:
         traj = _data(args.data, cf, config_source, args.valid_suffix)
     dtype = args.dtype or cf.config.dtype
     base = cf.config if dtype == cf.config.dtype else cf.config.replace(dtype=dtype)
+    structure = _structure(args, base.n_inputs)
 
     import optuna
 
@@ -343,31 +479,38 @@ def run(args: argparse.Namespace) -> int:
         print(f"pyrhonn tune: {message} ({time.perf_counter() - start:.1f} s)", file=sys.stderr, flush=True)
 
     try:
-        N = tuning.split_point(traj.X.shape[0], opts.train_fraction)
-        progress(f"{traj.label}: learning on samples 0..{N - 1}, scoring {N}..{traj.X.shape[0] - 1}; "
-                 f"{opts.trials} trials, {opts.n_jobs} at a time"
-                 + (f", study {opts.study}" if opts.study is not None else ""))
+        T = traj.X.shape[0]
+        split = tuning.Split(T, tuning.split_point(T, opts.train_fraction), (),
+                             tuning.fold_bounds(T, tuning.split_point(T, opts.train_fraction), opts.folds))
+        progress(f"{traj.label}: {_scheme(split)}; until the study holds {opts.trials} trials, {opts.n_jobs} at "
+                 "a time" + (f", study {opts.study.shown}" if opts.study is not None else ""))
         result = tuning.tune(
             base, traj.X, traj.U, traj.valid, truth=traj.truth, train_fraction=opts.train_fraction,
-            n_trials=opts.trials, n_jobs=opts.n_jobs, seed=opts.seed, per_neuron=args.per_neuron,
-            params=opts.params, ranges=opts.ranges or None, study_path=opts.study, progress=progress)
+            folds=opts.folds, n_trials=opts.trials, n_jobs=opts.n_jobs, seed=opts.seed, per_neuron=args.per_neuron,
+            params=opts.params, ranges=opts.ranges or None, structure=structure, study_path=args.study,
+            progress=progress)
     except ValueError as exc:
-        field, _, rest = str(exc).partition(": ")
-        option = {"study_path": "--study", "train_fraction": "--train-fraction"}.get(field)
-        raise ValueError(f"{option}: {rest}" if option else str(exc)) from None
+        raise _named(exc) from None
     note = _note(result, config_source, traj.label)
-    description = f"{cf.description.rstrip()}\n\n{note}\n" if cf.description.strip() else f"{note}\n"
+    own, why = cf.description, cf.why
+    if result.selection is not None:  # the terms are the selection's: so are the texts that explain them
+        selected = result.selection.config_file(cf.state_names, cf.input_names)
+        own, why = selected.description, selected.why
+    description = f"{own.rstrip()}\n\n{note}\n" if own.strip() else f"{note}\n"
     tuned = ConfigFile(config=result.config, state_names=cf.state_names, input_names=cf.input_names,
-                       description=description, why=cf.why)
+                       description=description, why=why)
     atomic.write_text(opts.out, dumps(tuned))  # replaced whole: an interrupted write leaves the previous file
 
     c = result.counts
     print(f"tuned {config_source} on {traj.label}, {dtype}")
-    print(f"learning on samples 0..{result.split.n_train - 1}, scored on {result.split.n_train}.."
-          f"{result.split.n_samples - 1}; searched {_what(result)}")
-    print(f"{result.new_trials} new trials; the study has {c.total}: {c.complete} scored, {c.failed} failed "
-          f"(identifier stopped or diverged)" + (f", {c.errored} errored" if c.errored else "")
-          + (f", {c.running} left running" if c.running else ""))
+    print(f"{_scheme(result.split)}; searched {_what(result)}")
+    print(f"ran {result.new_trials} trials; the study has {c.total}: {c.complete} scored, {c.failed} failed "
+          f"(identifier stopped or diverged" + (", or selection refused" if structure else "") + ")"
+          + (f", {c.errored} errored" if c.errored else "")
+          + (f", {c.running} running or left running" if c.running else ""))
+    if len(result.split.folds) > 1 and result.best is not None:
+        print("score per fold: " + ", ".join(f"{v:.6g}" for v in result.best.folds))
     print(_report(result, cf))
-    print(f"wrote {opts.out}" + (f"; study in {opts.study} (run again to add trials)" if opts.study else ""))
+    print(f"wrote {opts.out}" + (f"; study in {opts.study.shown} (a larger --trials resumes it)"
+                                 if opts.study else ""))
     return 0
