@@ -41,6 +41,12 @@ Example (every key that is not marked required is optional)::
                                        # activation, beta, p0, q, r, eta, and w0
                                        # (w0: list of L_i initial weights, default zeros)
 
+    [bus]                              # optional: where `pyrhonn identify --can-log` finds each state
+    sample_period = 0.01               # and input on a CAN bus (pyrhonn/buslog.py has the rules)
+    clock = "Sensors"
+    [bus.signals]
+    x1 = "Sensors.Position"            # "Message.Signal" of the DBC, for every state and input
+
 Rules
 -----
 - **Keys.** Unknown keys are errors (a misspelt ``bta`` must not silently
@@ -102,6 +108,7 @@ from typing import Any, BinaryIO, Mapping
 import numpy as np
 import tomli_w
 
+from .buslog import BusMap
 from .config import DTYPES, Activation, CovarianceForm, Factor, FactorKind, IdentifierConfig, NeuronConfig, Term
 from .validation import check_int, check_real, decode_text, fail, read_file
 
@@ -134,7 +141,7 @@ TUNING_KEYS = ("activation", "beta", "p0", "q", "r", "eta")
 PROTECTION_KEYS = ("covariance", "forgetting", "p_trace_max", "reset_after")
 
 _TOP_KEYS = ("format", "version", "n_states", "n_inputs", "dtype", "state_names", "input_names", "x0",
-             "description", "defaults", "neurons")
+             "description", "defaults", "neurons", "bus")
 _NEURON_KEYS = ("terms", *TUNING_KEYS, *PROTECTION_KEYS, "w0", "why")
 _NEURON_DEFAULTS: dict[str, Any] = {"activation": Activation.LOGISTIC.value, "beta": 1.0, "p0": 1.0, "q": 0.0,
                                     "r": 1.0, "eta": 1.0}
@@ -290,6 +297,9 @@ class ConfigFile:
     why:
         Per neuron, free text on why it uses its terms; n entries ("" when
         none). An empty tuple is accepted and means "no texts".
+    bus:
+        Where each state and input is on a CAN bus (the ``[bus]`` table,
+        :class:`pyrhonn.buslog.BusMap`), or None.
     """
 
     config: IdentifierConfig
@@ -297,6 +307,7 @@ class ConfigFile:
     input_names: tuple[str, ...]
     description: str = ""
     why: tuple[str, ...] = ()
+    bus: BusMap | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.config, IdentifierConfig):
@@ -314,6 +325,15 @@ class ConfigFile:
         for i, text in enumerate(self.why):
             if not isinstance(text, str):
                 raise fail(f"neurons[{i}].why", f"expected a string, got {type(text).__name__}")
+        if self.bus is not None:
+            if not isinstance(self.bus, BusMap):
+                raise fail("bus", f"expected a BusMap, got {type(self.bus).__name__}")
+            names = (*self.state_names, *self.input_names)
+            for key, table in (("signals", self.bus.signals), ("valid", self.bus.valid)):
+                for name in table:
+                    if name not in names:
+                        raise fail(f"bus.{key}.{name}", f"not one of the config's states and inputs "
+                                                        f"({', '.join(names)})")
 
     @classmethod
     def from_config(
@@ -534,8 +554,9 @@ def _from_document(doc: Mapping[str, Any]) -> ConfigFile:
         raise fail("neurons", f"expected {n} [[neurons]] tables (one per state, n_states = {n}), got {len(raw)}")
     built = [_neuron(i, nr, defaults, n, m) for i, nr in enumerate(raw)]
     config = IdentifierConfig(n_states=n, n_inputs=m, neurons=tuple(nr for nr, _ in built), dtype=dtype, x0=x0)
+    bus = BusMap.from_table(doc["bus"], state_names, input_names) if "bus" in doc else None
     return ConfigFile(config=config, state_names=state_names, input_names=input_names,
-                      description=description, why=tuple(w for _, w in built))
+                      description=description, why=tuple(w for _, w in built), bus=bus)
 
 
 def loads(text: str, source: str = "<string>") -> ConfigFile:
@@ -602,6 +623,8 @@ def _document(cf: ConfigFile) -> dict[str, Any]:
             table["w0"] = d["w0"]
         neurons.append(table)
     doc["neurons"] = neurons
+    if cf.bus is not None:
+        doc["bus"] = cf.bus.to_table()
     return doc
 
 

@@ -1,6 +1,8 @@
 """Measurement files: a CSV of states and inputs named by an identifier config.
 
-Read by ``pyrhonn identify`` and ``pyrhonn tune --data``.
+Read by ``pyrhonn identify`` and ``pyrhonn tune --data``; written by
+:func:`write_data` (``pyrhonn identify --can-log`` writes the samples it
+aligned from a bus log so).
 
 Input file
 ----------
@@ -41,10 +43,11 @@ from pathlib import Path
 
 import numpy as np
 
+from . import atomic
 from .configfile import ConfigFile
 from .validation import decode_text, read_file
 
-__all__ = ["Data", "TIME_COLUMN", "check_suffix", "read_data"]
+__all__ = ["Data", "TIME_COLUMN", "check_suffix", "read_data", "write_data"]
 
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
 _MISSING = ("", "nan", "NaN", "NAN")
@@ -203,3 +206,26 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
                                  "(inputs must be given on every line)")
             U[k, j] = value
     return Data(X=X, U=U, valid=valid, t=t, lines=lines, ignored=ignored)
+
+
+def write_data(path: str | Path, data: Data, cf: ConfigFile, *, valid_suffix: str = "_valid") -> None:
+    """Write ``data`` as a data file that :func:`read_data` reads back equal
+    (``t`` if given, the states, the inputs, a validity column per state; an
+    invalid state's cell empty; floats written exactly), whole or not at all
+    (:mod:`pyrhonn.atomic`)."""
+    check_suffix(valid_suffix)
+    n, m = len(cf.state_names), len(cf.input_names)
+    if data.X.shape != (data.n_samples, n) or data.U.shape != (data.n_samples, m):
+        raise ValueError(f"data: expected X ({data.n_samples}, {n}) and U ({data.n_samples}, {m}) for the config, "
+                         f"got {data.X.shape} and {data.U.shape}")
+    header = ([TIME_COLUMN] if data.t is not None else []) + list(cf.state_names) + list(cf.input_names) + \
+        [f"{name}{valid_suffix}" for name in cf.state_names]
+    with atomic.replacing(path, "w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(header)
+        for k in range(data.n_samples):
+            row = [repr(float(data.t[k]))] if data.t is not None else []
+            row += [repr(float(data.X[k, j])) if data.valid[k, j] else "" for j in range(n)]
+            row += [repr(float(v)) for v in data.U[k]]
+            row += ["1" if v else "0" for v in data.valid[k]]
+            w.writerow(row)

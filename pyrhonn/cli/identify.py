@@ -1,7 +1,11 @@
-"""``pyrhonn identify``: run an identifier on the user's own data (a CSV file).
+"""``pyrhonn identify``: run an identifier on the user's own data (a CSV file or a bus recording).
 
 ``pyrhonn identify data.csv --config cfg.toml [--out DIR] [--dtype float32|float64]
 [--valid-suffix _valid] [--warmup N] [--no-plots]``
+
+``pyrhonn identify --can-log RUN.{blf,asc,log} --dbc FILE --config cfg.toml [...]`` reads the states
+and inputs from a CAN log instead (:mod:`pyrhonn.cli.bus_input`, :mod:`pyrhonn.buslog`), runs and
+writes the same outputs, plus ``samples.csv``, the aligned samples in the CSV format.
 
 Input file
 ----------
@@ -51,9 +55,10 @@ import numpy as np
 from .. import atomic
 from ..config import DTYPES, IdentifierConfig
 from ..configfile import ConfigFile, load_named
-from ..datafile import Data, TIME_COLUMN, check_suffix, read_data
+from ..datafile import Data, TIME_COLUMN, check_suffix, read_data, write_data
 from ..identifier import Identifier, IdentifierError
 from ..metrics import absolute_deviation, rmse
+from . import bus_input
 
 __all__ = ["register", "run"]
 
@@ -76,10 +81,11 @@ def _suffix(text: str) -> str:
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "identify", help="identify a plant from a CSV file of states and inputs",
+        "identify", help="identify a plant from a CSV file of states and inputs (or a CAN log)",
         description="Run the RHONN identifier (C core) on a CSV file whose columns are named by the config; "
                     "write one-step-ahead predictions, metrics (RMSE, absolute deviation) and plots.")
-    p.add_argument("data", metavar="DATA.csv", help="the measurements: header row, then one line per sample")
+    p.add_argument("data", metavar="DATA.csv", nargs="?",
+                   help="the measurements: header row, then one line per sample (or --can-log)")
     p.add_argument("--config", required=True, metavar="CFG",
                    help="identifier config: a .toml file (see pyrhonn show-config) or a shipped config name")
     p.add_argument("--out", metavar="DIR", help="output folder (default: identify-<data file stem>)")
@@ -89,6 +95,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--warmup", type=_nonnegative_int, default=0, metavar="N",
                    help="leave the first N one-step-ahead pairs out of the metrics (default 0)")
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
+    bus_input.add_options(p)
     p.set_defaults(func=run)
 
 
@@ -224,8 +231,10 @@ def _refuse_overwriting_inputs(outputs: Sequence[Path], inputs: dict[str, str]) 
 def run(args: argparse.Namespace) -> int:
     cf = load_named(args.config)
     config_source = args.config
-    source = args.data
-    data = read_data(source, cf, valid_suffix=args.valid_suffix, config_source=config_source)
+    bus_input.check_options(args)
+    bus = bus_input.read(args, cf, config_source) if args.can_log is not None else None
+    source = bus.source if bus else args.data
+    data = bus.data if bus else read_data(source, cf, valid_suffix=args.valid_suffix, config_source=config_source)
     T = data.n_samples
     if T < 2:
         raise ValueError(f"{source}: line {int(data.lines[0])}: only one data row; one-step-ahead "
@@ -235,9 +244,10 @@ def run(args: argparse.Namespace) -> int:
                          "one-step-ahead pairs)")
     out = _output_dir(args.out, source)
     plots = [] if args.no_plots else [out / f"{name}.png" for name in cf.state_names]
-    written = [out / "predictions.csv", out / "metrics.json"] + plots
+    written = [out / "predictions.csv", out / "metrics.json"] + plots + ([out / bus_input.SAMPLES] if bus else [])
     _refuse_overwriting_inputs([*written, out / atomic.MARKER],
-                               {"the data file": source, "the config file": config_source})
+                               {"the data file": source, "the config file": config_source,
+                                **({"the DBC": bus.dbc} if bus else {})})
     dtype = args.dtype or cf.config.dtype
     cfg = cf.config if dtype == cf.config.dtype else cf.config.replace(dtype=dtype)
     xhat0, Xhat = _run_identifier(cfg, data, cf, source, config_source)
@@ -261,8 +271,11 @@ def run(args: argparse.Namespace) -> int:
                           "invalid_samples": int((~data.valid[:, j]).sum())}
                    for j, name in enumerate(cf.state_names)},
         "next_prediction": {name: float(Xhat[-1, j]) for j, name in enumerate(cf.state_names)},
+        **({"bus": bus.report()} if bus else {}),
     }
     with atomic.output_folder(out, "pyrhonn identify"):  # marked INCOMPLETE until every file is in place
+        if bus:
+            write_data(out / bus_input.SAMPLES, data, cf, valid_suffix=args.valid_suffix)
         _write_predictions(out / "predictions.csv", data, cf, xhat0, Xhat)
         atomic.write_text(out / "metrics.json", json.dumps(report, indent=2) + "\n")
         for j, path in enumerate(plots):
@@ -272,6 +285,8 @@ def run(args: argparse.Namespace) -> int:
           f"config {config_source}, {dtype}")
     if data.ignored:
         print("ignored columns: " + ", ".join(data.ignored))
+    for line in bus.summary() if bus else []:
+        print(line)
     print(f"one-step-ahead error over valid targets, warmup {args.warmup}:")
     width = max(5, *(len(s) for s in cf.state_names))
     print(f"  {'state':<{width}}  {'scored':>7}  {'RMSE':>12}  {'abs. dev.':>12}")

@@ -498,7 +498,7 @@ def run(args: argparse.Namespace) -> int:
         own, why = selected.description, selected.why
     description = f"{own.rstrip()}\n\n{note}\n" if own.strip() else f"{note}\n"
     tuned = ConfigFile(config=result.config, state_names=cf.state_names, input_names=cf.input_names,
-                       description=description, why=why)
+                       description=description, why=why, bus=cf.bus)
     atomic.write_text(opts.out, dumps(tuned))  # replaced whole: an interrupted write leaves the previous file
 
     c = result.counts

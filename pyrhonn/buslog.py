@@ -1,0 +1,607 @@
+"""Bus recordings: decode a CAN log with a DBC and align its signals on a sample clock.
+
+Read by ``pyrhonn identify --can-log RUN --dbc FILE``; the result is the same
+arrays a CSV file gives (:class:`pyrhonn.datafile.Data`): states with a
+validity mask, inputs, times.
+
+The binding (:class:`BusMap`, the ``[bus]`` table of a config file)
+----------------------------------------------------------------------
+Every state and input names one DBC signal as ``"Message.Signal"``::
+
+    [bus]
+    sample_period = 0.01          # s; default: the clock message's cycle time in the DBC
+    clock = "Sensors"             # the message whose frames are the samples; default: the first state's
+    window_start = -0.5           # in sample periods, -1..0 (default -0.5, see below)
+
+    [bus.signals]                 # every state and input of the config
+    x1 = "Sensors.Position"
+    u = "Command.Voltage"
+
+    [bus.valid]                   # optional: a state's "measurement updated" flag, in the same frame
+    x1 = "Sensors.PositionValid"
+
+The sample clock
+----------------
+- Each frame of the clock message is one sample, at its timestamp tau_k; the
+  clock follows the sender's own oscillator, so a sender whose clock drifts
+  against the logger's does not walk off a fixed grid.
+- Two consecutive clock frames D apart with round(D / T) = n > 1: n - 1
+  clock frames are missing, and n - 1 samples are inserted, evenly spaced
+  between them. A clock frame less than T/2 after the previous one (n = 0)
+  is a repeat: no new sample.
+- Sample k owns the frames received in ``[tau_k + a T, tau_{k+1} + a T)``
+  (a = ``window_start``); the windows tile the log. The default a = -1/2
+  centres them on the clock frames, so messages sent up to half a period
+  before or after the clock message, each cycle, count for that cycle.
+  Frames before the first window or after the last are not used.
+
+Missing and late messages
+-------------------------
+A signal's value at sample k is the one decoded from the latest frame
+carrying it in sample k's window. Nothing else is ever used:
+
+- No frame in the window (lost, not sent, or late: arrived in a later
+  window): the state is **not valid** at k. The identifier neither learns
+  from it nor feeds it back (it uses its own prediction,
+  :meth:`pyrhonn.Identifier.run`); no value is held or interpolated.
+- A late frame that lands in the next sample's window is taken for that
+  sample if it is the latest there; an earlier frame in a window is
+  superseded (counted). A log carries no sample index: a frame late by
+  more than a period cannot be told from the next sample's.
+- A frame whose data does not decode (a length the DBC does not give, an
+  unknown multiplexer value), a non-finite value, or a ``[bus.valid]`` flag
+  of 0: not valid at k, counted per signal.
+- Inputs have no validity: u(k) is needed on every sample. Samples at the
+  start and end of the log without every input are cut off (said so); an
+  input missing inside the run is an error naming it and the first such
+  sample, never filled in (``start``/``stop``, seconds after the first
+  clock frame, choose a stretch without the gap).
+
+A multiplexed signal counts only in the frames whose multiplexer selects it.
+A ``[bus.valid]`` flag must be carried by every frame that carries its
+value (same message, and not under another multiplexer value).
+
+Supported logs: ``.blf`` and ``.asc`` (Vector; python-can's ``can.Logger``
+writes both), ``.log`` (candump ``-l``). Frames of every channel count;
+error and remote frames are skipped. Every defect raises ``ValueError``
+naming the file, option, key or signal (and the frame, or the line of a
+candump log).
+"""
+from __future__ import annotations
+
+import difflib
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+__all__ = ["Aligned", "BusMap", "LOG_SUFFIXES", "SignalRef", "SignalStats", "align", "load_dbc", "read_bus_log",
+           "read_frames"]
+
+#: the log formats read, by file name suffix
+LOG_SUFFIXES = (".blf", ".asc", ".log")
+_REF = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)\.([A-Za-z_][A-Za-z0-9_]*)\Z")
+_KEYS = ("sample_period", "clock", "window_start", "signals", "valid")
+_WINDOW_RANGE = (-1.0, 0.0)
+#: the clock frames' median interval may differ from the sample period by this fraction
+PERIOD_TOLERANCE = 0.25
+
+
+@dataclass(frozen=True)
+class SignalRef:
+    """A DBC signal ``message.signal``; ``origin`` names where it was given
+    (a config key or a command-line option), for error messages."""
+
+    message: str
+    signal: str
+    origin: str = field(default="", compare=False)
+
+    @classmethod
+    def parse(cls, text: object, origin: str) -> "SignalRef":
+        if not isinstance(text, str):
+            raise ValueError(f"{origin}: expected a string \"Message.Signal\", got {type(text).__name__}")
+        found = _REF.match(text.strip())
+        if not found or text != text.strip():
+            raise ValueError(f"{origin}: expected \"Message.Signal\" (a DBC message name, a dot, one of its "
+                             f"signals), got {text!r}")
+        return cls(found.group(1), found.group(2), origin)
+
+    def __str__(self) -> str:
+        return f"{self.message}.{self.signal}"
+
+
+def _real(path: str, value: object, lo: float | None = None, hi: float | None = None,
+          positive: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{path}: expected a number, got {type(value).__name__}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise ValueError(f"{path}: expected a finite number, got {value!r}")
+    if positive and not v > 0:
+        raise ValueError(f"{path}: must be > 0, got {value!r}")
+    if (lo is not None and v < lo) or (hi is not None and v > hi):
+        raise ValueError(f"{path}: must be in {lo}..{hi}, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class BusMap:
+    """Which DBC signal carries each state and input, and the sample clock
+    (see the module docs). ``signals`` and ``valid`` map config names to
+    :class:`SignalRef`; ``sample_period`` (s) and ``clock`` (a message name)
+    may be None (then the DBC's cycle time and the first state's message)."""
+
+    signals: Mapping[str, SignalRef] = field(default_factory=dict)
+    valid: Mapping[str, SignalRef] = field(default_factory=dict)
+    sample_period: float | None = None
+    clock: str | None = None
+    window_start: float = -0.5
+
+    def __post_init__(self) -> None:
+        for key in ("signals", "valid"):
+            table = getattr(self, key)
+            if not isinstance(table, Mapping):
+                raise ValueError(f"bus.{key}: expected a mapping of names to SignalRef, got {type(table).__name__}")
+            for name, ref in table.items():
+                if not isinstance(ref, SignalRef):
+                    raise ValueError(f"bus.{key}.{name}: expected a SignalRef, got {type(ref).__name__}")
+        if self.sample_period is not None:
+            _real("bus.sample_period", self.sample_period, positive=True)
+        if self.clock is not None and (not isinstance(self.clock, str) or not self.clock):
+            raise ValueError(f"bus.clock: expected a message name, got {self.clock!r}")
+        _real("bus.window_start", self.window_start, *_WINDOW_RANGE)
+        for name in self.valid:
+            if name not in self.signals:
+                raise ValueError(f"bus.valid.{name}: a validity flag for {name!r}, which bus.signals does not "
+                                 "map to a signal")
+
+    @classmethod
+    def from_table(cls, table: object, state_names: Sequence[str], input_names: Sequence[str],
+                   path: str = "bus") -> "BusMap":
+        """The ``[bus]`` table of a config file (a dict from TOML), checked
+        against the config's names; errors name the key (``bus.signals.x9``)."""
+        if not isinstance(table, dict):
+            raise ValueError(f"{path}: expected a table, got {type(table).__name__}")
+        for key in table:
+            if key not in _KEYS:
+                close = difflib.get_close_matches(key, _KEYS, n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                raise ValueError(f"{path}.{key}: unknown key{hint} (allowed here: {', '.join(_KEYS)})")
+        names = list(state_names) + list(input_names)
+        tables: dict[str, dict[str, SignalRef]] = {}
+        for key, allowed in (("signals", names), ("valid", list(state_names))):
+            raw = table.get(key, {})
+            if not isinstance(raw, dict):
+                raise ValueError(f"{path}.{key}: expected a table of name = \"Message.Signal\", got "
+                                 f"{type(raw).__name__}")
+            refs: dict[str, SignalRef] = {}
+            for name, text in raw.items():
+                where = f"{path}.{key}.{name}"
+                if name not in allowed:
+                    close = difflib.get_close_matches(name, allowed, n=1)
+                    hint = f"; did you mean {close[0]!r}?" if close else ""
+                    what = "states and inputs" if key == "signals" else "states"
+                    raise ValueError(f"{where}: {name!r} is not one of the config's {what}{hint} "
+                                     f"({', '.join(allowed)})")
+                refs[name] = SignalRef.parse(text, where)
+            tables[key] = refs
+        period = table.get("sample_period")
+        clock = table.get("clock")
+        if clock is not None and (not isinstance(clock, str) or not _REF.match(f"{clock}.x")):
+            raise ValueError(f"{path}.clock: expected a DBC message name, got {clock!r}")
+        return cls(signals=tables["signals"], valid=tables["valid"],
+                   sample_period=None if period is None else _real(f"{path}.sample_period", period, positive=True),
+                   clock=clock,
+                   window_start=_real(f"{path}.window_start", table.get("window_start", -0.5), *_WINDOW_RANGE))
+
+    def to_table(self) -> dict[str, Any]:
+        """The ``[bus]`` table, as :meth:`from_table` reads it."""
+        out: dict[str, Any] = {}
+        if self.sample_period is not None:
+            out["sample_period"] = float(self.sample_period)
+        if self.clock is not None:
+            out["clock"] = self.clock
+        if self.window_start != -0.5:
+            out["window_start"] = float(self.window_start)
+        out["signals"] = {name: str(ref) for name, ref in self.signals.items()}
+        if self.valid:
+            out["valid"] = {name: str(ref) for name, ref in self.valid.items()}
+        return out
+
+
+# -- the DBC ------------------------------------------------------------------------------------------
+
+
+def load_dbc(path: str | Path, option: str = "--dbc") -> Any:
+    """The cantools database of the DBC file ``path``; a ValueError naming
+    ``option`` and the file (with cantools' line and column) if it does not parse."""
+    import cantools
+
+    p = Path(path)
+    if not p.is_file():
+        raise ValueError(f"{option} {path}: no such file")
+    try:
+        return cantools.database.load_file(str(p), database_format="dbc", strict=True)
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{option} {path}: not a DBC file (not text: byte {exc.start})") from None
+    except Exception as exc:  # cantools raises its ParseError, ValueError, KeyError ... on a bad DBC
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        raise ValueError(f"{option} {path}: not a DBC file cantools can parse: {text[:300]}") from None
+
+
+def _message(db: Any, name: str, origin: str, dbc: str) -> Any:
+    try:
+        return db.get_message_by_name(name)
+    except KeyError:
+        names = [m.name for m in db.messages]
+        close = difflib.get_close_matches(name, names, n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        raise ValueError(f"{origin}: no message {name!r} in {dbc}{hint} (it has: "
+                         f"{', '.join(names[:20])}{' ...' if len(names) > 20 else ''})") from None
+
+
+def _signal(db: Any, ref: SignalRef, dbc: str) -> tuple[Any, Any]:
+    msg = _message(db, ref.message, f"{ref.origin}: {str(ref)!r}", dbc)
+    for sig in msg.signals:
+        if sig.name == ref.signal:
+            return msg, sig
+    names = [s.name for s in msg.signals]
+    close = difflib.get_close_matches(ref.signal, names, n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    raise ValueError(f"{ref.origin}: {str(ref)!r}: message {ref.message} has no signal {ref.signal!r}{hint} "
+                     f"(its signals: {', '.join(names)})")
+
+
+def _mux_values(msg: Any, sig: Any) -> frozenset[int] | None:
+    """The multiplexer values under which ``sig`` is sent (None: in every frame)."""
+    ids = getattr(sig, "multiplexer_ids", None)
+    return None if not ids else frozenset(int(i) for i in ids)
+
+
+# -- reading logs -------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Frames:
+    """The data frames of a log in time order: ``t`` (N,) log timestamps in
+    s, ``ids`` (N,) arbitration ids, ``extended`` (N,) bool, ``data`` the
+    payloads; ``skipped`` error and remote frames."""
+
+    t: np.ndarray
+    ids: np.ndarray
+    extended: np.ndarray
+    data: tuple[bytes, ...]
+    skipped: int
+
+
+def _candump_line(path: Path, frame: int) -> int:
+    """The line of a candump log holding its ``frame``-th record (0-based; the reader skips blank lines)."""
+    seen = -1
+    with open(path, "rb") as fh:
+        for line_no, line in enumerate(fh, start=1):
+            if line.strip():
+                seen += 1
+                if seen == frame:
+                    return line_no
+    return line_no + 1 if seen >= 0 else 1
+
+
+def read_frames(path: str | Path, option: str = "--can-log") -> Frames:
+    """Every data frame of a ``.blf``, ``.asc`` or candump ``.log`` file;
+    a ValueError naming ``option``, the file and the frame (or candump line)
+    for a log that cannot be read."""
+    import can
+
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix not in LOG_SUFFIXES:
+        raise ValueError(f"{option} {path}: unsupported log format {p.suffix or '(no suffix)'!r}; expected one of "
+                         f"{', '.join(LOG_SUFFIXES)} (Vector BLF and ASC, as python-can's can.Logger writes them, "
+                         "or a candump -l log)")
+    if not p.is_file():
+        raise ValueError(f"{option} {path}: no such file")
+    if p.stat().st_size == 0:
+        raise ValueError(f"{option} {path}: empty file (not a {suffix[1:].upper()} log)")
+    reader_type = {".blf": can.BLFReader, ".asc": can.ASCReader, ".log": can.CanutilsLogReader}[suffix]
+    t: list[float] = []
+    ids: list[int] = []
+    ext: list[bool] = []
+    data: list[bytes] = []
+    skipped = 0
+    count = 0
+    try:
+        with reader_type(str(p)) as reader:
+            declared = int(getattr(reader, "file_size", 0) or 0) if suffix == ".blf" else 0
+            if declared > p.stat().st_size:  # the header, written when the logger stopped, says how long it was
+                raise ValueError(f"{option} {path}: truncated: its BLF header records {declared:,} bytes, the file "
+                                 f"has {p.stat().st_size:,} (cut short after it was written)")
+            for msg in reader:
+                count += 1
+                if msg.is_error_frame or msg.is_remote_frame:
+                    skipped += 1
+                    continue
+                t.append(float(msg.timestamp))
+                ids.append(int(msg.arbitration_id))
+                ext.append(bool(msg.is_extended_id))
+                data.append(bytes(msg.data))
+    except Exception as exc:  # python-can's readers raise struct.error, ValueError, BLFParseError, ...
+        if str(exc).startswith(f"{option} {path}: truncated"):
+            raise
+        where = f"line {_candump_line(p, count)}" if suffix == ".log" else f"after frame {count}"
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        kind = "a BLF" if suffix == ".blf" else "an ASC" if suffix == ".asc" else "a candump"
+        raise ValueError(f"{option} {path}: {where}: cannot read it as {kind} log ({type(exc).__name__}: "
+                         f"{text[:200]})") from None
+    if not t:
+        raise ValueError(f"{option} {path}: no data frames in it ({count} records read, {skipped} error or "
+                         f"remote frames); is it {'a BLF' if suffix == '.blf' else 'an ASC' if suffix == '.asc' else 'a candump'} log?")
+    ts = np.asarray(t, dtype=np.float64)
+    if not np.isfinite(ts).all():
+        k = int(np.argwhere(~np.isfinite(ts))[0, 0])
+        raise ValueError(f"{option} {path}: frame {k + 1}: timestamp {ts[k]!r} is not finite")
+    order = np.argsort(ts, kind="stable")  # logs of several channels may interleave slightly out of order
+    return Frames(t=ts[order], ids=np.asarray(ids, dtype=np.int64)[order],
+                  extended=np.asarray(ext, dtype=bool)[order], data=tuple(data[i] for i in order), skipped=skipped)
+
+
+# -- alignment ----------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SignalStats:
+    """Per state or input: ``frames`` of its message in the run's windows
+    that carry it, ``used`` samples it gave a value to, ``missing`` samples
+    without one (no frame in the window), ``superseded`` frames replaced by
+    a later one in the same window, ``undecodable`` frames of its message
+    that did not decode, ``flagged`` samples whose validity flag was 0,
+    ``nonfinite`` decoded values that are NaN or infinite."""
+
+    signal: str
+    frames: int
+    used: int
+    missing: int
+    superseded: int
+    undecodable: int
+    flagged: int
+    nonfinite: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"signal": self.signal, "frames": self.frames, "used": self.used, "missing": self.missing,
+                "superseded": self.superseded, "undecodable": self.undecodable, "flagged_invalid": self.flagged,
+                "nonfinite": self.nonfinite}
+
+
+@dataclass(frozen=True)
+class Aligned:
+    """A bus log on the sample clock: K samples.
+
+    ``t`` (K,) s since the log's first clock frame, ``start`` the log
+    timestamp of that frame, ``X`` (K, n) with NaN where not valid,
+    ``valid`` (K, n), ``U`` (K, m); ``clock`` the clock message,
+    ``sample_period`` (s) and where it came from (``period_source``),
+    ``clock_frames`` in the log, ``clock_missing`` samples inserted for lost
+    clock frames, ``cut_start``/``cut_end`` samples cut off before and after
+    the run (``--start``/``--stop``, or no value for an input), ``stats`` per
+    state and input name, over the samples kept.
+    """
+
+    t: np.ndarray
+    start: float
+    X: np.ndarray
+    valid: np.ndarray
+    U: np.ndarray
+    clock: str
+    sample_period: float
+    period_source: str
+    window_start: float
+    clock_frames: int
+    clock_missing: int
+    cut_start: int
+    cut_end: int
+    stats: Mapping[str, SignalStats]
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.t.shape[0])
+
+
+def _ticks(tc: np.ndarray, T: float) -> tuple[np.ndarray, int]:
+    """Sample instants from the clock frames' times ``tc``: (tau, samples inserted for lost clock frames)."""
+    tau: list[float] = [float(tc[0])]
+    inserted = 0
+    for c in tc[1:]:
+        base = tau[-1]
+        gap = float(c) - base
+        n = int(round(gap / T))
+        if n == 0:
+            continue  # a repeat within T/2: the same sample
+        tau.extend(base + j * gap / n for j in range(1, n))
+        inserted += n - 1
+        tau.append(float(c))
+    return np.asarray(tau), inserted
+
+
+def _period(db: Any, clock_msg: Any, bus: BusMap, tc: np.ndarray, period_option: str,
+            dbc: str) -> tuple[float, str]:
+    """The sample period and where it was given; ValueError if the clock frames disagree with it."""
+    if bus.sample_period is not None:
+        T, where = float(bus.sample_period), period_option
+    elif getattr(clock_msg, "cycle_time", None):
+        T, where = float(clock_msg.cycle_time) / 1e3, f"the cycle time of {clock_msg.name} in {dbc}"
+    else:
+        hint = f"; its frames come every {float(np.median(np.diff(tc))):.6g} s (median)" if tc.size > 1 else ""
+        raise ValueError(f"{period_option}: not given, and the clock message {clock_msg.name} has no cycle time "
+                         f"(GenMsgCycleTime) in {dbc}{hint}: give the sample period in seconds")
+    if tc.size > 1:
+        med = float(np.median(np.diff(tc)))
+        if abs(med - T) > PERIOD_TOLERANCE * T:
+            raise ValueError(f"{where}: sample period {T:.6g} s, but the clock message {clock_msg.name}'s frames come "
+                             f"every {med:.6g} s (median of {tc.size - 1} intervals); give the period its frames "
+                             "are sent at, or choose another clock message")
+    return T, where
+
+
+def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], input_names: Sequence[str], *,
+          source: str = "the log", dbc: str = "the DBC", period_option: str = "bus.sample_period",
+          clock_option: str = "bus.clock", start: float | None = None, stop: float | None = None) -> Aligned:
+    """Decode ``frames`` with ``db`` and align the signals ``bus`` maps on its
+    sample clock (see the module docs). Every state and input must be mapped."""
+    names = list(state_names) + list(input_names)
+    unmapped = [name for name in names if name not in bus.signals]
+    if unmapped:
+        raise ValueError(f"bus.signals: no signal for {', '.join(unmapped)}; map every state and input to "
+                         "\"Message.Signal\" (a [bus.signals] table in the config, or --signal NAME=Message.Signal)")
+    extra = [name for name in bus.signals if name not in names]
+    if extra:
+        raise ValueError(f"{bus.signals[extra[0]].origin}: {extra[0]!r} is not one of the config's states and "
+                         f"inputs ({', '.join(names)})")
+    seen: dict[str, str] = {}
+    resolved: dict[str, tuple[Any, Any]] = {}
+    for name in names:
+        ref = bus.signals[name]
+        if str(ref) in seen:
+            raise ValueError(f"{ref.origin}: {str(ref)!r} is also the signal of {seen[str(ref)]!r}; each state and "
+                             "input needs its own signal")
+        seen[str(ref)] = name
+        resolved[name] = _signal(db, ref, dbc)
+    flags: dict[str, Any] = {}
+    for name, ref in bus.valid.items():
+        msg, sig = resolved[name]
+        fmsg, fsig = _signal(db, ref, dbc)
+        if fmsg.name != msg.name:
+            raise ValueError(f"{ref.origin}: {str(ref)!r} is in message {fmsg.name}, but {name}'s value "
+                             f"{bus.signals[name]} is in {msg.name}: a validity flag must come in the same frame")
+        vm, fm = _mux_values(msg, sig), _mux_values(fmsg, fsig)
+        if fm is not None and (vm is None or not vm <= fm):
+            raise ValueError(f"{ref.origin}: mixed multiplexing: {str(ref)!r} is sent only under multiplexer "
+                             f"value(s) {sorted(fm)}, but {bus.signals[name]} "
+                             f"{'in every frame' if vm is None else f'under {sorted(vm)}'}: the flag must be in "
+                             "every frame that carries the value")
+        flags[name] = fsig
+    clock_name = bus.clock if bus.clock is not None else resolved[state_names[0]][0].name
+    clock_msg = _message(db, clock_name, clock_option if bus.clock is not None else
+                         f"{clock_option} (default: the message of {state_names[0]})", dbc)
+
+    # which frames are which message
+    key = frames.ids * 2 + frames.extended.astype(np.int64)
+    used_msgs = {m.name: m for m, _ in resolved.values()}
+    used_msgs[clock_msg.name] = clock_msg
+    where_msg: dict[str, np.ndarray] = {}
+    for m in used_msgs.values():
+        where_msg[m.name] = np.flatnonzero(key == int(m.frame_id) * 2 + int(bool(m.is_extended_frame)))
+    if not any(idx.size for idx in where_msg.values()):
+        present = sorted(set(int(i) for i in frames.ids))
+        listing = ", ".join(f"0x{i:X}" for i in present[:12]) + (" ..." if len(present) > 12 else "")
+        raise ValueError(f"{source}: none of its {frames.t.size} frames is one of the messages the signals come from "
+                         f"({', '.join(f'{m.name} 0x{m.frame_id:X}' for m in used_msgs.values())}); the log's "
+                         f"frame ids: {listing}. Is it the DBC of this bus?")
+    for name in names:
+        msg = resolved[name][0]
+        if not where_msg[msg.name].size:
+            raise ValueError(f"{bus.signals[name].origin}: {bus.signals[name]}: {source} has no frame of message "
+                             f"{msg.name} (id 0x{msg.frame_id:X})")
+    tc = frames.t[where_msg[clock_msg.name]]
+    if not tc.size:
+        raise ValueError(f"{clock_option}: {source} has no frame of the clock message {clock_msg.name} "
+                         f"(id 0x{clock_msg.frame_id:X})")
+    T, period_source = _period(db, clock_msg, bus, tc, period_option, dbc)
+    tau, inserted = _ticks(tc, T)
+    K = tau.size
+    starts = tau + bus.window_start * T
+    end = starts[-1] + T
+
+    # each signal, per sample window: the latest frame carrying it, and what the others were
+    decoded: dict[str, tuple[np.ndarray, list[dict[str, Any] | None]]] = {}
+    for m in {msg.name: msg for msg, _ in resolved.values()}.values():
+        idx = where_msg[m.name]
+        idx = idx[(frames.t[idx] >= starts[0]) & (frames.t[idx] < end)]
+        values: list[dict[str, Any] | None] = []
+        for i in idx:
+            try:
+                values.append(m.decode(frames.data[i], decode_choices=False, scaling=True))
+            except Exception:  # cantools: DecodeError, a wrong length, an unknown multiplexer value, ...
+                values.append(None)
+        decoded[m.name] = (np.searchsorted(starts, frames.t[idx], side="right") - 1, values)
+    n, n_in = len(state_names), len(input_names)
+    value = np.full((K, n + n_in), np.nan)
+    got = np.zeros((K, n + n_in), dtype=bool)
+    counts = {what: np.zeros((K, n + n_in), dtype=np.int64)
+              for what in ("frames", "undecodable", "flagged", "nonfinite")}
+    for col, name in enumerate(names):
+        msg, sig = resolved[name]
+        window, values = decoded[msg.name]
+        flag = flags.get(name)
+        latest: dict[int, dict[str, Any]] = {}
+        for w, v in zip(window.tolist(), values):
+            if v is None:
+                counts["undecodable"][w, col] += 1
+            elif sig.name in v:  # a multiplexed signal is in the frames its multiplexer value selects
+                counts["frames"][w, col] += 1
+                latest[w] = v  # frames are in time order: the latest of the window wins
+        for w, v in latest.items():
+            x = float(v[sig.name])
+            if not math.isfinite(x):
+                counts["nonfinite"][w, col] += 1
+            elif flag is not None and not float(v[flag.name]):
+                counts["flagged"][w, col] += 1
+            else:
+                got[w, col] = True
+                value[w, col] = x
+
+    # the stretch: --start/--stop, then the ends without every input cut off; a gap inside is refused
+    t_all = tau - tau[0]
+    keep = np.ones(K, dtype=bool)
+    if start is not None:
+        keep &= t_all >= start
+    if stop is not None:
+        keep &= t_all <= stop
+    if not keep.any():
+        raise ValueError(f"--start/--stop: no sample between {start} and {stop} s (the clock's samples run from 0 to "
+                         f"{t_all[-1]:.6g} s)")
+    have = keep & got[:, n:].all(axis=1)
+    if not have.any():
+        j = int(np.argmin(got[keep][:, n:].sum(axis=0)))
+        ref = bus.signals[input_names[j]]
+        raise ValueError(f"{ref.origin}: {ref}: no sample of {source} has every input (input {input_names[j]!r} "
+                         f"has a value at {int(got[keep][:, n + j].sum())} of {int(keep.sum())} samples)")
+    lo = int(np.argmax(have))
+    hi = K - int(np.argmax(have[::-1]))
+    if not have[lo:hi].all():
+        k = lo + int(np.argmax(~have[lo:hi]))
+        j = int(np.argmax(~got[k, n:]))
+        ref = bus.signals[input_names[j]]
+        gaps = int((~got[lo:hi, n + j]).sum())
+        raise ValueError(f"{ref.origin}: {ref}: input {input_names[j]!r} is missing at {gaps} sample(s) inside the "
+                         f"run, the first at t = {t_all[k]:.6g} s (log time {tau[k]:.6f}): an input is needed on "
+                         "every sample and is never filled in; identify a stretch without the gap (--start/--stop, "
+                         "s after the first clock frame) or record the input's message")
+    if hi - lo < 2:
+        raise ValueError(f"{source}: only one sample with every input; one-step-ahead identification needs at least "
+                         "two")
+    sl = slice(lo, hi)
+    stats = {name: SignalStats(signal=str(bus.signals[name]), frames=int(counts["frames"][sl, col].sum()),
+                               used=int(got[sl, col].sum()),
+                               missing=int((counts["frames"][sl, col] == 0).sum()),
+                               superseded=int(np.maximum(counts["frames"][sl, col] - 1, 0).sum()),
+                               undecodable=int(counts["undecodable"][sl, col].sum()),
+                               flagged=int(counts["flagged"][sl, col].sum()),
+                               nonfinite=int(counts["nonfinite"][sl, col].sum()))
+             for col, name in enumerate(names)}
+    return Aligned(t=t_all[sl].copy(), start=float(tau[0]), X=value[sl, :n].copy(), valid=got[sl, :n].copy(),
+                   U=value[sl, n:].copy(), clock=clock_msg.name, sample_period=T, period_source=period_source,
+                   window_start=bus.window_start, clock_frames=int(tc.size), clock_missing=inserted,
+                   cut_start=lo, cut_end=K - hi, stats=stats)
+
+
+def read_bus_log(log: str | Path, dbc: str | Path, bus: BusMap, state_names: Sequence[str],
+                 input_names: Sequence[str], *, start: float | None = None, stop: float | None = None,
+                 **options: str) -> Aligned:
+    """:func:`read_frames` of ``log``, decoded with the DBC file ``dbc`` and :func:`align`-ed."""
+    db = load_dbc(dbc, options.get("dbc_option", "--dbc"))
+    frames = read_frames(log, options.get("log_option", "--can-log"))
+    return align(frames, db, bus, state_names, input_names, source=str(log), dbc=str(dbc),
+                 period_option=options.get("period_option", "bus.sample_period"),
+                 clock_option=options.get("clock_option", "bus.clock"), start=start, stop=stop)

@@ -1,0 +1,433 @@
+"""``pyrhonn identify --can-log``: a bus recording (written by python-can's own loggers from frames sent
+on the ``virtual`` bus, or a candump log) gives the same identification as the CSV of the same
+samples; lost, late and flagged frames become not-valid samples; every bad input exits 2 naming the
+option, key, signal or line; the outputs are written whole."""
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import can
+import cantools
+import numpy as np
+import pytest
+
+from pyrhonn.cli import main
+from pyrhonn.configfile import loads, shipped_text
+from pyrhonn.plants import oscillator
+
+PERIOD = 0.01  # s between samples on the bus (the trajectory's own dt does not matter to the identifier)
+T0 = 1_700_000_000.0  # the log's wall clock
+
+DBC = """VERSION ""
+
+NS_ :
+
+BS_:
+
+BU_: PLANT CTRL
+
+BO_ 256 StatesA: 8 PLANT
+ SG_ X1 : 0|32@1- (1,0) [-1e9|1e9] "" CTRL
+ SG_ X2 : 32|32@1- (1,0) [-1e9|1e9] "" CTRL
+
+BO_ 257 StatesB: 8 PLANT
+ SG_ X3 : 0|28@1- (1e-06,0) [-100|100] "" CTRL
+ SG_ X3Valid : 28|1@1+ (1,0) [0|1] "" CTRL
+ SG_ X4 : 32|28@1- (1e-06,0) [-100|100] "" CTRL
+ SG_ X4Valid : 60|1@1+ (1,0) [0|1] "" CTRL
+
+BO_ 512 Command: 4 CTRL
+ SG_ U : 0|32@1- (1,0) [-1e9|1e9] "" PLANT
+
+BO_ 768 Mux: 8 PLANT
+ SG_ Page M : 0|8@1+ (1,0) [0|255] "" CTRL
+ SG_ A m0 : 8|16@1- (0.001,0) [-30|30] "" CTRL
+ SG_ AValid m1 : 24|1@1+ (1,0) [0|1] "" CTRL
+
+SIG_VALTYPE_ 256 X1 : 1;
+SIG_VALTYPE_ 256 X2 : 1;
+SIG_VALTYPE_ 512 U : 1;
+"""
+
+BUS = """
+[bus]
+sample_period = 0.01
+clock = "StatesA"
+
+[bus.signals]
+x1 = "StatesA.X1"
+x2 = "StatesA.X2"
+x3 = "StatesB.X3"
+x4 = "StatesB.X4"
+u = "Command.U"
+
+[bus.valid]
+x3 = "StatesB.X3Valid"
+x4 = "StatesB.X4Valid"
+"""
+
+# the faults of the recording, by sample index
+LOST_A = {17, 40, 41}  # StatesA (the clock) never sent: x1, x2 not valid, the clock interpolated
+LOST_B = {25}  # StatesB never sent: x3, x4 not valid
+LATE_B = {60}  # StatesB sent 0.7 periods late, into sample 61's window, where 61's own frame supersedes it
+FLAG_X4 = {33, 34}  # X4Valid = 0: x4 not valid (x3 is)
+
+
+@dataclass(frozen=True)
+class Recording:
+    frames: list[can.Message]  # in time order, absolute timestamps
+    X: np.ndarray  # (K, 4) the values the frames decode to (NaN where not valid)
+    valid: np.ndarray  # (K, 4)
+    U: np.ndarray  # (K, 1)
+
+
+def _recording() -> Recording:
+    """The oscillator's samples as frames: StatesA at each sample (with a deterministic jitter of up to
+    0.1 period), StatesB 0.15 period later, Command 0.3 period later; with the faults above."""
+    db = cantools.database.load_string(DBC, database_format="dbc")
+    traj = oscillator.simulate(dt=0.2, horizon=24.0)
+    K = traj.n_samples
+    rng = np.random.default_rng(11)
+    jitter = np.round(rng.uniform(-0.1, 0.1, K) * PERIOD, 6)
+    frames: list[can.Message] = []
+    X = np.full((K, 4), np.nan)
+    valid = np.zeros((K, 4), dtype=bool)
+    U = np.empty((K, 1))
+
+    def frame(name: str, t: float, values: dict[str, float]) -> dict[str, float]:
+        msg = db.get_message_by_name(name)
+        data = msg.encode(values, scaling=True)
+        frames.append(can.Message(timestamp=round(t, 6), arbitration_id=msg.frame_id, is_extended_id=False,
+                                  data=data, dlc=len(data)))
+        return msg.decode(data)  # what the log holds
+
+    for k in range(K):
+        tk = T0 + k * PERIOD + jitter[k]
+        x = traj.X_meas[k]
+        if k not in LOST_A:
+            got = frame("StatesA", tk, {"X1": x[0], "X2": x[1]})
+            X[k, :2] = got["X1"], got["X2"]
+            valid[k, :2] = True
+        if k not in LOST_B:
+            late = 0.7 * PERIOD if k in LATE_B else 0.0
+            got = frame("StatesB", tk + 0.15 * PERIOD + late,
+                        {"X3": x[2], "X3Valid": 1, "X4": x[3], "X4Valid": 0 if k in FLAG_X4 else 1})
+            if k not in LATE_B:
+                X[k, 2] = got["X3"]
+                valid[k, 2] = True
+                if k not in FLAG_X4:
+                    X[k, 3] = got["X4"]
+                    valid[k, 3] = True
+        U[k, 0] = frame("Command", tk + 0.3 * PERIOD, {"U": traj.U[k, 0]})["U"]
+    frames.sort(key=lambda m: m.timestamp)
+    return Recording(frames=frames, X=X, valid=valid, U=U)
+
+
+def _log_through_virtual_bus(frames: list[can.Message], path: Path) -> None:
+    """Send ``frames`` on python-can's virtual bus (keeping their timestamps) and record what a second
+    node receives with ``can.Logger``, which picks the writer by the file's suffix."""
+    channel = f"canlog-{path.name}"
+    with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as tx, \
+            can.Bus(interface="virtual", channel=channel) as rx:
+        logger = can.Logger(str(path))
+        try:
+            for m in frames:
+                tx.send(m)
+                got = rx.recv(timeout=5.0)
+                assert got is not None
+                logger.on_message_received(got)
+        finally:
+            logger.stop()
+
+
+def _candump(frames: list[can.Message], path: Path) -> None:
+    """A candump -l log, written by hand: ``(time) interface id#data``."""
+    lines = [f"({m.timestamp:.6f}) vcan0 {m.arbitration_id:03X}#{bytes(m.data).hex().upper()}" for m in frames]
+    path.write_text("\n".join(lines) + "\n")
+
+
+@pytest.fixture(scope="module")
+def rec() -> Recording:
+    return _recording()
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory: pytest.TempPathFactory, rec: Recording) -> dict[str, Path]:
+    d = tmp_path_factory.mktemp("bus")
+    (d / "plant.dbc").write_text(DBC)
+    (d / "cfg.toml").write_text(shipped_text("example1") + BUS)
+    out = {"dbc": d / "plant.dbc", "config": d / "cfg.toml"}
+    for suffix in ("blf", "asc"):
+        out[suffix] = d / f"run.{suffix}"
+        _log_through_virtual_bus(rec.frames, out[suffix])
+    out["log"] = d / "run.log"
+    _candump(rec.frames, out["log"])
+    return out
+
+
+def _csv_of(rec: Recording, path: Path) -> None:
+    """The same samples as the CSV a user would export: t, states (empty where not valid), u, flags."""
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["t", "x1", "x2", "x3", "x4", "u", "x1_valid", "x2_valid", "x3_valid", "x4_valid"])
+        for k in range(rec.X.shape[0]):
+            w.writerow([repr(k * PERIOD)] + [repr(float(v)) if ok else "" for v, ok in zip(rec.X[k], rec.valid[k])]
+                       + [repr(float(rec.U[k, 0]))] + [str(int(v)) for v in rec.valid[k]])
+
+
+def _predictions(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as fh:
+        return [{k: v for k, v in row.items() if k.endswith(("_hat", "_err"))} for row in csv.DictReader(fh)]
+
+
+def _identify(files: dict[str, Path], log: str, out: Path, *extra: str) -> int:
+    return main(["identify", "--can-log", str(files[log]), "--dbc", str(files["dbc"]), "--config",
+                 str(files["config"]), "--out", str(out), "--warmup", "5", "--no-plots", *extra])
+
+
+@pytest.mark.parametrize("log", ["blf", "asc", "log"])
+def test_a_bus_log_identifies_as_the_csv_of_the_same_samples(files: dict[str, Path], rec: Recording, log: str,
+                                                             tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    _csv_of(rec, tmp_path / "same.csv")
+    assert main(["identify", str(tmp_path / "same.csv"), "--config", str(files["config"]), "--out",
+                 str(tmp_path / "csv"), "--warmup", "5", "--no-plots"]) == 0
+    assert _identify(files, log, tmp_path / "bus") == 0
+    printed = capsys.readouterr().out
+    assert f"identified {files[log]}: {rec.X.shape[0]} samples" in printed
+    assert _predictions(tmp_path / "bus" / "predictions.csv") == _predictions(tmp_path / "csv" / "predictions.csv")
+    by_bus = json.loads((tmp_path / "bus" / "metrics.json").read_text())
+    by_csv = json.loads((tmp_path / "csv" / "metrics.json").read_text())
+    assert by_bus["states"] == by_csv["states"] and by_bus["next_prediction"] == by_csv["next_prediction"]
+    assert by_bus["samples"] == rec.X.shape[0]
+    # the aligned samples, written beside: the same identification again, from the CSV path
+    assert main(["identify", str(tmp_path / "bus" / "samples.csv"), "--config", str(files["config"]), "--out",
+                 str(tmp_path / "again"), "--warmup", "5", "--no-plots"]) == 0
+    assert _predictions(tmp_path / "again" / "predictions.csv") == _predictions(tmp_path / "csv" / "predictions.csv")
+
+
+def test_lost_late_and_flagged_frames_are_not_valid_samples_never_filled_in(files: dict[str, Path], rec: Recording,
+                                                                            tmp_path: Path) -> None:
+    from pyrhonn.buslog import BusMap, read_bus_log
+    from pyrhonn.configfile import load_config
+
+    cf = load_config(files["config"])
+    assert isinstance(cf.bus, BusMap)
+    a = read_bus_log(files["blf"], files["dbc"], cf.bus, cf.state_names, cf.input_names)
+    assert a.valid.shape == rec.valid.shape
+    np.testing.assert_array_equal(a.valid, rec.valid)
+    for k in LOST_A:
+        assert not a.valid[k, :2].any() and np.isnan(a.X[k, :2]).all()
+    for k in LOST_B | LATE_B:
+        assert not a.valid[k, 2:].any() and np.isnan(a.X[k, 2:]).all()
+    for k in FLAG_X4:
+        assert a.valid[k, 2] and not a.valid[k, 3]
+    np.testing.assert_array_equal(a.X[rec.valid], rec.X[rec.valid])  # every valid value is its own frame's
+    np.testing.assert_array_equal(a.U, rec.U)
+    assert a.clock_missing == len(LOST_A)  # samples inserted where the clock's frames were lost
+    np.testing.assert_allclose(np.diff(a.t), PERIOD, atol=0.21 * PERIOD)
+    s = a.stats
+    assert s["x1"].missing == len(LOST_A) and s["x3"].missing == len(LOST_B | LATE_B)
+    assert s["x3"].superseded == len(LATE_B)  # the late frame, replaced by the next sample's own
+    assert s["x4"].flagged == len(FLAG_X4) and s["x3"].flagged == 0
+    assert s["x4"].used == int(rec.valid[:, 3].sum())
+
+
+def test_a_missing_input_inside_the_run_is_refused_and_the_ends_are_cut(files: dict[str, Path], rec: Recording,
+                                                                       tmp_path: Path, cli_error) -> None:
+    cmd = 512
+    commands = [i for i, m in enumerate(rec.frames) if m.arbitration_id == cmd]
+    gap = [m for i, m in enumerate(rec.frames) if i != commands[50]]
+    _candump(gap, tmp_path / "gap.log")
+    err = cli_error(["identify", "--can-log", str(tmp_path / "gap.log"), "--dbc", str(files["dbc"]), "--config",
+                     str(files["config"]), "--out", str(tmp_path / "out")])
+    assert "bus.signals.u: Command.U: input 'u' is missing at 1 sample(s) inside the run" in err
+    assert "never filled in" in err and not (tmp_path / "out").exists()
+    # the same log from after the gap runs; so does one whose first and last commands are lost
+    assert main(["identify", "--can-log", str(tmp_path / "gap.log"), "--dbc", str(files["dbc"]), "--config",
+                 str(files["config"]), "--out", str(tmp_path / "after"), "--start", "0.505", "--no-plots"]) == 0
+    report = json.loads((tmp_path / "after" / "metrics.json").read_text())
+    assert report["bus"]["samples_cut_before"] == 51 and report["samples"] == rec.X.shape[0] - 51
+    ends = [m for i, m in enumerate(rec.frames) if i not in (commands[0], commands[-1])]
+    _candump(ends, tmp_path / "ends.log")
+    assert main(["identify", "--can-log", str(tmp_path / "ends.log"), "--dbc", str(files["dbc"]), "--config",
+                 str(files["config"]), "--out", str(tmp_path / "ends"), "--no-plots"]) == 0
+    report = json.loads((tmp_path / "ends" / "metrics.json").read_text())
+    assert report["samples"] == rec.X.shape[0] - 2
+    assert (report["bus"]["samples_cut_before"], report["bus"]["samples_cut_after"]) == (1, 1)
+
+
+def test_signals_given_on_the_command_line_replace_the_config_table(files: dict[str, Path], tmp_path: Path) -> None:
+    """The shipped example1 has no [bus] table: --signal and --sample-period give it."""
+    args = ["identify", "--can-log", str(files["log"]), "--dbc", str(files["dbc"]), "--config", "example1",
+            "--sample-period", "0.01", "--no-plots", "--warmup", "5"]
+    signals = ["x1=StatesA.X1", "x2=StatesA.X2", "x3=StatesB.X3", "x4=StatesB.X4", "u=Command.U"]
+    for s in signals:
+        args += ["--signal", s]
+    assert main(args + ["--out", str(tmp_path / "cli")]) == 0
+    with (tmp_path / "cli" / "samples.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    # without the validity flags of [bus.valid], only the lost frames are not valid
+    assert {k for k, r in enumerate(rows) if r["x4_valid"] == "0"} == LOST_B | LATE_B
+    assert {k for k, r in enumerate(rows) if r["x1_valid"] == "0"} == LOST_A
+
+
+def test_the_bus_table_survives_a_config_round_trip(files: dict[str, Path]) -> None:
+    from pyrhonn.configfile import dumps
+
+    cf = loads(files["config"].read_text(), "cfg.toml")
+    assert loads(dumps(cf)) == cf
+    assert str(cf.bus.signals["x3"]) == "StatesB.X3" and cf.bus.sample_period == 0.01
+
+
+@pytest.mark.parametrize("table, message", [
+    ('[bus]\nsample_perod = 0.01\n', "cfg.toml: bus.sample_perod: unknown key; did you mean 'sample_period'?"),
+    ('[bus.signals]\nx9 = "StatesA.X1"\n', "cfg.toml: bus.signals.x9: 'x9' is not one of the config's states"),
+    ('[bus.signals]\nx1 = "StatesA X1"\n', "cfg.toml: bus.signals.x1: expected \"Message.Signal\""),
+    ('[bus.signals]\nx1 = 3\n', "cfg.toml: bus.signals.x1: expected a string"),
+    ('[bus]\nsample_period = -1\n', "cfg.toml: bus.sample_period: must be > 0"),
+    ('[bus]\nwindow_start = 0.5\n', "cfg.toml: bus.window_start: must be in -1.0..0.0"),
+    ('[bus.valid]\nx1 = "StatesA.X1"\n', "bus.valid.x1: a validity flag for 'x1', which bus.signals does not map"),
+])
+def test_a_bad_bus_table_is_refused_naming_its_key(tmp_path: Path, table: str, message: str) -> None:
+    with pytest.raises(ValueError) as exc:
+        loads(shipped_text("example1") + table, "cfg.toml")
+    assert message in str(exc.value)
+
+
+def _with_bus(tmp_path: Path, bus: str) -> Path:
+    path = tmp_path / "bad.toml"
+    path.write_text(shipped_text("example1") + bus)
+    return path
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"x3": "StatesB.X33"}, "bus.signals.x3: 'StatesB.X33': message StatesB has no signal 'X33'; did you mean 'X3'?"),
+    ({"x3": "StatesC.X3"}, "bus.signals.x3: 'StatesC.X3': no message 'StatesC' in"),
+    ({"x2": "StatesA.X1"}, "bus.signals.x2: 'StatesA.X1' is also the signal of 'x1'"),
+    ({"clock": "Commands"}, "bus.clock: no message 'Commands' in"),
+    ({"sample_period": 0.02}, "bus.sample_period: sample period 0.02 s, but the clock message StatesA's frames come "
+                              "every 0.00995898 s (median of 117 intervals)"),
+    ({"x4_flag": "StatesA.X1"}, "bus.valid.x4: 'StatesA.X1' is in message StatesA, but x4's value StatesB.X4 is in "
+                                "StatesB"),
+    ({"x3": "Mux.A", "x3_flag": "Mux.AValid"}, "bus.valid.x3: mixed multiplexing: 'Mux.AValid' is sent only under "
+                                               "multiplexer value(s) [1]"),
+    ({"x3": "Mux.A"}, "bus.signals.x3: Mux.A: "),
+])
+def test_bad_signals_exit_2_naming_the_config_key(files: dict[str, Path], tmp_path: Path, change: dict[str, object],
+                                                  message: str, cli_error) -> None:
+    signals = {"x1": "StatesA.X1", "x2": "StatesA.X2", "x3": "StatesB.X3", "x4": "StatesB.X4", "u": "Command.U"}
+    flags = {"x3": "StatesB.X3Valid", "x4": "StatesB.X4Valid"}
+    top = {"sample_period": 0.01, "clock": "StatesA"}
+    for key, value in change.items():
+        if key.endswith("_flag"):
+            flags[key[:-5]] = value
+        elif key in top:
+            top[key] = value
+        else:
+            signals[key] = value
+            flags.pop(key, None)
+    bus = "\n[bus]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in top.items()) + "[bus.signals]\n" + \
+        "".join(f'{k} = "{v}"\n' for k, v in signals.items()) + "[bus.valid]\n" + \
+        "".join(f'{k} = "{v}"\n' for k, v in flags.items())
+    err = cli_error(["identify", "--can-log", str(files["blf"]), "--dbc", str(files["dbc"]), "--config",
+                     str(_with_bus(tmp_path, bus)), "--out", str(tmp_path / "out")])
+    assert message in err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("what, message", [
+    ("dbc", "--dbc {dbc}: not a DBC file cantools can parse"),
+    ("no-messages", "{log}: none of its 3 frames is one of the messages the signals come from"),
+    ("extension", "--can-log {log}: unsupported log format '.trc'"),
+    ("candump-line", "--can-log {log}: line 3: cannot read it as a candump log"),
+    ("blf", "--can-log {log}: truncated: its BLF header records"),
+    ("empty", "--can-log {log}: empty file"),
+    ("missing", "--can-log {log}: no such file"),
+])
+def test_bad_files_exit_2_naming_the_file_and_line(files: dict[str, Path], tmp_path: Path, what: str, message: str,
+                                                  cli_error) -> None:
+    dbc, log = files["dbc"], files["log"]
+    if what == "dbc":
+        dbc = tmp_path / "bad.dbc"
+        dbc.write_text(DBC.replace("BO_ 257 StatesB: 8 PLANT", "BO_ 257 StatesB 8 PLANT"))
+    elif what == "no-messages":
+        log = tmp_path / "other.log"
+        log.write_text("(1.000000) vcan0 123#00\n(1.010000) vcan0 124#00\n(1.020000) vcan0 123#00\n")
+    elif what == "extension":
+        log = tmp_path / "run.trc"
+        log.write_text("x")
+    elif what == "candump-line":
+        log = tmp_path / "bad.log"
+        log.write_text("(1.000000) vcan0 100#0000000000000000\n\n(1.010000) vcan0 100#00GG\n")
+    elif what == "blf":
+        log = tmp_path / "cut.blf"
+        log.write_bytes(files["blf"].read_bytes()[:3000])
+    elif what == "empty":
+        log = tmp_path / "empty.asc"
+        log.write_bytes(b"")
+    else:
+        log = tmp_path / "none.blf"
+    err = cli_error(["identify", "--can-log", str(log), "--dbc", str(dbc), "--config", str(files["config"]),
+                     "--out", str(tmp_path / "out")])
+    assert message.format(dbc=dbc, log=log) in err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["DATA.csv"], "--can-log: give either DATA.csv (DATA.csv) or --can-log, not both"),
+    (["--dbc", None], "--dbc: required with --can-log"),
+    (["--signal", "x1"], "--signal x1: expected NAME=Message.Signal"),
+    (["--signal", "y=StatesA.X1"], "--signal y=StatesA.X1: 'y' is not one of the states and inputs"),
+    (["--sample-period", "0"], "--sample-period: must be > 0"),
+    (["--clock", "Nope"], "--clock: no message 'Nope' in"),
+    (["--start", "0.5", "--stop", "0.2"], "--stop 0.2: must be after --start 0.5"),
+    (["--start", "9"], "--start/--stop: no sample between 9.0 and None s"),
+])
+def test_bad_options_exit_2_naming_the_option(files: dict[str, Path], tmp_path: Path, args: list[str | None],
+                                              message: str, cli_error) -> None:
+    argv = ["identify", "--can-log", str(files["log"]), "--dbc", str(files["dbc"]), "--config", str(files["config"]),
+            "--out", str(tmp_path / "out")]
+    if args[:2] == ["--dbc", None]:
+        argv = argv[:3] + argv[5:]
+    else:
+        argv += [a for a in args if a is not None]
+    assert message in cli_error(argv)
+
+
+def test_bus_options_without_a_log_are_refused(files: dict[str, Path], cli_error) -> None:
+    assert "--dbc: only with --can-log" in cli_error(["identify", "data.csv", "--config", "example1", "--dbc", "x"])
+    assert "give DATA.csv, or --can-log" in cli_error(["identify", "--config", "example1"])
+
+
+def test_outputs_are_replaced_whole_and_an_interrupted_run_marks_the_folder(
+        files: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A second run into the same --out that fails while writing samples.csv leaves every file of the
+    first run whole, no temporary file, and the INCOMPLETE marker."""
+    from pyrhonn import datafile
+    from pyrhonn.atomic import MARKER
+
+    out = tmp_path / "out"
+    assert _identify(files, "blf", out) == 0
+    first = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert MARKER not in first and {"samples.csv", "predictions.csv", "metrics.json"} <= set(first)
+    real_writer = csv.writer
+
+    class Failing:
+        def __init__(self, fh, **kw) -> None:
+            self.w, self.rows = real_writer(fh, **kw), 0
+
+        def writerow(self, row) -> None:
+            self.rows += 1
+            if self.rows > 20:
+                raise OSError(28, "No space left on device")
+            self.w.writerow(row)
+
+    monkeypatch.setattr(datafile.csv, "writer", Failing)
+    assert _identify(files, "asc", out, "--warmup", "6") == 2
+    now = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert now.pop(MARKER, None) is not None  # the folder says it was not finished
+    assert now == first  # each output is the first run's, whole; no temporary file left behind
+
