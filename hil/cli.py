@@ -429,11 +429,19 @@ def _replay(args) -> int:
 
 
 def _score(args) -> int:
-    from .rig import partial_reason, read_log
+    from .rig import partial_reason, read_log, sidecar
     from .score import score
     from .transport import lim_config
 
-    rec = read_log(args.log, partial=args.partial)
+    try:
+        rec = read_log(args.log, partial=args.partial)
+    except ValueError as exc:
+        if args.log.is_file() and not sidecar(args.log).is_file():  # a recording, not a hil replay's log
+            raise ValueError(f"{exc}. hil score needs the sidecar hil replay --log writes: the scenario it "
+                             "replayed is the truth it scores against. A recording without one has none; to "
+                             f"identify the plant from its signals: pyrhonn identify --can-log {args.log} --dbc "
+                             "FILE --config CFG (the config's [bus] table or --signal name each signal)") from None
+        raise
     _check_out(args.out)
     report = score(rec, reference=lim_config())
     why = partial_reason(rec)

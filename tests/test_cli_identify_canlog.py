@@ -431,3 +431,12 @@ def test_outputs_are_replaced_whole_and_an_interrupted_run_marks_the_folder(
     assert now.pop(MARKER, None) is not None  # the folder says it was not finished
     assert now == first  # each output is the first run's, whole; no temporary file left behind
 
+
+
+def test_hil_score_on_a_recording_without_a_sidecar_says_what_it_needs_and_offers_identify(
+        files: dict[str, Path], cli_error) -> None:
+    for log in (files["blf"], files["log"]):
+        err = cli_error(["hil", "score", str(log)])
+        assert f"no sidecar {log.name}.json" in err
+        assert "the truth it scores against" in err
+        assert f"pyrhonn identify --can-log {log} --dbc FILE --config CFG" in err
