@@ -11,6 +11,7 @@ Every state and input names one DBC signal as ``"Message.Signal"``::
     [bus]
     sample_period = 0.01          # s; default: the clock message's cycle time in the DBC
     clock = "Sensors"             # the message whose frames are the samples; default: the first state's
+    counter = "Sensors.Seq"       # optional: the clock frames' sequence counter (unsigned, +1 a sample)
     window_start = -0.5           # in sample periods, -1..0 (default -0.5, see below)
 
     [bus.signals]                 # every state and input of the config
@@ -25,15 +26,22 @@ The sample clock
 - Each frame of the clock message is one sample, at its timestamp tau_k; the
   clock follows the sender's own oscillator, so a sender whose clock drifts
   against the logger's does not walk off a fixed grid.
-- Two consecutive clock frames D apart with round(D / T) = n > 1: n - 1
-  clock frames are missing, and n - 1 samples are inserted, evenly spaced
-  between them. A clock frame less than T/2 after the previous one (n = 0)
-  is a repeat: no new sample.
-- Sample k owns the frames received in ``[tau_k + a T, tau_{k+1} + a T)``
-  (a = ``window_start``); the windows tile the log. The default a = -1/2
-  centres them on the clock frames, so messages sent up to half a period
-  before or after the clock message, each cycle, count for that cycle.
-  Frames before the first window or after the last are not used.
+- Without a ``counter``: two consecutive clock frames D apart with
+  round(D / T) = n > 1 mean n - 1 lost clock frames, and n - 1 samples are
+  inserted, evenly spaced between them. A clock frame less than T/2 after
+  the previous one (n = 0) is a repeat of the same sample.
+- With a ``counter`` (a sequence number the sender adds 1 to each sample,
+  wrapping at 2^bits), a frame's sample is its counter, unwrapped: lost
+  frames are the numbers skipped, and a sender that stalls and then sends
+  its backlog in a burst keeps every sample in place. Use one when the log
+  has one.
+- The clock message's own signals come from the sample's own frame. Any
+  other message's frames count for sample k if received in
+  ``[tau_k + a T, tau_{k+1} + a T)`` (a = ``window_start``); these windows
+  tile the log. The default a = -1/2 centres them on the clock frames, so
+  messages sent up to half a period before or after the clock message,
+  each cycle, count for that cycle. Frames before the first window or
+  after the last are not used.
 
 Missing and late messages
 -------------------------
@@ -84,7 +92,7 @@ __all__ = ["Aligned", "BusMap", "LOG_SUFFIXES", "SignalRef", "SignalStats", "ali
 #: the log formats read, by file name suffix
 LOG_SUFFIXES = (".blf", ".asc", ".log")
 _REF = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)\.([A-Za-z_][A-Za-z0-9_]*)\Z")
-_KEYS = ("sample_period", "clock", "window_start", "signals", "valid")
+_KEYS = ("sample_period", "clock", "counter", "window_start", "signals", "valid")
 _WINDOW_RANGE = (-1.0, 0.0)
 #: the clock frames' median interval may differ from the sample period by this fraction
 PERIOD_TOLERANCE = 0.25
@@ -139,6 +147,7 @@ class BusMap:
     sample_period: float | None = None
     clock: str | None = None
     window_start: float = -0.5
+    counter: SignalRef | None = None
 
     def __post_init__(self) -> None:
         for key in ("signals", "valid"):
@@ -153,6 +162,8 @@ class BusMap:
         if self.clock is not None and (not isinstance(self.clock, str) or not self.clock):
             raise ValueError(f"bus.clock: expected a message name, got {self.clock!r}")
         _real("bus.window_start", self.window_start, *_WINDOW_RANGE)
+        if self.counter is not None and not isinstance(self.counter, SignalRef):
+            raise ValueError(f"bus.counter: expected a SignalRef, got {type(self.counter).__name__}")
         for name in self.valid:
             if name not in self.signals:
                 raise ValueError(f"bus.valid.{name}: a validity flag for {name!r}, which bus.signals does not "
@@ -195,6 +206,7 @@ class BusMap:
         return cls(signals=tables["signals"], valid=tables["valid"],
                    sample_period=None if period is None else _real(f"{path}.sample_period", period, positive=True),
                    clock=clock,
+                   counter=None if table.get("counter") is None else SignalRef.parse(table["counter"], f"{path}.counter"),
                    window_start=_real(f"{path}.window_start", table.get("window_start", -0.5), *_WINDOW_RANGE))
 
     def to_table(self) -> dict[str, Any]:
@@ -204,6 +216,8 @@ class BusMap:
             out["sample_period"] = float(self.sample_period)
         if self.clock is not None:
             out["clock"] = self.clock
+        if self.counter is not None:
+            out["counter"] = str(self.counter)
         if self.window_start != -0.5:
             out["window_start"] = float(self.window_start)
         out["signals"] = {name: str(ref) for name, ref in self.signals.items()}
@@ -408,20 +422,34 @@ class Aligned:
         return int(self.t.shape[0])
 
 
-def _ticks(tc: np.ndarray, T: float) -> tuple[np.ndarray, int]:
-    """Sample instants from the clock frames' times ``tc``: (tau, samples inserted for lost clock frames)."""
+def _ticks(tc: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """Samples from the clock frames' times ``tc``: (tau, the sample of each frame, samples inserted)."""
     tau: list[float] = [float(tc[0])]
+    sample = np.zeros(tc.size, dtype=np.int64)
     inserted = 0
-    for c in tc[1:]:
+    for i, c in enumerate(tc[1:], start=1):
         base = tau[-1]
         gap = float(c) - base
         n = int(round(gap / T))
-        if n == 0:
-            continue  # a repeat within T/2: the same sample
-        tau.extend(base + j * gap / n for j in range(1, n))
-        inserted += n - 1
-        tau.append(float(c))
-    return np.asarray(tau), inserted
+        if n > 0:  # n == 0: a repeat within T/2, the same sample
+            tau.extend(base + j * gap / n for j in range(1, n))
+            inserted += n - 1
+            tau.append(float(c))
+        sample[i] = len(tau) - 1
+    return np.asarray(tau), sample, inserted
+
+
+def _counted(tc: np.ndarray, counts: np.ndarray, modulus: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Samples from the clock frames' counter values: (tau, the sample of each frame, samples inserted).
+    A frame's sample is its counter, unwrapped, less the first's; a repeated counter is the same sample;
+    the instants of samples without a frame are interpolated between their neighbours'."""
+    step = np.diff(counts) % modulus
+    sample = np.concatenate([[0], np.cumsum(step)]).astype(np.int64)
+    K = int(sample[-1]) + 1
+    first = np.ones(tc.size, dtype=bool)
+    first[1:] = step != 0
+    tau = np.interp(np.arange(K), sample[first], tc[first])
+    return tau, sample, K - int(first.sum())
 
 
 def _period(db: Any, clock_msg: Any, bus: BusMap, tc: np.ndarray, period_option: str,
@@ -442,6 +470,26 @@ def _period(db: Any, clock_msg: Any, bus: BusMap, tc: np.ndarray, period_option:
                              f"every {med:.6g} s (median of {tc.size - 1} intervals); give the period its frames "
                              "are sent at, or choose another clock message")
     return T, where
+
+
+def _counter_samples(db: Any, ref: SignalRef, clock_msg: Any, frames: Frames, idx: np.ndarray, dbc: str,
+                     source: str) -> tuple[np.ndarray, np.ndarray, int]:
+    """:func:`_counted` on the clock frames' counter signal ``ref``."""
+    msg, sig = _signal(db, ref, dbc)
+    if msg.name != clock_msg.name:
+        raise ValueError(f"{ref.origin}: {str(ref)!r} is in message {msg.name}, not in the clock message "
+                         f"{clock_msg.name}: the counter numbers the clock's frames")
+    if sig.is_signed or sig.is_float or sig.scale != 1 or sig.offset != 0 or _mux_values(msg, sig) is not None:
+        raise ValueError(f"{ref.origin}: {str(ref)!r} is not a counter: expected an unsigned integer signal in every "
+                         "frame, without scale or offset")
+    counts = np.empty(idx.size, dtype=np.int64)
+    for n, i in enumerate(idx):
+        try:
+            counts[n] = int(msg.decode(frames.data[i], decode_choices=False, scaling=False)[sig.name])
+        except Exception:  # noqa: BLE001 - any frame that does not decode
+            raise ValueError(f"{ref.origin}: {source}: the clock frame at log time {frames.t[i]:.6f} does not decode, "
+                             "so its counter is unknown") from None
+    return _counted(frames.t[idx], counts, 1 << int(sig.length))
 
 
 def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], input_names: Sequence[str], *,
@@ -508,7 +556,11 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
         raise ValueError(f"{clock_option}: {source} has no frame of the clock message {clock_msg.name} "
                          f"(id 0x{clock_msg.frame_id:X})")
     T, period_source = _period(db, clock_msg, bus, tc, period_option, dbc)
-    tau, inserted = _ticks(tc, T)
+    if bus.counter is None:
+        tau, clock_sample, inserted = _ticks(tc, T)
+    else:
+        tau, clock_sample, inserted = _counter_samples(db, bus.counter, clock_msg, frames, where_msg[clock_msg.name],
+                                                       dbc, source)
     K = tau.size
     starts = tau + bus.window_start * T
     end = starts[-1] + T
@@ -517,14 +569,19 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
     decoded: dict[str, tuple[np.ndarray, list[dict[str, Any] | None]]] = {}
     for m in {msg.name: msg for msg, _ in resolved.values()}.values():
         idx = where_msg[m.name]
-        idx = idx[(frames.t[idx] >= starts[0]) & (frames.t[idx] < end)]
+        if m.name == clock_msg.name:  # the clock message's own signals: from the sample's own frame
+            window = clock_sample
+        else:
+            inside = (frames.t[idx] >= starts[0]) & (frames.t[idx] < end)
+            idx = idx[inside]
+            window = np.searchsorted(starts, frames.t[idx], side="right") - 1
         values: list[dict[str, Any] | None] = []
         for i in idx:
             try:
                 values.append(m.decode(frames.data[i], decode_choices=False, scaling=True))
             except Exception:  # cantools: DecodeError, a wrong length, an unknown multiplexer value, ...
                 values.append(None)
-        decoded[m.name] = (np.searchsorted(starts, frames.t[idx], side="right") - 1, values)
+        decoded[m.name] = (window, values)
     n, n_in = len(state_names), len(input_names)
     value = np.full((K, n + n_in), np.nan)
     got = np.zeros((K, n + n_in), dtype=bool)

@@ -39,8 +39,9 @@ BO_ 257 StatesB: 8 PLANT
  SG_ X4 : 32|28@1- (1e-06,0) [-100|100] "" CTRL
  SG_ X4Valid : 60|1@1+ (1,0) [0|1] "" CTRL
 
-BO_ 512 Command: 4 CTRL
+BO_ 512 Command: 5 CTRL
  SG_ U : 0|32@1- (1,0) [-1e9|1e9] "" PLANT
+ SG_ Seq : 32|8@1+ (1,0) [0|255] "" PLANT
 
 BO_ 768 Mux: 8 PLANT
  SG_ Page M : 0|8@1+ (1,0) [0|255] "" CTRL
@@ -121,7 +122,7 @@ def _recording() -> Recording:
                 if k not in FLAG_X4:
                     X[k, 3] = got["X4"]
                     valid[k, 3] = True
-        U[k, 0] = frame("Command", tk + 0.3 * PERIOD, {"U": traj.U[k, 0]})["U"]
+        U[k, 0] = frame("Command", tk + 0.3 * PERIOD, {"U": traj.U[k, 0], "Seq": k % 256})["U"]
     frames.sort(key=lambda m: m.timestamp)
     return Recording(frames=frames, X=X, valid=valid, U=U)
 
@@ -385,6 +386,8 @@ def test_bad_files_exit_2_naming_the_file_and_line(files: dict[str, Path], tmp_p
     (["--clock", "Nope"], "--clock: no message 'Nope' in"),
     (["--start", "0.5", "--stop", "0.2"], "--stop 0.2: must be after --start 0.5"),
     (["--start", "9"], "--start/--stop: no sample between 9.0 and None s"),
+    (["--counter", "StatesA.X1"], "--counter: 'StatesA.X1' is not a counter: expected an unsigned integer signal"),
+    (["--counter", "Command.Seq"], "--counter: 'Command.Seq' is in message Command, not in the clock message StatesA"),
 ])
 def test_bad_options_exit_2_naming_the_option(files: dict[str, Path], tmp_path: Path, args: list[str | None],
                                               message: str, cli_error) -> None:
@@ -440,3 +443,28 @@ def test_hil_score_on_a_recording_without_a_sidecar_says_what_it_needs_and_offer
         assert f"no sidecar {log.name}.json" in err
         assert "the truth it scores against" in err
         assert f"pyrhonn identify --can-log {log} --dbc FILE --config CFG" in err
+
+
+def test_a_counter_keeps_a_late_burst_of_clock_frames_in_place(files: dict[str, Path], rec: Recording,
+                                                               tmp_path: Path, cli_error) -> None:
+    """The Command sender stalls for 6 periods and then sends its backlog at once: numbered by their
+    counter, the frames keep their samples (every input in place); by time alone, the stall reads as lost
+    samples, whose inputs are then missing (refused, not filled in)."""
+    stalled = range(30, 36)
+    burst = [can.Message(timestamp=round(T0 + 35 * PERIOD + 0.3 * PERIOD + 1e-5 * (k - 30), 6),
+                         arbitration_id=m.arbitration_id, data=m.data, dlc=m.dlc, is_extended_id=False)
+             for k, m in zip(stalled, [m for m in rec.frames if m.arbitration_id == 512][30:36])]
+    commands = [m for m in rec.frames if m.arbitration_id == 512]
+    late = [m for m in rec.frames if not (m.arbitration_id == 512 and any(m is commands[k] for k in stalled))]
+    _candump(sorted(late + burst, key=lambda m: m.timestamp), tmp_path / "burst.log")
+    args = ["identify", "--can-log", str(tmp_path / "burst.log"), "--dbc", str(files["dbc"]), "--config",
+            str(files["config"]), "--clock", "Command", "--no-plots"]
+    assert "input 'u' is missing at 5 sample(s) inside the run" in cli_error(args + ["--out", str(tmp_path / "t")])
+    assert main(args + ["--counter", "Command.Seq", "--out", str(tmp_path / "n")]) == 0
+    with (tmp_path / "n" / "samples.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == rec.X.shape[0]
+    assert [float(r["u"]) for r in rows] == rec.U[:, 0].tolist()  # every input from its own frame
+    # the states' frames came on time, but the samples they belong to bunched up in the burst: those
+    # samples' windows hold no frame of StatesA, so x1 is not valid there (and never filled in)
+    assert all(rows[k]["x1_valid"] == "0" and rows[k]["x1"] == "" for k in range(30, 35))

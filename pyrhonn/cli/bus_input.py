@@ -29,7 +29,8 @@ SAMPLES = "samples.csv"
 _HELP = (
     "Read the states and inputs from a CAN log (.blf, .asc: python-can's can.Logger; .log: candump -l) "
     "with a DBC, instead of DATA.csv. The config's [bus] table (or --signal) maps every state and input to "
-    "a DBC signal \"Message.Signal\"; each frame of the clock message is one sample. Missing and late "
+    "a DBC signal \"Message.Signal\"; each frame of the clock message is one sample (numbered by its "
+    "--counter if it has one). Missing and late "
     "messages are never invented: a state whose message has no frame in a sample's window (lost, or late "
     "into the next window), does not decode, or whose [bus.valid] flag is 0 is a not-valid sample (the "
     "identifier neither learns from it nor feeds it back); the ends of the log without every input are cut "
@@ -51,6 +52,9 @@ def add_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--clock", metavar="MESSAGE",
                    help="the message whose frames are the samples (default: the config's bus.clock, else the "
                         "message of the first state)")
+    g.add_argument("--counter", metavar="Message.Signal",
+                   help="the clock message's sequence counter, which numbers the samples (default: the config's "
+                        "bus.counter, else none: lost clock frames are found from the gaps in time)")
     g.add_argument("--start", metavar="S", help="leave out the samples before S seconds after the first clock frame")
     g.add_argument("--stop", metavar="S", help="leave out the samples after S seconds after the first clock frame")
 
@@ -116,6 +120,10 @@ def _bus_map(args: argparse.Namespace, cf: ConfigFile, config_source: str) -> tu
     if args.sample_period is not None:
         period = real_option("--sample-period", args.sample_period, positive=True)
         period_option = "--sample-period"
+    counter = None if base.counter is None else SignalRef(base.counter.message, base.counter.signal,
+                                                          f"{config_source}: {base.counter.origin}")
+    if args.counter is not None:
+        counter = SignalRef.parse(args.counter.strip(), "--counter")
     clock = base.clock
     clock_option = f"{config_source}: bus.clock"
     if args.clock is not None:
@@ -123,7 +131,8 @@ def _bus_map(args: argparse.Namespace, cf: ConfigFile, config_source: str) -> tu
         clock_option = "--clock"
         if not clock:
             raise ValueError("--clock: empty; give a message name of the DBC")
-    return (BusMap(signals=signals, valid=valid, sample_period=period, clock=clock, window_start=base.window_start),
+    return (BusMap(signals=signals, valid=valid, sample_period=period, clock=clock, window_start=base.window_start,
+                   counter=counter),
             period_option if period is not None else "--sample-period (or bus.sample_period in the config)",
             clock_option)
 
@@ -132,7 +141,7 @@ def check_options(args: argparse.Namespace) -> None:
     """DATA.csv or --can-log, not both; the bus options only with --can-log."""
     if args.can_log is None:
         given = [opt for opt, value in (("--dbc", args.dbc), ("--signal", args.signal or None),
-                                        ("--sample-period", args.sample_period), ("--clock", args.clock),
+                                        ("--sample-period", args.sample_period), ("--clock", args.clock), ("--counter", args.counter),
                                         ("--start", args.start), ("--stop", args.stop)) if value is not None]
         if given:
             raise ValueError(f"{given[0]}: only with --can-log (a bus recording)")
