@@ -54,7 +54,7 @@ dense_status dense_ekf_update(dense_ekf *f, const dense_real *z, dense_real e)
 {
     const int n = f->n;
     dense_real s, s_inv;
-    int i;
+    int i, j;
 
     /* H = z^T (1 x n), H^T (n x 1) */
     mat_transpose(z, f->ht, 1, n);
@@ -71,8 +71,9 @@ dense_status dense_ekf_update(dense_ekf *f, const dense_real *z, dense_real e)
         f->w[i] += f->eta * f->k[i] * e;
     /* I - K H (n x n) */
     dense_mat_mul(f->k, z, f->kh, n, 1, n);
-    for (i = 0; i < n * n; ++i)
-        f->kh[i] = (i % (n + 1) == 0 ? (dense_real)1 : (dense_real)0) - f->kh[i];
+    for (i = 0; i < n; ++i)
+        for (j = 0; j < n; ++j)
+            f->kh[i * n + j] = (i == j ? (dense_real)1 : (dense_real)0) - f->kh[i * n + j];
     /* P <- (I - K H) P + Q */
     dense_mat_mul(f->kh, f->p, f->pn, n, n, n);
     mat_add(f->pn, f->q, f->p, n, n);
