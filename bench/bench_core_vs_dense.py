@@ -27,8 +27,8 @@ and dense timed alternately, best of the repeats), the ratio dense / core
 instructions per step from callgrind (load-independent). The machine load
 (os.getloadavg) is printed beside every row.
 
-    python bench/bench_core_vs_dense.py               # -O2 (about a minute)
-    python bench/bench_core_vs_dense.py --native      # also -O3 -march=native
+    python bench/bench_core_vs_dense.py               # -O2 (about half a minute)
+    python bench/bench_core_vs_dense.py --native      # also -O3 -march=native (about a minute)
     python bench/bench_core_vs_dense.py --quick       # smoke run
     python bench/bench_core_vs_dense.py --covariance full   # the core in eq. 7's full form too
     python bench/bench_core_vs_dense.py --json out.json
