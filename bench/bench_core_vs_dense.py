@@ -30,7 +30,7 @@ instructions per step from callgrind (load-independent). The machine load
     python bench/bench_core_vs_dense.py               # -O2 (about half a minute)
     python bench/bench_core_vs_dense.py --native      # also -O3 -march=native (about a minute)
     python bench/bench_core_vs_dense.py --quick       # smoke run
-    python bench/bench_core_vs_dense.py --covariance full   # the core in eq. 7's full form too
+    python bench/bench_core_vs_dense.py --covariance full   # every neuron of the core in eq. 7's full form
     python bench/bench_core_vs_dense.py --json out.json
 """
 from __future__ import annotations
