@@ -76,10 +76,10 @@ test-c-sanitize:
 # positive definite, an update with s < R or a refused call that changed the
 # filter fails the run.
 CLANG ?= clang-14
-FUZZ_SECONDS ?= 60
-FUZZ_UDP_SECONDS ?= 30
+FUZZ_SECONDS ?= 45
+FUZZ_UDP_SECONDS ?= 20
 # the core's public API (csrc/fuzz/fuzz_core.c), per precision; 600 for a real campaign
-FUZZ_CORE_SECONDS ?= 45
+FUZZ_CORE_SECONDS ?= 30
 FW_FLAGS = -std=c99 -ffp-contract=off -DRHONN_SINGLE -Icsrc/include -Ifirmware_sim/app \
 	-Ifirmware_sim/generated -Ifirmware_sim/config
 FW_SOURCES = firmware_sim/app/fw_app.c firmware_sim/app/fw_protocol.c firmware_sim/app/fw_hal_mem.c \
