@@ -1,13 +1,16 @@
-"""Estimated Cortex-M4 cycles of the identifier core, from the instructions
-QEMU executes.
+"""Estimated Cortex-M4 cycles of a function of the firmware (rhonn_step,
+fw_app_on_frame), from the instructions QEMU executes.
 
 QEMU does not model the DWT cycle counter, so the estimate weights every
-instruction the core executes with its cost in the Cortex-M4 Technical
-Reference Manual's instruction timing tables (processor core and FPv4-SP
-FPU). QEMU runs the image one instruction per translation block
-(``-singlestep -d exec,nochain``) and logs the address of each one it
-executes inside the core's functions (``-dfilter``); the disassembly names
-each address's instruction.
+instruction executed with its cost in the Cortex-M4 Technical Reference
+Manual's instruction timing tables (processor core and FPv4-SP FPU). QEMU
+runs the image one instruction per translation block (``-singlestep -d
+exec,nochain``) and logs the address of each one it executes inside the
+counted functions (``-dfilter``); the disassembly names each address's
+instruction. Counted: the functions of the given object files and every
+library routine they reach by direct calls (memcpy, the soft-float double
+arithmetic), from each entry of the measured function until the program is
+back in its caller (the harness, not counted), so one figure per call.
 
 The weights (cycles):
 
@@ -28,10 +31,13 @@ branch, not taken                         1    (the next executed address tells)
 other integer instructions                1
 =====================================  ======  ====================================
 
-Limits: no flash wait states (a 168 MHz part has 5 and an ART accelerator),
-no bus contention, no pipelining of back-to-back loads beyond the table,
-divide costs at their middle value. Real silicon with zero-wait-state
-memory should land near this figure; from flash without a cache, above it.
+Limits: no flash wait states (a 168 MHz part has 5 and an ART accelerator:
+the figure is that of code in zero-wait-state memory); no pipelining effects
+beyond the table (back-to-back loads are charged 2 each where the M4 can
+overlap them to 1 + N, FPU result hazards and branch-target alignment are
+not charged); no bus contention, no interrupts; divides at their middle
+value. Real silicon with zero-wait-state memory should land near this
+figure; from flash without a cache, above it.
 
     python firmware_sim/cortex_m4/cycles.py IMAGE.elf OBJECT... [--steps-symbol rhonn_step] [--harness main]
 """

@@ -131,7 +131,7 @@ def stream(n_frames: int, start: float) -> list[Frame]:
                 msg("weight_load", m, k)
             msg("control", control_message("WeightsCommit", token=2, sender=sender), k)
         elif event in ("learning_off", "learning_on"):
-            msg("control", control_message("LearningOff" if event == "learning_off" else "LearningOn", token=k,
+            msg("control", control_message("LearningOff" if event == "learning_off" else "LearningOn", token=k & 0xFF,
                                            sender=sender), k)
         msg("measurement", meas, k)
         seq += 1
