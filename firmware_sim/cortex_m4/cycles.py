@@ -316,7 +316,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--steps-symbol", default="rhonn_step", help="the function whose calls are estimated")
     ap.add_argument("--harness", default="main", help="comma-separated callers of it, not counted (default main)")
     args = ap.parse_args(argv)
-    est = estimate(args.elf, args.objects, args.steps_symbol, harness=args.harness.split(","))
+    for path in (args.elf, *args.objects):
+        if not path.is_file():
+            ap.error(f"{path}: no such file")
+    try:
+        est = estimate(args.elf, args.objects, args.steps_symbol, harness=args.harness.split(","))
+    except (RuntimeError, OSError, subprocess.SubprocessError) as exc:
+        print(f"cycles: {exc}", file=sys.stderr)
+        return 2
     est.pop("cycles_each")
     print(json.dumps(est, indent=2))
     return 0

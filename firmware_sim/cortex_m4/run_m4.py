@@ -6,12 +6,20 @@ checks the command authentication's AES-CMAC against RFC 4493 on the target
 and counts the instructions of verifying a secured Control and WeightLoad
 (secoc_main.c).
 
-    python firmware_sim/cortex_m4/run_m4.py [--out build/m4] [--json report.json]
+Then the whole firmware application (app_main.c: fw_app over fw_hal_mem)
+over a recorded frame stream (make_frames.py): every status and every frame
+it sends must equal the host firmware's (pyrhonn._fwapp); reports its flash
+and RAM (linker map), the worst stack of fw_app_on_frame, and the estimated
+cycles (cycles.py) of the first --cycle-frames frames, by kind of frame and
+of rhonn_step inside them, against the whole-frame target (7,560 cycles).
 
-Exit status 0 when both builds agree on every bit, 1 when they do not, 2
+    python firmware_sim/cortex_m4/run_m4.py [--out build/m4] [--samples N] [--frames N]
+                                            [--cycle-frames N] [--json report.json]
+
+Exit status 0 when every comparison agrees, 1 when one does not, 2
 when a tool is missing or a build fails. Needs arm-none-eabi-gcc with newlib
-(Debian: gcc-arm-none-eabi libnewlib-arm-none-eabi), qemu-system-arm, cmake
-and a host C compiler.
+(Debian: gcc-arm-none-eabi libnewlib-arm-none-eabi), qemu-system-arm, cmake,
+a host C compiler and pyrhonn installed.
 """
 from __future__ import annotations
 
