@@ -1,8 +1,17 @@
-"""The same C core on a Cortex-M4F (QEMU mps2-an386, newlib, hard float)
-and on the host (float32, glibc): every prediction of the LIM test vector
-must be bit-identical. The core carries its own exp and is built with
--ffp-contract=off so that this holds; this test is what proves it. The
-command authentication's AES-CMAC is checked on the target too."""
+"""The same C on a Cortex-M4F (QEMU mps2-an386, newlib, hard float) and on
+the host (float32, glibc).
+
+- The core: every prediction of the LIM test vector must be bit-identical.
+  The core carries its own exp and is built with -ffp-contract=off so that
+  this holds; this test is what proves it.
+- The whole firmware application (fw_app over the memory HAL) fed a recorded
+  frame stream: every frame it sends (Estimates, ControlAcks, Diagnostics and
+  Health frames) must equal, byte for byte, what the host's firmware
+  (pyrhonn._fwapp) sent for the same stream, and every frame's status too.
+- The command authentication's AES-CMAC is checked on the target too, and the
+  cycle estimate of the application's frames runs on a short prefix.
+
+run_m4.py runs once for the module (about 20 s)."""
 from __future__ import annotations
 
 import json
@@ -15,9 +24,12 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
+M4 = ROOT / "firmware_sim" / "cortex_m4"
 TOOLS = ("arm-none-eabi-gcc", "qemu-system-arm", "cmake")
 missing = [t for t in TOOLS if shutil.which(t) is None]
 required = os.environ.get("PYRHONN_REQUIRE_CORTEX_M4") == "1"
+needs_m4 = pytest.mark.skipif(bool(missing) and not required, reason=f"Cortex-M4 toolchain missing: {missing}")
+SAMPLES, FRAMES, CYCLE_FRAMES = 1500, 200, 25
 
 
 def test_cortex_m4_toolchain_is_present_when_required() -> None:
@@ -25,20 +37,28 @@ def test_cortex_m4_toolchain_is_present_when_required() -> None:
         assert not missing, f"PYRHONN_REQUIRE_CORTEX_M4=1 but {missing} not on PATH"
 
 
-@pytest.mark.skipif(bool(missing) and not required, reason=f"Cortex-M4 toolchain missing: {missing}")
-def test_cortex_m4_predictions_are_bit_identical_to_host_float32(tmp_path: Path) -> None:
-    report_file = tmp_path / "m4.json"
-    proc = subprocess.run([sys.executable, str(ROOT / "firmware_sim" / "cortex_m4" / "run_m4.py"),
-                           "--out", str(tmp_path / "build"), "--samples", "1500", "--json", str(report_file)],
-                          capture_output=True, text=True, timeout=600)
+@pytest.fixture(scope="module")
+def m4(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, Path, int]:
+    """run_m4.py's report, its build folder and exit status."""
+    out = tmp_path_factory.mktemp("m4")
+    report_file = out / "m4.json"
+    # the installed pyrhonn (the source tree has no compiled extensions), from a folder that cannot shadow it
+    proc = subprocess.run([sys.executable, str(M4 / "run_m4.py"), "--out", str(out / "build"),
+                           "--samples", str(SAMPLES), "--frames", str(FRAMES), "--cycle-frames", str(CYCLE_FRAMES),
+                           "--json", str(report_file)], capture_output=True, text=True, timeout=900, cwd=str(out))
     assert proc.returncode in (0, 1), proc.stderr
-    report = json.loads(report_file.read_text())
+    return json.loads(report_file.read_text()), out / "build", proc.returncode
+
+
+@needs_m4
+def test_cortex_m4_predictions_are_bit_identical_to_host_float32(m4) -> None:
+    report, _, _ = m4
     for build in ("unrolled", "generic"):
         r = report[build]
         print(f"\n{build}: {r['instructions_per_step']:.0f} instructions/step "
               f"({100 * r['budget_fraction']:.1f} % of 0.3 ms at 168 MHz), core .text {r['core_object']['text']} B, "
               f"rhonn_t {r['sizeof_rhonn_t']} B, stack {r['rhonn_step_worst_stack_bytes']} B")
-        assert r["predictions_compared"] == 1500
+        assert r["predictions_compared"] == SAMPLES
         assert r["distinct_predictions"] > 1000  # a live trajectory, not a constant
         assert r["bit_identical_to_host_float32"], f"{build}: M4 and host float32 predictions differ"
     # the command authentication on the target: RFC 4493's examples, and secured frames verify
@@ -46,4 +66,56 @@ def test_cortex_m4_predictions_are_bit_identical_to_host_float32(tmp_path: Path)
     print(f"secoc: {secoc['instructions_per_control_verify']:.0f} instructions per Control verified, "
           f"{secoc['instructions_per_weight_load_verify']:.0f} per WeightLoad")
     assert secoc["cmac_rfc4493_and_verification_on_target"]
-    assert proc.returncode == 0
+
+
+@needs_m4
+def test_cortex_m4_application_sends_exactly_the_host_firmwares_frames(m4) -> None:
+    report, build, status = m4
+    app = report["application"]
+    expected = (build / "frames" / "frames_expected.txt").read_text().splitlines()
+    sent_ids = {line.split()[1] for line in expected if line.startswith("T ")}
+    # the stream reaches every path: estimates, acks, diagnostics with health, and each rejection
+    assert {"101", "111", "130", "131"} <= sent_ids, sent_ids
+    assert {"FW_E_SEQ_REPEAT", "FW_E_SEQ_JUMP", "FW_E_RANGE", "FW_E_UNKNOWN_ID"} <= set(app["status_counts"])
+    assert app["frames"] > FRAMES and app["lines_compared"] == len(expected)
+    assert app["identical_to_host"], f"the M4 application differs from the host's: {app['first_difference']}"
+    assert app["status_counts"] == {s: sum(1 for line in expected if line.startswith("F ") and line.split()[2] == s)
+                                    for s in app["status_counts"]}
+    print(f"\napplication: {app['frames']} frames, {app['frames_sent']} sent, identical; flash {app['flash_bytes']} B, "
+          f"fw_app {app['sizeof_fw_app']} B, stack {app['fw_app_on_frame_worst_stack_bytes']} B")
+    assert status == 0
+
+
+@needs_m4
+def test_cortex_m4_application_comparison_finds_a_changed_frame(m4, tmp_path: Path) -> None:
+    """The comparison is not vacuous: one changed byte of one recorded
+    output frame is reported at its line."""
+    sys.path.insert(0, str(M4))
+    try:
+        import run_m4
+    finally:
+        sys.path.remove(str(M4))
+    _, build, _ = m4
+    frames = tmp_path / "frames"
+    shutil.copytree(build / "frames", frames)
+    lines = (frames / "frames_expected.txt").read_text().splitlines()
+    k = next(i for i, line in enumerate(lines) if line.startswith("T 101") and i > len(lines) // 2)
+    last = lines[k][-1]
+    lines[k] = lines[k][:-1] + ("0" if last != "0" else "1")
+    (frames / "frames_expected.txt").write_text("\n".join(lines) + "\n")
+    app = run_m4.run_app(build / "unrolled", frames, 0)
+    assert not app["identical_to_host"]
+    assert app["first_difference"]["line"] == k
+    assert app["first_difference"]["host"] == lines[k]
+
+
+@needs_m4
+def test_cortex_m4_cycle_estimate_covers_the_frame_and_its_step(m4) -> None:
+    report, _, _ = m4
+    c = report["application"]["cycles"]
+    assert c["frames"] == CYCLE_FRAMES and c["steps"] == CYCLE_FRAMES   # the prefix: measurements only
+    assert 0 < c["step_mean"] < c["measurement_frame_mean"]            # the frame holds its step and more
+    assert c["app_overhead_mean"] > 0
+    assert c["frame_target_met"] == (c["measurement_frame_max"] <= c["frame_target"])
+    print(f"\ncycles: {c['measurement_frame_mean']:.0f} per measurement frame (target {c['frame_target']}), "
+          f"{c['step_mean']:.0f} per rhonn_step")

@@ -18,7 +18,7 @@ import numpy as np
 
 from dataclasses import replace
 
-from pyrhonn import CovarianceForm, IdentifierConfig
+from pyrhonn import CovarianceForm, IdentifierConfig, atomic
 from pyrhonn.configfile import load_shipped
 from pyrhonn.export import header_text
 from pyrhonn.plants import lim
@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
         "#endif",
         "",
     ])
-    (args.out / "vector.h").write_text(text)
+    atomic.write_text(args.out / "vector.h", text)
     print(f"wrote {args.out / 'vector.h'}: {args.samples} samples from t = {args.start} s, "
           f"{int((~valid).sum())} invalid measurements")
     return 0
