@@ -131,6 +131,46 @@ def test_plots_are_one_png_per_state(dropout_run: tuple[Path, Trajectory], tmp_p
         assert png.startswith(b"\x89PNG\r\n\x1a\n") and len(png) > 10_000
 
 
+def test_plot_axes_carry_the_given_units_and_the_legend_names_the_not_valid_shading(
+        dropout_run: tuple[Path, Trajectory], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from pyrhonn.cli import identify as identify_cli
+
+    data, traj = dropout_run
+    saved: dict[str, object] = {}
+    real = identify_cli.atomic.save_figure
+
+    def capture(fig, path, **kwargs):
+        saved[Path(path).stem] = fig
+        return real(fig, path, **kwargs)
+
+    monkeypatch.setattr(identify_cli.atomic, "save_figure", capture)
+    first, *rest = traj.state_names
+    assert main(["identify", str(data), "--config", "example1", "--out", str(tmp_path / "o"),
+                 "--units", f"{first}=rad, t=s"]) == 0
+    top, bottom = saved[first].axes
+    assert top.get_ylabel() == f"{first} [rad]" and bottom.get_ylabel() == "error [rad]"
+    assert bottom.get_xlabel() == "t [s]"
+    for name in rest:
+        assert saved[name].axes[0].get_ylabel() == f"{name} (no unit given)"
+    shaded = [name for name in traj.state_names
+              if identify_cli.NOT_VALID_LABEL in [t.get_text() for t in saved[name].axes[0].get_legend().get_texts()]]
+    with open(data) as fh:
+        header = next(csv.reader(fh))
+    assert shaded and all(f"{name}_valid" in header for name in shaded)  # only states with dropouts are shaded
+
+
+@pytest.mark.parametrize("units, message", [("x9=m", "--units: x9: not a state"), ("x1", "expected NAME=UNIT"),
+                                            ("a=m,a=s", "given twice")])
+def test_bad_units_are_named(dropout_run: tuple[Path, Trajectory], tmp_path: Path, units: str, message: str,
+                             capsys: pytest.CaptureFixture[str]) -> None:
+    data, _ = dropout_run
+    try:
+        code = main(["identify", str(data), "--config", "example1", "--out", str(tmp_path / "o"), "--units", units])
+    except SystemExit as exc:  # argparse's own usage error
+        code = exc.code
+    assert code == 2 and message in capsys.readouterr().err
+
+
 # -- bad files --------------------------------------------------------------------------------------
 
 CONFIG = '''\
@@ -354,7 +394,16 @@ def test_identify_killed_into_an_existing_out_leaves_whole_files_and_marks_a_mix
     started = 0
 
     def listing() -> list[tuple[str, int, int]]:
-        return sorted((e.name, e.stat().st_size, e.stat().st_mtime_ns) for e in os.scandir(out))
+        """The folder's entries while the process writes: a temporary file may be renamed away
+        between the scan and its stat (then it is left out)."""
+        entries = []
+        for e in os.scandir(out):
+            try:
+                st = e.stat()
+            except FileNotFoundError:
+                continue
+            entries.append((e.name, st.st_size, st.st_mtime_ns))
+        return sorted(entries)
 
     for _ in range(5):
         before = listing()

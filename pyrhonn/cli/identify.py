@@ -79,6 +79,20 @@ def _suffix(text: str) -> str:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _units(text: str) -> dict[str, str]:
+    """--units: NAME=UNIT pairs, comma-separated; names are checked against the config in run()."""
+    units: dict[str, str] = {}
+    for item in text.split(","):
+        name, sep, unit = item.partition("=")
+        name, unit = name.strip(), unit.strip()
+        if not sep or not name or not unit:
+            raise argparse.ArgumentTypeError(f"expected NAME=UNIT[,NAME=UNIT...], got {item.strip()!r}")
+        if name in units:
+            raise argparse.ArgumentTypeError(f"{name!r} is given twice")
+        units[name] = unit
+    return units
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "identify", help="identify a plant from a CSV file of states and inputs (or a CAN log)",
@@ -95,6 +109,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--warmup", type=_nonnegative_int, default=0, metavar="N",
                    help="leave the first N one-step-ahead pairs out of the metrics (default 0)")
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
+    p.add_argument("--units", type=_units, default={}, metavar="NAME=UNIT[,NAME=UNIT...]",
+                   help="units of the states (and of the time column t) for the plots' axes, e.g. "
+                        "q_m=m,v=m/s,t=s; the CSV carries none, so a state without one is labelled "
+                        "'(no unit given)'")
     bus_input.add_options(p)
     p.set_defaults(func=run)
 
@@ -183,7 +201,13 @@ def _write_predictions(path: Path, data: Data, cf: ConfigFile, xhat0: np.ndarray
             w.writerow(row)
 
 
-def _plot(path: Path, name: str, data: Data, Xhat: np.ndarray, j: int, warmup: int) -> None:
+NOT_VALID_LABEL = "not valid (not learnt; predicted from its own outputs)"  #: legend entry of the shaded samples
+
+
+def _plot(path: Path, name: str, data: Data, Xhat: np.ndarray, j: int, warmup: int,
+          units: dict[str, str]) -> None:
+    """Measured and identified state j over the error: every y axis carries the state's unit
+    (``--units``), and the samples whose measurement was not valid are shaded, in the legend."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -196,12 +220,20 @@ def _plot(path: Path, name: str, data: Data, Xhat: np.ndarray, j: int, warmup: i
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 1.4])
     top.plot(x_axis, measured, color="0.15", lw=1.2, marker=".", ms=2.5, label=f"{name} (measured)")
     top.plot(x_axis[1:], identified, color="tab:red", lw=1.0, ls="--", label=f"{name} identified (one step ahead)")
-    top.set_ylabel(name)
+    unit = f"[{units[name]}]" if name in units else "(no unit given)"
+    top.set_ylabel(f"{name} {unit}")
     top.set_title(f"{name}: real vs identified")
     bottom.plot(x_axis[1:], error, color="tab:blue", lw=0.9)
     bottom.axhline(0.0, color="0.6", lw=0.6)
-    bottom.set_ylabel("error")
-    bottom.set_xlabel("t" if data.t is not None else "sample")
+    bottom.set_ylabel(f"error {unit}")
+    bottom.set_xlabel((f"t [{units['t']}]" if "t" in units else "t") if data.t is not None else "sample")
+    bad = ~data.valid[:, j]
+    if bad.any():  # runs of not-valid samples, shaded on both axes, one legend entry
+        edges = np.flatnonzero(np.diff(np.r_[0, bad.astype(np.int8), 0]))
+        for n, (a, b) in enumerate(zip(edges[::2], edges[1::2])):
+            for ax in (top, bottom):
+                ax.axvspan(x_axis[a], x_axis[min(b, data.n_samples - 1)], color="tab:orange", alpha=0.18, lw=0,
+                           zorder=0, label=NOT_VALID_LABEL if ax is top and n == 0 else None)
     if warmup:
         for ax in (top, bottom):
             ax.axvspan(x_axis[0], x_axis[min(warmup, data.n_samples - 1)], color="0.9", lw=0, zorder=0,
@@ -242,6 +274,10 @@ def run(args: argparse.Namespace) -> int:
     if args.warmup >= T - 1:
         raise ValueError(f"--warmup {args.warmup}: leaves nothing to score ({T} data rows give {T - 1} "
                          "one-step-ahead pairs)")
+    unknown = sorted(set(args.units) - set(cf.state_names) - {"t"})
+    if unknown:
+        raise ValueError(f"--units: {', '.join(unknown)}: not a state of the config (states: "
+                         f"{', '.join(cf.state_names)}; t for time)")
     out = _output_dir(args.out, source)
     plots = [] if args.no_plots else [out / f"{name}.png" for name in cf.state_names]
     written = [out / "predictions.csv", out / "metrics.json"] + plots + ([out / bus_input.SAMPLES] if bus else [])
@@ -279,7 +315,7 @@ def run(args: argparse.Namespace) -> int:
         _write_predictions(out / "predictions.csv", data, cf, xhat0, Xhat)
         atomic.write_text(out / "metrics.json", json.dumps(report, indent=2) + "\n")
         for j, path in enumerate(plots):
-            _plot(path, cf.state_names[j], data, Xhat, j, args.warmup)
+            _plot(path, cf.state_names[j], data, Xhat, j, args.warmup, args.units)
 
     print(f"identified {source}: {T} samples, {_count(cfg.n_states, 'state')}, {_count(cfg.n_inputs, 'input')}, "
           f"config {config_source}, {dtype}")
