@@ -447,17 +447,9 @@ class Identifier:
                                        None if valid is None else valid[None, :], 0, single=True)
             return self._out.copy()
 
-    @_serialised
-    def run(self, X: np.ndarray, U: np.ndarray | None = None, valid: np.ndarray | None = None,
-            out: np.ndarray | None = None) -> np.ndarray:
-        """A whole trajectory in one C call.
-
-        ``X`` (T, n), ``U`` (T, m) (None when m = 0), ``valid`` None or bool
-        (T, n). Row t of the result is x̂(t+1), the prediction made at sample
-        t. C-contiguous arrays of the identifier's dtype are passed without
-        copies; ``out`` (T, n), if given, receives the predictions. On any
-        error nothing is applied: the identifier is as it was before the call.
-        """
+    def _checked_trajectory(self, X: object, U: object, valid: object) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """``(X, U, valid)`` of a whole trajectory, checked (shapes, dtypes, finite measured
+        values and inputs) and C-contiguous; U (T, 0) when m = 0."""
         if not isinstance(X, np.ndarray) or X.ndim != 2:
             raise ValueError(f"X: expected a 2-D numpy array (T, {self._n}), got "
                              f"{type(X).__name__ if not isinstance(X, np.ndarray) else X.shape}")
@@ -468,16 +460,10 @@ class Identifier:
                 raise ValueError(f"U: expected an array of shape {(T, self._m)}, got None")
             U = np.zeros((T, 0), dtype=self._dtype)
         self._require(U, "U", (T, self._m))
+        assert isinstance(U, np.ndarray)
         if valid is not None:
             self._require_valid(valid, (T, self._n))
-        if out is None:
-            out = np.empty((T, self._n), dtype=self._dtype)
-        else:
-            self._require(out, "out", (T, self._n))
-            if not out.flags.c_contiguous or not out.flags.writeable:
-                raise ValueError("out: must be a writeable C-contiguous array")
-        if T == 0:
-            return out
+            assert isinstance(valid, np.ndarray)
         Xc, Uc = np.ascontiguousarray(X), np.ascontiguousarray(U)
         Vc = None if valid is None else np.ascontiguousarray(valid)
         # Reject bad measurements before touching the filter.
@@ -488,20 +474,108 @@ class Identifier:
         if self._m and not np.isfinite(Uc).all():
             t, j = (int(v) for v in np.argwhere(~np.isfinite(Uc))[0])
             raise ValueError(f"U[{t}, {j}]: not finite")
-        ffi = self._ffi
-        saved = ffi.new("rhonn_t *")
-        ffi.memmove(saved, self._net, ffi.sizeof("rhonn_t"))
-        done = ffi.new("size_t *")
-        status = self._lib.rhonn_run(
-            self._net, T, ffi.from_buffer(self._real_array, Xc),
-            ffi.from_buffer(self._real_array, Uc) if self._m else self._no_inputs,
-            self._null if Vc is None else ffi.from_buffer("uint8_t[]", Vc),
-            ffi.from_buffer(self._real_array, out), done)
+        return Xc, Uc, Vc
+
+    @_serialised
+    def run(self, X: np.ndarray, U: np.ndarray | None = None, valid: np.ndarray | None = None,
+            out: np.ndarray | None = None) -> np.ndarray:
+        """A whole trajectory in one C call.
+
+        ``X`` (T, n), ``U`` (T, m) (None when m = 0), ``valid`` None or bool
+        (T, n). Row t of the result is x̂(t+1), the prediction made at sample
+        t: the streaming convention of :meth:`step` and of the firmware, one
+        row later than the measurement it estimates. (``pyrhonn identify``'s
+        ``predictions.csv`` and :func:`pyrhonn.simulation.simulate` align
+        rows with the measurements instead: their row k is x̂(k), that is
+        ``np.vstack([prediction_before_the_run, result[:-1]])``.)
+        C-contiguous arrays of the identifier's dtype are passed without
+        copies; ``out`` (T, n), if given, receives the predictions. On any
+        error nothing is applied: the identifier is as it was before the call.
+        """
+        Xc, Uc, Vc = self._checked_trajectory(X, U, valid)
+        T = Xc.shape[0]
+        if out is None:
+            out = np.empty((T, self._n), dtype=self._dtype)
+        else:
+            self._require(out, "out", (T, self._n))
+            if not out.flags.c_contiguous or not out.flags.writeable:
+                raise ValueError("out: must be a writeable C-contiguous array")
+        if T == 0:
+            return out
+        saved = self._checkpoint()
+        done, status = self._pass(Xc, Uc, Vc, 0, T, out)
         if status:
-            fault = int(self._net.fault_neuron)  # before the restore below puts the old one back
-            ffi.memmove(self._net, saved, ffi.sizeof("rhonn_t"))
-            self._raise_step_error(status, Xc, Uc, Vc, int(done[0]), single=False, neuron=fault)
+            fault = int(self._net.fault_neuron)  # before the rollback below puts the old one back
+            self._rollback(saved)
+            self._raise_step_error(status, Xc, Uc, Vc, done, single=False, neuron=fault)
         return out
+
+    # -- validation passes (used by pyrhonn.simulation; not public API) -----------------
+
+    def _checkpoint(self) -> Any:
+        """A copy of the whole core state, for :meth:`_rollback`."""
+        saved = self._ffi.new("rhonn_t *")
+        self._ffi.memmove(saved, self._net, self._ffi.sizeof("rhonn_t"))
+        return saved
+
+    def _rollback(self, saved: Any) -> None:
+        self._ffi.memmove(self._net, saved, self._ffi.sizeof("rhonn_t"))
+
+    def _pass(self, X: np.ndarray, U: np.ndarray, V: np.ndarray | None, first: int, stop: int,
+              out: np.ndarray, *, ahead: int = 0, ahead_out: np.ndarray | None = None) -> tuple[int, int]:
+        """Step rows ``first..stop-1`` of a checked, C-contiguous trajectory
+        (:meth:`_checked_trajectory`), writing row t's output x̂(t+1) to
+        ``out[t]``; ``out`` is C-contiguous (T, n) of the identifier's dtype.
+
+        With ``ahead`` = h >= 2, after each row t the identifier also runs h-1
+        samples on from its own outputs (every state not valid, learning
+        off, inputs U[t+1..t+h-1]), writes x̂(t+h) to ``ahead_out[t+h]`` when
+        t+h < T (NaN where that branch failed: the prediction diverged), and
+        is then put back exactly as it was after row t. Learning off touches
+        nothing before the field ``zbank`` (weights, covariances, their
+        banks), so only the struct from there on is saved and restored; a
+        test holds the result to a run without branches, bit for bit.
+
+        Returns ``(rows done, status)``: 0 when every row ran, else the
+        status of row ``first + done``, which was not applied (the rows
+        before it were).
+        """
+        ffi, lib, net, n, m = self._ffi, self._lib, self._net, self._n, self._m
+        T = X.shape[0]
+        xp = ffi.from_buffer(self._real_array, X)
+        up = ffi.from_buffer(self._real_array, U) if m else self._no_inputs
+        vp = self._null if V is None else ffi.from_buffer("uint8_t[]", V)
+        op = ffi.from_buffer(self._real_array, out)
+        if ahead < 2:
+            done = ffi.new("size_t *")
+            status = lib.rhonn_run(net, stop - first, xp + first * n, up + first * m if m else up,
+                                   self._null if V is None else vp + first * n, op + first * n, done)
+            return int(done[0]), int(status)
+        assert ahead_out is not None
+        tail_at = ffi.offsetof("rhonn_t", "zbank")
+        tail_len = ffi.sizeof("rhonn_t") - tail_at
+        tail = ffi.cast("char *", net) + tail_at
+        saved = ffi.new("char[]", tail_len)
+        not_valid = ffi.new("uint8_t[]", n)
+        branch = np.empty(n, dtype=self._dtype)
+        bp = ffi.from_buffer(self._real_array, branch)
+        for t in range(first, stop):
+            status = lib.rhonn_step(net, xp + t * n, up + t * m if m else up,
+                                    self._null if V is None else vp + t * n, op + t * n)
+            if status:
+                return t - first, int(status)
+            if t + ahead >= T:
+                continue
+            ffi.memmove(saved, tail, tail_len)
+            net.learning = 0
+            failed = False
+            for j in range(t + 1, t + ahead):
+                if lib.rhonn_step(net, xp + j * n, up + j * m if m else up, not_valid, bp):
+                    failed = True
+                    break
+            ahead_out[t + ahead] = np.nan if failed else branch
+            ffi.memmove(tail, saved, tail_len)
+        return stop - first, 0
 
     @_serialised
     def reset(self) -> None:

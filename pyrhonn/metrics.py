@@ -7,6 +7,12 @@ k = warmup, ..., T-1 (all samples by default, as the paper), giving (n,).
 - :func:`rmse`: sqrt(mean_k e_kj^2).
 - :func:`absolute_deviation`: mean_k |e_kj - mean_k e_kj|, the *mean absolute
   deviation of the error about its mean*.
+- :func:`rrse`: sqrt(sum_k e_kj^2 / sum_k (x_kj - mean_k x_kj)^2), the root
+  relative squared error: the RMSE over the standard deviation of the truth,
+  so 1 is what predicting the mean scores and 0 is perfect; comparable
+  across states and data sets of different scales (the figure structure
+  selection and the identification literature quote). NaN for a state
+  whose truth is constant over the samples (the ratio is undefined).
 
 Why this definition of "absolute deviation" (the paper does not define it):
 the paper's simulations were run in MATLAB 2013a, whose Statistics Toolbox
@@ -33,7 +39,7 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["absolute_deviation", "errors", "rmse"]
+__all__ = ["absolute_deviation", "errors", "rmse", "rrse"]
 
 _SQUARE_SAFE = 1e150  #: |e| up to this squares and sums without overflow (float64 max is 1.8e308)
 
@@ -81,6 +87,22 @@ def absolute_deviation(truth: np.ndarray, estimate: np.ndarray, warmup: int = 0)
     Equal to MATLAB's ``mad(e, 0)``; see the module docstring for why.
     """
     return _scaled(lambda e: np.mean(np.abs(e - np.mean(e, axis=0)), axis=0), errors(truth, estimate, warmup))
+
+
+def rrse(truth: np.ndarray, estimate: np.ndarray, warmup: int = 0) -> np.ndarray:
+    """Root relative squared error per state, (n,):
+
+        RRSE_j = sqrt( sum_k e_kj^2 / sum_k (x_kj - xbar_j)^2 ),  k = warmup..T-1
+
+    NaN where the truth is constant over those samples (a zero denominator).
+    """
+    e = errors(truth, estimate, warmup)
+    x = truth[warmup:].astype(np.float64)
+    spread = x - np.mean(x, axis=0)
+    num = _scaled(lambda a: np.sqrt(np.mean(a * a, axis=0)), e)
+    den = _scaled(lambda a: np.sqrt(np.mean(a * a, axis=0)), spread)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
 
 
 def _scaled(metric: Callable[[np.ndarray], np.ndarray], e: np.ndarray) -> np.ndarray:

@@ -1,7 +1,7 @@
 """``pyrhonn identify``: run an identifier on the user's own data (a CSV file or a bus recording).
 
 ``pyrhonn identify data.csv --config cfg.toml [--out DIR] [--dtype float32|float64]
-[--valid-suffix _valid] [--warmup N] [--no-plots]``
+[--valid-suffix _valid] [--warmup N] [--free-run-from K] [--steps-ahead H] [--no-plots]``
 
 ``pyrhonn identify --can-log RUN.{blf,asc,log} --dbc FILE --config cfg.toml [...]`` reads the states
 and inputs from a CAN log instead (:mod:`pyrhonn.cli.bus_input`, :mod:`pyrhonn.buslog`), runs and
@@ -14,20 +14,40 @@ the config's ``state_names`` and ``input_names``, optional ``t`` and
 ``<state><suffix>`` validity columns); every defect is reported with its
 line number and exit code 2.
 
+Validation (:mod:`pyrhonn.simulation`)
+--------------------------------------
+Without options the identifier learns online over the whole file and is
+scored one step ahead (series-parallel). ``--free-run-from K`` splits the
+file: the first K data rows (0-based sample K on) are learnt; from sample K
+on the weights are frozen and the network also runs free (the parallel
+model: fed its own predictions, the measured inputs only), and every
+figure is scored on samples >= K, the part the network has not learnt
+from. ``--steps-ahead H`` adds the H-step-ahead prediction x̂(k | k-H) of
+every sample (own outputs for H-1 steps, then back to the measurements).
+
 Outputs (in ``--out``, default ``identify-<file stem>``)
 --------------------------------------------------------
-- ``predictions.csv``: one row per input line: ``line`` (its line number in
-  the data file), ``t`` (if given), and per state ``<name>_hat``, x̂(k), the
-  one-step-ahead prediction of this line made from the lines before it
+- ``predictions.csv``: one row per input line, aligned with the
+  measurements (row k estimates sample k; ``Identifier.run`` returns the
+  same values one row earlier, row t = x̂(t+1)): ``line`` (its line number
+  in the data file), ``t`` (if given), and per state ``<name>_hat``, x̂(k),
+  the one-step-ahead prediction of this line made from the lines before it
   (line 2 holds the config's x0), and ``<name>_err`` = measured − x̂(k),
-  empty where the measurement is invalid and on the first line.
-- ``metrics.json``: per state the RMSE and absolute deviation
-  (:mod:`pyrhonn.metrics`) of the one-step-ahead error: prediction row k
-  (made at sample k) against measurement row k+1, over valid targets only,
-  after dropping the first ``--warmup`` pairs; also the number of pairs
-  scored, the prediction x̂(T) beyond the last line, and the run settings.
-- ``<state>.png`` per state (unless ``--no-plots``): measured vs identified,
-  and the error, against ``t`` (or the sample index).
+  empty where the measurement is invalid and on the first line; with
+  ``--free-run-from``, ``<name>_free_run`` (empty before sample K), with
+  ``--steps-ahead H``, ``<name>_ahead<H>`` (empty in the first H rows and
+  where a branch diverged).
+- ``metrics.json`` (version 2): per state and per kind of prediction
+  (``one_step``; with a split also ``one_step_learning`` over the learnt
+  part and ``free_run``; ``steps_ahead``) the RMSE and the RRSE
+  (:mod:`pyrhonn.metrics`) over valid targets only, after dropping the
+  first ``--warmup`` pairs, with the number scored; one step also the
+  absolute deviation. ``states`` repeats ``one_step`` (the version 1
+  layout). Also the prediction x̂(T) beyond the last line, where the free
+  run diverged (if it did), and the run settings.
+- ``<state>.png`` per state (unless ``--no-plots``): measured vs identified
+  (one step, free run, H steps ahead), and the one-step error, against
+  ``t`` (or the sample index).
 
 Each file is written to a temporary file and renamed into place, and the
 folder holds a file ``INCOMPLETE`` from before the first output until after
@@ -57,7 +77,8 @@ from ..config import DTYPES, IdentifierConfig
 from ..configfile import ConfigFile, load_named
 from ..datafile import Data, TIME_COLUMN, check_suffix, read_data, write_data
 from ..identifier import Identifier, IdentifierError
-from ..metrics import absolute_deviation, rmse
+from ..metrics import absolute_deviation
+from ..simulation import Simulation, scores, simulate
 from . import bus_input
 
 __all__ = ["register", "run"]
@@ -69,6 +90,13 @@ def _nonnegative_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected a whole number of samples, got {text!r}") from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    value = _nonnegative_int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
     return value
 
 
@@ -108,6 +136,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="validity columns are named <state><SUFFIX> (default: _valid)")
     p.add_argument("--warmup", type=_nonnegative_int, default=0, metavar="N",
                    help="leave the first N one-step-ahead pairs out of the metrics (default 0)")
+    p.add_argument("--free-run-from", type=_nonnegative_int, metavar="K",
+                   help="learn samples 0..K-1, then freeze the weights and score samples >= K one step ahead "
+                        "and in free run (the network fed its own predictions)")
+    p.add_argument("--steps-ahead", type=_positive_int, metavar="H",
+                   help="also score the H-step-ahead prediction of every sample (own outputs for H-1 steps)")
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
     p.add_argument("--units", type=_units, default={}, metavar="NAME=UNIT[,NAME=UNIT...]",
                    help="units of the states (and of the time column t) for the plots' axes, e.g. "
@@ -135,59 +168,78 @@ def _to_dtype(a: np.ndarray, dtype: str, data: Data, names: Sequence[str], sourc
     return out
 
 
-def _run_identifier(cfg: IdentifierConfig, data: Data, cf: ConfigFile, source: str,
-                    config_source: str) -> tuple[np.ndarray, np.ndarray]:
-    """``(xhat0, Xhat)``: x̂(0) and the run's predictions, row k = x̂(k+1)."""
+def _run_identifier(cfg: IdentifierConfig, data: Data, cf: ConfigFile, source: str, config_source: str,
+                    free_run_from: int | None, steps: int | None) -> Simulation:
+    """The run's one-step (and free-run, k-step) predictions, aligned with the data rows."""
     try:
         ident = Identifier(cfg)
     except ValueError as exc:
         raise ValueError(f"{config_source}: {exc}") from None
     X = _to_dtype(data.X, cfg.dtype, data, cf.state_names, source, data.valid)
     U = _to_dtype(data.U, cfg.dtype, data, cf.input_names, source)
-    xhat0 = ident.prediction
     try:
-        Xhat = ident.run(X, U, data.valid)
+        return simulate(ident, X, U, data.valid, free_run_from=free_run_from, steps=steps)
     except IdentifierError as exc:
         found = re.search(r"at sample (\d+)", str(exc))
         where = f"line {int(data.lines[int(found.group(1))])}: " if found else ""
         raise ValueError(f"{source}: {where}the identifier stopped: {exc}") from None
-    return xhat0, Xhat
 
 
-def _metrics(data: Data, Xhat: np.ndarray, warmup: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per state ``(rmse, absolute deviation, count)``: prediction row k vs
-    measurement row k+1, valid targets only, pairs k >= warmup (NaN if none)."""
-    truth = data.X[1:]
-    estimate = Xhat[:-1].astype(np.float64)
-    scored = data.valid[1:].copy()
-    scored[:warmup] = False
-    n = truth.shape[1]
-    r, ad = np.full(n, np.nan), np.full(n, np.nan)
-    count = scored.sum(axis=0)
-    for j in range(n):
-        mask = scored[:, j]
-        if mask.any():
-            x, xh = truth[mask, j][:, None], estimate[mask, j][:, None]
-            r[j] = rmse(x, xh)[0]
-            ad[j] = absolute_deviation(x, xh)[0]
-    return r, ad, count
+def _scored(data: Data, first: int, stop: int | None = None) -> np.ndarray:
+    """Bool (T, n): the valid targets among data rows first..stop-1."""
+    mask = data.valid.copy()
+    mask[:first] = False
+    if stop is not None:
+        mask[stop:] = False
+    return mask
+
+
+def _section(data: Data, cf: ConfigFile, estimate: np.ndarray, mask: np.ndarray, definition: str,
+             with_deviation: bool = False) -> dict[str, Any]:
+    sc = scores(data.X, estimate.astype(np.float64), mask)
+    states: dict[str, Any] = {}
+    for j, name in enumerate(cf.state_names):
+        entry: dict[str, Any] = {"rmse": _number(sc.rmse[j]), "rrse": _number(sc.rrse[j]),
+                                 "scored": int(sc.scored[j])}
+        if sc.missing[j]:
+            entry["missing"] = int(sc.missing[j])
+        if with_deviation:
+            rows = mask[:, j]
+            entry["absolute_deviation"] = (_number(absolute_deviation(
+                data.X[rows, j][:, None], estimate[rows, j][:, None].astype(np.float64))[0])
+                if rows.any() and not sc.missing[j] else None)
+            entry["invalid_samples"] = int((~data.valid[:, j]).sum())
+        states[name] = entry
+    return {"definition": definition, "states": states}
+
+
+def _shown(v: float | str | None, spec: str = ".6g") -> str:
+    return "-" if v is None else str(v) if isinstance(v, str) else format(v, spec)
 
 
 def _count(k: int, noun: str) -> str:
     return f"{k} {noun}{'' if k == 1 else 's'}"
 
 
-def _number(v: float) -> float | None:
-    return None if not np.isfinite(v) else float(v)
+def _number(v: float) -> float | str | None:
+    """A metric for JSON: None when nothing was scored (NaN), "inf" when the model diverged."""
+    if np.isnan(v):
+        return None
+    return "inf" if np.isinf(v) else float(v)
 
 
-def _write_predictions(path: Path, data: Data, cf: ConfigFile, xhat0: np.ndarray, Xhat: np.ndarray) -> None:
+def _write_predictions(path: Path, data: Data, cf: ConfigFile, sim: Simulation) -> None:
     T = data.n_samples
-    hat = np.vstack([xhat0[None, :], Xhat[:-1]]).astype(np.float64)
+    hat = sim.one_step.astype(np.float64)
     err = data.X - hat
+    extra: list[tuple[str, np.ndarray]] = []
+    if sim.free_run is not None:
+        extra.append(("free_run", sim.free_run.astype(np.float64)))
+    if sim.ahead is not None:
+        extra.append((f"ahead{sim.steps}", sim.ahead.astype(np.float64)))
     header = ["line"] + ([TIME_COLUMN] if data.t is not None else [])
     for name in cf.state_names:
-        header += [f"{name}_hat", f"{name}_err"]
+        header += [f"{name}_hat", f"{name}_err"] + [f"{name}_{kind}" for kind, _ in extra]
     with atomic.replacing(path, "w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(header)
@@ -198,13 +250,15 @@ def _write_predictions(path: Path, data: Data, cf: ConfigFile, xhat0: np.ndarray
             for j in range(len(cf.state_names)):
                 row.append(repr(float(hat[k, j])))
                 row.append(repr(float(err[k, j])) if k and data.valid[k, j] else "")
+                for _, values in extra:
+                    row.append(repr(float(values[k, j])) if np.isfinite(values[k, j]) else "")
             w.writerow(row)
 
 
 NOT_VALID_LABEL = "not valid (not learnt; predicted from its own outputs)"  #: legend entry of the shaded samples
 
 
-def _plot(path: Path, name: str, data: Data, Xhat: np.ndarray, j: int, warmup: int,
+def _plot(path: Path, name: str, data: Data, sim: Simulation, j: int, warmup: int,
           units: dict[str, str]) -> None:
     """Measured and identified state j over the error: every y axis carries the state's unit
     (``--units``), and the samples whose measurement was not valid are shaded, in the legend."""
@@ -213,13 +267,22 @@ def _plot(path: Path, name: str, data: Data, Xhat: np.ndarray, j: int, warmup: i
 
     x_axis = data.t if data.t is not None else np.arange(data.n_samples, dtype=np.float64)
     measured = np.where(data.valid[:, j], data.X[:, j], np.nan)
-    identified = Xhat[:-1, j].astype(np.float64)
+    identified = sim.one_step[1:, j].astype(np.float64)
     error = measured[1:] - identified
     fig = Figure(figsize=(8.0, 5.0), layout="constrained")
     FigureCanvasAgg(fig)
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 1.4])
     top.plot(x_axis, measured, color="0.15", lw=1.2, marker=".", ms=2.5, label=f"{name} (measured)")
     top.plot(x_axis[1:], identified, color="tab:red", lw=1.0, ls="--", label=f"{name} identified (one step ahead)")
+    if sim.ahead is not None:
+        top.plot(x_axis, sim.ahead[:, j].astype(np.float64), color="tab:purple", lw=0.9, ls="-.",
+                 label=f"{name} identified ({sim.steps} steps ahead)")
+    if sim.free_run is not None and sim.free_run_from is not None:
+        top.plot(x_axis, sim.free_run[:, j].astype(np.float64), color="tab:green", lw=1.1,
+                 label=f"{name} free run (weights frozen, own outputs)")
+        for ax in (top, bottom):
+            ax.axvline(x_axis[sim.free_run_from], color="tab:green", lw=0.8, ls=":",
+                       label="weights frozen from here" if ax is top else None)
     unit = f"[{units[name]}]" if name in units else "(no unit given)"
     top.set_ylabel(f"{name} {unit}")
     top.set_title(f"{name}: real vs identified")
@@ -286,36 +349,74 @@ def run(args: argparse.Namespace) -> int:
                                 **({"the DBC": bus.dbc} if bus else {})})
     dtype = args.dtype or cf.config.dtype
     cfg = cf.config if dtype == cf.config.dtype else cf.config.replace(dtype=dtype)
-    xhat0, Xhat = _run_identifier(cfg, data, cf, source, config_source)
-    r, ad, count = _metrics(data, Xhat, args.warmup)
+    K = args.free_run_from
+    if K is not None and K >= T:
+        raise ValueError(f"--free-run-from {K}: beyond the data ({T} rows, samples 0..{T - 1})")
+    if K is not None and args.warmup + 1 >= T:
+        raise ValueError(f"--warmup {args.warmup}: leaves nothing to score")
+    if args.steps_ahead is not None and args.steps_ahead >= T:
+        raise ValueError(f"--steps-ahead {args.steps_ahead}: needs more than {args.steps_ahead} data rows, "
+                         f"the file has {T}")
+    sim = _run_identifier(cfg, data, cf, source, config_source, K, args.steps_ahead)
+    first = args.warmup + 1  # row 0 holds x0, not a prediction; --warmup drops that many pairs more
+    split = max(first, K) if K is not None else first
+    weights = "online" if K is None else f"frozen from sample {K}"
+    sections: dict[str, Any] = {
+        "one_step": _section(data, cf, sim.one_step, _scored(data, split),
+                             f"one step ahead: x̂(k) made at sample k-1 from measured values, against the "
+                             f"measurement of sample k, valid targets k >= {split}; weights {weights}",
+                             with_deviation=True)}
+    if K is not None:
+        sections["one_step_learning"] = _section(
+            data, cf, sim.one_step, _scored(data, first, K),
+            f"one step ahead over the learnt samples {first}..{K - 1}, weights learning online",
+            with_deviation=True)
+        assert sim.free_run is not None
+        sections["free_run"] = _section(
+            data, cf, sim.free_run, _scored(data, split),
+            f"free run (parallel model): weights frozen from sample {K}, the network fed its own predictions "
+            f"and the measured inputs, against the measurements of samples k >= {split}")
+        sections["free_run"]["from_sample"] = K
+        sections["free_run"]["from_line"] = int(data.lines[K])
+        sections["free_run"]["diverged_at_line"] = (None if sim.free_run_diverged is None
+                                                    else int(data.lines[sim.free_run_diverged]))
+    if args.steps_ahead is not None:
+        assert sim.ahead is not None
+        H = args.steps_ahead
+        sections["steps_ahead"] = _section(
+            data, cf, sim.ahead, _scored(data, max(split, H)),
+            f"{H} steps ahead: x̂(k | k-{H}), the network as after learning sample k-{H} fed its own "
+            f"predictions for {H - 1} steps, against the measurements of samples k >= {max(split, H)}; "
+            f"weights {weights}")
+        sections["steps_ahead"]["steps"] = H
 
     report = {
         "format": "pyrhonn-identify-metrics",
-        "version": 1,
+        "version": 2,
         "data": str(source),
         "config": config_source,
         "dtype": dtype,
         "samples": T,
         "pairs": T - 1,
         "warmup": args.warmup,
+        "free_run_from": K,
+        "ahead_steps": args.steps_ahead,
         "valid_suffix": args.valid_suffix,
         "ignored_columns": list(data.ignored),
-        "definition": "one-step-ahead: the prediction made at sample k against the measurement at sample "
-                      "k+1, over valid targets only, pairs k >= warmup; rmse and absolute_deviation "
-                      "(mean |e - mean e|) as in pyrhonn.metrics",
-        "states": {name: {"rmse": _number(r[j]), "absolute_deviation": _number(ad[j]), "scored": int(count[j]),
-                          "invalid_samples": int((~data.valid[:, j]).sum())}
-                   for j, name in enumerate(cf.state_names)},
-        "next_prediction": {name: float(Xhat[-1, j]) for j, name in enumerate(cf.state_names)},
+        "definition": "rmse, rrse (root relative squared error) and absolute_deviation (mean |e - mean e|) as "
+                      "in pyrhonn.metrics; 'states' repeats one_step.states",
+        "states": sections["one_step"]["states"],
+        **sections,
+        "next_prediction": {name: float(sim.next_prediction[j]) for j, name in enumerate(cf.state_names)},
         **({"bus": bus.report()} if bus else {}),
     }
     with atomic.output_folder(out, "pyrhonn identify"):  # marked INCOMPLETE until every file is in place
         if bus:
             write_data(out / bus_input.SAMPLES, data, cf, valid_suffix=args.valid_suffix)
-        _write_predictions(out / "predictions.csv", data, cf, xhat0, Xhat)
+        _write_predictions(out / "predictions.csv", data, cf, sim)
         atomic.write_text(out / "metrics.json", json.dumps(report, indent=2) + "\n")
         for j, path in enumerate(plots):
-            _plot(path, cf.state_names[j], data, Xhat, j, args.warmup, args.units)
+            _plot(path, cf.state_names[j], data, sim, j, args.warmup, args.units)
 
     print(f"identified {source}: {T} samples, {_count(cfg.n_states, 'state')}, {_count(cfg.n_inputs, 'input')}, "
           f"config {config_source}, {dtype}")
@@ -323,10 +424,20 @@ def run(args: argparse.Namespace) -> int:
         print("ignored columns: " + ", ".join(data.ignored))
     for line in bus.summary() if bus else []:
         print(line)
-    print(f"one-step-ahead error over valid targets, warmup {args.warmup}:")
+    kinds = [("one_step", "one step")] + ([("free_run", "free run")] if K is not None else []) + \
+        ([("steps_ahead", f"{args.steps_ahead} steps ahead")] if args.steps_ahead is not None else [])
+    scope = f"samples >= {K}, weights frozen" if K is not None else "weights learning online"
+    print(f"errors over valid targets ({scope}), warmup {args.warmup}:")
     width = max(5, *(len(s) for s in cf.state_names))
-    print(f"  {'state':<{width}}  {'scored':>7}  {'RMSE':>12}  {'abs. dev.':>12}")
+    print(f"  {'state':<{width}}  {'scored':>7}" + "".join(f"  {label + ' RMSE':>18}  {'RRSE':>8}" for _, label in kinds))
     for j, name in enumerate(cf.state_names):
-        print(f"  {name:<{width}}  {int(count[j]):>7}  {r[j]:>12.6g}  {ad[j]:>12.6g}")
+        row = f"  {name:<{width}}  {sections['one_step']['states'][name]['scored']:>7}"
+        for kind, _ in kinds:
+            st = sections[kind]["states"][name]
+            row += f"  {_shown(st['rmse']):>18}  {_shown(st['rrse'], '.4f'):>8}"
+        print(row)
+    if K is not None and sim.free_run_diverged is not None:
+        print(f"the free run diverged at line {int(data.lines[sim.free_run_diverged])} (its prediction was not "
+              f"finite in {dtype}): its errors are inf")
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
