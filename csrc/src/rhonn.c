@@ -1161,9 +1161,12 @@ static void store_sample(rhonn_real *RHONN_RESTRICT dst, const rhonn_real *RHONN
             dst[(size_t)RHONN_MAX_STATES * g + j] = src[(size_t)RHONN_MAX_STATES * g + j];
         }
     }
-    for (j = 0; j <= m; ++j) { /* u, then the constant 1 */
+    for (j = 0; j < m; ++j) {
         dst[OFF_U + j] = src[OFF_U + j];
     }
+    /* The constant 1 sits after the last possible input, not after the
+     * m-th: copying index m would store a slot the step never wrote. */
+    dst[OFF_ONE] = src[OFF_ONE];
 }
 
 /* rhonn_step after the argument checks (rhonn_run makes them once). */
