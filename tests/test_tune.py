@@ -226,6 +226,33 @@ def test_cli_writes_a_config_that_identify_and_identifier_accept(tmp_path: Path,
     assert load_config(again).config.dtype == "float32"
 
 
+def test_cli_reports_the_held_out_free_run_of_the_base_and_the_written_config(
+        tmp_path: Path, traj: Trajectory, capsys: pytest.CaptureFixture[str]) -> None:
+    from pyrhonn.configfile import load_named
+    from pyrhonn.simulation import scores, simulate
+
+    data = tmp_path / "osc.csv"
+    write_csv(data, traj)
+    out = tmp_path / "tuned.toml"
+    code, stdout, stderr = run_cli(["--data", str(data), "--config", "example1", "--out", str(out),
+                                    "--trials", "3"], capsys)
+    assert code == 0, stderr
+    N = tuning.split_point(traj.n_samples, tuning.DEFAULT_TRAIN_FRACTION)
+    assert f"held-out free run (weights frozen after sample {N - 1}" in stdout
+    table = stdout.split("held-out free run")[1].splitlines()[2:6]
+    X = np.where(traj.valid, traj.X_meas, 0.0)
+    mask = np.zeros(X.shape, dtype=bool)
+    mask[N:] = True
+    mask &= traj.valid
+    for column, cfg in ((0, load_named("example1").config), (1, load_config(out).config)):
+        sim = simulate(Identifier(cfg), X, traj.U, traj.valid, free_run_from=N)
+        want = scores(X, sim.free_run, mask)
+        for j, line in enumerate(table):
+            cells = line.split()
+            assert float(cells[1 + column]) == pytest.approx(want.rmse[j], rel=1e-4)
+            assert float(cells[3 + column]) == pytest.approx(want.rrse[j], rel=1e-4)
+
+
 def test_cli_resumes_a_study(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     args = ["--example", "example1", "--horizon", "30", "--config", "example1", "--out", str(tmp_path / "t.toml"),
             "--study", str(tmp_path / "s.db"), "--n-jobs", "2"]

@@ -56,13 +56,16 @@ import textwrap
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from .options import options_named, real_option
 from .. import __version__
 from .. import atomic, tuning
-from ..config import DTYPES, Activation
+from ..config import DTYPES, Activation, IdentifierConfig
+from ..identifier import Identifier
+from ..simulation import scores, simulate
 from ..structure import FACTOR_NAMES, Criterion
 from ..configfile import ConfigFile, dumps, is_path, load_named
 from ..datafile import check_suffix, read_data
@@ -453,6 +456,41 @@ def _report(result: tuning.TuneResult, cf: ConfigFile) -> str:
     return "\n".join(lines)
 
 
+def _free_run_report(base: IdentifierConfig, result: tuning.TuneResult, cf: ConfigFile, traj: Any) -> str:
+    """The held-out part in free run, for the base and the written config: learnt online up to the
+    split, then the weights frozen and the network fed its own predictions (pyrhonn.simulation).
+    The search scores one step ahead; this says whether the tuned model also simulates."""
+    N = result.split.n_train
+    truth = traj.truth if traj.truth is not None else traj.X
+    scored = np.zeros(traj.X.shape, dtype=bool)
+    scored[N:] = True
+    if traj.valid is not None and traj.truth is None:
+        scored &= traj.valid
+    rows: dict[str, Any] = {}
+    for label, cfg in (("base", base), ("tuned", result.config)):
+        try:
+            X = np.where(np.isfinite(traj.X), traj.X, 0.0).astype(cfg.dtype)
+            U = traj.U.astype(cfg.dtype)
+            sim = simulate(Identifier(cfg), X, U if cfg.n_inputs else None, traj.valid, free_run_from=N)
+            assert sim.free_run is not None
+            rows[label] = scores(truth, sim.free_run.astype(np.float64), scored)
+        except ValueError as exc:
+            rows[label] = str(exc)
+    names = cf.state_names
+    width = max(5, *(len(n) for n in names))
+    lines = [f"held-out free run (weights frozen after sample {N - 1}, the network fed its own predictions):",
+             f"  {'state':<{width}}  {'RMSE base':>11}  {'RMSE tuned':>11}  {'RRSE base':>11}  {'RRSE tuned':>11}"]
+    for j, name in enumerate(names):
+        values = [None if isinstance(rows[k], str) else float(getattr(rows[k], metric)[j])
+                  for metric in ("rmse", "rrse") for k in ("base", "tuned")]
+        cells = [f"{'diverged':>11}" if v == math.inf else _fmt(v) for v in values]
+        lines.append(f"  {name:<{width}}  " + "  ".join(cells))
+    for k in ("base", "tuned"):
+        if isinstance(rows[k], str):
+            lines.append(f"  {k}: could not run: {rows[k]}")
+    return "\n".join(lines)
+
+
 def _value(neuron: object, param: str) -> str:
     v = getattr(neuron, param)
     return "array" if isinstance(v, np.ndarray) else f"{float(v):.3g}"
@@ -511,6 +549,7 @@ def run(args: argparse.Namespace) -> int:
     if len(result.split.folds) > 1 and result.best is not None:
         print("score per fold: " + ", ".join(f"{v:.6g}" for v in result.best.folds))
     print(_report(result, cf))
+    print(_free_run_report(base, result, cf, traj))
     print(f"wrote {opts.out}" + (f"; study in {opts.study.shown} (a larger --trials resumes it)"
                                  if opts.study else ""))
     return 0
