@@ -187,10 +187,14 @@ def test_during_a_hold_the_firmware_bridges_on_its_own_predictions_instead_of_le
     assert sent[after] == (1, 0) and sent[after + 1] == (1, 1) and sent[inside[0] - 1] == (1, 1)
     assert sum(v == 0 for k in sent for v in sent[k]) == 1666 + 1666 + 2
     assert r["not_valid"] == {"Qm": {"held": 1666, "derived": 0}, "V": {"held": 0, "derived": 1668}}
-    # inside the hold the identifier's position is far closer to the truth than the held frames
+    # inside the hold the identifier's position is within 10 % of the held frames' error (the target):
+    # the position neuron's weights stay near the integrator (Q = 0) and the velocity neuron's free run
+    # follows the motor without its position (the thrust in measured currents)
     hold = r["identification"]["position"]["hold"]
     assert hold["cycles"] == 1666
-    assert hold["estimate_rmse_inside"] < 0.5 * hold["frames_rmse_inside"]
+    assert hold["estimate_rmse_inside"] <= 0.10 * hold["frames_rmse_inside"]
+    assert r["identification"]["velocity"]["hold"]["estimate_rmse_inside"] <= \
+        0.10 * r["identification"]["velocity"]["hold"]["frames_rmse_inside"]
     # after it, the weights are intact: outside the hold the position is within 10x the encoder's own error
     # (the end of the free run, x(k+1) predicted at the last held sample, is not learned by the position neuron)
     pos = r["identification"]["position"]

@@ -8,7 +8,7 @@
 #if RHONN_VERSION_MAJOR != 1 || RHONN_VERSION_MINOR < 2
 #error "LIM_IDENTIFIER: exported for the rhonn.h 1.2 configuration layout"
 #endif
-#if RHONN_MAX_STATES < 6 || RHONN_MAX_INPUTS < 2 || RHONN_MAX_TERMS < 7 || RHONN_MAX_FACTORS < 2 || RHONN_MAX_DELAY < 0 || RHONN_MAX_POWER < 1
+#if RHONN_MAX_STATES < 6 || RHONN_MAX_INPUTS < 2 || RHONN_MAX_TERMS < 6 || RHONN_MAX_FACTORS < 2 || RHONN_MAX_DELAY < 1 || RHONN_MAX_POWER < 1
 #error "LIM_IDENTIFIER: the RHONN_MAX_* capacities are too small for this identifier (see its exported capacity header)"
 #endif
 #ifndef RHONN_SINGLE
@@ -28,7 +28,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x1.0000000000000p+0f, /* beta */
             0x1.0000000000000p+0f, /* eta */
             0x1.0c6f7a0000000p-20f, /* r */
-            {0x1.ad7f2a0000000p-24f, 0x1.ad7f2a0000000p-24f}, /* q */
+            {0x0.0p+0f, 0x0.0p+0f}, /* q */
             {0x0.0p+0f, 0x0.0p+0f}, /* w0 */
             {0x1.9000000000000p+6f, 0x0.0p+0f, 0x1.9000000000000p+6f}, /* p0 */
             { /* terms: n_factors, {kind, index, delay, power} */
@@ -40,25 +40,23 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x1.0000000000000p+0f, /* forgetting */
             0x0.0p+0f, /* p_trace_max (0: off) */
         },
-        { /* [1]: x2 + S(x2) + S(x1) + S(x3)*S(x6) + S(x4)*S(x5) + S(x3)*S(x5) + S(x4)*S(x6) */
-            7, /* n_terms */
+        { /* [1]: x2 + x5*x6(k-1) + x6*x5(k-1) + u1*x6 + u2*x5 */
+            5, /* n_terms */
             RHONN_LOGISTIC, /* activation */
             0x1.0000000000000p+0f, /* beta */
             0x1.0000000000000p+0f, /* eta */
-            0x1.a36e2e0000000p-14f, /* r */
-            {0x1.0c6f7a0000000p-20f, 0x1.0c6f7a0000000p-20f, 0x1.0c6f7a0000000p-20f, 0x1.0c6f7a0000000p-20f, 0x1.0c6f7a0000000p-20f, 0x1.0c6f7a0000000p-20f, 0x1.0c6f7a0000000p-20f}, /* q */
-            {0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f}, /* w0 */
-            {0x1.4000000000000p+3f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x1.4000000000000p+3f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x1.4000000000000p+3f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x1.4000000000000p+3f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x1.4000000000000p+3f, 0x0.0p+0f, 0x0.0p+0f, 0x1.4000000000000p+3f, 0x0.0p+0f, 0x1.4000000000000p+3f}, /* p0 */
+            0x1.47ae140000000p-7f, /* r */
+            {0x1.5798ee0000000p-27f, 0x1.5798ee0000000p-27f, 0x1.5798ee0000000p-27f, 0x1.5798ee0000000p-27f, 0x1.5798ee0000000p-27f}, /* q */
+            {0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f}, /* w0 */
+            {0x1.4000000000000p+3f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x1.4000000000000p+3f, 0x0.0p+0f, 0x0.0p+0f, 0x0.0p+0f, 0x1.4000000000000p+3f, 0x0.0p+0f, 0x0.0p+0f, 0x1.4000000000000p+3f, 0x0.0p+0f, 0x1.4000000000000p+3f}, /* p0 */
             { /* terms: n_factors, {kind, index, delay, power} */
                 {1, {{RHONN_FACTOR_X, 1, 0, 1}}},
-                {1, {{RHONN_FACTOR_S, 1, 0, 1}}},
-                {1, {{RHONN_FACTOR_S, 0, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 2, 0, 1}, {RHONN_FACTOR_S, 5, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 3, 0, 1}, {RHONN_FACTOR_S, 4, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 2, 0, 1}, {RHONN_FACTOR_S, 4, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 3, 0, 1}, {RHONN_FACTOR_S, 5, 0, 1}}},
+                {2, {{RHONN_FACTOR_X, 4, 0, 1}, {RHONN_FACTOR_X, 5, 1, 1}}},
+                {2, {{RHONN_FACTOR_X, 5, 0, 1}, {RHONN_FACTOR_X, 4, 1, 1}}},
+                {2, {{RHONN_FACTOR_U, 0, 0, 1}, {RHONN_FACTOR_X, 5, 0, 1}}},
+                {2, {{RHONN_FACTOR_U, 1, 0, 1}, {RHONN_FACTOR_X, 4, 0, 1}}},
             },
-            RHONN_COV_FULL, /* covariance */
+            RHONN_COV_UD, /* covariance */
             0, /* reset_after */
             0x1.0000000000000p+0f, /* forgetting */
             0x0.0p+0f, /* p_trace_max (0: off) */
@@ -164,7 +162,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             1e+00f, /* beta */
             1e+00f, /* eta */
             1e-06f, /* r */
-            {1e-07f, 1e-07f}, /* q */
+            {0e+00f, 0e+00f}, /* q */
             {0e+00f, 0e+00f}, /* w0 */
             {1e+02f, 0e+00f, 1e+02f}, /* p0 */
             { /* terms: n_factors, {kind, index, delay, power} */
@@ -176,25 +174,23 @@ static const rhonn_config LIM_IDENTIFIER = {
             1e+00f, /* forgetting */
             0e+00f, /* p_trace_max (0: off) */
         },
-        { /* [1]: x2 + S(x2) + S(x1) + S(x3)*S(x6) + S(x4)*S(x5) + S(x3)*S(x5) + S(x4)*S(x6) */
-            7, /* n_terms */
+        { /* [1]: x2 + x5*x6(k-1) + x6*x5(k-1) + u1*x6 + u2*x5 */
+            5, /* n_terms */
             RHONN_LOGISTIC, /* activation */
             1e+00f, /* beta */
             1e+00f, /* eta */
-            1e-04f, /* r */
-            {1e-06f, 1e-06f, 1e-06f, 1e-06f, 1e-06f, 1e-06f, 1e-06f}, /* q */
-            {0e+00f, 0e+00f, 0e+00f, 0e+00f, 0e+00f, 0e+00f, 0e+00f}, /* w0 */
-            {1e+01f, 0e+00f, 0e+00f, 0e+00f, 0e+00f, 0e+00f, 0e+00f, 1e+01f, 0e+00f, 0e+00f, 0e+00f, 0e+00f, 0e+00f, 1e+01f, 0e+00f, 0e+00f, 0e+00f, 0e+00f, 1e+01f, 0e+00f, 0e+00f, 0e+00f, 1e+01f, 0e+00f, 0e+00f, 1e+01f, 0e+00f, 1e+01f}, /* p0 */
+            1e-02f, /* r */
+            {1e-08f, 1e-08f, 1e-08f, 1e-08f, 1e-08f}, /* q */
+            {0e+00f, 0e+00f, 0e+00f, 0e+00f, 0e+00f}, /* w0 */
+            {1e+01f, 0e+00f, 0e+00f, 0e+00f, 0e+00f, 1e+01f, 0e+00f, 0e+00f, 0e+00f, 1e+01f, 0e+00f, 0e+00f, 1e+01f, 0e+00f, 1e+01f}, /* p0 */
             { /* terms: n_factors, {kind, index, delay, power} */
                 {1, {{RHONN_FACTOR_X, 1, 0, 1}}},
-                {1, {{RHONN_FACTOR_S, 1, 0, 1}}},
-                {1, {{RHONN_FACTOR_S, 0, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 2, 0, 1}, {RHONN_FACTOR_S, 5, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 3, 0, 1}, {RHONN_FACTOR_S, 4, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 2, 0, 1}, {RHONN_FACTOR_S, 4, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 3, 0, 1}, {RHONN_FACTOR_S, 5, 0, 1}}},
+                {2, {{RHONN_FACTOR_X, 4, 0, 1}, {RHONN_FACTOR_X, 5, 1, 1}}},
+                {2, {{RHONN_FACTOR_X, 5, 0, 1}, {RHONN_FACTOR_X, 4, 1, 1}}},
+                {2, {{RHONN_FACTOR_U, 0, 0, 1}, {RHONN_FACTOR_X, 5, 0, 1}}},
+                {2, {{RHONN_FACTOR_U, 1, 0, 1}, {RHONN_FACTOR_X, 4, 0, 1}}},
             },
-            RHONN_COV_FULL, /* covariance */
+            RHONN_COV_UD, /* covariance */
             0, /* reset_after */
             1e+00f, /* forgetting */
             0e+00f, /* p_trace_max (0: off) */

@@ -8,7 +8,7 @@
 #if RHONN_VERSION_MAJOR != 1 || RHONN_VERSION_MINOR < 2
 #error "LIM_IDENTIFIER: exported for the rhonn.h 1.2 configuration layout"
 #endif
-#if RHONN_MAX_STATES < 6 || RHONN_MAX_INPUTS < 2 || RHONN_MAX_TERMS < 7 || RHONN_MAX_FACTORS < 2 || RHONN_MAX_DELAY < 0 || RHONN_MAX_POWER < 1
+#if RHONN_MAX_STATES < 6 || RHONN_MAX_INPUTS < 2 || RHONN_MAX_TERMS < 6 || RHONN_MAX_FACTORS < 2 || RHONN_MAX_DELAY < 1 || RHONN_MAX_POWER < 1
 #error "LIM_IDENTIFIER: the RHONN_MAX_* capacities are too small for this identifier (see its exported capacity header)"
 #endif
 #ifdef RHONN_SINGLE
@@ -28,7 +28,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x1.0000000000000p+0, /* beta */
             0x1.0000000000000p+0, /* eta */
             0x1.0c6f7a0b5ed8dp-20, /* r */
-            {0x1.ad7f29abcaf48p-24, 0x1.ad7f29abcaf48p-24}, /* q */
+            {0x0.0p+0, 0x0.0p+0}, /* q */
             {0x0.0p+0, 0x0.0p+0}, /* w0 */
             {0x1.9000000000000p+6, 0x0.0p+0, 0x1.9000000000000p+6}, /* p0 */
             { /* terms: n_factors, {kind, index, delay, power} */
@@ -40,25 +40,23 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x1.0000000000000p+0, /* forgetting */
             0x0.0p+0, /* p_trace_max (0: off) */
         },
-        { /* [1]: x2 + S(x2) + S(x1) + S(x3)*S(x6) + S(x4)*S(x5) + S(x3)*S(x5) + S(x4)*S(x6) */
-            7, /* n_terms */
+        { /* [1]: x2 + x5*x6(k-1) + x6*x5(k-1) + u1*x6 + u2*x5 */
+            5, /* n_terms */
             RHONN_LOGISTIC, /* activation */
             0x1.0000000000000p+0, /* beta */
             0x1.0000000000000p+0, /* eta */
-            0x1.a36e2eb1c432dp-14, /* r */
-            {0x1.0c6f7a0b5ed8dp-20, 0x1.0c6f7a0b5ed8dp-20, 0x1.0c6f7a0b5ed8dp-20, 0x1.0c6f7a0b5ed8dp-20, 0x1.0c6f7a0b5ed8dp-20, 0x1.0c6f7a0b5ed8dp-20, 0x1.0c6f7a0b5ed8dp-20}, /* q */
-            {0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0}, /* w0 */
-            {0x1.4000000000000p+3, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x1.4000000000000p+3, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x1.4000000000000p+3, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x1.4000000000000p+3, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x1.4000000000000p+3, 0x0.0p+0, 0x0.0p+0, 0x1.4000000000000p+3, 0x0.0p+0, 0x1.4000000000000p+3}, /* p0 */
+            0x1.47ae147ae147bp-7, /* r */
+            {0x1.5798ee2308c3ap-27, 0x1.5798ee2308c3ap-27, 0x1.5798ee2308c3ap-27, 0x1.5798ee2308c3ap-27, 0x1.5798ee2308c3ap-27}, /* q */
+            {0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0}, /* w0 */
+            {0x1.4000000000000p+3, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x1.4000000000000p+3, 0x0.0p+0, 0x0.0p+0, 0x0.0p+0, 0x1.4000000000000p+3, 0x0.0p+0, 0x0.0p+0, 0x1.4000000000000p+3, 0x0.0p+0, 0x1.4000000000000p+3}, /* p0 */
             { /* terms: n_factors, {kind, index, delay, power} */
                 {1, {{RHONN_FACTOR_X, 1, 0, 1}}},
-                {1, {{RHONN_FACTOR_S, 1, 0, 1}}},
-                {1, {{RHONN_FACTOR_S, 0, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 2, 0, 1}, {RHONN_FACTOR_S, 5, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 3, 0, 1}, {RHONN_FACTOR_S, 4, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 2, 0, 1}, {RHONN_FACTOR_S, 4, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 3, 0, 1}, {RHONN_FACTOR_S, 5, 0, 1}}},
+                {2, {{RHONN_FACTOR_X, 4, 0, 1}, {RHONN_FACTOR_X, 5, 1, 1}}},
+                {2, {{RHONN_FACTOR_X, 5, 0, 1}, {RHONN_FACTOR_X, 4, 1, 1}}},
+                {2, {{RHONN_FACTOR_U, 0, 0, 1}, {RHONN_FACTOR_X, 5, 0, 1}}},
+                {2, {{RHONN_FACTOR_U, 1, 0, 1}, {RHONN_FACTOR_X, 4, 0, 1}}},
             },
-            RHONN_COV_FULL, /* covariance */
+            RHONN_COV_UD, /* covariance */
             0, /* reset_after */
             0x1.0000000000000p+0, /* forgetting */
             0x0.0p+0, /* p_trace_max (0: off) */
@@ -164,7 +162,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             1.0, /* beta */
             1.0, /* eta */
             1e-06, /* r */
-            {1e-07, 1e-07}, /* q */
+            {0.0, 0.0}, /* q */
             {0.0, 0.0}, /* w0 */
             {100.0, 0.0, 100.0}, /* p0 */
             { /* terms: n_factors, {kind, index, delay, power} */
@@ -176,25 +174,23 @@ static const rhonn_config LIM_IDENTIFIER = {
             1.0, /* forgetting */
             0.0, /* p_trace_max (0: off) */
         },
-        { /* [1]: x2 + S(x2) + S(x1) + S(x3)*S(x6) + S(x4)*S(x5) + S(x3)*S(x5) + S(x4)*S(x6) */
-            7, /* n_terms */
+        { /* [1]: x2 + x5*x6(k-1) + x6*x5(k-1) + u1*x6 + u2*x5 */
+            5, /* n_terms */
             RHONN_LOGISTIC, /* activation */
             1.0, /* beta */
             1.0, /* eta */
-            0.0001, /* r */
-            {1e-06, 1e-06, 1e-06, 1e-06, 1e-06, 1e-06, 1e-06}, /* q */
-            {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, /* w0 */
-            {10.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0, 0.0, 0.0, 0.0, 0.0, 10.0, 0.0, 0.0, 0.0, 10.0, 0.0, 0.0, 10.0, 0.0, 10.0}, /* p0 */
+            0.01, /* r */
+            {1e-08, 1e-08, 1e-08, 1e-08, 1e-08}, /* q */
+            {0.0, 0.0, 0.0, 0.0, 0.0}, /* w0 */
+            {10.0, 0.0, 0.0, 0.0, 0.0, 10.0, 0.0, 0.0, 0.0, 10.0, 0.0, 0.0, 10.0, 0.0, 10.0}, /* p0 */
             { /* terms: n_factors, {kind, index, delay, power} */
                 {1, {{RHONN_FACTOR_X, 1, 0, 1}}},
-                {1, {{RHONN_FACTOR_S, 1, 0, 1}}},
-                {1, {{RHONN_FACTOR_S, 0, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 2, 0, 1}, {RHONN_FACTOR_S, 5, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 3, 0, 1}, {RHONN_FACTOR_S, 4, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 2, 0, 1}, {RHONN_FACTOR_S, 4, 0, 1}}},
-                {2, {{RHONN_FACTOR_S, 3, 0, 1}, {RHONN_FACTOR_S, 5, 0, 1}}},
+                {2, {{RHONN_FACTOR_X, 4, 0, 1}, {RHONN_FACTOR_X, 5, 1, 1}}},
+                {2, {{RHONN_FACTOR_X, 5, 0, 1}, {RHONN_FACTOR_X, 4, 1, 1}}},
+                {2, {{RHONN_FACTOR_U, 0, 0, 1}, {RHONN_FACTOR_X, 5, 0, 1}}},
+                {2, {{RHONN_FACTOR_U, 1, 0, 1}, {RHONN_FACTOR_X, 4, 0, 1}}},
             },
-            RHONN_COV_FULL, /* covariance */
+            RHONN_COV_UD, /* covariance */
             0, /* reset_after */
             1.0, /* forgetting */
             0.0, /* p_trace_max (0: off) */

@@ -38,10 +38,11 @@ ROOT = HERE.parent.parent
 if str(HERE) not in sys.path:   # imported from elsewhere (the tests, the bench): the estimator beside it
     sys.path.insert(0, str(HERE))
 import cycles  # noqa: E402
-# The LIM identifier's capacities: 6 states, 2 inputs, at most 6 terms of at
-# most 2 factors, no delayed taps (make_vector.py's configuration).
+# The LIM identifier's capacities: 6 states, 2 inputs, at most 8 terms of at
+# most 2 factors, taps one sample back (the velocity neuron's i(k-1);
+# make_vector.py's configuration).
 LIM_CAPACITIES = {"RHONN_MAX_STATES": 6, "RHONN_MAX_INPUTS": 2, "RHONN_MAX_TERMS": 8, "RHONN_MAX_FACTORS": 2,
-                  "RHONN_MAX_DELAY": 0, "RHONN_MAX_POWER": 2}
+                  "RHONN_MAX_DELAY": 1, "RHONN_MAX_POWER": 2}
 CYCLE_BUDGET = 50_400  # 0.3 ms at 168 MHz
 FRAME_TARGET = 7_560   # the whole frame, decode to encode: 15 % of CYCLE_BUDGET
 #: the firmware's objects in the application image; the rest is the harness (app_main.c) and newlib
