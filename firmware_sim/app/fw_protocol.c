@@ -65,13 +65,17 @@ fw_status fw_quantise(double value, double scale, int32_t raw_min, int32_t raw_m
     return FW_OK;
 }
 
-/* fw_quantise_f32 for valid arguments (1 <= inv_scale <= 2^24, raw_min <=
- * raw_max): the raw value. *sat is set to 1 when the value was clipped or not
- * finite and left alone otherwise, so one flag collects a frame's signals.
- * Integer arithmetic only: the float's significand times N is exact in 64
- * bits, and rounding it is a shift (the M4F's FPU has no double, and a float
- * product would round before the tie-break). */
-static int32_t quantise_f32(float value, uint32_t inv_scale, int32_t raw_min, int32_t raw_max, uint8_t *sat)
+/* The rare path below stays out of line: inlined, it made quantise_f32 save
+ * the eight registers its 64-bit arithmetic needs on every call (GCC). */
+#if defined(__GNUC__) || defined(__clang__)
+#define FW_RARE __attribute__((noinline, cold))
+#else
+#define FW_RARE
+#endif
+
+/* quantise_f32 in integer arithmetic only, for any float: the float's
+ * significand times N is exact in 64 bits, and rounding it is a shift. */
+static FW_RARE int32_t quantise_exact(float value, uint32_t inv_scale, int32_t raw_min, int32_t raw_max, uint8_t *sat)
 {
     uint32_t bits, mant, biased;
     uint64_t p, n;
@@ -122,6 +126,40 @@ static int32_t quantise_f32(float value, uint32_t inv_scale, int32_t raw_min, in
         return raw_max;
     }
     return (int32_t)r;
+}
+
+/* fw_quantise_f32 for valid arguments (1 <= inv_scale <= 2^24, raw_min <=
+ * raw_max): the raw value, round_half_even(value * N) of the exact product,
+ * clipped. *sat is set to 1 when the value was clipped or not finite and
+ * left alone otherwise, so one flag collects a frame's signals.
+ *
+ * Fast path, in float: y = fl(value * N). Where |y| < 2^23 every
+ * half-integer is a float, so none lies between the exact product and y
+ * (it would be nearer than y), and both round to the same integer, unless
+ * y itself is halfway: then the exact product may lie on either side. That
+ * case, |y| >= 2^23, inf and NaN go to quantise_exact. t = trunc(y) is exact
+ * and so is the fraction y - t. (Needs -ffp-contract=off, as all of the
+ * firmware: a fused y - t would not see y.) */
+static int32_t quantise_f32(float value, uint32_t inv_scale, int32_t raw_min, int32_t raw_max, uint8_t *sat)
+{
+    const float y = value * (float)inv_scale;
+    if (y > -0x1p23f && y < 0x1p23f) { /* false for NaN */
+        const int32_t t = (int32_t)y;  /* toward zero */
+        const float f = y - (float)t;  /* exact, |f| < 1 */
+        if (f != 0.5f && f != -0.5f) {
+            const int32_t r = t + (f > 0.5f) - (f < -0.5f);
+            if (r < raw_min) {
+                *sat = 1;
+                return raw_min;
+            }
+            if (r > raw_max) {
+                *sat = 1;
+                return raw_max;
+            }
+            return r;
+        }
+    }
+    return quantise_exact(value, inv_scale, raw_min, raw_max, sat);
 }
 
 fw_status fw_quantise_f32(float value, uint32_t inv_scale, int32_t raw_min, int32_t raw_max, int32_t *raw,

@@ -17,8 +17,9 @@
  *
  *   decode  physical = (float)raw / (float)N, one correctly rounded float
  *           division of two exact values;
- *   encode  raw = round_half_even(value * N) of the exact product, in
- *           64-bit integer arithmetic (fw_quantise_f32()).
+ *   encode  raw = round_half_even(value * N) of the exact product
+ *           (fw_quantise_f32()): from the float product where that
+ *           decides it, else in 64-bit integer arithmetic.
  *
  * These give cantools' bits for every raw value and every float32: the
  * generator emits N only for scales whose double is within 2^-54 of 1/N
@@ -99,7 +100,7 @@ fw_status fw_quantise(double value, double scale, int32_t raw_min, int32_t raw_m
                       uint8_t *saturated);
 
 /* The same for a float value and the scale 1/inv_scale (the float32
- * build's), without floating-point arithmetic: raw = round_half_even(value *
+ * build's), without double arithmetic: raw = round_half_even(value *
  * inv_scale), the exact product, clipped as fw_quantise. Equal to
  * fw_quantise(value, fl64(1 / inv_scale), ...) for every float value when
  * inv_scale passes the generator's bound (see the top of this file).

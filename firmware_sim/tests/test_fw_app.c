@@ -1056,6 +1056,9 @@ static void test_float_quantiser_equals_the_double_one_for_every_float(void)
          RHONN_ID_ESTIMATE_LAMBDA_A_HAT_RAW_MIN, RHONN_ID_ESTIMATE_LAMBDA_A_HAT_RAW_MAX},
         {RHONN_ID_ESTIMATE_IA_HAT_INV_SCALE, RHONN_ID_ESTIMATE_IA_HAT_SCALE, RHONN_ID_ESTIMATE_IA_HAT_RAW_MIN,
          RHONN_ID_ESTIMATE_IA_HAT_RAW_MAX},
+        /* the whole int32 range: products far past 2^23, where the float fast path
+         * must hand over to the exact one */
+        {RHONN_ID_ESTIMATE_QM_HAT_INV_SCALE, RHONN_ID_ESTIMATE_QM_HAT_SCALE, -2147483647 - 1, 2147483647},
     };
     size_t i;
 
