@@ -86,8 +86,9 @@ def application(app: dict, budget: int) -> None:
     print(f"{'rhonn_step inside a measurement frame':44} {c['steps']:6d} {c['step_mean']:12.0f} {c['step_max']:7d} "
           f"{c['step_mean'] / budget:9.3f}")
     print(f"the application around the step (decode, checks, encode, HAL): {c['app_overhead_mean']:.0f} cycles per "
-          f"measurement frame; library routines (soft-float double arithmetic of the protocol's conversions, "
-          f"memcpy): {c['library_cycles_per_frame']:.0f} per frame, averaged over the {c['frames']} frames")
+          f"measurement frame; library routines ({', '.join(app['library_routines'])}): "
+          f"{c['library_cycles_per_frame']:.0f} per frame, of them software double arithmetic "
+          f"{c['soft_double_cycles_per_frame']:.0f}, averaged over the {c['frames']} frames")
     top = ", ".join(f"{name} {v:.0f}" for name, v in list(c["cycles_per_frame_by_function"].items())[:12])
     print(f"cycles per frame by function (mean over the {c['frames']} frames): {top}")
     met = "MET" if c["frame_target_met"] else "NOT MET"

@@ -10,6 +10,8 @@ the host (float32, glibc).
   (pyrhonn._fwapp) sent for the same stream, and every frame's status too.
 - The command authentication's AES-CMAC is checked on the target too, and the
   cycle estimate of the application's frames runs on a short prefix.
+- The application calls no software double-precision routine: the float32
+  firmware's signal scaling runs in float and integer arithmetic.
 
 run_m4.py runs once for the module (about 20 s)."""
 from __future__ import annotations
@@ -119,3 +121,16 @@ def test_cortex_m4_cycle_estimate_covers_the_frame_and_its_step(m4) -> None:
     assert c["frame_target_met"] == (c["measurement_frame_max"] <= c["frame_target"])
     print(f"\ncycles: {c['measurement_frame_mean']:.0f} per measurement frame (target {c['frame_target']}), "
           f"{c['step_mean']:.0f} per rhonn_step")
+
+
+@needs_m4
+def test_cortex_m4_application_runs_no_software_double_arithmetic(m4) -> None:
+    """The FPv4-SP FPU has single precision only: a double in the firmware's C
+    becomes calls into libgcc's soft-float routines, about 10,600 cycles of
+    each Measurement frame when the protocol scaled in double. None is linked
+    from the application's objects, and none runs in the measured frames."""
+    report, _, _ = m4
+    app = report["application"]
+    assert app["library_routines"], "the library routines were not listed"   # memcpy, memset at least
+    assert app["soft_double_routines"] == [], app["soft_double_routines"]
+    assert app["cycles"]["soft_double_cycles_per_frame"] == 0

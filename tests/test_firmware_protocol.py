@@ -6,6 +6,12 @@
   in Python agree frame by frame, raw and physical, for every message,
   including edge values: the ends of each field, the ends of each DBC range,
   one step beyond, negative values, rounding ties, non-finite weights.
+- The float32 firmware scales without double arithmetic (1/scale as an
+  integer N, fw_protocol.h) and still gets cantools' bits: at every rounding
+  tie and next to it, and the generator gives N only for scales where that
+  holds. An Estimate's raw value is within half an LSB of the value sent,
+  and decoding it gives the float nearest raw * scale, which encodes back to
+  the same raw value.
 - The design figures (frame sizes, bit rate) stated in the DBC follow from it.
 """
 from __future__ import annotations
@@ -15,6 +21,7 @@ import math
 import re
 import struct
 import subprocess
+from fractions import Fraction
 import sys
 from pathlib import Path
 
@@ -363,6 +370,93 @@ def test_estimate_encode_edges() -> None:
             assert d[name] == want and sat == 1 and d["Saturated"] == 1
     st_, _, _ = _c_estimate(0, 16, 0, 0, np.zeros(6, dtype=np.float32))
     assert firmware.status_name(st_) == "FW_E_RANGE"
+
+
+# -- scaling without double arithmetic (the float32 build) ---------------------------------------
+
+
+def _quantise_f32(x: np.float32, n: int, lo: int, hi: int) -> tuple[int, int]:
+    raw, sat = ffi.new("int32_t *"), ffi.new("uint8_t *")
+    assert lib.fw_quantise_f32(float(x), n, lo, hi, raw, sat) == lib.FW_OK
+    return raw[0], sat[0]
+
+
+def _inverse_scale(sig) -> int:
+    """N = 1/scale as fw_protocol.c uses it (rhonn_id_limits.h)."""
+    prefix = f"RHONN_ID_ESTIMATE_{camel_to_snake_case(sig.name).upper()}"
+    m = re.search(rf"^#define {prefix}_INV_SCALE \((\d+)u\)$", (FW / "generated" / "rhonn_id_limits.h").read_text(),
+                  re.M)
+    assert m, f"{sig.name}: no INV_SCALE in rhonn_id_limits.h"
+    return int(m.group(1))
+
+
+def test_inverse_scale_is_given_only_where_the_float_conversion_gives_cantools_bits() -> None:
+    gen = _module(FW / "tools" / "generate_protocol.py", "_fw_generate_protocol")
+    msg = DB.get_message_by_name("Estimate")
+    for name in firmware.ESTIMATE_SIGNALS:
+        sig = msg.get_signal_by_name(name)
+        assert _inverse_scale(sig) == gen.inverse_scale(sig.scale) == 1 / Fraction(repr(sig.scale)), name
+    # not 1/N, N too large, no scaling at all: no N
+    for scale in (0.3, 2.0, 1.0, 1e-8, 0.0, -0.01):
+        assert gen.inverse_scale(scale) is None, scale
+    # 1e-05 is 1/100000, but its double is 1.47 x 2^-54 off, relative: there cantools'
+    # double rounding and the exact rounding part at a tie, so the generator gives no N
+    assert gen.inverse_scale(1e-05) is None
+    x = 0.234375  # x * 10^5 = 23437.5 exactly: ties to even give 23438
+    assert round(Fraction(x) * 100000) == 23438 and round(x / 1e-05) == 23437
+
+
+def _ties(sig, n: int) -> np.ndarray:
+    """Every float32 x with x * N = k + 1/2 exactly, within the signal's range and 1 % past
+    it, both signs: N = 2^a * odd, so they are the odd multiples of 2^-(a+1)."""
+    a = (n & -n).bit_length() - 1
+    top = int(sig.maximum * 1.01 * 2 ** (a + 1))
+    x = np.arange(1, top + 1, 2, dtype=np.float64) / 2 ** (a + 1)
+    assert np.all(x.astype(np.float32) == x)  # exact floats
+    return np.concatenate([x, -x]).astype(np.float32)
+
+
+def test_float_quantiser_gives_cantools_raw_value_at_every_tie_and_next_to_it() -> None:
+    msg = DB.get_message_by_name("Estimate")
+    for name in firmware.ESTIMATE_SIGNALS:
+        sig = msg.get_signal_by_name(name)
+        n, (lo, hi) = _inverse_scale(sig), _signal_raw_limits(sig)
+        ties = _ties(sig, n)
+        values = np.concatenate([ties, np.nextafter(ties, np.float32(0)), np.nextafter(ties, ties * 2)])
+        for x in values:
+            want = sig.scaled_to_raw(float(x))  # cantools: round((x - 0) / scale), in double
+            assert _quantise_f32(x, n, lo, hi) == (min(max(want, lo), hi), int(not lo <= want <= hi)), (name, x)
+        # the ties go to even (cantools' round() of an exact k + 1/2)
+        raws = np.array([_quantise_f32(x, n, lo, hi)[0] for x in ties if lo <= float(x) * n <= hi])
+        assert raws.size >= 90 and np.all(raws % 2 == 0), name
+
+
+def test_decoded_measurement_is_within_half_an_lsb_and_encodes_back_to_the_same_raw_value() -> None:
+    """The error bound of the conversions: x -> raw (Estimate) is within half an LSB,
+    raw -> float (Measurement) is the float nearest raw * scale, and that float encodes
+    back to raw; so the decoded value is within half an LSB (plus half a float ulp)
+    of the value encoded."""
+    est, meas = DB.get_message_by_name("Estimate"), DB.get_message_by_name("Measurement")
+    rng = np.random.default_rng(7)
+    m = ffi.new("fw_measurement *")
+    for j, name in enumerate(firmware.ESTIMATE_SIGNALS):
+        sig = est.get_signal_by_name(name)
+        n, (lo, hi) = _inverse_scale(sig), _signal_raw_limits(sig)
+        xs = np.concatenate([rng.uniform(sig.minimum, sig.maximum, 2000),
+                             rng.uniform(-50 * sig.scale, 50 * sig.scale, 500)]).astype(np.float32)
+        for x in np.concatenate([xs, np.float32([sig.minimum, sig.maximum, 0.0, sig.scale / 2])]):
+            raw, sat = _quantise_f32(x, n, lo, hi)
+            assert not sat and abs(raw - Fraction(float(x)) * n) <= Fraction(1, 2), (name, x, raw)
+            raws = {s.name: 0 for s in meas.signals}
+            raws[firmware.STATE_SIGNALS[j]] = raw
+            raws[firmware.VALID_SIGNALS[j]] = 1
+            data = meas.encode(raws, scaling=False)
+            assert lib.fw_measurement_decode(data, len(data), m) == lib.FW_OK
+            back = np.float32(m.x[j])
+            ulp = Fraction(float(np.spacing(np.abs(back))))
+            assert abs(Fraction(float(back)) - Fraction(raw, n)) <= ulp / 2, (name, raw)
+            assert abs(Fraction(float(back)) - Fraction(float(x))) <= Fraction(1, 2 * n) + ulp / 2, (name, x)
+            assert _quantise_f32(back, n, lo, hi) == (raw, 0), (name, x, raw)
 
 
 @FAST

@@ -65,6 +65,130 @@ fw_status fw_quantise(double value, double scale, int32_t raw_min, int32_t raw_m
     return FW_OK;
 }
 
+/* The rare path below stays out of line: inlined, it made quantise_f32 save
+ * the eight registers its 64-bit arithmetic needs on every call (GCC). */
+#if defined(__GNUC__) || defined(__clang__)
+#define FW_RARE __attribute__((noinline, cold))
+#else
+#define FW_RARE
+#endif
+
+/* quantise_f32 in integer arithmetic only, for any float: the float's
+ * significand times N is exact in 64 bits, and rounding it is a shift. */
+static FW_RARE int32_t quantise_exact(float value, uint32_t inv_scale, int32_t raw_min, int32_t raw_max, uint8_t *sat)
+{
+    uint32_t bits, mant, biased;
+    uint64_t p, n;
+    int64_t r;
+    int e; /* |value| = mant * 2^e exactly */
+
+    memcpy(&bits, &value, sizeof bits);
+    biased = (bits >> 23) & 0xFFu;
+    mant = bits & 0x7FFFFFu;
+    if (biased == 0xFFu) {
+        /* NaN: 0; +-inf: the nearer end */
+        *sat = 1;
+        return mant != 0u ? 0 : (bits >> 31) != 0u ? raw_min : raw_max;
+    }
+    if (biased != 0u) {
+        mant |= 0x800000u;
+    } else {
+        biased = 1u; /* subnormal */
+    }
+    e = (int)biased - 150;
+    /* |value| * N = p * 2^e exactly: p < 2^24 * 2^24 = 2^48. */
+    p = (uint64_t)mant * inv_scale;
+    if (e > 8) {
+        /* mant >= 2^23 (normal), so |value| * N >= 2^32: beyond any int32 range */
+        n = (uint64_t)1 << 40;
+    } else if (e >= 0) {
+        n = p << e; /* < 2^56 */
+    } else if (e < -49) {
+        n = 0; /* p * 2^e < 2^48 * 2^-50: below 1/2 */
+    } else {
+        /* p * 2^e rounded to nearest, ties to even (Python's round()): q
+         * keeps one bit below the units (the half), and the bits shifted
+         * out of q say whether p is past the half */
+        const unsigned s1 = (unsigned)-e - 1u;
+        const uint64_t q = p >> s1;
+        n = q >> 1;
+        if ((q & 1u) != 0u && ((n & 1u) != 0u || (q << s1) != p)) {
+            ++n;
+        }
+    }
+    r = (bits >> 31) != 0u ? -(int64_t)n : (int64_t)n;
+    if (r < raw_min) {
+        *sat = 1;
+        return raw_min;
+    }
+    if (r > raw_max) {
+        *sat = 1;
+        return raw_max;
+    }
+    return (int32_t)r;
+}
+
+/* fw_quantise_f32 for valid arguments (1 <= inv_scale <= 2^24, raw_min <=
+ * raw_max): the raw value, round_half_even(value * N) of the exact product,
+ * clipped. *sat is set to 1 when the value was clipped or not finite and
+ * left alone otherwise, so one flag collects a frame's signals.
+ *
+ * Fast path, in float: y = fl(value * N). Where |y| < 2^23 every
+ * half-integer is a float, so none lies between the exact product and y
+ * (it would be nearer than y), and both round to the same integer, unless
+ * y itself is halfway: then the exact product may lie on either side. That
+ * case, |y| >= 2^23, inf and NaN go to quantise_exact. t = trunc(y) is exact
+ * and so is the fraction y - t. (Needs -ffp-contract=off, as all of the
+ * firmware: a fused y - t would not see y.) */
+static int32_t quantise_f32(float value, uint32_t inv_scale, int32_t raw_min, int32_t raw_max, uint8_t *sat)
+{
+    const float y = value * (float)inv_scale;
+    if (y > -0x1p23f && y < 0x1p23f) { /* false for NaN */
+        const int32_t t = (int32_t)y;  /* toward zero */
+        const float f = y - (float)t;  /* exact, |f| < 1 */
+        if (f != 0.5f && f != -0.5f) {
+            const int32_t r = t + (f > 0.5f) - (f < -0.5f);
+            if (r < raw_min) {
+                *sat = 1;
+                return raw_min;
+            }
+            if (r > raw_max) {
+                *sat = 1;
+                return raw_max;
+            }
+            return r;
+        }
+    }
+    return quantise_exact(value, inv_scale, raw_min, raw_max, sat);
+}
+
+fw_status fw_quantise_f32(float value, uint32_t inv_scale, int32_t raw_min, int32_t raw_max, int32_t *raw,
+                          uint8_t *saturated)
+{
+    uint8_t sat = 0;
+
+    if (raw == NULL) {
+        return FW_E_NULL;
+    }
+    if (inv_scale == 0u || inv_scale > FW_INV_SCALE_MAX || raw_min > raw_max) {
+        return FW_E_RANGE;
+    }
+    *raw = quantise_f32(value, inv_scale, raw_min, raw_max, &sat);
+    if (saturated != NULL) {
+        *saturated = sat;
+    }
+    return FW_OK;
+}
+
+/* Scale a raw value to physical units as cantools does (see fw_protocol.h):
+ * the float32 build divides by N = 1/scale in float, the double build
+ * multiplies by the scale in double (the generated *_decode()). */
+#if defined(RHONN_SINGLE)
+#define FW_DECODE(decode_fn, raw, SIG) ((float)(raw) / (float)SIG##_INV_SCALE)
+#else
+#define FW_DECODE(decode_fn, raw, SIG) ((rhonn_real)decode_fn(raw))
+#endif
+
 fw_status fw_measurement_decode(const uint8_t *data, size_t len, fw_measurement *m)
 {
     struct rhonn_id_measurement_t f;
@@ -110,35 +234,34 @@ fw_status fw_measurement_decode(const uint8_t *data, size_t len, fw_measurement 
     out.valid[3] = f.valid_lambda_b;
     out.valid[4] = f.valid_ia;
     out.valid[5] = f.valid_ib;
-    out.x[0] = (rhonn_real)rhonn_id_measurement_qm_decode(f.qm);
-    out.x[1] = (rhonn_real)rhonn_id_measurement_v_decode(f.v);
-    out.x[2] = (rhonn_real)rhonn_id_measurement_lambda_a_decode(f.lambda_a);
-    out.x[3] = (rhonn_real)rhonn_id_measurement_lambda_b_decode(f.lambda_b);
-    out.x[4] = (rhonn_real)rhonn_id_measurement_ia_decode(f.ia);
-    out.x[5] = (rhonn_real)rhonn_id_measurement_ib_decode(f.ib);
-    out.u[0] = (rhonn_real)rhonn_id_measurement_ua_decode(f.ua);
-    out.u[1] = (rhonn_real)rhonn_id_measurement_ub_decode(f.ub);
+    out.x[0] = FW_DECODE(rhonn_id_measurement_qm_decode, f.qm, RHONN_ID_MEASUREMENT_QM);
+    out.x[1] = FW_DECODE(rhonn_id_measurement_v_decode, f.v, RHONN_ID_MEASUREMENT_V);
+    out.x[2] = FW_DECODE(rhonn_id_measurement_lambda_a_decode, f.lambda_a, RHONN_ID_MEASUREMENT_LAMBDA_A);
+    out.x[3] = FW_DECODE(rhonn_id_measurement_lambda_b_decode, f.lambda_b, RHONN_ID_MEASUREMENT_LAMBDA_B);
+    out.x[4] = FW_DECODE(rhonn_id_measurement_ia_decode, f.ia, RHONN_ID_MEASUREMENT_IA);
+    out.x[5] = FW_DECODE(rhonn_id_measurement_ib_decode, f.ib, RHONN_ID_MEASUREMENT_IB);
+    out.u[0] = FW_DECODE(rhonn_id_measurement_ua_decode, f.ua, RHONN_ID_MEASUREMENT_UA);
+    out.u[1] = FW_DECODE(rhonn_id_measurement_ub_decode, f.ub, RHONN_ID_MEASUREMENT_UB);
     *m = out;
     return FW_OK;
 }
 
-#define FW_QUANTISE(field, value, SIG)                                                        \
-    do {                                                                                      \
-        int32_t raw_;                                                                         \
-        uint8_t sat_ = 0;                                                                     \
+/* One estimate through its signal's scaling into a field of the given type
+ * (the DBC range fits it), or-ing the saturation into sat: quantise_f32 in
+ * the float32 build, fw_quantise in the double build (fw_protocol.h). */
+#if defined(RHONN_SINGLE)
+#define FW_QUANTISE(field, type, value, SIG) \
+    ((field) = (type)quantise_f32((value), SIG##_INV_SCALE, SIG##_RAW_MIN, SIG##_RAW_MAX, &sat))
+#else
+#define FW_QUANTISE(field, type, value, SIG)                                                           \
+    do {                                                                                               \
+        int32_t raw_;                                                                                  \
+        uint8_t sat_ = 0;                                                                              \
         (void)fw_quantise((double)(value), SIG##_SCALE, SIG##_RAW_MIN, SIG##_RAW_MAX, &raw_, &sat_); \
-        (field) = raw_;                                                                       \
-        sat |= sat_;                                                                          \
+        (field) = (type)raw_;                                                                          \
+        sat |= sat_;                                                                                   \
     } while (0)
-
-#define FW_QUANTISE16(field, value, SIG)                                                      \
-    do {                                                                                      \
-        int32_t raw_;                                                                         \
-        uint8_t sat_ = 0;                                                                     \
-        (void)fw_quantise((double)(value), SIG##_SCALE, SIG##_RAW_MIN, SIG##_RAW_MAX, &raw_, &sat_); \
-        (field) = (int16_t)raw_; /* within the DBC range, which fits the field */             \
-        sat |= sat_;                                                                          \
-    } while (0)
+#endif
 
 fw_status fw_estimate_encode(const fw_estimate *e, uint8_t *data, size_t size, uint8_t *saturated)
 {
@@ -159,12 +282,12 @@ fw_status fw_estimate_encode(const fw_estimate *e, uint8_t *data, size_t size, u
     f.step_status = e->step_status;
     f.learning = e->learning ? 1u : 0u;
     f.resync = e->resync ? 1u : 0u;
-    FW_QUANTISE(f.qm_hat, e->xhat[0], RHONN_ID_ESTIMATE_QM_HAT);
-    FW_QUANTISE16(f.v_hat, e->xhat[1], RHONN_ID_ESTIMATE_V_HAT);
-    FW_QUANTISE16(f.lambda_a_hat, e->xhat[2], RHONN_ID_ESTIMATE_LAMBDA_A_HAT);
-    FW_QUANTISE16(f.lambda_b_hat, e->xhat[3], RHONN_ID_ESTIMATE_LAMBDA_B_HAT);
-    FW_QUANTISE16(f.ia_hat, e->xhat[4], RHONN_ID_ESTIMATE_IA_HAT);
-    FW_QUANTISE16(f.ib_hat, e->xhat[5], RHONN_ID_ESTIMATE_IB_HAT);
+    FW_QUANTISE(f.qm_hat, int32_t, e->xhat[0], RHONN_ID_ESTIMATE_QM_HAT);
+    FW_QUANTISE(f.v_hat, int16_t, e->xhat[1], RHONN_ID_ESTIMATE_V_HAT);
+    FW_QUANTISE(f.lambda_a_hat, int16_t, e->xhat[2], RHONN_ID_ESTIMATE_LAMBDA_A_HAT);
+    FW_QUANTISE(f.lambda_b_hat, int16_t, e->xhat[3], RHONN_ID_ESTIMATE_LAMBDA_B_HAT);
+    FW_QUANTISE(f.ia_hat, int16_t, e->xhat[4], RHONN_ID_ESTIMATE_IA_HAT);
+    FW_QUANTISE(f.ib_hat, int16_t, e->xhat[5], RHONN_ID_ESTIMATE_IB_HAT);
     f.saturated = sat;
     if (rhonn_id_estimate_pack(data, &f, size) != (int)RHONN_ID_ESTIMATE_LENGTH) {
         return FW_E_LENGTH;

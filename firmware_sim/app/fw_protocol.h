@@ -3,14 +3,30 @@
  * the pack/unpack code cantools generates from rhonn_id.dbc
  * (firmware_sim/generated/rhonn_id.[ch]). This layer maps signals to state
  * and input indices and fixes the two conversions the generated code leaves
- * open:
+ * open. What they compute is cantools' conversion in Python, in double:
  *
- *   decode  physical = (double)raw * scale, then rounded to rhonn_real
- *           (the generated *_decode(); cantools computes the same double in
- *           Python, so a float32 build sees exactly np.float32(decoded)).
- *   encode  raw = (double)value / scale rounded to nearest, ties to even
- *           (what cantools' encode does in Python: round((v - 0) / scale)),
- *           then saturated to the signal's DBC range.
+ *   decode  physical = raw * scale, rounded to rhonn_real (a float32 build
+ *           sees exactly np.float32(decoded));
+ *   encode  raw = round(value / scale), nearest, ties to even, then
+ *           saturated to the signal's DBC range.
+ *
+ * The double build computes them so, in double (the generated *_decode(),
+ * fw_quantise()). The float32 build, the firmware's precision, runs on FPUs
+ * without double precision, so it uses no double at all: with N = 1/scale,
+ * an integer (rhonn_id_limits.h's INV_SCALE),
+ *
+ *   decode  physical = (float)raw / (float)N, one correctly rounded float
+ *           division of two exact values;
+ *   encode  raw = round_half_even(value * N) of the exact product
+ *           (fw_quantise_f32()): from the float product where that
+ *           decides it, else in 64-bit integer arithmetic.
+ *
+ * These give cantools' bits for every raw value and every float32: the
+ * generator emits N only for scales whose double is within 2^-54 of 1/N
+ * (generate_protocol.inverse_scale, firmware_sim/README.md, "Scaling
+ * without double arithmetic"). So an Estimate's raw value is within half
+ * an LSB of value / scale (unless saturated), and a decoded value is the
+ * float nearest raw * scale.
  *
  * State order is the LIM's, x = [q_m, v, lambda_a, lambda_b, i_a, i_b],
  * u = [u_a, u_b] (pyrhonn.plants.lim.STATE_NAMES / INPUT_NAMES).
@@ -75,11 +91,23 @@ fw_status fw_estimate_encode(const fw_estimate *e, uint8_t *data, size_t size, u
  * identifier is the application's check.) *c is written only on FW_OK. */
 fw_status fw_weight_chunk_decode(const uint8_t *data, size_t len, fw_weight_chunk *c);
 
-/* One value through the estimate scaling: raw = round_half_even(value /
- * scale) clipped to [raw_min, raw_max]; *saturated = 1 when clipped or not
- * finite (then raw is 0). Exposed for the protocol tests. */
+/* One value through the estimate scaling, in double (the double build's):
+ * raw = round_half_even(value / scale) clipped to [raw_min, raw_max];
+ * *saturated = 1 when clipped or not finite (then raw is 0; -inf and +inf
+ * go to the ends). FW_E_RANGE unless scale > 0 and raw_min <= raw_max.
+ * Exposed for the protocol tests. */
 fw_status fw_quantise(double value, double scale, int32_t raw_min, int32_t raw_max, int32_t *raw,
                       uint8_t *saturated);
+
+/* The same for a float value and the scale 1/inv_scale (the float32
+ * build's), without double arithmetic: raw = round_half_even(value *
+ * inv_scale), the exact product, clipped as fw_quantise. Equal to
+ * fw_quantise(value, fl64(1 / inv_scale), ...) for every float value when
+ * inv_scale passes the generator's bound (see the top of this file).
+ * FW_E_RANGE unless 1 <= inv_scale <= FW_INV_SCALE_MAX and raw_min <= raw_max. */
+#define FW_INV_SCALE_MAX 16777216u /* 2^24: exact in float */
+fw_status fw_quantise_f32(float value, uint32_t inv_scale, int32_t raw_min, int32_t raw_max, int32_t *raw,
+                          uint8_t *saturated);
 
 #ifdef __cplusplus
 }

@@ -51,6 +51,9 @@ APP_OBJECTS = ("fw_app", "fw_protocol", "fw_hal_mem", "rhonn_id", "rhonn", "fw_s
 APP_HARNESS = ("main", "handle_frame")
 #: what the application calls through the HAL's function pointers
 APP_HAL = ("fw_mem_hal_send", "fw_mem_hal_now", "fw_mem_hal_receive")
+#: libgcc's software double-precision routines (the FPv4-SP FPU has single precision only):
+#: __aeabi_dadd, __aeabi_cdcmple, __aeabi_i2d, __aeabi_d2f, ... and their aliases __adddf3, __cmpdf2, ...
+SOFT_DOUBLE = re.compile(r"^__aeabi_(c?d[a-z]|\w*2d$|d2)|^__\w*df\w*$")
 QEMU = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-semihosting-config", "enable=on,target=native",
         "-icount", "shift=0"]
 
@@ -230,6 +233,7 @@ def run_app(build_dir: Path, frames_dir: Path, cycle_frames: int) -> dict[str, o
         "objects": footprint,
         "library_code_bytes": lib_code,
         "library_routines": lib_names,
+        "soft_double_routines": [name for name in lib_names if SOFT_DOUBLE.match(name)],
         "flash_bytes": flash,
         "ram_bytes_static": sum(v["data"] + v["bss"] for v in footprint.values()) + sizeof_app,
         "fw_app_on_frame_worst_stack_bytes": stack,
@@ -280,6 +284,7 @@ def frame_cycles(elf: Path, objs: dict[str, Path], lines: list[str], kinds: list
         "steps": est["nested"]["calls"],
         "app_overhead_mean": sum(overhead) / len(overhead) if overhead else None,
         "library_cycles_per_frame": round(sum(v for k, v in by_function.items() if k not in own), 1),
+        "soft_double_cycles_per_frame": round(sum(v for k, v in by_function.items() if SOFT_DOUBLE.match(k)), 1),
         "frame_target": FRAME_TARGET,
         "frame_target_met": max(plain) <= FRAME_TARGET,
         "instructions_per_frame": est["instructions_per_call"],

@@ -1003,6 +1003,178 @@ static void test_quantiser_rounds_half_to_even_and_saturates(void)
     }
 }
 
+/* ---- scaling without double arithmetic (fw_protocol.h) ---------------------------- */
+
+/* Every FW_QUANTISE_STRIDE-th float32 bit pattern is compared; 1 compares all
+ * 2^32 of them for each signal (minutes, not a CTest run). */
+#ifndef FW_QUANTISE_STRIDE
+#define FW_QUANTISE_STRIDE 4099u
+#endif
+
+static float float_of_bits(uint32_t bits)
+{
+    float f;
+    memcpy(&f, &bits, sizeof f);
+    return f;
+}
+
+/* One comparison: the float32 build's quantiser and cantools' double formula
+ * (fw_quantise with the DBC's double scale) give the same status, raw value
+ * and flag. Returns 1 when they differ (the first few are printed); one
+ * CHECK per signal counts the differences, so that an exhaustive run does not
+ * overflow the check counter. */
+static long quantisers_differ(float x, uint32_t n, double scale, int32_t lo, int32_t hi)
+{
+    static int printed = 0;
+    int32_t r32 = 0, r64 = 1;
+    uint8_t s32 = 2, s64 = 3;
+    const fw_status st32 = fw_quantise_f32(x, n, lo, hi, &r32, &s32);
+    const fw_status st64 = fw_quantise((double)x, scale, lo, hi, &r64, &s64);
+
+    if (st32 == FW_OK && st64 == FW_OK && r32 == r64 && s32 == s64) {
+        return 0;
+    }
+    if (printed++ < 10) {
+        fprintf(stderr, "quantise %.9g / %g: float32 %ld (sat %u), double %ld (sat %u)\n", (double)x, scale,
+                (long)r32, (unsigned)s32, (long)r64, (unsigned)s64);
+    }
+    return 1;
+}
+
+static void test_float_quantiser_equals_the_double_one_for_every_float(void)
+{
+    static const struct {
+        uint32_t n;
+        double scale;
+        int32_t lo, hi;
+    } sig[] = {
+        {RHONN_ID_ESTIMATE_QM_HAT_INV_SCALE, RHONN_ID_ESTIMATE_QM_HAT_SCALE, RHONN_ID_ESTIMATE_QM_HAT_RAW_MIN,
+         RHONN_ID_ESTIMATE_QM_HAT_RAW_MAX},
+        {RHONN_ID_ESTIMATE_V_HAT_INV_SCALE, RHONN_ID_ESTIMATE_V_HAT_SCALE, RHONN_ID_ESTIMATE_V_HAT_RAW_MIN,
+         RHONN_ID_ESTIMATE_V_HAT_RAW_MAX},
+        {RHONN_ID_ESTIMATE_LAMBDA_A_HAT_INV_SCALE, RHONN_ID_ESTIMATE_LAMBDA_A_HAT_SCALE,
+         RHONN_ID_ESTIMATE_LAMBDA_A_HAT_RAW_MIN, RHONN_ID_ESTIMATE_LAMBDA_A_HAT_RAW_MAX},
+        {RHONN_ID_ESTIMATE_IA_HAT_INV_SCALE, RHONN_ID_ESTIMATE_IA_HAT_SCALE, RHONN_ID_ESTIMATE_IA_HAT_RAW_MIN,
+         RHONN_ID_ESTIMATE_IA_HAT_RAW_MAX},
+        /* the whole int32 range: products far past 2^23, where the float fast path
+         * must hand over to the exact one */
+        {RHONN_ID_ESTIMATE_QM_HAT_INV_SCALE, RHONN_ID_ESTIMATE_QM_HAT_SCALE, -2147483647 - 1, 2147483647},
+    };
+    size_t i;
+
+    for (i = 0; i < sizeof sig / sizeof sig[0]; ++i) {
+        const uint32_t n = sig[i].n;
+        const double s = sig[i].scale;
+        const int32_t lo = sig[i].lo, hi = sig[i].hi;
+        uint64_t bits;
+        uint32_t pow2 = 1u, j, ties = 0u;
+        long differ = 0;
+        /* a float32 step through the whole bit space: both signs, subnormals, inf, NaN */
+        for (bits = 0; bits <= 0xFFFFFFFFu; bits += FW_QUANTISE_STRIDE) {
+            differ += quantisers_differ(float_of_bits((uint32_t)bits), n, s, lo, hi);
+        }
+        /* every exact tie x * N = k + 1/2 within the range and a little past it, and the
+         * floats next to it: N = 2^a * odd, so the ties are the odd multiples of 2^-(a+1) */
+        while (n % (2u * pow2) == 0u) {
+            pow2 *= 2u;
+        }
+        for (j = 1u; (double)j / (2.0 * pow2) <= (double)hi * s * 1.01; j += 2u) {
+            const float x = (float)((double)j / (2.0 * pow2));
+            differ += quantisers_differ(x, n, s, lo, hi) + quantisers_differ(-x, n, s, lo, hi)
+                + quantisers_differ(nextafterf(x, 0.0f), n, s, lo, hi)
+                + quantisers_differ(nextafterf(x, 1e30f), n, s, lo, hi)
+                + quantisers_differ(-nextafterf(x, 0.0f), n, s, lo, hi);
+            ++ties;
+        }
+        CHECK(ties >= 40u); /* 48 for 0.1 mm/s per LSB, the fewest */
+        CHECK(differ == 0);
+    }
+}
+
+static void test_float_quantiser_rounds_half_to_even_and_saturates(void)
+{
+    int32_t r = 99;
+    uint8_t sat = 9;
+    static const float in[] = {2.5f, 3.5f, -2.5f, -3.5f, 0.5f, -0.5f, 1.5f, 0.49999997f, -0.0f, 2.4999998f,
+                               99.5f, 100.49999f, 100.5f, -100.5f, 1e-45f, 8388607.5f};
+    static const int32_t out[] = {2, 4, -2, -4, 0, 0, 2, 0, 0, 2, 100, 100, 100, -100, 0, 100};
+    static const uint8_t sats[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1};
+    size_t i;
+
+    for (i = 0; i < sizeof in / sizeof in[0]; ++i) {
+        CHECK_FW(fw_quantise_f32(in[i], 1u, -100, 100, &r, &sat), FW_OK);
+        CHECK(r == out[i] && sat == sats[i]);
+    }
+    /* 1 um per LSB: 0.5 um ties to 0, 1.5 um to 2, 2^-7 m = 7812.5 um to 7812 */
+    CHECK_FW(fw_quantise_f32(0x1p-7f, 1000000u, -8000000, 8000000, &r, &sat), FW_OK);
+    CHECK(r == 7812 && sat == 0);
+    CHECK_FW(fw_quantise_f32(3.0f * 0x1p-7f, 1000000u, -8000000, 8000000, &r, &sat), FW_OK);
+    CHECK(r == 23438 && sat == 0); /* 23437.5: to even */
+    CHECK_FW(fw_quantise_f32(3.00004f, 10000u, -30000, 30000, &r, &sat), FW_OK);
+    CHECK(r == 30000 && sat == 0); /* 30000.4 LSB rounds onto the end, unflagged */
+    CHECK_FW(fw_quantise_f32(3.00006f, 10000u, -30000, 30000, &r, &sat), FW_OK);
+    CHECK(r == 30000 && sat == 1);
+    CHECK_FW(fw_quantise_f32(8.000001f, 1000000u, -8000000, 8000000, &r, &sat), FW_OK);
+    CHECK(r == 8000000 && sat == 1);
+    CHECK_FW(fw_quantise_f32(-3.4028235e38f, 1000000u, -8000000, 8000000, &r, &sat), FW_OK);
+    CHECK(r == -8000000 && sat == 1);
+    CHECK_FW(fw_quantise_f32(NAN, 500u, -30000, 30000, &r, &sat), FW_OK);
+    CHECK(r == 0 && sat == 1);
+    CHECK_FW(fw_quantise_f32(INFINITY, 500u, -30000, 30000, &r, &sat), FW_OK);
+    CHECK(r == 30000 && sat == 1);
+    CHECK_FW(fw_quantise_f32(-INFINITY, 500u, -30000, 30000, &r, &sat), FW_OK);
+    CHECK(r == -30000 && sat == 1);
+    CHECK_FW(fw_quantise_f32(1.0f, 0u, -1, 1, &r, &sat), FW_E_RANGE);
+    CHECK_FW(fw_quantise_f32(1.0f, FW_INV_SCALE_MAX + 1u, -1, 1, &r, &sat), FW_E_RANGE);
+    CHECK_FW(fw_quantise_f32(1.0f, 1u, 1, -1, &r, &sat), FW_E_RANGE);
+    CHECK_FW(fw_quantise_f32(1.0f, 1u, -1, 1, NULL, &sat), FW_E_NULL);
+    CHECK_FW(fw_quantise_f32(2.5f, 1u, -100, 100, &r, NULL), FW_OK);
+    CHECK(r == 2);
+}
+
+/* The float32 decode, (float)raw / (float)N, is the float nearest the double
+ * raw * scale for every raw value of every scaled Measurement field; and
+ * fw_measurement_decode returns it for states (flagged not valid, so not
+ * range-checked) and inputs alike. */
+static void test_float_decode_equals_the_double_one_for_every_raw_value(void)
+{
+    struct rhonn_id_measurement_t f;
+    uint8_t data[RHONN_ID_MEASUREMENT_LENGTH];
+    fw_measurement m;
+    int32_t raw;
+    long bad = 0;
+
+    for (raw = -(1 << 23); raw < (1 << 23); ++raw) {
+        if ((float)raw / (float)RHONN_ID_MEASUREMENT_QM_INV_SCALE != (float)((double)raw * RHONN_ID_MEASUREMENT_QM_SCALE)) {
+            ++bad;
+        }
+        if (raw >= -32768 && raw < 32768) {
+            bad += (float)raw / (float)RHONN_ID_MEASUREMENT_V_INV_SCALE != (float)((double)raw * RHONN_ID_MEASUREMENT_V_SCALE);
+            bad += (float)raw / (float)RHONN_ID_MEASUREMENT_IA_INV_SCALE != (float)((double)raw * RHONN_ID_MEASUREMENT_IA_SCALE);
+            bad += (float)raw / (float)RHONN_ID_MEASUREMENT_UA_INV_SCALE != (float)((double)raw * RHONN_ID_MEASUREMENT_UA_SCALE);
+        }
+    }
+    CHECK(bad == 0);
+    (void)rhonn_id_measurement_init(&f);
+    for (raw = -(1 << 23); raw < (1 << 23); raw += 61) {
+        const int16_t r16 = (int16_t)(raw % 32768);
+        f.qm = raw;
+        f.v = f.lambda_a = f.lambda_b = f.ia = f.ib = r16;
+        f.ua = f.ub = (int16_t)(raw % 32001);
+        CHECK(rhonn_id_measurement_pack(data, &f, sizeof data) == (int)sizeof data);
+        CHECK_FW(fw_measurement_decode(data, sizeof data, &m), FW_OK);
+        bad += m.x[0] != (rhonn_real)rhonn_id_measurement_qm_decode(f.qm);
+        bad += m.x[1] != (rhonn_real)rhonn_id_measurement_v_decode(f.v);
+        bad += m.x[2] != (rhonn_real)rhonn_id_measurement_lambda_a_decode(f.lambda_a);
+        bad += m.x[3] != (rhonn_real)rhonn_id_measurement_lambda_b_decode(f.lambda_b);
+        bad += m.x[4] != (rhonn_real)rhonn_id_measurement_ia_decode(f.ia);
+        bad += m.x[5] != (rhonn_real)rhonn_id_measurement_ib_decode(f.ib);
+        bad += m.u[0] != (rhonn_real)rhonn_id_measurement_ua_decode(f.ua);
+        bad += m.u[1] != (rhonn_real)rhonn_id_measurement_ub_decode(f.ub);
+    }
+    CHECK(bad == 0);
+}
+
 static fw_app other;
 
 static void test_init_and_api_guards(void)
@@ -1206,6 +1378,9 @@ int main(void)
     RUN(test_diagnostics_report_counters_and_timing);
     RUN(test_hal_failures_and_poll);
     RUN(test_quantiser_rounds_half_to_even_and_saturates);
+    RUN(test_float_quantiser_rounds_half_to_even_and_saturates);
+    RUN(test_float_quantiser_equals_the_double_one_for_every_float);
+    RUN(test_float_decode_equals_the_double_one_for_every_raw_value);
     RUN(test_init_and_api_guards);
 #if FW_SECOC
     RUN(test_forged_replayed_stale_and_short_commands_are_rejected_untouched);

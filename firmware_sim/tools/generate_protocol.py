@@ -13,7 +13,11 @@ rhonn_id.h, rhonn_id.c
 rhonn_id_limits.h
     the raw range and scale of every integer signal but the 64-bit MAC
     (cantools' generator checks ranges but does not export them; the
-    firmware needs them to saturate the estimates it sends).
+    firmware needs them to saturate the estimates it sends), and, for a
+    scaled signal whose scale is 1/N with an integer N that passes
+    inverse_scale()'s bound, N as an integer (INV_SCALE): the float32
+    firmware converts with it, without double arithmetic, and gets the same
+    bits as cantools' double conversion.
 
 The files are committed, so firmware builds need neither Python nor
 cantools. tests/test_firmware_protocol.py regenerates them into a temporary
@@ -27,6 +31,7 @@ import re
 import subprocess
 import sys
 import tempfile
+from fractions import Fraction
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -46,6 +51,39 @@ def _c_int(value: int, signed: bool) -> str:
     return f"({value}{'' if signed else 'u'})"
 
 
+#: the largest INV_SCALE: N and every raw value of at most 24 bits are exact in float32
+INV_SCALE_MAX = 2 ** 24
+
+
+def inverse_scale(scale: float) -> int | None:
+    """N when the DBC scale (its decimal text) is exactly 1/N for an integer
+    1 < N <= 2^24 and the double S = fl64(1/N) that cantools multiplies and
+    divides by is within 2^-54 of 1/N, relative (|S*N - 1| < 2^-54 and
+    |1/(S*N) - 1| < 2^-54); None otherwise.
+
+    Under that bound, for every raw value r with |r| < 2^24 and every
+    float32 x (firmware_sim/README.md, "Scaling without double arithmetic"):
+
+    - decode: float32(fl64(r * S)) == fl32(r / N), one correctly rounded
+      float division of two exact floats;
+    - encode: round_half_even(fl64(x / S)) == round_half_even(x * N),
+      the exact product, which 64-bit integer arithmetic computes.
+
+    1e-06, 0.0001, 0.002 and 0.01 pass (0.82, 0.86, 0.38, 0.38 x 2^-54);
+    0.1 and 0.2 sit exactly on the bound and do not."""
+    if not scale > 0 or scale >= 1:
+        return None
+    exact = Fraction(repr(float(scale)))  # the decimal the DBC states: 1e-06 is 1/10^6 exactly
+    if exact.numerator != 1 or exact.denominator > INV_SCALE_MAX:
+        return None
+    n = exact.denominator
+    product = Fraction(float(scale)) * n
+    bound = Fraction(1, 2 ** 54)
+    if abs(product - 1) >= bound or abs(1 / product - 1) >= bound:
+        return None
+    return n
+
+
 def limits_header(dbc: Path) -> str:
     """rhonn_id_limits.h: SCALE, RAW_MIN and RAW_MAX of every integer signal."""
     import cantools
@@ -56,7 +94,9 @@ def limits_header(dbc: Path) -> str:
     lines = [
         f"/* Generated from {dbc.name} by firmware_sim/tools/generate_protocol.py: do not edit. */",
         "/* Raw range (the DBC's [min|max] through the signal's scale, as cantools' generated",
-        " * *_is_in_range() checks it) and scale of every integer signal. */",
+        " * *_is_in_range() checks it) and scale of every integer signal; INV_SCALE = 1/scale",
+        " * where that is an integer N for which float32 conversions with N give cantools' bits",
+        " * (generate_protocol.inverse_scale). */",
         f"#ifndef {guard}",
         f"#define {guard}",
         "",
@@ -80,6 +120,9 @@ def limits_header(dbc: Path) -> str:
                 f"#define {prefix}_RAW_MIN {_c_int(raw_min, sig.is_signed)}",
                 f"#define {prefix}_RAW_MAX {_c_int(raw_max, sig.is_signed)}",
             ]
+            n = inverse_scale(sig.scale)
+            if n is not None and max(-lo, hi) < INV_SCALE_MAX:  # every raw value of the field: exact in float32
+                lines.append(f"#define {prefix}_INV_SCALE ({n}u)")
         lines.append("")
     lines += [f"#endif /* {guard} */", ""]
     return "\n".join(lines)
