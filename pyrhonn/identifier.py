@@ -458,18 +458,7 @@ class Identifier:
         copies; ``out`` (T, n), if given, receives the predictions. On any
         error nothing is applied: the identifier is as it was before the call.
         """
-        if not isinstance(X, np.ndarray) or X.ndim != 2:
-            raise ValueError(f"X: expected a 2-D numpy array (T, {self._n}), got "
-                             f"{type(X).__name__ if not isinstance(X, np.ndarray) else X.shape}")
-        T = X.shape[0]
-        self._require(X, "X", (T, self._n))
-        if U is None:
-            if self._m:
-                raise ValueError(f"U: expected an array of shape {(T, self._m)}, got None")
-            U = np.zeros((T, 0), dtype=self._dtype)
-        self._require(U, "U", (T, self._m))
-        if valid is not None:
-            self._require_valid(valid, (T, self._n))
+        T, U = self._check_trajectory(X, U, valid)
         if out is None:
             out = np.empty((T, self._n), dtype=self._dtype)
         else:
@@ -478,16 +467,7 @@ class Identifier:
                 raise ValueError("out: must be a writeable C-contiguous array")
         if T == 0:
             return out
-        Xc, Uc = np.ascontiguousarray(X), np.ascontiguousarray(U)
-        Vc = None if valid is None else np.ascontiguousarray(valid)
-        # Reject bad measurements before touching the filter.
-        measured = np.isfinite(Xc) if Vc is None else (np.isfinite(Xc) | ~Vc)
-        if not measured.all():
-            t, j = (int(v) for v in np.argwhere(~measured)[0])
-            raise ValueError(f"X[{t}, {j}]: not finite (a measured state must be finite)")
-        if self._m and not np.isfinite(Uc).all():
-            t, j = (int(v) for v in np.argwhere(~np.isfinite(Uc))[0])
-            raise ValueError(f"U[{t}, {j}]: not finite")
+        Xc, Uc, Vc = self._finite_trajectory(X, U, valid)
         ffi = self._ffi
         saved = ffi.new("rhonn_t *")
         ffi.memmove(saved, self._net, ffi.sizeof("rhonn_t"))
@@ -502,6 +482,39 @@ class Identifier:
             ffi.memmove(self._net, saved, ffi.sizeof("rhonn_t"))
             self._raise_step_error(status, Xc, Uc, Vc, int(done[0]), single=False, neuron=fault)
         return out
+
+    def _check_trajectory(self, X: object, U: object, valid: object) -> tuple[int, np.ndarray]:
+        """Shapes and dtypes of a run's ``X``, ``U``, ``valid``: (T, U), U an
+        empty (T, 0) array when None and m = 0. ValueError naming the argument."""
+        if not isinstance(X, np.ndarray) or X.ndim != 2:
+            raise ValueError(f"X: expected a 2-D numpy array (T, {self._n}), got "
+                             f"{type(X).__name__ if not isinstance(X, np.ndarray) else X.shape}")
+        T = X.shape[0]
+        self._require(X, "X", (T, self._n))
+        if U is None:
+            if self._m:
+                raise ValueError(f"U: expected an array of shape {(T, self._m)}, got None")
+            U = np.zeros((T, 0), dtype=self._dtype)
+        self._require(U, "U", (T, self._m))
+        if valid is not None:
+            self._require_valid(valid, (T, self._n))
+        assert isinstance(U, np.ndarray)
+        return T, U
+
+    def _finite_trajectory(self, X: np.ndarray, U: np.ndarray, valid: np.ndarray | None
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """C-contiguous ``X``, ``U``, ``valid``, after refusing a non-finite
+        measured state or input (before anything touches a filter)."""
+        Xc, Uc = np.ascontiguousarray(X), np.ascontiguousarray(U)
+        Vc = None if valid is None else np.ascontiguousarray(valid)
+        measured = np.isfinite(Xc) if Vc is None else (np.isfinite(Xc) | ~Vc)
+        if not measured.all():
+            t, j = (int(v) for v in np.argwhere(~measured)[0])
+            raise ValueError(f"X[{t}, {j}]: not finite (a measured state must be finite)")
+        if self._m and not np.isfinite(Uc).all():
+            t, j = (int(v) for v in np.argwhere(~np.isfinite(Uc))[0])
+            raise ValueError(f"U[{t}, {j}]: not finite")
+        return Xc, Uc, Vc
 
     @_serialised
     def reset(self) -> None:
