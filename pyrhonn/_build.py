@@ -2,7 +2,9 @@
 for the firmware application of firmware_sim (``pyrhonn._fwapp``).
 
 ``pyrhonn._rhonn_f64`` and ``pyrhonn._rhonn_f32`` are compiled from the very
-same ``csrc/src/rhonn.c`` that firmware links. Their capacities are larger
+same ``csrc/src/rhonn.c`` that firmware links, with ``rhonn_population.c``
+(:data:`CORE_SOURCES`; its member loops also compiled for AVX2 and AVX-512F,
+``RHONN_TARGET_CLONES``, the CPU's widest picked at load time). Their capacities are larger
 than the firmware default of ``csrc/include/rhonn_capacity.h``, sized for
 structure search on the host (``pyrhonn select``): :data:`CAPACITIES`, which
 the environment variable ``PYRHONN_CAPACITIES`` overrides at build time, e.g.
