@@ -13,14 +13,16 @@
  * of rhonn_step, in the same order, so its predictions, weights,
  * covariances, health counters and history after rhonn_run_population are
  * those rhonn_run would give on that member alone (build the core with
- * -ffp-contract=off, as always). What differs is the layout: the per-member
- * EKF arithmetic of the full covariance form (eq. 7-8 and the positive
- * definiteness check) is kept structure-of-arrays in the caller's
- * workspace, member innermost, so one loop iteration does one operation for
- * every member and the compiler can vectorise across members; members'
- * dependency chains (the dot products, the divisions of the U D U^T check)
- * also run side by side instead of one after the other. RHONN_COV_UD
- * neurons run the scalar kernel of rhonn.c per member.
+ * -ffp-contract=off, as always). What differs is the layout: the members'
+ * learning state and EKF arithmetic (eq. 7-8 with the positive definiteness
+ * check for RHONN_COV_FULL, Bierman and Thornton for RHONN_COV_UD, the
+ * prediction of eq. 3) are kept structure-of-arrays in the caller's
+ * workspace, member innermost, so one operation is done for every member
+ * at once (a vector of the compiler's, or a loop it may vectorise; see
+ * RHONN_POP_VECTOR in rhonn_population.c), and the members' dependency
+ * chains (the dot products, the divisions) run side by side instead of
+ * one after the other. The portable build (RHONN_POP_VECTOR=0) runs the
+ * U D U^T neurons through rhonn.c's own kernel, member by member.
  *
  * THE REGRESSOR is computed once for the population when it must be the
  * same for every member: the members' activations and betas agree (so do
@@ -65,10 +67,10 @@ typedef struct {
 
 /* Scratch of one call; every array is [...][member], member innermost. */
 typedef struct {
-    /* w_i and (full form) P_i of each member, double-buffered: bank wb
-     * (pb[i]) holds the committed values, the other one the step's
-     * candidates; a member's candidates are committed when all its neurons
-     * passed */
+    /* w_i and the stored covariance (P_i, or its U D U^T factors) of each
+     * member, double-buffered: bank wb (pb[i]) holds the committed values,
+     * the other one the step's candidates; a member's candidates are
+     * committed when all its neurons passed */
     rhonn_real w[2][RHONN_MAX_STATES][RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
     rhonn_real p[2][RHONN_MAX_STATES][RHONN_MAX_PACKED][RHONN_MAX_POPULATION];
     rhonn_real z[2][RHONN_MAX_STATES][RHONN_MAX_TERMS][RHONN_MAX_POPULATION]; /* z(k-1), z(k) */
@@ -96,7 +98,6 @@ typedef struct {
     /* the regressor */
     rhonn_real cur[RHONN_MAX_POPULATION][RHONN_SAMPLE_LEN];
     rhonn_real fv[RHONN_MAX_ENTRIES];
-    rhonn_real zone[RHONN_MAX_TERMS];
     /* per member and neuron: 1 = learning this step, updated, bounded, recovered */
     uint8_t learn[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint8_t updated[RHONN_MAX_STATES][RHONN_MAX_POPULATION];

@@ -2,13 +2,19 @@
  * rhonn_population.c - N identifiers of one structure over one trajectory
  * (rhonn_population.h).
  *
- * Every loop over members (m < RHONN_MAX_POPULATION, a constant trip count)
- * is innermost and does, for each member, the operation rhonn.c's scalar
- * step does at that point, on that member's numbers: the same operands in
- * the same order, so the results are the same bits. Members that do not
- * take part (not learning this step, stopped, or beyond N) compute on their
- * stale lanes and their results are thrown away; that keeps the loops free
- * of branches and lets the compiler vectorise them.
+ * The learning state of the members (w, the stored covariances, z, xhat)
+ * is kept structure-of-arrays in the workspace for the call, member
+ * innermost, and every operation of the kernels (eq. 7-8, the check of
+ * P(k+1), the U D U^T updates) and of the prediction (eq. 3) is done for
+ * all members at once: one vector operation (RHONN_POP_VECTOR) or a loop
+ * over members (m < RHONN_MAX_POPULATION, a constant trip count). Each
+ * member's element is the operation rhonn.c's scalar step does at that
+ * point, on that member's numbers, the same operands in the same order, so
+ * the results are the same bits. Members that do not take part (not
+ * learning this step, stopped, or beyond N) compute on their stale lanes
+ * and their results are thrown away, which keeps the arithmetic free of
+ * branches. The bookkeeping (health counters, refusals, resets, the
+ * history ring, the commit) is rhonn.c's, member by member.
  *
  * Build with -std=c99 -ffp-contract=off, as rhonn.c.
  */
@@ -39,7 +45,7 @@ typedef uint64_t pop_bits;
 #define NPOP ((size_t)RHONN_MAX_POPULATION)
 
 /* RHONN_POP_VECTOR=1 (the default with GCC and clang, for a population
- * of 2, 4, 8, ... members): the full-form kernel is written with the
+ * of 2, 4, 8, ... members): the kernels are written with the
  * compilers' generic vector types, one vector holding a value of every
  * member, so each operation of eq. 7-8 is one vector operation on every
  * target (the compiler splits a vector wider than the hardware's, SSE2's
@@ -73,7 +79,6 @@ typedef uint64_t pop_bits;
  * the same), so the loops over members stay vectorisable. */
 #define LANE_FINITE(v) (((v) - (v)) == R(0.0))
 
-
 /* Lane vectors: entry idx of an array [...][member] starts at idx * NPOP. */
 #define LANE(a, idx) ((a) + (size_t)(idx) * NPOP)
 
@@ -85,8 +90,8 @@ typedef uint64_t pop_bits;
  * form (fsum not NULL: the sum of f - f over its factors), definite factors
  * that are not finite. */
 POP_ALWAYS_INLINE void verdicts(rhonn_population_work *wk, const rhonn_real *Pn, size_t packed, const rhonn_real *s,
-                     const rhonn_real *rr, const rhonn_real *wsum, const rhonn_real *pd_ok,
-                     const rhonn_real *fsum)
+                                const rhonn_real *rr, const rhonn_real *wsum, const rhonn_real *pd_ok,
+                                const rhonn_real *fsum)
 {
     size_t m, c;
     for (m = 0; m < NPOP; ++m) {
@@ -813,9 +818,10 @@ static void load_lane(rhonn_population_work *wk, const rhonn_t *net, size_t m)
     }
 }
 
-/* Lane m's committed state back into its member: the weights and (full
- * form) covariance into the committed banks, z(k-1) into net's z bank.
- * (The U D U^T neurons' weights and factors live in net throughout.) */
+/* Lane m's committed state back into its member: the weights and the
+ * stored covariance (P or its factors) into the committed banks, z(k-1)
+ * into net's z bank. The members' health, history, prediction and banks
+ * are kept in net as the run goes. */
 static void store_lane(const rhonn_population_work *wk, rhonn_t *net, size_t m)
 {
     const rhonn_config *cfg = CFG(net);
@@ -1180,8 +1186,15 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         for (i = 0; i < n; ++i) {
             wk->pb[i] = (uint8_t)(wk->pb[i] ^ 1u);
         }
-        /* the newest slot agrees when every member read the same sample */
-        agree = !(shareable && all_valid) ? 0u : all_fresh ? maxd : (agree < maxd ? agree + 1u : maxd);
+        /* The newest slot agrees when every member read the same sample;
+         * members that had not started filled every slot with it. */
+        if (!(shareable && all_valid)) {
+            agree = 0;
+        } else if (all_fresh) {
+            agree = maxd;
+        } else {
+            agree = !all_started ? 1u : agree < maxd ? agree + 1u : maxd;
+        }
     }
 
     for (m = 0; m < N; ++m) {

@@ -116,8 +116,8 @@ static rhonn_config lim_config(unsigned k, int delayed, int ud_all)
     return c;
 }
 
-/* A smooth, exciting, deterministic trajectory; every 37th sample from 120
- * on has states 1 and 3 not measured (NaN). */
+/* A smooth, exciting, deterministic trajectory; from sample 120 on, 4 in
+ * every 37 have states 0 and 3 not measured (NaN). */
 static void trajectory(rhonn_real *X, rhonn_real *U, uint8_t *valid, size_t T, int dropouts)
 {
     size_t k, j;
@@ -129,10 +129,10 @@ static void trajectory(rhonn_real *X, rhonn_real *U, uint8_t *valid, size_t T, i
             X[6 * k + j] = (rhonn_real)(0.5 * sin((0.7 + 0.31 * (double)j) * t + (double)j) + 0.2 * cos(2.1 * t));
             valid[6 * k + j] = 1;
         }
-        if (dropouts && k >= 120 && k % 37u < 4u) {
-            valid[6 * k + 1] = 0;
+        if (dropouts && k >= 120 && k % 37u < 4u) { /* state 0 is read through a delayed tap too */
+            valid[6 * k + 0] = 0;
             valid[6 * k + 3] = 0;
-            X[6 * k + 1] = (rhonn_real)NAN;
+            X[6 * k + 0] = (rhonn_real)NAN;
             X[6 * k + 3] = (rhonn_real)NAN;
         }
     }
