@@ -2,7 +2,9 @@
 for the firmware application of firmware_sim (``pyrhonn._fwapp``).
 
 ``pyrhonn._rhonn_f64`` and ``pyrhonn._rhonn_f32`` are compiled from the very
-same ``csrc/src/rhonn.c`` that firmware links. Their capacities are larger
+same ``csrc/src/rhonn.c`` that firmware links, with ``rhonn_population.c``
+(:data:`CORE_SOURCES`; its member loops also compiled for AVX2 and AVX-512F,
+``RHONN_TARGET_CLONES``, the CPU's widest picked at load time). Their capacities are larger
 than the firmware default of ``csrc/include/rhonn_capacity.h``, sized for
 structure search on the host (``pyrhonn select``): :data:`CAPACITIES`, which
 the environment variable ``PYRHONN_CAPACITIES`` overrides at build time, e.g.
@@ -42,6 +44,12 @@ CONSTANTS = (
     "RHONN_MAX_POWER", "RHONN_MAX_PACKED", "RHONN_HISTORY_LEN", "RHONN_SAMPLE_LEN", "RHONN_MAX_ENTRIES",
     "RHONN_VERSION_MAJOR", "RHONN_VERSION_MINOR",
 )
+#: The core's sources compiled into each precision's extension (as in CMake).
+CORE_SOURCES = ("csrc/src/rhonn.c", "csrc/src/rhonn_population.c")
+#: Its public headers the extension declares, in order (each includes the ones before).
+CORE_HEADERS = ("rhonn.h", "rhonn_population.h")
+#: The integer macros of the core extensions: CONSTANTS and rhonn_population.h's capacity.
+CORE_CONSTANTS = CONSTANTS + ("RHONN_MAX_POPULATION",)
 
 #: Capacities of the Python extension (``RHONN_MAX_*``): room for structure
 #: search (64 terms per neuron, 16 states and inputs, delays up to 64,
@@ -84,11 +92,11 @@ def capacity_macros(caps: dict[str, int]) -> list[tuple[str, str]]:
 
 
 def header_declarations(dtype: str, caps: dict[str, int] | None = None) -> str:
-    """rhonn.h run through the C preprocessor for one precision: the exact
-    declarations the extension is compiled against, every array size
-    resolved, for cffi's cdef. The header is the single source of truth;
-    nothing here restates it."""
-    header = (INCLUDE / "rhonn.h").read_text()
+    """rhonn.h and rhonn_population.h run through the C preprocessor for one
+    precision: the exact declarations the extension is compiled against,
+    every array size resolved, for cffi's cdef. The headers are the single
+    source of truth; nothing here restates them."""
+    header = "".join((INCLUDE / name).read_text() for name in CORE_HEADERS)
     # cffi knows the standard types itself; only the project's own include
     # (rhonn_capacity.h, which sizes the arrays) is kept.
     body = re.sub(r"^\s*#\s*include\s*<.*>\s*$", "", header, flags=re.M)
@@ -99,7 +107,7 @@ def header_declarations(dtype: str, caps: dict[str, int] | None = None) -> str:
                             capture_output=True, text=True, check=False)
     if result.returncode != 0:
         raise RuntimeError(f"preprocessing rhonn.h failed: {result.stderr}")
-    return "".join(f"#define {name} ...\n" for name in CONSTANTS) + result.stdout
+    return "".join(f"#define {name} ...\n" for name in CORE_CONSTANTS) + result.stdout
 
 
 def make_ffi(dtype: str, caps: dict[str, int] | None = None) -> FFI:
@@ -114,11 +122,12 @@ def make_ffi(dtype: str, caps: dict[str, int] | None = None) -> FFI:
     # Paths relative to the project root, where setup.py runs.
     ffi.set_source(
         f"pyrhonn._rhonn_{'f64' if dtype == 'float64' else 'f32'}",
-        '#include "rhonn.h"',
-        sources=["csrc/src/rhonn.c"],
+        "".join(f'#include "{name}"\n' for name in CORE_HEADERS),
+        sources=list(CORE_SOURCES),
         include_dirs=["csrc/include"],
         # The host has room for one unrolled EKF kernel per neuron size (up to 16 terms).
-        define_macros=capacity_macros(caps) + ([("RHONN_SINGLE", "1")] if dtype == "float32" else []),
+        define_macros=capacity_macros(caps) + [("RHONN_TARGET_CLONES", "1")]
+        + ([("RHONN_SINGLE", "1")] if dtype == "float32" else []),
         extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math"],
     )
     return ffi

@@ -450,31 +450,9 @@ class Identifier:
     def _checked_trajectory(self, X: object, U: object, valid: object) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """``(X, U, valid)`` of a whole trajectory, checked (shapes, dtypes, finite measured
         values and inputs) and C-contiguous; U (T, 0) when m = 0."""
-        if not isinstance(X, np.ndarray) or X.ndim != 2:
-            raise ValueError(f"X: expected a 2-D numpy array (T, {self._n}), got "
-                             f"{type(X).__name__ if not isinstance(X, np.ndarray) else X.shape}")
-        T = X.shape[0]
-        self._require(X, "X", (T, self._n))
-        if U is None:
-            if self._m:
-                raise ValueError(f"U: expected an array of shape {(T, self._m)}, got None")
-            U = np.zeros((T, 0), dtype=self._dtype)
-        self._require(U, "U", (T, self._m))
-        assert isinstance(U, np.ndarray)
-        if valid is not None:
-            self._require_valid(valid, (T, self._n))
-            assert isinstance(valid, np.ndarray)
-        Xc, Uc = np.ascontiguousarray(X), np.ascontiguousarray(U)
-        Vc = None if valid is None else np.ascontiguousarray(valid)
-        # Reject bad measurements before touching the filter.
-        measured = np.isfinite(Xc) if Vc is None else (np.isfinite(Xc) | ~Vc)
-        if not measured.all():
-            t, j = (int(v) for v in np.argwhere(~measured)[0])
-            raise ValueError(f"X[{t}, {j}]: not finite (a measured state must be finite)")
-        if self._m and not np.isfinite(Uc).all():
-            t, j = (int(v) for v in np.argwhere(~np.isfinite(Uc))[0])
-            raise ValueError(f"U[{t}, {j}]: not finite")
-        return Xc, Uc, Vc
+        _, U = self._check_trajectory(X, U, valid)
+        assert isinstance(X, np.ndarray) and (valid is None or isinstance(valid, np.ndarray))
+        return self._finite_trajectory(X, U, valid)
 
     @_serialised
     def run(self, X: np.ndarray, U: np.ndarray | None = None, valid: np.ndarray | None = None,
@@ -576,6 +554,39 @@ class Identifier:
             ahead_out[t + ahead] = np.nan if failed else branch
             ffi.memmove(tail, saved, tail_len)
         return stop - first, 0
+
+    def _check_trajectory(self, X: object, U: object, valid: object) -> tuple[int, np.ndarray]:
+        """Shapes and dtypes of a run's ``X``, ``U``, ``valid``: (T, U), U an
+        empty (T, 0) array when None and m = 0. ValueError naming the argument."""
+        if not isinstance(X, np.ndarray) or X.ndim != 2:
+            raise ValueError(f"X: expected a 2-D numpy array (T, {self._n}), got "
+                             f"{type(X).__name__ if not isinstance(X, np.ndarray) else X.shape}")
+        T = X.shape[0]
+        self._require(X, "X", (T, self._n))
+        if U is None:
+            if self._m:
+                raise ValueError(f"U: expected an array of shape {(T, self._m)}, got None")
+            U = np.zeros((T, 0), dtype=self._dtype)
+        self._require(U, "U", (T, self._m))
+        if valid is not None:
+            self._require_valid(valid, (T, self._n))
+        assert isinstance(U, np.ndarray)
+        return T, U
+
+    def _finite_trajectory(self, X: np.ndarray, U: np.ndarray, valid: np.ndarray | None
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """C-contiguous ``X``, ``U``, ``valid``, after refusing a non-finite
+        measured state or input (before anything touches a filter)."""
+        Xc, Uc = np.ascontiguousarray(X), np.ascontiguousarray(U)
+        Vc = None if valid is None else np.ascontiguousarray(valid)
+        measured = np.isfinite(Xc) if Vc is None else (np.isfinite(Xc) | ~Vc)
+        if not measured.all():
+            t, j = (int(v) for v in np.argwhere(~measured)[0])
+            raise ValueError(f"X[{t}, {j}]: not finite (a measured state must be finite)")
+        if self._m and not np.isfinite(Uc).all():
+            t, j = (int(v) for v in np.argwhere(~np.isfinite(Uc))[0])
+            raise ValueError(f"U[{t}, {j}]: not finite")
+        return Xc, Uc, Vc
 
     @_serialised
     def reset(self) -> None:

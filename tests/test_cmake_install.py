@@ -57,7 +57,7 @@ def library_view(target: str, tmp: Path) -> str:
 
 
 def test_install_ships_the_headers_both_libraries_and_pkg_config_files(prefix: Path) -> None:
-    for header in ("rhonn.h", "rhonn_capacity.h", "rhonn_warm.h"):
+    for header in ("rhonn.h", "rhonn_capacity.h", "rhonn_warm.h", "rhonn_population.h"):
         assert (prefix / "include" / header).exists(), header
     libs = {p.name for p in prefix.rglob("*.a")}
     assert {"librhonn.a", "librhonn_f32.a"} <= libs

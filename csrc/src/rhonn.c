@@ -6,21 +6,9 @@
  * IEEE-754 target rounds the same operations in the same order.
  */
 #include "rhonn.h"
-
-/* The non-finite checks rely on IEEE semantics (v - v is NaN for +-Inf). */
-#if defined(__FAST_MATH__) || defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
-#error "rhonn.c must not be built with -ffast-math or -ffinite-math-only"
-#endif
+#include "rhonn_internal.h"
 
 #define RHONN_MAGIC 0x52484E4EUL /* "RHNN" */
-
-/* The validated configuration: rhonn_t's copy, or the caller's constant
- * (RHONN_CONST_CONFIG, see rhonn.h). */
-#if RHONN_CONST_CONFIG
-#define CFG(net) ((net)->cfg)
-#else
-#define CFG(net) (&(net)->cfg)
-#endif
 
 #ifdef RHONN_SINGLE
 #define R(c) c##f
@@ -1169,23 +1157,12 @@ static void store_sample(rhonn_real *RHONN_RESTRICT dst, const rhonn_real *RHONN
     dst[OFF_ONE] = src[OFF_ONE];
 }
 
-/* rhonn_step after the argument checks (rhonn_run makes them once). */
-static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
-                                 const uint8_t *valid, rhonn_real *xhat_next)
+/* A valid x_j or any u_j that is not finite refuses the step before
+ * anything is touched. */
+static rhonn_status check_inputs(const rhonn_t *net, const rhonn_real *x, const rhonn_real *u, const uint8_t *valid)
 {
-    rhonn_real cur[RHONN_SAMPLE_LEN];                      /* this sample, effective */
-    rhonn_real fv[RHONN_MAX_ENTRIES];                      /* the entries' values */
-    const rhonn_real *vb[RHONN_HISTORY_LEN];               /* sample d back */
-    rhonn_real xnew[RHONN_MAX_STATES];
-    uint8_t updated[RHONN_MAX_STATES];
-    rhonn_real innov[RHONN_MAX_STATES], nis[RHONN_MAX_STATES];
-    uint8_t bounded[RHONN_MAX_STATES], recovered[RHONN_MAX_STATES];
-    const size_t n = CFG(net)->n_states, m = CFG(net)->n_inputs, groups = net->n_groups;
-    const size_t maxd = net->max_delay;
-    rhonn_status st;
-    size_t i, j, g, t, e, d;
-    uint8_t next_head, zb_new;
-
+    const size_t n = CFG(net)->n_states, m = CFG(net)->n_inputs;
+    size_t j;
     for (j = 0; j < n; ++j) {
         if ((valid == NULL || valid[j] != 0u) && !is_finite(x[j])) {
             return RHONN_E_INPUT_NONFINITE;
@@ -1195,6 +1172,92 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
         if (!is_finite(u[j])) {
             return RHONN_E_INPUT_NONFINITE;
         }
+    }
+    return RHONN_OK;
+}
+
+/* Steps 2-3 of a step: the sample as the regressor reads it (cur) and the
+ * values of the compiled entries (fv). */
+static void features(const rhonn_t *net, const rhonn_real *x, const rhonn_real *u, const uint8_t *valid,
+                     rhonn_real *RHONN_RESTRICT cur, rhonn_real *RHONN_RESTRICT fv)
+{
+    const rhonn_real *vb[RHONN_HISTORY_LEN];               /* sample d back */
+    const size_t n = CFG(net)->n_states, m = CFG(net)->n_inputs, groups = net->n_groups;
+    const size_t maxd = net->max_delay;
+    size_t j, g, e, d;
+
+    /* 2. This sample as the regressor reads it: a missing measurement is
+     *    replaced by its own prediction, then S(x_j(k)) once per activation
+     *    group, u(k) and 1. */
+    for (j = 0; j < n; ++j) {
+        cur[j] = (valid == NULL || valid[j] != 0u) ? x[j] : net->xhat[j];
+    }
+    for (g = 0; g < groups; ++g) {
+        rhonn_real *sg = cur + OFF_S(g);
+        for (j = 0; j < n; ++j) {
+            sg[j] = rhonn_activate(net->group_activation[g], net->group_beta[g], cur[j]);
+        }
+    }
+    for (j = 0; j < m; ++j) {
+        cur[OFF_U + j] = u[j];
+    }
+    cur[OFF_ONE] = R(1.0);
+
+    /* 3. The entries (eq. 4's factors with their powers), each once. Delay d
+     *    reads the ring slot d back (the newest stored slot is k-1); before
+     *    the first sample the history is the first sample itself. */
+    vb[0] = cur;
+    for (d = 1; d <= maxd; ++d) {
+        const size_t slot = ((size_t)net->head + (size_t)RHONN_HISTORY_LEN + 1u - d) % (size_t)RHONN_HISTORY_LEN;
+        vb[d] = net->started ? net->hist[slot] : cur;
+    }
+    for (e = 0; e < net->n_entries; ++e) {
+        const rhonn_real v = vb[net->entry_delay[e]][net->entry_off[e]];
+        fv[e] = net->entry_power[e] == 1u ? v : ipow(v, net->entry_power[e]);
+    }
+}
+
+/* The history part of the commit. The ring is only kept when a tap reads
+ * it; valid_run counts the samples in a row in which x_j was measured. */
+static void commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *valid)
+{
+    const size_t n = CFG(net)->n_states, m = CFG(net)->n_inputs, groups = net->n_groups;
+    const uint8_t next_head = (uint8_t)((net->head + 1u) % (unsigned)RHONN_HISTORY_LEN);
+    size_t j;
+    if (net->max_delay > 0u) {
+        size_t h;
+        for (h = 0; h < (size_t)RHONN_HISTORY_LEN; ++h) {
+            if (net->started && h != (size_t)next_head) {
+                continue; /* after the first sample only the newest slot changes */
+            }
+            store_sample(net->hist[h], cur, n, groups, m);
+        }
+    }
+    net->head = next_head;
+    for (j = 0; j < n; ++j) {
+        const int ok = valid == NULL || valid[j] != 0u;
+        net->valid_run[j] = !ok ? 0u : (!net->started ? 0xFFu : (uint8_t)(net->valid_run[j] + (net->valid_run[j] < 0xFFu)));
+    }
+}
+
+/* rhonn_step after the argument checks (rhonn_run makes them once). */
+static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
+                                 const uint8_t *valid, rhonn_real *xhat_next)
+{
+    rhonn_real cur[RHONN_SAMPLE_LEN];                      /* this sample, effective */
+    rhonn_real fv[RHONN_MAX_ENTRIES];                      /* the entries' values */
+    rhonn_real xnew[RHONN_MAX_STATES];
+    uint8_t updated[RHONN_MAX_STATES];
+    rhonn_real innov[RHONN_MAX_STATES], nis[RHONN_MAX_STATES];
+    uint8_t bounded[RHONN_MAX_STATES], recovered[RHONN_MAX_STATES];
+    const size_t n = CFG(net)->n_states;
+    rhonn_status st;
+    size_t i, t;
+    uint8_t zb_new;
+
+    st = check_inputs(net, x, u, valid);
+    if (st != RHONN_OK) {
+        return st;
     }
 
     /* 1. Learn from e(k) = x(k) - xhat(k) (eq. 9) with z(k-1), into the
@@ -1234,35 +1297,8 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
         }
     }
 
-    /* 2. This sample as the regressor reads it: a missing measurement is
-     *    replaced by its own prediction, then S(x_j(k)) once per activation
-     *    group, u(k) and 1. */
-    for (j = 0; j < n; ++j) {
-        cur[j] = (valid == NULL || valid[j] != 0u) ? x[j] : net->xhat[j];
-    }
-    for (g = 0; g < groups; ++g) {
-        rhonn_real *sg = cur + OFF_S(g);
-        for (j = 0; j < n; ++j) {
-            sg[j] = rhonn_activate(net->group_activation[g], net->group_beta[g], cur[j]);
-        }
-    }
-    for (j = 0; j < m; ++j) {
-        cur[OFF_U + j] = u[j];
-    }
-    cur[OFF_ONE] = R(1.0);
-
-    /* 3. The entries (eq. 4's factors with their powers), each once. Delay d
-     *    reads the ring slot d back (the newest stored slot is k-1); before
-     *    the first sample the history is the first sample itself. */
-    vb[0] = cur;
-    for (d = 1; d <= maxd; ++d) {
-        const size_t slot = ((size_t)net->head + (size_t)RHONN_HISTORY_LEN + 1u - d) % (size_t)RHONN_HISTORY_LEN;
-        vb[d] = net->started ? net->hist[slot] : cur;
-    }
-    for (e = 0; e < net->n_entries; ++e) {
-        const rhonn_real v = vb[net->entry_delay[e]][net->entry_off[e]];
-        fv[e] = net->entry_power[e] == 1u ? v : ipow(v, net->entry_power[e]);
-    }
+    /* 2-3. This sample and the entries' values. */
+    features(net, x, u, valid, cur, fv);
 
     /* 4. z(k) (eq. 4) and xhat(k+1) = w(k+1)^T z(k) (eq. 3). */
     zb_new = (uint8_t)(net->zbank ^ 1u);
@@ -1291,22 +1327,8 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
         xnew[i] = acc;
     }
 
-    /* Commit. The ring is only kept when a tap reads it. */
-    next_head = (uint8_t)((net->head + 1u) % (unsigned)RHONN_HISTORY_LEN);
-    if (maxd > 0u) {
-        size_t h;
-        for (h = 0; h < (size_t)RHONN_HISTORY_LEN; ++h) {
-            if (net->started && h != (size_t)next_head) {
-                continue; /* after the first sample only the newest slot changes */
-            }
-            store_sample(net->hist[h], cur, n, groups, m);
-        }
-    }
-    net->head = next_head;
-    for (j = 0; j < n; ++j) {
-        const int ok = valid == NULL || valid[j] != 0u;
-        net->valid_run[j] = !ok ? 0u : (!net->started ? 0xFFu : (uint8_t)(net->valid_run[j] + (net->valid_run[j] < 0xFFu)));
-    }
+    /* Commit. */
+    commit_sample(net, cur, valid);
     for (i = 0; i < n; ++i) {
         if (recovered[i]) {
             net->health[i].resets += 1u;
@@ -1329,6 +1351,40 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
     net->started = 1;
     net->steps += 1u;
     return RHONN_OK;
+}
+
+/* The entry points of rhonn_internal.h (for rhonn_population.c). */
+rhonn_status rhonn_internal_check_net(const rhonn_t *net)
+{
+    return check_net(net);
+}
+
+rhonn_status rhonn_internal_check_inputs(const rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
+                                         const uint8_t *valid)
+{
+    return check_inputs(net, x, u, valid);
+}
+
+void rhonn_internal_features(const rhonn_t *net, const rhonn_real *x, const rhonn_real *u, const uint8_t *valid,
+                             rhonn_real *cur, rhonn_real *fv)
+{
+    features(net, x, u, valid, cur, fv);
+}
+
+void rhonn_internal_commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *valid)
+{
+    commit_sample(net, cur, valid);
+}
+
+rhonn_status rhonn_internal_ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
+                                       uint8_t *bounded)
+{
+    return ekf_update(net, i, e, z, nis, bounded);
+}
+
+void rhonn_internal_load_p0(const rhonn_t *net, size_t i, rhonn_real *dst)
+{
+    load_p0(net, i, dst);
 }
 
 rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,

@@ -1,0 +1,94 @@
+"""Throughput of rhonn_run_population: 8 members of one structure in one call
+against 8 sequential rhonn_run calls (Identifier.run), on the LIM-size
+configs (firmware-lim: a 2-term U D U^T neuron and five full-form neurons
+of 5-7 terms; example3: six U D U^T neurons), float64 and float32, the
+simulated LIM (0.3 ms) with the paper's 1 s position hold, measured in the
+same run.
+
+Two comparisons, each the ratio of the best of several repeats (the least
+disturbed by other load), both ways interleaved so load drifts hit both:
+
+  core      run_identifiers(8 identifiers) vs 8 x Identifier.run, the
+            identifiers built beforehand: the C calls (and the state copies
+            both make to restore on error)
+  end-to-end run_population(8 configs) vs [Identifier(c).run(...) for c]:
+            what a caller of either writes, construction included
+
+The members differ in P0, Q, R and eta (a tuning search's candidates). Every
+member's predictions are checked bit for bit against its single run first.
+The machine load (1-minute load average, cores) is printed with the figures.
+
+    python bench/bench_population.py            # 20,000 samples, 7 repeats
+    python bench/bench_population.py --quick    # 3,000 samples, 3 repeats
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from pyrhonn import Identifier, IdentifierConfig
+from pyrhonn.configfile import load_shipped
+from pyrhonn.plants import lim
+from pyrhonn.population import max_population, run_identifiers, run_population
+
+
+def members(base: IdentifierConfig, count: int) -> list[IdentifierConfig]:
+    return [base.replace(neurons=tuple(replace(nr, p0=nr.p0_matrix() * (1.0 + 0.5 * k), q=nr.q_diagonal() * (1.0 + 0.3 * k),
+                                               r=nr.r * (1.0 + 0.2 * k), eta=nr.eta / (1.0 + 0.1 * k))
+                                       for nr in base.neurons))
+            for k in range(count)]
+
+
+def best(fn, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="3,000 samples, 3 repeats")
+    args = parser.parse_args()
+    T, repeats = (3000, 3) if args.quick else (20000, 7)
+    tr = lim.simulate(dt=3e-4, horizon=T * 3e-4, inputs=lim.LimInput(start=0.0), holds=lim.paper_holds())
+    load = os.getloadavg()[0]
+    print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, load average {load:.2f} "
+          f"(1 min) at the start; {T} LIM samples, best of {repeats}")
+    print(f"{'config':<14}{'dtype':<9}{'N':>3}  {'core: 8 runs':>13} {'population':>11} {'ratio':>6}"
+          f"  {'end-to-end: 8 runs':>19} {'population':>11} {'ratio':>6}")
+    for name in ("firmware-lim", "example3"):
+        for dtype in ("float64", "float32"):
+            base = load_shipped(name).config.replace(dtype=dtype)
+            N = max_population(dtype)
+            cfgs = members(base, N)
+            X = np.ascontiguousarray(np.where(tr.valid[:T], tr.X_meas[:T], np.nan).astype(dtype))
+            U = np.ascontiguousarray(tr.U[:T].astype(dtype))
+            V = np.ascontiguousarray(tr.valid[:T])
+            got = run_population(cfgs, X, U, V)
+            for k, cfg in enumerate(cfgs):
+                if got[k].tobytes() != Identifier(cfg).run(X, U, V).tobytes():
+                    raise SystemExit(f"{name} {dtype}: member {k} differs from its single run")
+            seq_core = pop_core = seq_all = pop_all = float("inf")
+            for _ in range(repeats):  # interleaved: a load spike hits both sides alike
+                alone = [Identifier(c) for c in cfgs]
+                seq_core = min(seq_core, best(lambda: [a.run(X, U, V) for a in alone], 1))
+                group = [Identifier(c) for c in cfgs]
+                pop_core = min(pop_core, best(lambda: run_identifiers(group, X, U, V), 1))
+                seq_all = min(seq_all, best(lambda: [Identifier(c).run(X, U, V) for c in cfgs], 1))
+                pop_all = min(pop_all, best(lambda: run_population(cfgs, X, U, V), 1))
+            print(f"{name:<14}{dtype:<9}{N:>3}  {seq_core * 1e3:>10.1f} ms {pop_core * 1e3:>8.1f} ms "
+                  f"{seq_core / pop_core:>5.2f}x  {seq_all * 1e3:>16.1f} ms {pop_all * 1e3:>8.1f} ms "
+                  f"{seq_all / pop_all:>5.2f}x")
+    print(f"load average {os.getloadavg()[0]:.2f} (1 min) at the end")
+
+
+if __name__ == "__main__":
+    main()

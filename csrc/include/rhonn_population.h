@@ -1,0 +1,137 @@
+/*
+ * rhonn_population.h - a population of identifiers of the same structure
+ * run over one trajectory in one call (tuning: the candidate configurations
+ * of a search evaluated together).
+ *
+ * The members share their structure (states, inputs, every neuron's terms,
+ * activation and covariance form) and differ in their tuning: x0, beta,
+ * eta_i, R_i, Q_i, w_i(0), P_i(0), forgetting, p_trace_max, reset_after
+ * (everything rhonn_init accepts that is not structure), and in their
+ * running state (each member continues from wherever its rhonn_t is).
+ *
+ * BIT FOR BIT. Every member performs exactly the floating-point operations
+ * of rhonn_step, in the same order, so its predictions, weights,
+ * covariances, health counters and history after rhonn_run_population are
+ * those rhonn_run would give on that member alone (build the core with
+ * -ffp-contract=off, as always). What differs is the layout: the members'
+ * learning state and EKF arithmetic (eq. 7-8 with the positive definiteness
+ * check for RHONN_COV_FULL, Bierman and Thornton for RHONN_COV_UD, the
+ * prediction of eq. 3) are kept structure-of-arrays in the caller's
+ * workspace, member innermost, so one operation is done for every member
+ * at once (a vector of the compiler's, or a loop it may vectorise; see
+ * RHONN_POP_VECTOR in rhonn_population.c), and the members' dependency
+ * chains (the dot products, the divisions) run side by side instead of
+ * one after the other. The portable build (RHONN_POP_VECTOR=0) runs the
+ * U D U^T neurons through rhonn.c's own kernel, member by member.
+ *
+ * THE REGRESSOR is computed once for the population when it must be the
+ * same for every member: the members' activations and betas agree (so do
+ * S(x) and the compiled terms), the sample is fully measured (no member's
+ * own prediction stands in for a state) and the history the taps read
+ * agrees. Otherwise each member forms its own, as rhonn_step does.
+ *
+ * A MEMBER THAT FAILS stops there, exactly as rhonn_run stops: its rhonn_t
+ * holds the state after its last good step, status[m] says why and done[m]
+ * how many steps ran; the other members go on to the end.
+ *
+ * The workspace is scratch, caller-owned (large: sizeof(rhonn_population_work)
+ * grows with RHONN_MAX_POPULATION x the capacities), and holds nothing
+ * between calls. Nothing here allocates, prints or recurses.
+ */
+#ifndef RHONN_POPULATION_H
+#define RHONN_POPULATION_H
+
+#include "rhonn.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Members one call runs: the width of the structure-of-arrays lanes. */
+#ifndef RHONN_MAX_POPULATION
+#define RHONN_MAX_POPULATION 8
+#endif
+#if RHONN_MAX_POPULATION < 1 || RHONN_MAX_POPULATION > 255
+#error "RHONN_MAX_POPULATION must be in 1..255"
+#endif
+
+/* Which member's structure differs from member 0's (RHONN_E_CONFIG). */
+typedef struct {
+    uint8_t member;     /* index of the member */
+    uint8_t field;      /* rhonn_field: N_STATES, N_INPUTS, N_TERMS, ACTIVATION, COVARIANCE,
+                         * N_FACTORS, FACTOR_KIND, FACTOR_INDEX, FACTOR_DELAY, FACTOR_POWER */
+    uint8_t neuron;     /* neuron, term and factor of the field, when it belongs to one */
+    uint8_t term;
+    uint8_t factor;
+} rhonn_population_error;
+
+/* Scratch of one call; every array is [...][member], member innermost. */
+typedef struct {
+    /* w_i and the stored covariance (P_i, or its U D U^T factors) of each
+     * member, double-buffered: bank wb (pb[i]) holds the committed values,
+     * the other one the step's candidates; a member's candidates are
+     * committed when all its neurons passed */
+    rhonn_real w[2][RHONN_MAX_STATES][RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
+    rhonn_real p[2][RHONN_MAX_STATES][RHONN_MAX_PACKED][RHONN_MAX_POPULATION];
+    rhonn_real z[2][RHONN_MAX_STATES][RHONN_MAX_TERMS][RHONN_MAX_POPULATION]; /* z(k-1), z(k) */
+    rhonn_real xhat[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    rhonn_real xnew[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    /* each member's tuning, per neuron */
+    rhonn_real r[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    rhonn_real eta[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    rhonn_real inv_lambda[RHONN_MAX_STATES][RHONN_MAX_POPULATION];  /* 1 / forgetting; 1 when off */
+    rhonn_real p_trace_max[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* 0 when off */
+    rhonn_real q[RHONN_MAX_STATES][RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
+    /* kernel scratch */
+    rhonn_real zeros[RHONN_MAX_POPULATION];  /* +0 for every member: the sums' start */
+    rhonn_real e[RHONN_MAX_POPULATION];
+    rhonn_real innov[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    rhonn_real nis[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    rhonn_real pz[RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
+    rhonn_real f[RHONN_MAX_PACKED][RHONN_MAX_POPULATION];     /* U D U^T factors of the check */
+    rhonn_real sc[RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
+    rhonn_real tk[RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
+    rhonn_real dk[RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
+    rhonn_real uw[RHONN_MAX_PACKED][RHONN_MAX_POPULATION];    /* U D U^T form: [U~ | I] */
+    rhonn_real uq[RHONN_MAX_PACKED][RHONN_MAX_POPULATION];
+    rhonn_real ua[6][RHONN_MAX_TERMS][RHONN_MAX_POPULATION];  /* f, v, b, d~, and two rows */
+    /* the regressor */
+    rhonn_real cur[RHONN_MAX_POPULATION][RHONN_SAMPLE_LEN];
+    rhonn_real fv[RHONN_MAX_ENTRIES];
+    /* per member and neuron: 1 = learning this step, updated, bounded, recovered */
+    uint8_t learn[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    uint8_t updated[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    uint8_t bounded[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    uint8_t recovered[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    uint8_t kstatus[RHONN_MAX_POPULATION];        /* the kernel's status per member */
+    uint8_t zb;                                   /* which z bank holds z(k-1) */
+    uint8_t wb;                                   /* which w bank is committed */
+    uint8_t pb[RHONN_MAX_STATES];                 /* which P bank of neuron i is committed */
+} rhonn_population_work;
+
+/* Run the N members nets[0..N) (each set up by rhonn_init, all of the same
+ * structure, no rhonn_t given twice) over one trajectory, as N calls of
+ * rhonn_run would. X is T x n_states, U is T x n_inputs (may be NULL when
+ * n_inputs == 0), valid is T x n_states or NULL, all row-major and shared by
+ * the members; Xhat receives N x T x n_states: member m's row t, the
+ * prediction made at sample t, at Xhat[(m T + t) n_states ...].
+ * status[m] and done[m] (either may be NULL) receive each member's status
+ * and steps run; a member that fails stops as rhonn_run does (see above).
+ *
+ * Returns RHONN_OK when every member ran all T steps, else the status of the
+ * lowest-indexed member that stopped. Before anything runs:
+ * RHONN_E_NULL for a NULL nets, nets[m], work, X, Xhat (or U with inputs);
+ * RHONN_E_ARGUMENT for N outside 1..RHONN_MAX_POPULATION or a rhonn_t given
+ * twice; RHONN_E_NOT_INIT for a member not set up; RHONN_E_CONFIG when a
+ * member's structure differs from member 0's, *where (if not NULL) naming
+ * the member and the field. Then status[] and done[] are not written. */
+rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_population_work *work, size_t T,
+                                  const rhonn_real *X, const rhonn_real *U, const uint8_t *valid,
+                                  rhonn_real *Xhat, rhonn_status *status, size_t *done,
+                                  rhonn_population_error *where);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* RHONN_POPULATION_H */

@@ -1,0 +1,1225 @@
+/*
+ * rhonn_population.c - N identifiers of one structure over one trajectory
+ * (rhonn_population.h).
+ *
+ * The learning state of the members (w, the stored covariances, z, xhat)
+ * is kept structure-of-arrays in the workspace for the call, member
+ * innermost, and every operation of the kernels (eq. 7-8, the check of
+ * P(k+1), the U D U^T updates) and of the prediction (eq. 3) is done for
+ * all members at once: one vector operation (RHONN_POP_VECTOR) or a loop
+ * over members (m < RHONN_MAX_POPULATION, a constant trip count). Each
+ * member's element is the operation rhonn.c's scalar step does at that
+ * point, on that member's numbers, the same operands in the same order, so
+ * the results are the same bits. Members that do not take part (not
+ * learning this step, stopped, or beyond N) compute on their stale lanes
+ * and their results are thrown away, which keeps the arithmetic free of
+ * branches. The bookkeeping (health counters, refusals, resets, the
+ * history ring, the commit) is rhonn.c's, member by member.
+ *
+ * Build with -std=c99 -ffp-contract=off, as rhonn.c.
+ */
+#include "rhonn_population.h"
+#include "rhonn_internal.h"
+
+#ifdef RHONN_SINGLE
+#define R(c) c##f
+#define RHONN_MIN_NORMAL 1.1754943508e-38f
+#define RHONN_MAX_REAL 3.402823466e38f
+typedef uint32_t pop_bits;
+#else
+#define R(c) c
+#define RHONN_MIN_NORMAL 2.2250738585072014e-308
+#define RHONN_MAX_REAL 1.7976931348623157e308
+typedef uint64_t pop_bits;
+#endif
+
+#if defined(__GNUC__) || defined(__clang__)
+#define POP_RESTRICT __restrict__
+/* compiled inside each caller, so inside each target clone of the kernel */
+#define POP_ALWAYS_INLINE static __inline__ __attribute__((always_inline))
+#else
+#define POP_RESTRICT restrict
+#define POP_ALWAYS_INLINE static
+#endif
+
+#define NPOP ((size_t)RHONN_MAX_POPULATION)
+
+/* RHONN_POP_VECTOR=1 (the default with GCC and clang, for a population
+ * of 2, 4, 8, ... members): the kernels are written with the
+ * compilers' generic vector types, one vector holding a value of every
+ * member, so each operation of eq. 7-8 is one vector operation on every
+ * target (the compiler splits a vector wider than the hardware's, SSE2's
+ * 2 doubles, into several). 0, or another compiler: the same kernel as
+ * loops over members, which compilers vectorise at their discretion. The
+ * same IEEE operations either way, element by element. */
+#ifndef RHONN_POP_VECTOR
+#if (defined(__GNUC__) || defined(__clang__)) && (RHONN_MAX_POPULATION & (RHONN_MAX_POPULATION - 1)) == 0
+#define RHONN_POP_VECTOR 1
+#else
+#define RHONN_POP_VECTOR 0
+#endif
+#endif
+
+/* RHONN_TARGET_CLONES=1 (GCC, x86-64 with glibc's ifunc; the Python
+ * extension sets it): the kernels are also compiled for wider vector units
+ * and the widest the CPU has is picked at load time, so 8 members are one
+ * AVX-512 vector in double, one AVX2 vector in float. The same IEEE
+ * operations on every width (and no contraction: -ffp-contract=off), so the
+ * same bits. No AVX2 clone in double: GCC 12 carries a 64-byte vector
+ * through the stack there, and it ran slower than the SSE2 default
+ * (measured: 0.86x against 1.8x the sequential runs). */
+#ifndef RHONN_TARGET_CLONES
+#define RHONN_TARGET_CLONES 0
+#endif
+#if RHONN_TARGET_CLONES && defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#ifdef RHONN_SINGLE
+#define POP_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define POP_CLONES __attribute__((target_clones("avx512f", "default")))
+#endif
+#else
+#define POP_CLONES
+#endif
+
+/* Finite: v - v is 0 for a finite v and NaN for NaN and +-Inf. A plain
+ * floating-point operation (rhonn.c tests the exponent bits; the verdict is
+ * the same), so the loops over members stay vectorisable. */
+#define LANE_FINITE(v) (((v) - (v)) == R(0.0))
+
+/* Lane vectors: entry idx of an array [...][member] starts at idx * NPOP. */
+#define LANE(a, idx) ((a) + (size_t)(idx) * NPOP)
+
+/* Each member's status from the kernel's verdicts, in rhonn.c's order: the
+ * innovation (s finite and s >= R; for the U D U^T form, s finite), the
+ * weights finite (wsum, the sum of w - w over the new weights, is 0), P(k+1)
+ * positive definite (pd_ok 1) and then, for the full form, which way a
+ * refused P failed (a non-finite entry, or not definite); for the U D U^T
+ * form (fsum not NULL: the sum of f - f over its factors), definite factors
+ * that are not finite. */
+POP_ALWAYS_INLINE void verdicts(rhonn_population_work *wk, const rhonn_real *Pn, size_t packed, const rhonn_real *s,
+                                const rhonn_real *rr, const rhonn_real *wsum, const rhonn_real *pd_ok,
+                                const rhonn_real *fsum)
+{
+    size_t m, c;
+    for (m = 0; m < NPOP; ++m) {
+        rhonn_status st = RHONN_OK;
+        if (!(LANE_FINITE(s[m]) && (fsum != NULL || s[m] >= rr[m]))) {
+            st = RHONN_E_INNOVATION;
+        } else if (!LANE_FINITE(wsum[m])) {
+            st = RHONN_E_DIVERGED;
+        } else if (fsum != NULL) {
+            st = pd_ok[m] != R(1.0) ? RHONN_E_NOT_PD : !LANE_FINITE(fsum[m]) ? RHONN_E_COVARIANCE : RHONN_OK;
+        } else if (pd_ok[m] != R(1.0)) {
+            st = RHONN_E_NOT_PD; /* which way it failed, off the hot path */
+            for (c = 0; c < packed; ++c) {
+                if (!LANE_FINITE(Pn[c * NPOP + m])) {
+                    st = RHONN_E_COVARIANCE;
+                }
+            }
+        }
+        wk->kstatus[m] = (uint8_t)st;
+    }
+}
+
+#if !RHONN_POP_VECTOR
+/* rhonn.c's half_exponent_scale (2^-floor(e/2) for v = m 2^e) in unsigned
+ * arithmetic on the biased exponent b: 1023 - floor((b - 1023) / 2) =
+ * 2047 - floor((b + 1025) / 2), the same value for every b (0..2047; float:
+ * 127 - floor((b - 127) / 2) = 255 - floor((b + 129) / 2)). */
+static rhonn_real half_exponent_scale(rhonn_real v)
+{
+    union { rhonn_real f; pop_bits u; } b;
+    b.f = v;
+#ifdef RHONN_SINGLE
+    b.u = (255u - (((b.u >> 23) & 0xFFu) + 129u) / 2u) << 23;
+#else
+    b.u = (pop_bits)(2047u - (unsigned)(((b.u >> 52) & 0x7FFu) + 1025u) / 2u) << 52;
+#endif
+    return b.f;
+}
+
+/* rhonn.c's dot(): two accumulators, even and odd entries, then s0 + s1;
+ * entries c of a and b (lane vectors at strides of NPOP) for every member. */
+static void lane_dot(const rhonn_real *POP_RESTRICT a, const rhonn_real *POP_RESTRICT b, size_t len,
+                     rhonn_real *POP_RESTRICT out)
+{
+    rhonn_real s0[RHONN_MAX_POPULATION], s1[RHONN_MAX_POPULATION];
+    size_t c, m;
+    for (m = 0; m < NPOP; ++m) {
+        s0[m] = R(0.0);
+        s1[m] = R(0.0);
+    }
+    for (c = 0; c + 1u < len; c += 2u) {
+        const rhonn_real *POP_RESTRICT a0 = LANE(a, c), *POP_RESTRICT b0 = LANE(b, c);
+        const rhonn_real *POP_RESTRICT a1 = LANE(a, c + 1u), *POP_RESTRICT b1 = LANE(b, c + 1u);
+        for (m = 0; m < NPOP; ++m) {
+            s0[m] += a0[m] * b0[m];
+            s1[m] += a1[m] * b1[m];
+        }
+    }
+    if (c < len) {
+        const rhonn_real *POP_RESTRICT a0 = LANE(a, c), *POP_RESTRICT b0 = LANE(b, c);
+        for (m = 0; m < NPOP; ++m) {
+            s0[m] += a0[m] * b0[m];
+        }
+    }
+    for (m = 0; m < NPOP; ++m) {
+        out[m] = s0[m] + s1[m];
+    }
+}
+
+/* ------------------------------------------------------------------------ */
+/* The full-form kernel (rhonn.c ekf_kernel, then pd_check), every member at
+ * once: eq. 8 s = R + z^T P z, eq. 7 w + (eta e / s) P z and
+ * P - (P z)(P z)^T / s (/ lambda) + Q, the trace ceiling, and the U D U^T
+ * factorisation of the scaled P(k+1) whose pivots must be positive. Writes
+ * each member's status (the first check it fails, in rhonn.c's order). The
+ * arithmetic loops carry no branch; the verdicts are gathered apart. */
+static void full_kernel_loops(rhonn_population_work *wk, size_t i, size_t L)
+{
+    const rhonn_real *POP_RESTRICT P = &wk->p[wk->pb[i]][i][0][0];
+    rhonn_real *POP_RESTRICT Pn = &wk->p[wk->pb[i] ^ 1u][i][0][0];
+    const rhonn_real *POP_RESTRICT z = &wk->z[wk->zb][i][0][0];
+    const rhonn_real *POP_RESTRICT w = &wk->w[wk->wb][i][0][0];
+    rhonn_real *POP_RESTRICT wn = &wk->w[wk->wb ^ 1u][i][0][0];
+    rhonn_real *POP_RESTRICT pz = &wk->pz[0][0];
+    rhonn_real *POP_RESTRICT F = &wk->f[0][0];
+    rhonn_real *POP_RESTRICT sc = &wk->sc[0][0];
+    rhonn_real *POP_RESTRICT tk = &wk->tk[0][0];
+    rhonn_real *POP_RESTRICT dk = &wk->dk[0][0];
+    const rhonn_real *POP_RESTRICT rr = wk->r[i];
+    const rhonn_real *POP_RESTRICT eta = wk->eta[i];
+    const rhonn_real *POP_RESTRICT ilam = wk->inv_lambda[i];
+    const rhonn_real *POP_RESTRICT ptm = wk->p_trace_max[i];
+    const rhonn_real *POP_RESTRICT q = &wk->q[i][0][0];
+    const rhonn_real *POP_RESTRICT e = wk->e;
+    rhonn_real *POP_RESTRICT nis = wk->nis[i];
+    rhonn_real s[RHONN_MAX_POPULATION], inv_s[RHONN_MAX_POPULATION], gain[RHONN_MAX_POPULATION];
+    rhonn_real acc[RHONN_MAX_POPULATION], kr[RHONN_MAX_POPULATION], scale[RHONN_MAX_POPULATION];
+    /* the verdicts as numbers, so their loops vectorise with the rest: pd_ok
+     * is 1 while every pivot passed, 0 after; wsum is the sum of w - w over
+     * the new weights, 0 when all are finite, NaN otherwise */
+    rhonn_real pd_ok[RHONN_MAX_POPULATION], wsum[RHONN_MAX_POPULATION];
+    size_t rs[RHONN_MAX_TERMS];
+    size_t r, c, m, j, k, len;
+    const size_t packed = L * (L + 1u) / 2u;
+
+    rs[0] = 0;
+    for (r = 0; r + 1u < L; ++r) {
+        rs[r + 1u] = rs[r] + (L - r);
+    }
+    /* pz = P z from the packed triangle: row r scatters z_r P(r, c > r)
+     * into pz[c], then adds its own dot product (rhonn.c's order). */
+    for (c = 0; c < L * NPOP; ++c) {
+        pz[c] = R(0.0);
+    }
+    for (r = 0; r < L; ++r) {
+        const rhonn_real *POP_RESTRICT row = LANE(P, rs[r]);
+        const rhonn_real *POP_RESTRICT zr = LANE(z, r);
+        len = L - r;
+        for (c = 1; c < len; ++c) {
+            const rhonn_real *POP_RESTRICT pc = LANE(row, c);
+            rhonn_real *POP_RESTRICT out = LANE(pz, r + c);
+            for (m = 0; m < NPOP; ++m) {
+                out[m] += pc[m] * zr[m];
+            }
+        }
+        lane_dot(row, zr, len, acc);
+        {
+            rhonn_real *POP_RESTRICT out = LANE(pz, r);
+            for (m = 0; m < NPOP; ++m) {
+                out[m] += acc[m];
+            }
+        }
+    }
+    /* eq. 8: s = R + z^T P z, M = 1 / s; eq. 7's gain eta e M */
+    lane_dot(z, pz, L, acc);
+    for (m = 0; m < NPOP; ++m) {
+        s[m] = rr[m] + acc[m];
+        inv_s[m] = R(1.0) / s[m];
+        nis[m] = e[m] * (e[m] * inv_s[m]);
+        gain[m] = eta[m] * e[m] * inv_s[m];
+    }
+    /* eq. 7: w + (eta e M) P z */
+    for (r = 0; r < L; ++r) {
+        const rhonn_real *POP_RESTRICT wr = LANE(w, r), *POP_RESTRICT pr = LANE(pz, r);
+        rhonn_real *POP_RESTRICT out = LANE(wn, r);
+        for (m = 0; m < NPOP; ++m) {
+            out[m] = wr[m] + gain[m] * pr[m];
+        }
+    }
+    /* eq. 7: (P - (P z)(P z)^T M) / lambda + Q. Without forgetting rhonn.c
+     * skips the division; multiplying by 1 instead is exact. */
+    for (r = 0; r < L; ++r) {
+        const rhonn_real *POP_RESTRICT row = LANE(P, rs[r]);
+        rhonn_real *POP_RESTRICT out = LANE(Pn, rs[r]);
+        const rhonn_real *POP_RESTRICT pr = LANE(pz, r);
+        const rhonn_real *POP_RESTRICT qr = LANE(q, r);
+        len = L - r;
+        for (m = 0; m < NPOP; ++m) {
+            kr[m] = pr[m] * inv_s[m];
+        }
+        for (c = 0; c < len; ++c) {
+            const rhonn_real *POP_RESTRICT pc = LANE(row, c), *POP_RESTRICT zc = LANE(pz, r + c);
+            rhonn_real *POP_RESTRICT oc = LANE(out, c);
+            for (m = 0; m < NPOP; ++m) {
+                oc[m] = (pc[m] - kr[m] * zc[m]) * ilam[m];
+            }
+        }
+        for (m = 0; m < NPOP; ++m) {
+            out[m] += qr[m];
+        }
+    }
+    /* The trace ceiling: scaled by p_trace_max / trace when above it (a
+     * scale of exactly 1 elsewhere changes nothing). */
+    for (m = 0; m < NPOP; ++m) {
+        acc[m] = R(0.0);
+    }
+    for (r = 0; r < L; ++r) {
+        const rhonn_real *POP_RESTRICT d = LANE(Pn, rs[r]);
+        for (m = 0; m < NPOP; ++m) {
+            acc[m] += d[m];
+        }
+    }
+    for (m = 0; m < NPOP; ++m) {
+        const int over = (ptm[m] > R(0.0)) & (acc[m] > ptm[m]);
+        scale[m] = over ? ptm[m] / acc[m] : R(1.0);
+        wk->bounded[i][m] = (uint8_t)over;
+    }
+    for (c = 0; c < packed; ++c) {
+        rhonn_real *POP_RESTRICT pc = LANE(Pn, c);
+        for (m = 0; m < NPOP; ++m) {
+            pc[m] *= scale[m];
+        }
+    }
+    /* The check (rhonn.c scaled_udu + udu_factor): diagonal normal and
+     * finite, scaled by powers of two to [1, 4), every pivot positive. */
+    for (m = 0; m < NPOP; ++m) {
+        pd_ok[m] = R(1.0);
+    }
+    for (r = 0; r < L; ++r) {
+        const rhonn_real *POP_RESTRICT d = LANE(Pn, rs[r]);
+        rhonn_real *POP_RESTRICT sr = LANE(sc, r);
+        for (m = 0; m < NPOP; ++m) {
+            /* normal and finite: MIN_NORMAL <= v <= MAX (false for NaN) */
+            pd_ok[m] = d[m] >= RHONN_MIN_NORMAL ? (d[m] <= RHONN_MAX_REAL ? pd_ok[m] : R(0.0)) : R(0.0);
+            sr[m] = half_exponent_scale(d[m]);
+        }
+    }
+    for (j = L; j-- > 0u;) {
+        const rhonn_real *POP_RESTRICT uj = LANE(F, rs[j] + 1u);
+        const rhonn_real *POP_RESTRICT sj = LANE(sc, j);
+        const size_t tail = L - 1u - j;
+        rhonn_real dj[RHONN_MAX_POPULATION], inv[RHONN_MAX_POPULATION];
+        size_t ii;
+        {
+            const rhonn_real *POP_RESTRICT pjj = LANE(Pn, rs[j]);
+            for (m = 0; m < NPOP; ++m) {
+                dj[m] = (pjj[m] * sj[m]) * sj[m];
+            }
+        }
+        for (k = 0; k < tail; ++k) {
+            const rhonn_real *POP_RESTRICT dd = LANE(dk, j + 1u + k), *POP_RESTRICT uk = LANE(uj, k);
+            rhonn_real *POP_RESTRICT tt = LANE(tk, k);
+            for (m = 0; m < NPOP; ++m) {
+                tt[m] = dd[m] * uk[m];
+                dj[m] -= uk[m] * tt[m];
+            }
+        }
+        {
+            rhonn_real *POP_RESTRICT dd = LANE(dk, j), *POP_RESTRICT fj = LANE(F, rs[j]);
+            for (m = 0; m < NPOP; ++m) {
+                dd[m] = dj[m];
+                fj[m] = dj[m];
+                inv[m] = R(1.0) / dj[m];
+            }
+        }
+        for (m = 0; m < NPOP; ++m) {
+            pd_ok[m] = dj[m] > R(0.0) ? (dj[m] <= RHONN_MAX_REAL ? pd_ok[m] : R(0.0)) : R(0.0);
+        }
+        for (ii = 0; ii < j; ++ii) {
+            rhonn_real *POP_RESTRICT fi = LANE(F, rs[ii] + (j - ii));
+            const rhonn_real *POP_RESTRICT pij = LANE(Pn, rs[ii] + (j - ii));
+            const rhonn_real *POP_RESTRICT si = LANE(sc, ii);
+            rhonn_real a[RHONN_MAX_POPULATION];
+            for (m = 0; m < NPOP; ++m) {
+                a[m] = (pij[m] * si[m]) * sj[m];
+            }
+            for (k = 0; k < tail; ++k) {
+                const rhonn_real *POP_RESTRICT fk = LANE(fi, 1u + k), *POP_RESTRICT tt = LANE(tk, k);
+                for (m = 0; m < NPOP; ++m) {
+                    a[m] -= fk[m] * tt[m];
+                }
+            }
+            for (m = 0; m < NPOP; ++m) {
+                fi[m] = a[m] * inv[m];
+            }
+        }
+    }
+    /* The verdicts, in rhonn.c's order: the innovation (s finite and
+     * s >= R), the weights finite, then P positive definite, and which way a
+     * refused P failed (a non-finite entry, or not definite). */
+    for (m = 0; m < NPOP; ++m) {
+        wsum[m] = R(0.0);
+    }
+    for (r = 0; r < L; ++r) {
+        const rhonn_real *POP_RESTRICT wr = LANE(wn, r);
+        for (m = 0; m < NPOP; ++m) {
+            wsum[m] += wr[m] - wr[m];
+        }
+    }
+    verdicts(wk, Pn, packed, s, rr, wsum, pd_ok, NULL);
+}
+
+POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L)
+{
+    full_kernel_loops(wk, i, L);
+}
+#else
+#ifdef RHONN_SINGLE
+typedef uint32_t pop_ubits;
+#define POP_EXP_SHIFT 23
+#define POP_EXP_FIELD 0xFF
+#define POP_SCALE_TOP 255  /* 2^-floor(e/2) = bits (255 - floor((b + 129) / 2)) << 23 */
+#define POP_SCALE_ADD 129
+#else
+typedef uint64_t pop_ubits;
+#define POP_EXP_SHIFT 52
+#define POP_EXP_FIELD 0x7FF
+#define POP_SCALE_TOP 2047 /* 2^-floor(e/2) = bits (2047 - floor((b + 1025) / 2)) << 52 */
+#define POP_SCALE_ADD 1025
+#endif
+/* A value of every member; aligned as rhonn_real, so a vector is read and
+ * written in place in the workspace's [...][member] arrays. */
+typedef rhonn_real lanev __attribute__((vector_size(sizeof(rhonn_real) * RHONN_MAX_POPULATION),
+                                        aligned(sizeof(rhonn_real))));
+typedef pop_ubits lanei __attribute__((vector_size(sizeof(rhonn_real) * RHONN_MAX_POPULATION),
+                                       aligned(sizeof(rhonn_real))));
+#define V(a, idx) (*(lanev *)LANE(a, idx))
+#define VC(a, idx) (*(const lanev *)LANE(a, idx))
+
+/* The trace ceiling's factor: p_trace_max / trace where the trace is above
+ * a ceiling, exactly 1 elsewhere (scaling by it changes nothing), member by
+ * member (a vector compare's mask converts poorly on some targets, and
+ * this runs once per neuron); marks the members bounded. */
+static void trace_scale(rhonn_population_work *wk, size_t i, const rhonn_real *trace, rhonn_real *scale)
+{
+    size_t m;
+    for (m = 0; m < NPOP; ++m) {
+        const rhonn_real ptm = wk->p_trace_max[i][m];
+        const int over = ptm > R(0.0) && trace[m] > ptm;
+        scale[m] = over ? ptm / trace[m] : R(1.0);
+        wk->bounded[i][m] = (uint8_t)over;
+    }
+}
+
+/* e^2 / s into nis and eq. 7's w + (eta e / s) k, k = P z, into the
+ * candidate weights (rhonn.c: nis = e (e M), gain = eta e M, w + gain k);
+ * returns the sum of w - w over them: 0 when all are finite, else NaN. */
+POP_ALWAYS_INLINE void weights_update(rhonn_population_work *wk, size_t i, size_t L, const rhonn_real *inv_s,
+                                      const rhonn_real *k, rhonn_real *wsum_out)
+{
+    const rhonn_real *w = &wk->w[wk->wb][i][0][0];
+    rhonn_real *wn = &wk->w[wk->wb ^ 1u][i][0][0];
+    const lanev e = VC(wk->e, 0), inv = VC(inv_s, 0);
+    const lanev gain = VC(wk->eta[i], 0) * e * inv;
+    lanev wsum = e - e;
+    size_t r;
+    V(wk->nis[i], 0) = e * (e * inv);
+    for (r = 0; r < L; ++r) {
+        const lanev wr = VC(w, r) + gain * VC(k, r);
+        V(wn, r) = wr;
+        wsum += wr - wr;
+    }
+    V(wsum_out, 0) = wsum;
+}
+
+/* The full-form kernel (rhonn.c ekf_kernel, then pd_check), every member at
+ * once, operation for operation: eq. 8 s = R + z^T P z, eq. 7
+ * w + (eta e / s) P z and (P - (P z)(P z)^T / s) / lambda + Q, the trace
+ * ceiling, and the U D U^T factorisation of the scaled P(k+1), whose
+ * pivots must be positive. No branch on a member's numbers: the verdicts
+ * are gathered as masks and read at the end. */
+POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L)
+{
+    const rhonn_real *P = &wk->p[wk->pb[i]][i][0][0];
+    rhonn_real *Pn = &wk->p[wk->pb[i] ^ 1u][i][0][0];
+    const rhonn_real *z = &wk->z[wk->zb][i][0][0];
+    const rhonn_real *q = &wk->q[i][0][0];
+    rhonn_real *pz = &wk->pz[0][0], *F = &wk->f[0][0], *sc = &wk->sc[0][0];
+    rhonn_real *tk = &wk->tk[0][0], *dk = &wk->dk[0][0];
+    const lanev rr = VC(wk->r[i], 0), ilam = VC(wk->inv_lambda[i], 0);
+    const lanev zero = VC(wk->zeros, 0);
+    const lanev one = zero + R(1.0);
+    lanev s, inv_s, acc, s0, s1, scale;
+    size_t rs[RHONN_MAX_TERMS];
+    size_t r, c, j, k, ii, len;
+    const size_t packed = L * (L + 1u) / 2u;
+    rhonn_real out_s[RHONN_MAX_POPULATION], out_wsum[RHONN_MAX_POPULATION], out_ok[RHONN_MAX_POPULATION];
+    rhonn_real tmp[RHONN_MAX_POPULATION];
+    size_t m;
+
+    rs[0] = 0;
+    for (r = 0; r + 1u < L; ++r) {
+        rs[r + 1u] = rs[r] + (L - r);
+    }
+    /* pz = P z from the packed triangle: row r scatters z_r P(r, c > r)
+     * into pz[c], then adds its own dot product (two accumulators, even
+     * and odd entries: rhonn.c's dot) */
+    for (r = 0; r < L; ++r) {
+        V(pz, r) = zero;
+    }
+    for (r = 0; r < L; ++r) {
+        const lanev zr = VC(z, r);
+        len = L - r;
+        for (c = 1; c < len; ++c) {
+            V(pz, r + c) += VC(P, rs[r] + c) * zr;
+        }
+        s0 = zero;
+        s1 = zero;
+        for (c = 0; c + 1u < len; c += 2u) {
+            s0 += VC(P, rs[r] + c) * VC(z, r + c);
+            s1 += VC(P, rs[r] + c + 1u) * VC(z, r + c + 1u);
+        }
+        if (c < len) {
+            s0 += VC(P, rs[r] + c) * VC(z, r + c);
+        }
+        V(pz, r) += s0 + s1;
+    }
+    /* eq. 8: s = R + z^T P z, M = 1 / s; eq. 7's gain eta e M */
+    s0 = zero;
+    s1 = zero;
+    for (c = 0; c + 1u < L; c += 2u) {
+        s0 += VC(z, c) * V(pz, c);
+        s1 += VC(z, c + 1u) * V(pz, c + 1u);
+    }
+    if (c < L) {
+        s0 += VC(z, c) * V(pz, c);
+    }
+    s = rr + (s0 + s1);
+    inv_s = one / s;
+    /* eq. 7: w + (eta e M) P z */
+    V(tmp, 0) = inv_s;
+    weights_update(wk, i, L, tmp, pz, out_wsum);
+    /* eq. 7: (P - (P z)(P z)^T M) / lambda + Q. Without forgetting rhonn.c
+     * skips the division; multiplying by 1 instead is exact. */
+    for (r = 0; r < L; ++r) {
+        const lanev kr = V(pz, r) * inv_s;
+        len = L - r;
+        for (c = 0; c < len; ++c) {
+            V(Pn, rs[r] + c) = (VC(P, rs[r] + c) - kr * V(pz, r + c)) * ilam;
+        }
+        V(Pn, rs[r]) += VC(q, r);
+    }
+    /* The trace ceiling: P(k+1) scaled by p_trace_max / trace when above
+     * it; by exactly 1 elsewhere, which changes nothing. */
+    acc = zero;
+    for (r = 0; r < L; ++r) {
+        acc += V(Pn, rs[r]);
+    }
+    V(out_s, 0) = acc;
+    trace_scale(wk, i, out_s, tmp);
+    scale = VC(tmp, 0);
+    for (c = 0; c < packed; ++c) {
+        V(Pn, c) *= scale;
+    }
+    /* The check (rhonn.c scaled_udu + udu_factor): each diagonal normal and
+     * finite (MIN_NORMAL <= v <= MAX, false for NaN) and scaled by 2^-h,
+     * h = floor(e / 2), built from its exponent bits; then every pivot
+     * positive and finite. */
+    for (r = 0; r < L; ++r) {
+        const lanev d = V(Pn, rs[r]);
+        const lanei b = ((lanei)d >> POP_EXP_SHIFT) & POP_EXP_FIELD;
+        V(sc, r) = (lanev)((POP_SCALE_TOP - ((b + POP_SCALE_ADD) >> 1)) << POP_EXP_SHIFT);
+    }
+    for (j = L; j-- > 0u;) {
+        const size_t tail = L - 1u - j;
+        const lanev sj = V(sc, j);
+        lanev dj = (V(Pn, rs[j]) * sj) * sj, inv;
+        for (k = 0; k < tail; ++k) {
+            const lanev ujk = V(F, rs[j] + 1u + k), t = V(dk, j + 1u + k) * ujk;
+            V(tk, k) = t;
+            dj -= ujk * t;
+        }
+        V(dk, j) = dj;
+        V(F, rs[j]) = dj;
+        inv = one / dj;
+        for (ii = 0; ii < j; ++ii) {
+            const size_t at = rs[ii] + (j - ii);
+            lanev a = (V(Pn, at) * V(sc, ii)) * sj;
+            for (k = 0; k < tail; ++k) {
+                a -= V(F, at + 1u + k) * V(tk, k);
+            }
+            V(F, at) = a * inv;
+        }
+    }
+    /* the pivots' verdict, member by member from the stored d_j and the
+     * diagonal (vector compares' masks convert poorly on some targets) */
+    for (m = 0; m < NPOP; ++m) {
+        out_ok[m] = R(1.0);
+    }
+    for (r = 0; r < L; ++r) {
+        const rhonn_real *d = LANE(Pn, rs[r]), *pv = LANE(dk, r);
+        for (m = 0; m < NPOP; ++m) {
+            const int good = d[m] >= RHONN_MIN_NORMAL && d[m] <= RHONN_MAX_REAL && pv[m] > R(0.0) &&
+                             pv[m] <= RHONN_MAX_REAL;
+            out_ok[m] = good ? out_ok[m] : R(0.0);
+        }
+    }
+    for (m = 0; m < NPOP; ++m) {
+        out_s[m] = s[m];
+        tmp[m] = rr[m];
+    }
+    verdicts(wk, Pn, packed, out_s, tmp, out_wsum, out_ok, NULL);
+}
+/* Thornton's step for a row of [U~ | I] at offset at of the triangle:
+ * dot(wu[at..], cu) + dot(wq[at..], cq) over len entries, each dot with
+ * rhonn.c's two accumulators, into out. */
+POP_ALWAYS_INLINE void row_dots(rhonn_population_work *wk, size_t at, size_t len, rhonn_real *out)
+{
+    const rhonn_real *wu = &wk->uw[0][0], *wq = &wk->uq[0][0], *cu = &wk->ua[4][0][0], *cq = &wk->ua[5][0][0];
+    lanev s0 = VC(wk->zeros, 0), s1 = s0, t0 = s0, t1 = s0;
+    size_t c;
+    for (c = 0; c + 1u < len; c += 2u) {
+        s0 += VC(wu, at + c) * VC(cu, c);
+        s1 += VC(wu, at + c + 1u) * VC(cu, c + 1u);
+        t0 += VC(wq, at + c) * VC(cq, c);
+        t1 += VC(wq, at + c + 1u) * VC(cq, c + 1u);
+    }
+    if (c < len) {
+        s0 += VC(wu, at + c) * VC(cu, c);
+        t0 += VC(wq, at + c) * VC(cq, c);
+    }
+    V(out, 0) = (s0 + s1) + (t0 + t1);
+}
+
+/* The U D U^T form (rhonn.c ekf_ud), every member at once, operation for
+ * operation. Measurement (Bierman): f = U^T z, v = D f, a_0 = R,
+ * a_j = a_{j-1} + f_j v_j, d_j a_{j-1} / a_j, U(k,j) + (-f_j / a_{j-1}) b_k,
+ * the gain b / s; then D / lambda and + Q by Thornton's modified weighted
+ * Gram-Schmidt on the rows of [U | I] weighted by [D, diag(Q)]. */
+POP_CLONES static void ud_kernel(rhonn_population_work *wk, size_t i, size_t L)
+{
+    const rhonn_real *F = &wk->p[wk->pb[i]][i][0][0];
+    rhonn_real *Fn = &wk->p[wk->pb[i] ^ 1u][i][0][0];
+    const rhonn_real *z = &wk->z[wk->zb][i][0][0];
+    const rhonn_real *q = &wk->q[i][0][0];
+    rhonn_real *wu = &wk->uw[0][0], *wq = &wk->uq[0][0];
+    rhonn_real *f = &wk->ua[0][0][0], *v = &wk->ua[1][0][0], *b = &wk->ua[2][0][0], *dt = &wk->ua[3][0][0];
+    rhonn_real *cu = &wk->ua[4][0][0], *cq = &wk->ua[5][0][0];
+    const lanev rr = VC(wk->r[i], 0), ilam = VC(wk->inv_lambda[i], 0);
+    const lanev zero = VC(wk->zeros, 0);
+    const lanev one = zero + R(1.0);
+    lanev alpha, inv_prev, fsum, tr;
+    rhonn_real out_s[RHONN_MAX_POPULATION], out_wsum[RHONN_MAX_POPULATION], out_ok[RHONN_MAX_POPULATION];
+    rhonn_real out_fsum[RHONN_MAX_POPULATION], tmp[RHONN_MAX_POPULATION];
+    size_t rs[RHONN_MAX_TERMS];
+    size_t j, k, c, m;
+    const size_t packed = L * (L + 1u) / 2u;
+
+    rs[0] = 0;
+    for (j = 0; j + 1u < L; ++j) {
+        rs[j + 1u] = rs[j] + (L - j);
+    }
+    /* f = U^T z (U unit upper triangular), v = D f */
+    for (j = 0; j < L; ++j) {
+        V(f, j) = VC(z, j);
+    }
+    for (k = 0; k < L; ++k) {
+        for (j = k + 1u; j < L; ++j) {
+            V(f, j) += VC(F, rs[k] + (j - k)) * VC(z, k);
+        }
+    }
+    for (j = 0; j < L; ++j) {
+        V(v, j) = VC(F, rs[j]) * V(f, j);
+    }
+    /* Bierman's update, column by column; wu receives U~ with a unit diagonal */
+    alpha = rr;
+    inv_prev = zero;
+    for (j = 0; j < L; ++j) {
+        const lanev lam = -V(f, j) * inv_prev;
+        const lanev alpha_new = alpha + V(f, j) * V(v, j);
+        const lanev inv = one / alpha_new;
+        V(dt, j) = VC(F, rs[j]) * (alpha * inv);
+        for (k = 0; k < j; ++k) {
+            const size_t idx = rs[k] + (j - k);
+            const lanev ukj = VC(F, idx);
+            V(wu, idx) = ukj + lam * V(b, k);
+            V(b, k) += ukj * V(v, j);
+        }
+        V(wu, rs[j]) = one;
+        V(b, j) = V(v, j);
+        alpha = alpha_new;
+        inv_prev = inv;
+    }
+    V(tmp, 0) = inv_prev;
+    weights_update(wk, i, L, tmp, b, out_wsum);
+    /* / lambda (rhonn.c skips it without forgetting; * 1 is exact) */
+    for (j = 0; j < L; ++j) {
+        V(dt, j) *= ilam;
+    }
+    /* + Q: rows of W = [U~ | I] in wu and wq, from the last row up */
+    for (j = 0; j < L; ++j) {
+        for (c = 0; c < L - j; ++c) {
+            V(wq, rs[j] + c) = c == 0u ? one : zero;
+        }
+    }
+    for (m = 0; m < NPOP; ++m) {
+        out_ok[m] = R(1.0);
+    }
+    for (j = L; j-- > 0u;) {
+        const size_t rj = rs[j], len = L - j;
+        lanev dj, inv;
+        for (c = 0; c < len; ++c) {
+            V(cu, c) = V(dt, j + c) * V(wu, rj + c);
+            V(cq, c) = VC(q, j + c) * V(wq, rj + c);
+        }
+        row_dots(wk, rj, len, tmp);
+        dj = VC(tmp, 0);
+        for (m = 0; m < NPOP; ++m) {
+            out_ok[m] = tmp[m] > R(0.0) && tmp[m] <= RHONN_MAX_REAL ? out_ok[m] : R(0.0);
+        }
+        V(Fn, rj) = dj;
+        inv = one / dj;
+        for (k = 0; k < j; ++k) {
+            const size_t at = rs[k] + (j - k);
+            lanev ukj;
+            row_dots(wk, at, len, tmp);
+            ukj = VC(tmp, 0) * inv;
+            V(Fn, at) = ukj;
+            for (c = 0; c < len; ++c) {
+                V(wu, at + c) -= ukj * V(wu, rj + c);
+                V(wq, at + c) -= ukj * V(wq, rj + c);
+            }
+        }
+    }
+    /* The trace ceiling: trace(U D U^T) = sum_j d_j (1 + sum_{i<j} U(i,j)^2);
+     * above p_trace_max, D scaled by p_trace_max / trace (by 1 elsewhere). */
+    tr = zero;
+    for (j = 0; j < L; ++j) {
+        lanev col = one;
+        for (k = 0; k < j; ++k) {
+            const lanev u = V(Fn, rs[k] + (j - k));
+            col += u * u;
+        }
+        tr += V(Fn, rs[j]) * col;
+    }
+    V(out_s, 0) = tr;
+    trace_scale(wk, i, out_s, tmp);
+    fsum = zero;
+    for (j = 0; j < L; ++j) {
+        V(Fn, rs[j]) *= VC(tmp, 0);
+        V(out_s, 0) = V(Fn, rs[j]);
+        for (m = 0; m < NPOP; ++m) {
+            out_ok[m] = out_s[m] > R(0.0) ? out_ok[m] : R(0.0); /* scaled into underflow */
+        }
+    }
+    for (c = 0; c < packed; ++c) {
+        fsum += V(Fn, c) - V(Fn, c);
+    }
+    V(out_s, 0) = alpha;
+    V(out_fsum, 0) = fsum;
+    verdicts(wk, Fn, packed, out_s, wk->r[i], out_wsum, out_ok, out_fsum);
+}
+
+#endif
+
+/* The U D U^T neurons' update: the vector kernel above, or (portable
+ * build) rhonn.c's own kernel member by member, on the member's lane
+ * copied into its committed bank and the candidate copied back. */
+static void ud_update(rhonn_population_work *wk, rhonn_t *const *nets, size_t N, size_t i, size_t L)
+{
+#if RHONN_POP_VECTOR
+    (void)nets;
+    (void)N;
+    ud_kernel(wk, i, L);
+#else
+    size_t m, t;
+    for (m = 0; m < N; ++m) {
+        rhonn_t *net = nets[m];
+        const size_t b = net->bank[i];
+        rhonn_real zk[RHONN_MAX_TERMS], nis = R(0.0);
+        uint8_t bnd = 0;
+        if (!wk->learn[i][m]) {
+            continue;
+        }
+        for (t = 0; t < L; ++t) {
+            zk[t] = wk->z[wk->zb][i][t][m];
+            net->w[i][b][t] = wk->w[wk->wb][i][t][m];
+        }
+        for (t = 0; t < L * (L + 1u) / 2u; ++t) {
+            net->p[i][b][t] = wk->p[wk->pb[i]][i][t][m];
+        }
+        wk->kstatus[m] = (uint8_t)rhonn_internal_ekf_update(net, i, wk->e[m], zk, &nis, &bnd);
+        wk->nis[i][m] = nis;
+        wk->bounded[i][m] = bnd;
+        for (t = 0; t < L; ++t) {
+            wk->w[wk->wb ^ 1u][i][t][m] = net->w[i][b ^ 1u][t];
+        }
+        for (t = 0; t < L * (L + 1u) / 2u; ++t) {
+            wk->p[wk->pb[i] ^ 1u][i][t][m] = net->p[i][b ^ 1u][t];
+        }
+    }
+#endif
+}
+
+/* xhat(k+1) = w(k+1)^T z(k) (eq. 3) of every neuron, every member at once:
+ * rhonn.c's running sum, term by term from 0. */
+POP_CLONES static void predict(rhonn_population_work *wk, const rhonn_t *net, size_t zb)
+{
+    const rhonn_config *cfg = CFG(net);
+    size_t i, t;
+    for (i = 0; i < cfg->n_states; ++i) {
+        const rhonn_real *w = &wk->w[wk->wb ^ 1u][i][0][0], *z = &wk->z[zb][i][0][0];
+#if RHONN_POP_VECTOR
+        lanev acc = VC(wk->zeros, 0);
+        for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
+            acc += VC(w, t) * VC(z, t);
+        }
+        V(wk->xnew[i], 0) = acc;
+#else
+        size_t m;
+        for (m = 0; m < NPOP; ++m) {
+            wk->xnew[i][m] = R(0.0);
+        }
+        for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
+            for (m = 0; m < NPOP; ++m) {
+                wk->xnew[i][m] += w[t * NPOP + m] * z[t * NPOP + m];
+            }
+        }
+#endif
+    }
+}
+
+/* ------------------------------------------------------------------------ */
+/* Loading and storing a member's lane */
+
+static int is_ud(const rhonn_t *net, size_t i)
+{
+    return CFG(net)->neurons[i].covariance == (uint8_t)RHONN_COV_UD;
+}
+
+/* Member net's committed state and tuning into lane m. */
+static void load_lane(rhonn_population_work *wk, const rhonn_t *net, size_t m)
+{
+    const rhonn_config *cfg = CFG(net);
+    size_t i, t;
+    for (i = 0; i < cfg->n_states; ++i) {
+        const rhonn_neuron_config *nc = &cfg->neurons[i];
+        const size_t L = nc->n_terms, b = net->bank[i];
+        for (t = 0; t < L; ++t) {
+            wk->w[wk->wb][i][t][m] = net->w[i][b][t];
+            wk->z[wk->zb][i][t][m] = net->z[net->zbank][i][t];
+            wk->q[i][t][m] = nc->q[t];
+        }
+        for (t = 0; t < L * (L + 1u) / 2u; ++t) {
+            wk->p[wk->pb[i]][i][t][m] = net->p[i][b][t];
+        }
+        wk->xhat[i][m] = net->xhat[i];
+        wk->r[i][m] = nc->r;
+        wk->eta[i][m] = nc->eta;
+        /* rhonn.c inverse_forgetting, with 1 (exact) for off */
+        wk->inv_lambda[i][m] = (nc->forgetting > R(0.0) && nc->forgetting < R(1.0)) ? R(1.0) / nc->forgetting
+                                                                                     : R(1.0);
+        wk->p_trace_max[i][m] = nc->p_trace_max;
+    }
+}
+
+/* Lane m's committed state back into its member: the weights and the
+ * stored covariance (P or its factors) into the committed banks, z(k-1)
+ * into net's z bank. The members' health, history, prediction and banks
+ * are kept in net as the run goes. */
+static void store_lane(const rhonn_population_work *wk, rhonn_t *net, size_t m)
+{
+    const rhonn_config *cfg = CFG(net);
+    size_t i, t;
+    for (i = 0; i < cfg->n_states; ++i) {
+        const size_t L = cfg->neurons[i].n_terms, b = net->bank[i];
+        for (t = 0; t < L; ++t) {
+            net->w[i][b][t] = wk->w[wk->wb][i][t][m];
+            net->z[net->zbank][i][t] = wk->z[wk->zb][i][t][m];
+        }
+        for (t = 0; t < L * (L + 1u) / 2u; ++t) {
+            net->p[i][b][t] = wk->p[wk->pb[i]][i][t][m];
+        }
+    }
+}
+
+/* Does member b's structure equal member a's? RHONN_E_CONFIG with *where
+ * naming the first difference. */
+static rhonn_status same_structure(const rhonn_config *a, const rhonn_config *b, size_t member,
+                                   rhonn_population_error *where)
+{
+    size_t i, t, f;
+    uint8_t field = (uint8_t)RHONN_FIELD_NONE;
+    size_t fi = 0, ft = 0, ff = 0;
+    if (a->n_states != b->n_states) {
+        field = (uint8_t)RHONN_FIELD_N_STATES;
+    } else if (a->n_inputs != b->n_inputs) {
+        field = (uint8_t)RHONN_FIELD_N_INPUTS;
+    }
+    for (i = 0; i < a->n_states && field == (uint8_t)RHONN_FIELD_NONE; ++i) {
+        const rhonn_neuron_config *na = &a->neurons[i], *nb = &b->neurons[i];
+        fi = i;
+        if (na->n_terms != nb->n_terms) {
+            field = (uint8_t)RHONN_FIELD_N_TERMS;
+        } else if (na->activation != nb->activation) {
+            field = (uint8_t)RHONN_FIELD_ACTIVATION;
+        } else if (na->covariance != nb->covariance) {
+            field = (uint8_t)RHONN_FIELD_COVARIANCE;
+        }
+        for (t = 0; t < na->n_terms && field == (uint8_t)RHONN_FIELD_NONE; ++t) {
+            ft = t;
+            if (na->terms[t].n_factors != nb->terms[t].n_factors) {
+                field = (uint8_t)RHONN_FIELD_N_FACTORS;
+            }
+            for (f = 0; f < na->terms[t].n_factors && field == (uint8_t)RHONN_FIELD_NONE; ++f) {
+                const rhonn_factor *x = &na->terms[t].factors[f], *y = &nb->terms[t].factors[f];
+                ff = f;
+                if (x->kind != y->kind) {
+                    field = (uint8_t)RHONN_FIELD_FACTOR_KIND;
+                } else if (x->index != y->index) {
+                    field = (uint8_t)RHONN_FIELD_FACTOR_INDEX;
+                } else if (x->delay != y->delay) {
+                    field = (uint8_t)RHONN_FIELD_FACTOR_DELAY;
+                } else if (x->power != y->power) {
+                    field = (uint8_t)RHONN_FIELD_FACTOR_POWER;
+                }
+            }
+        }
+    }
+    if (field == (uint8_t)RHONN_FIELD_NONE) {
+        return RHONN_OK;
+    }
+    if (where != NULL) {
+        where->member = (uint8_t)member;
+        where->field = field;
+        where->neuron = (uint8_t)fi;
+        where->term = (uint8_t)ft;
+        where->factor = (uint8_t)ff;
+    }
+    return RHONN_E_CONFIG;
+}
+
+/* Do two members read the same S(x) through the same compiled entries
+ * (the same activation groups with the same betas)? */
+static int same_features(const rhonn_t *a, const rhonn_t *b)
+{
+    size_t g, i;
+    if (a->n_groups != b->n_groups || a->n_entries != b->n_entries) {
+        return 0;
+    }
+    for (g = 0; g < a->n_groups; ++g) {
+        if (a->group_activation[g] != b->group_activation[g] || a->group_beta[g] != b->group_beta[g]) {
+            return 0;
+        }
+    }
+    for (i = 0; i < CFG(a)->n_states; ++i) {
+        if (a->group_of[i] != b->group_of[i]) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* z(k) of one member from the entries' values (rhonn.c step 4's products,
+ * factor by factor in the same order), into lane m of bank zb. */
+static void lane_regressor(rhonn_population_work *wk, const rhonn_t *net, const rhonn_real *fv, size_t zb, size_t m)
+{
+    const rhonn_config *cfg = CFG(net);
+    size_t i, t, f;
+    for (i = 0; i < cfg->n_states; ++i) {
+        for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
+            const uint16_t *te = net->term_entry[i][t];
+            const size_t nf = cfg->neurons[i].terms[t].n_factors;
+            rhonn_real prod = fv[te[0]];
+            for (f = 1; f < nf; ++f) {
+                prod *= fv[te[f]];
+            }
+            wk->z[zb][i][t][m] = prod;
+        }
+    }
+}
+
+/* ------------------------------------------------------------------------ */
+
+rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_population_work *work, size_t T,
+                                  const rhonn_real *X, const rhonn_real *U, const uint8_t *valid,
+                                  rhonn_real *Xhat, rhonn_status *status, size_t *done,
+                                  rhonn_population_error *where)
+{
+    rhonn_population_work *const wk = work;
+    rhonn_status st[RHONN_MAX_POPULATION];
+    uint8_t alive[RHONN_MAX_POPULATION], fail[RHONN_MAX_POPULATION];
+    size_t ran[RHONN_MAX_POPULATION];
+    size_t n, mi, L, m, m2, i, t, k, agree, maxd;
+    int shareable = 1;
+    rhonn_status ret;
+
+    if (nets == NULL || work == NULL) {
+        return RHONN_E_NULL;
+    }
+    if (N < 1u || N > NPOP) {
+        return RHONN_E_ARGUMENT;
+    }
+    for (m = 0; m < N; ++m) {
+        if (nets[m] == NULL) {
+            return RHONN_E_NULL;
+        }
+        for (m2 = 0; m2 < m; ++m2) {
+            if (nets[m2] == nets[m]) {
+                return RHONN_E_ARGUMENT; /* one state cannot be two members */
+            }
+        }
+        ret = rhonn_internal_check_net(nets[m]);
+        if (ret != RHONN_OK) {
+            return ret;
+        }
+    }
+    for (m = 1; m < N; ++m) {
+        ret = same_structure(CFG(nets[0]), CFG(nets[m]), m, where);
+        if (ret != RHONN_OK) {
+            return ret;
+        }
+        shareable = shareable && same_features(nets[0], nets[m]);
+    }
+    n = CFG(nets[0])->n_states;
+    mi = CFG(nets[0])->n_inputs;
+    maxd = nets[0]->max_delay;
+    if (T > 0u && (X == NULL || Xhat == NULL || (U == NULL && mi > 0u))) {
+        return RHONN_E_NULL;
+    }
+
+    /* Each member's lane, and copies of member 0 in the unused ones (finite
+     * numbers to compute on, thrown away). */
+    wk->zb = 0;
+    wk->wb = 0;
+    for (m = 0; m < NPOP; ++m) {
+        wk->zeros[m] = R(0.0);
+    }
+    for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
+        wk->pb[i] = 0;
+    }
+    for (m = 0; m < NPOP; ++m) {
+        load_lane(wk, nets[m < N ? m : 0u], m);
+        alive[m] = (uint8_t)(m < N);
+        st[m] = RHONN_OK;
+        ran[m] = 0;
+    }
+    /* How many of the newest history slots every member holds alike: none
+     * known at first (a member that has not started fills them all). */
+    agree = 0;
+
+    for (k = 0; k < T; ++k) {
+        const rhonn_real *x = X + k * n;
+        const rhonn_real *u = mi > 0u ? U + k * mi : U;
+        const uint8_t *v = valid != NULL ? valid + k * n : NULL;
+        const size_t zb_new = wk->zb ^ 1u;
+        int all_valid = 1, any_alive = 0, all_fresh = 1, all_started = 1, shared;
+        size_t lead = NPOP;
+
+        for (m = 0; m < N; ++m) {
+            fail[m] = 0;
+            any_alive |= alive[m];
+        }
+        if (!any_alive) {
+            break;
+        }
+        /* The inputs are the same for every member: checked once. */
+        ret = rhonn_internal_check_inputs(nets[0], x, u, v);
+        if (ret != RHONN_OK) {
+            for (m = 0; m < N; ++m) {
+                if (alive[m]) {
+                    st[m] = ret;
+                    alive[m] = 0;
+                    store_lane(wk, nets[m], m);
+                }
+            }
+            break;
+        }
+        if (v != NULL) {
+            for (i = 0; i < n; ++i) {
+                all_valid &= v[i] != 0u;
+            }
+        }
+
+        /* 1. Learn, neuron by neuron (rhonn.c step 1). */
+        for (i = 0; i < n; ++i) {
+            const int ud = is_ud(nets[0], i);
+            L = CFG(nets[0])->neurons[i].n_terms;
+            for (m = 0; m < NPOP; ++m) {
+                const rhonn_t *net = nets[m < N ? m : 0u];
+                wk->learn[i][m] = (uint8_t)(m < N && alive[m] && !fail[m] && net->started && net->learning &&
+                                            (v == NULL || v[i] != 0u) && net->valid_run[i] >= net->own_need[i]);
+                wk->updated[i][m] = 0;
+                wk->bounded[i][m] = 0;
+                wk->recovered[i][m] = 0;
+                wk->innov[i][m] = x[i] - wk->xhat[i][m];
+                wk->e[m] = wk->innov[i][m];
+            }
+            if (!ud) {
+                full_kernel(wk, i, L);
+            } else {
+                ud_update(wk, nets, N, i, L);
+            }
+            for (m = 0; m < N; ++m) {
+                rhonn_t *net = nets[m];
+                const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
+                rhonn_health *h = &net->health[i];
+                if (!wk->learn[i][m]) {
+                    for (t = 0; t < L; ++t) {
+                        wk->w[wk->wb ^ 1u][i][t][m] = wk->w[wk->wb][i][t][m]; /* w(k+1) = w(k) */
+                    }
+                    continue;
+                }
+                wk->updated[i][m] = 1;
+                if (wk->kstatus[m] == (uint8_t)RHONN_OK) {
+                    continue;
+                }
+                /* a refused update: rhonn.c's bookkeeping and recovery */
+                net->fault_neuron = (uint8_t)i;
+                h->rejected += 1u;
+                if (h->fail_run < 0xFFFFu) {
+                    h->fail_run = (uint16_t)(h->fail_run + 1u);
+                }
+                if (nc->reset_after == 0u || h->fail_run < nc->reset_after) {
+                    fail[m] = 1;
+                    st[m] = (rhonn_status)wk->kstatus[m];
+                    wk->updated[i][m] = 0;
+                    continue;
+                }
+                /* recovery (reset_after): w kept, P from P_i(0) */
+                for (t = 0; t < L; ++t) {
+                    wk->w[wk->wb ^ 1u][i][t][m] = wk->w[wk->wb][i][t][m];
+                }
+                {
+                    rhonn_real p0[RHONN_MAX_PACKED];
+                    rhonn_internal_load_p0(net, i, p0); /* P_i(0) or its factors */
+                    for (t = 0; t < L * (L + 1u) / 2u; ++t) {
+                        wk->p[wk->pb[i] ^ 1u][i][t][m] = p0[t];
+                    }
+                }
+                wk->bounded[i][m] = 0;
+                wk->recovered[i][m] = 1;
+            }
+        }
+
+        /* 2-4. The regressor z(k): once for all when it must be the same
+         * (see rhonn_population.h), else member by member. */
+        for (m = 0; m < N; ++m) {
+            if (alive[m] && !fail[m]) {
+                lead = lead < NPOP ? lead : m;
+                all_fresh &= !nets[m]->started;
+                all_started &= nets[m]->started != 0u;
+            }
+        }
+        shared = shareable && all_valid && lead < NPOP && (all_fresh || (all_started && agree >= maxd));
+        if (shared) {
+            rhonn_internal_features(nets[lead], x, u, v, wk->cur[0], wk->fv);
+            lane_regressor(wk, nets[lead], wk->fv, zb_new, 0);
+            for (i = 0; i < n; ++i) {
+                L = CFG(nets[0])->neurons[i].n_terms;
+                for (t = 0; t < L; ++t) {
+                    for (m = 1; m < NPOP; ++m) {
+                        wk->z[zb_new][i][t][m] = wk->z[zb_new][i][t][0];
+                    }
+                }
+            }
+        } else {
+            for (m = 0; m < N; ++m) {
+                if (alive[m] && !fail[m]) {
+                    rhonn_internal_features(nets[m], x, u, v, wk->cur[m], wk->fv);
+                    lane_regressor(wk, nets[m], wk->fv, zb_new, m);
+                }
+            }
+        }
+        /* xhat(k+1) = w(k+1)^T z(k) (eq. 3), every member at once */
+        predict(wk, nets[0], zb_new);
+
+        /* Commit, member by member; a member that failed stops here with
+         * its state as before this step. */
+        for (m = 0; m < N; ++m) {
+            rhonn_t *net = nets[m];
+            if (!alive[m]) {
+                continue;
+            }
+            for (i = 0; i < n && !fail[m]; ++i) {
+                if (!LANE_FINITE(wk->xnew[i][m])) {
+                    net->fault_neuron = (uint8_t)i;
+                    st[m] = RHONN_E_DIVERGED;
+                    fail[m] = 1;
+                }
+            }
+            if (fail[m]) {
+                alive[m] = 0;
+                store_lane(wk, net, m);
+                continue;
+            }
+            rhonn_internal_commit_sample(net, wk->cur[shared ? 0u : m], v);
+            for (i = 0; i < n; ++i) {
+                const size_t Li = CFG(net)->neurons[i].n_terms;
+                if (wk->recovered[i][m]) {
+                    net->health[i].resets += 1u;
+                    net->health[i].fail_run = 0;
+                } else if (wk->updated[i][m]) {
+                    rhonn_health *h = &net->health[i];
+                    h->innovation = wk->innov[i][m];
+                    h->nis = wk->nis[i][m];
+                    h->updates += 1u;
+                    h->bounded += wk->bounded[i][m];
+                    h->fail_run = 0;
+                }
+                net->bank[i] = (uint8_t)(net->bank[i] ^ wk->updated[i][m]);
+                if (!wk->updated[i][m]) {
+                    /* P(k+1) = P(k): into the bank that becomes committed */
+                    const size_t pb = wk->pb[i];
+                    for (t = 0; t < Li * (Li + 1u) / 2u; ++t) {
+                        wk->p[pb ^ 1u][i][t][m] = wk->p[pb][i][t][m];
+                    }
+                }
+                net->xhat[i] = wk->xnew[i][m];
+                wk->xhat[i][m] = wk->xnew[i][m];
+                Xhat[(m * T + k) * n + i] = wk->xnew[i][m];
+            }
+            net->zbank = (uint8_t)(net->zbank ^ 1u);
+            net->started = 1;
+            net->steps += 1u;
+            ran[m] = k + 1u;
+        }
+        /* every member's candidates are now its committed values (a member
+         * that stopped was stored above, from the banks before the flip) */
+        wk->zb = (uint8_t)zb_new;
+        wk->wb = (uint8_t)(wk->wb ^ 1u);
+        for (i = 0; i < n; ++i) {
+            wk->pb[i] = (uint8_t)(wk->pb[i] ^ 1u);
+        }
+        /* The newest slot agrees when every member read the same sample;
+         * members that had not started filled every slot with it. */
+        if (!(shareable && all_valid)) {
+            agree = 0;
+        } else if (all_fresh) {
+            agree = maxd;
+        } else {
+            agree = !all_started ? 1u : agree < maxd ? agree + 1u : maxd;
+        }
+    }
+
+    for (m = 0; m < N; ++m) {
+        if (alive[m]) {
+            store_lane(wk, nets[m], m);
+        }
+    }
+    ret = RHONN_OK;
+    for (m = N; m-- > 0u;) {
+        if (status != NULL) {
+            status[m] = st[m];
+        }
+        if (done != NULL) {
+            done[m] = ran[m];
+        }
+        if (st[m] != RHONN_OK) {
+            ret = st[m];
+        }
+    }
+    return ret;
+}

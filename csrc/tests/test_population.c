@@ -1,0 +1,419 @@
+/* test_population.c - rhonn_run_population is N rhonn_run calls, bit for
+ * bit: predictions, statuses, steps run and the state each member is left
+ * in (weights, stored covariances, prediction, health, and the steps that
+ * follow), for the float and double builds, both covariance forms,
+ * forgetting, the trace ceiling, automatic resets, members that stop,
+ * dropouts, delayed taps, betas that differ; and its argument checks.
+ *
+ * RHONN_POP_BENCH=T (environment) also times one LIM-sized population of 8
+ * against 8 rhonn_run calls over T samples, for profiling; no timing is
+ * asserted. */
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "check.h"
+#include "rhonn.h"
+#include "rhonn_population.h"
+
+#define POP_T 400
+#ifdef RHONN_SINGLE
+#define BIG FLT_MAX
+#else
+#define BIG DBL_MAX
+#endif
+#define MAXN RHONN_MAX_POPULATION
+
+static rhonn_term term1(uint8_t kind, uint8_t index, uint8_t delay)
+{
+    rhonn_term t;
+    memset(&t, 0, sizeof t);
+    t.n_factors = 1;
+    t.factors[0].kind = kind;
+    t.factors[0].index = index;
+    t.factors[0].delay = delay;
+    t.factors[0].power = 1;
+    return t;
+}
+
+static rhonn_term term2(uint8_t kind, uint8_t i1, uint8_t i2, uint8_t power2)
+{
+    rhonn_term t = term1(kind, i1, 0);
+    t.n_factors = 2;
+    t.factors[1].kind = kind;
+    t.factors[1].index = i2;
+    t.factors[1].power = power2;
+    return t;
+}
+
+/* The LIM identifier's structure (firmware-lim: 6 states, 2 inputs, a
+ * 2-term U D U^T position neuron, 5-7 terms elsewhere); variant k tunes it
+ * differently. delayed adds taps x1(k-2) and u1(k-1). */
+static rhonn_config lim_config(unsigned k, int delayed, int ud_all)
+{
+    static const uint8_t S = RHONN_FACTOR_S, X = RHONN_FACTOR_X, U = RHONN_FACTOR_U;
+    rhonn_config c;
+    const rhonn_real f = (rhonn_real)(1.0 + 0.25 * (double)k);
+    size_t i, t;
+    memset(&c, 0, sizeof c);
+    c.n_states = 6;
+    c.n_inputs = 2;
+    c.neurons[0].n_terms = 2;
+    c.neurons[0].terms[0] = term1(X, 0, 0);
+    c.neurons[0].terms[1] = term1(X, 1, 0);
+    c.neurons[0].covariance = RHONN_COV_UD;
+    c.neurons[1].n_terms = 7;
+    c.neurons[1].terms[0] = term1(X, 1, 0);
+    c.neurons[1].terms[1] = term1(S, 1, 0);
+    c.neurons[1].terms[2] = term1(S, 0, 0);
+    c.neurons[1].terms[3] = term2(S, 2, 5, 1);
+    c.neurons[1].terms[4] = term2(S, 3, 4, 1);
+    c.neurons[1].terms[5] = term2(S, 2, 4, 2);
+    c.neurons[1].terms[6] = term2(S, 3, 5, 1);
+    for (i = 2; i < 4; ++i) {
+        c.neurons[i].n_terms = 5;
+        c.neurons[i].terms[0] = term1(S, (uint8_t)i, 0);
+        c.neurons[i].terms[1] = term1(S, 4, 0);
+        c.neurons[i].terms[2] = term1(S, 5, 0);
+        c.neurons[i].terms[3] = term2(S, 0, 4, 1);
+        c.neurons[i].terms[4] = term2(S, 0, 5, 1);
+    }
+    for (i = 4; i < 6; ++i) {
+        c.neurons[i].n_terms = 6;
+        c.neurons[i].terms[0] = term1(S, (uint8_t)i, 0);
+        c.neurons[i].terms[1] = term1(S, 2, 0);
+        c.neurons[i].terms[2] = term1(S, 3, 0);
+        c.neurons[i].terms[3] = term2(S, 1, 2, 1);
+        c.neurons[i].terms[4] = term2(S, 1, 3, 1);
+        c.neurons[i].terms[5] = term1(U, (uint8_t)(i - 4), 0);
+    }
+    if (delayed) {
+        c.neurons[2].terms[4] = term1(X, 0, 2);
+        c.neurons[4].terms[4] = term1(U, 0, 1);
+    }
+    for (i = 0; i < 6; ++i) {
+        rhonn_neuron_config *nc = &c.neurons[i];
+        const size_t L = nc->n_terms;
+        size_t pi = 0, e;
+        nc->activation = RHONN_LOGISTIC;
+        nc->beta = (rhonn_real)1.0;
+        nc->eta = (rhonn_real)(1.0 / (1.0 + 0.1 * (double)k));
+        nc->r = (rhonn_real)(0.05 * (double)f);
+        if (ud_all) {
+            nc->covariance = RHONN_COV_UD;
+        }
+        for (t = 0; t < L; ++t) {
+            nc->q[t] = (rhonn_real)(1e-3 * (double)f * (double)f);
+            nc->w0[t] = (rhonn_real)(0.01 * (double)(t + 1u));
+            for (e = t; e < L; ++e, ++pi) {
+                nc->p0[pi] = e == t ? (rhonn_real)(10.0 * (double)f) : (rhonn_real)0.0;
+            }
+        }
+    }
+    c.x0[1] = (rhonn_real)(0.1 * (double)k);
+    return c;
+}
+
+/* A smooth, exciting, deterministic trajectory; from sample 120 on, 4 in
+ * every 37 have states 0 and 3 not measured (NaN). */
+static void trajectory(rhonn_real *X, rhonn_real *U, uint8_t *valid, size_t T, int dropouts)
+{
+    size_t k, j;
+    for (k = 0; k < T; ++k) {
+        const double t = 0.01 * (double)k;
+        U[2 * k] = (rhonn_real)(0.8 * sin(1.3 * t));
+        U[2 * k + 1] = (rhonn_real)(0.8 * cos(0.9 * t));
+        for (j = 0; j < 6; ++j) {
+            X[6 * k + j] = (rhonn_real)(0.5 * sin((0.7 + 0.31 * (double)j) * t + (double)j) + 0.2 * cos(2.1 * t));
+            valid[6 * k + j] = 1;
+        }
+        if (dropouts && k >= 120 && k % 37u < 4u) { /* state 0 is read through a delayed tap too */
+            valid[6 * k + 0] = 0;
+            valid[6 * k + 3] = 0;
+            X[6 * k + 0] = (rhonn_real)NAN;
+            X[6 * k + 3] = (rhonn_real)NAN;
+        }
+    }
+}
+
+/* Every observable of two identifiers is the same, bit for bit, and so are
+ * the next steps. */
+static int same_state(rhonn_t *a, rhonn_t *b, const rhonn_real *x, const rhonn_real *u)
+{
+    rhonn_real va[RHONN_MAX_PACKED], vb[RHONN_MAX_PACKED], ya[RHONN_MAX_STATES], yb[RHONN_MAX_STATES];
+    rhonn_health ha, hb;
+    size_t i, s;
+    const size_t n = a->cfg.n_states;
+    int same = memcmp(a->xhat, b->xhat, sizeof a->xhat) == 0 && a->steps == b->steps &&
+               a->fault_neuron == b->fault_neuron && a->started == b->started && a->head == b->head &&
+               memcmp(a->valid_run, b->valid_run, sizeof a->valid_run) == 0;
+    for (i = 0; i < n; ++i) {
+        const size_t L = a->cfg.neurons[i].n_terms, P = L * (L + 1u) / 2u;
+        same &= rhonn_get_weights(a, i, va, L) == RHONN_OK && rhonn_get_weights(b, i, vb, L) == RHONN_OK &&
+                memcmp(va, vb, L * sizeof va[0]) == 0;
+        same &= rhonn_get_factors(a, i, va, P) == RHONN_OK && rhonn_get_factors(b, i, vb, P) == RHONN_OK &&
+                memcmp(va, vb, P * sizeof va[0]) == 0;
+        same &= memcmp(a->z[a->zbank][i], b->z[b->zbank][i], L * sizeof va[0]) == 0;
+        same &= rhonn_get_health(a, i, &ha) == RHONN_OK && rhonn_get_health(b, i, &hb) == RHONN_OK &&
+                memcmp(&ha.innovation, &hb.innovation, sizeof ha.innovation) == 0 &&
+                memcmp(&ha.nis, &hb.nis, sizeof ha.nis) == 0 && memcmp(&ha.trace_p, &hb.trace_p, sizeof ha.trace_p) == 0 &&
+                ha.updates == hb.updates && ha.rejected == hb.rejected && ha.resets == hb.resets &&
+                ha.bounded == hb.bounded && ha.fail_run == hb.fail_run;
+    }
+    for (s = 0; s < 3; ++s) {
+        const rhonn_status sa = rhonn_step(a, x + s * n, u + s * 2u, NULL, ya);
+        const rhonn_status sb = rhonn_step(b, x + s * n, u + s * 2u, NULL, yb);
+        same &= sa == sb && (sa != RHONN_OK || memcmp(ya, yb, n * sizeof ya[0]) == 0);
+    }
+    return same;
+}
+
+static rhonn_t alone[MAXN], members[MAXN];
+static rhonn_population_work work;
+static rhonn_real X[POP_T * 6], U[POP_T * 2], Xhat_alone[MAXN][POP_T * 6], Xhat_pop[MAXN * POP_T * 6];
+static uint8_t V[POP_T * 6];
+
+/* Members nets (configs cfg[0..N)), pre-stepped pre[m] samples, run both
+ * ways; every member the same. Returns the number of members that stopped. */
+static size_t compare(const rhonn_config *cfg, size_t N, const size_t *pre, int dropouts)
+{
+    rhonn_t *nets[MAXN];
+    rhonn_status st_alone[MAXN], st_pop[MAXN];
+    size_t done_alone[MAXN], done_pop[MAXN];
+    size_t m, k, stopped = 0;
+    rhonn_status ret;
+    trajectory(X, U, V, POP_T, dropouts);
+    memset(Xhat_pop, 0, sizeof Xhat_pop);
+    memset(Xhat_alone, 0, sizeof Xhat_alone);
+    for (m = 0; m < N; ++m) {
+        CHECK_STATUS(rhonn_init(&alone[m], &cfg[m], NULL), RHONN_OK);
+        for (k = 0; pre != NULL && k < pre[m]; ++k) {
+            CHECK_STATUS(rhonn_step(&alone[m], X + 6u * (POP_T - 1u - k), U + 2u * (POP_T - 1u - k), NULL, NULL),
+                         RHONN_OK);
+        }
+        members[m] = alone[m];
+        nets[m] = &members[m];
+        st_alone[m] = rhonn_run(&alone[m], POP_T, X, U, dropouts ? V : NULL, Xhat_alone[m], &done_alone[m]);
+    }
+    ret = rhonn_run_population(nets, N, &work, POP_T, X, U, dropouts ? V : NULL, Xhat_pop, st_pop, done_pop, NULL);
+    for (m = 0; m < N; ++m) {
+        CHECK(st_pop[m] == st_alone[m]);
+        CHECK(done_pop[m] == done_alone[m]);
+        CHECK(memcmp(Xhat_pop + m * POP_T * 6u, Xhat_alone[m], done_alone[m] * 6u * sizeof(rhonn_real)) == 0);
+        CHECK(same_state(&members[m], &alone[m], X, U));
+        stopped += st_alone[m] != RHONN_OK;
+    }
+    m = 0;
+    while (m < N && st_alone[m] == RHONN_OK) {
+        ++m;
+    }
+    CHECK(ret == (m < N ? st_alone[m] : RHONN_OK)); /* the lowest-indexed member that stopped */
+    return stopped;
+}
+
+static void lim_population_equals_eight_runs(void)
+{
+    rhonn_config cfg[MAXN];
+    size_t m;
+    for (m = 0; m < MAXN; ++m) {
+        cfg[m] = lim_config((unsigned)m, 0, 0);
+    }
+    CHECK(compare(cfg, MAXN, NULL, 0) == 0);
+}
+
+static void dropouts_delays_and_differing_betas_equal_single_runs(void)
+{
+    rhonn_config cfg[MAXN];
+    size_t m;
+    for (m = 0; m < MAXN; ++m) {
+        cfg[m] = lim_config((unsigned)m, 1, 0);
+    }
+    CHECK(compare(cfg, 5, NULL, 1) == 0); /* the same betas: the regressor shared where it can be */
+    cfg[3].neurons[2].beta = (rhonn_real)0.5;
+    cfg[3].neurons[4].beta = (rhonn_real)2.0;
+    CHECK(compare(cfg, MAXN, NULL, 1) == 0); /* betas differ: each member its own regressor */
+}
+
+static void factored_covariances_equal_single_runs(void)
+{
+    rhonn_config cfg[MAXN];
+    size_t m;
+    for (m = 0; m < 3; ++m) {
+        cfg[m] = lim_config((unsigned)m, 1, 1);
+    }
+    CHECK(compare(cfg, 3, NULL, 1) == 0);
+}
+
+static void members_continue_from_their_own_state(void)
+{
+    rhonn_config cfg[MAXN];
+    const size_t pre[4] = {0, 3, 7, 1};
+    size_t m;
+    for (m = 0; m < 4; ++m) {
+        cfg[m] = lim_config((unsigned)m, 1, 0);
+    }
+    CHECK(compare(cfg, 4, pre, 1) == 0);
+}
+
+static void forgetting_ceiling_and_resets_equal_single_runs(void)
+{
+    rhonn_config cfg[MAXN];
+    size_t m, i;
+    for (m = 0; m < 6; ++m) {
+        cfg[m] = lim_config((unsigned)m, 0, 0);
+        for (i = 0; i < 6; ++i) {
+            cfg[m].neurons[i].forgetting = m % 2u ? (rhonn_real)0.98 : (rhonn_real)0.0;
+            cfg[m].neurons[i].p_trace_max = m >= 2u ? (rhonn_real)(11.0 * 7.0 * (1.0 + 0.25 * (double)m)) : (rhonn_real)0.0;
+        }
+    }
+    CHECK(compare(cfg, 6, NULL, 1) == 0);
+}
+
+/* Forgetting with lambda = 1e-3 multiplies P by 1000 a step until it
+ * overflows: member 1 stops there (as alone), member 2 (reset_after = 1)
+ * resets P to P(0) and goes on; member 0 is well tuned. */
+static void refused_updates_stop_or_reset_a_member_as_alone(void)
+{
+    rhonn_config cfg[MAXN];
+    rhonn_health h;
+    size_t m, i, resets = 0;
+    for (m = 0; m < 3; ++m) {
+        cfg[m] = lim_config(0, 0, 0);
+    }
+    for (m = 1; m < 3; ++m) {
+        for (i = 0; i < 6; ++i) { /* neuron 0 in the U D U^T form too */
+            cfg[m].neurons[i].forgetting = (rhonn_real)1e-3;
+            cfg[m].neurons[i].reset_after = (uint16_t)(m == 2u ? 1u : 0u);
+        }
+    }
+    CHECK(compare(cfg, 3, NULL, 0) == 1u);
+    for (i = 0; i < 6; ++i) {
+        CHECK_STATUS(rhonn_get_health(&alone[2], i, &h), RHONN_OK);
+        resets += h.resets;
+    }
+    CHECK(resets > 0u); /* the scenario does reach the refusals it is about */
+}
+
+/* A member whose prediction overflows stops there (E_DIVERGED); the others
+ * run to the end. */
+static void a_diverging_member_stops_and_the_others_go_on(void)
+{
+    rhonn_config cfg[MAXN];
+    size_t m;
+    for (m = 0; m < 3; ++m) {
+        cfg[m] = lim_config((unsigned)m, 0, 0);
+    }
+    /* weights near the top of the range: the first prediction overflows */
+    for (m = 0; m < 5; ++m) {
+        cfg[1].neurons[3].w0[m] = (rhonn_real)0.9 * BIG;
+    }
+    CHECK(compare(cfg, 3, NULL, 0) >= 1u);
+    CHECK(rhonn_run(&alone[0], 1, X, U, NULL, Xhat_alone[0], NULL) == RHONN_OK);
+}
+
+static void arguments_and_structures_are_checked(void)
+{
+    rhonn_config a = lim_config(0, 0, 0), b = lim_config(1, 0, 0);
+    rhonn_t *nets[MAXN + 1];
+    rhonn_population_error where;
+    rhonn_status st[2];
+    size_t done[2], m;
+    trajectory(X, U, V, 4, 0);
+    CHECK_STATUS(rhonn_init(&members[0], &a, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_init(&members[1], &b, NULL), RHONN_OK);
+    nets[0] = &members[0];
+    nets[1] = &members[1];
+    CHECK_STATUS(rhonn_run_population(NULL, 2, &work, 4, X, U, NULL, Xhat_pop, st, done, NULL), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_run_population(nets, 2, NULL, 4, X, U, NULL, Xhat_pop, st, done, NULL), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_run_population(nets, 2, &work, 4, NULL, U, NULL, Xhat_pop, st, done, NULL), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_run_population(nets, 2, &work, 4, X, NULL, NULL, Xhat_pop, st, done, NULL), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_run_population(nets, 0, &work, 4, X, U, NULL, Xhat_pop, st, done, NULL), RHONN_E_ARGUMENT);
+    for (m = 0; m <= MAXN; ++m) {
+        nets[m] = &members[m % 2u];
+    }
+    CHECK_STATUS(rhonn_run_population(nets, MAXN + 1u, &work, 4, X, U, NULL, Xhat_pop, st, done, NULL),
+                 RHONN_E_ARGUMENT);
+    nets[1] = &members[0]; /* one rhonn_t twice */
+    CHECK_STATUS(rhonn_run_population(nets, 2, &work, 4, X, U, NULL, Xhat_pop, st, done, NULL), RHONN_E_ARGUMENT);
+    nets[1] = &members[1];
+    memset(&members[2], 0, sizeof members[2]);
+    nets[2] = &members[2];
+    CHECK_STATUS(rhonn_run_population(nets, 3, &work, 4, X, U, NULL, Xhat_pop, st, done, NULL), RHONN_E_NOT_INIT);
+    /* a term that differs: refused, naming the member, neuron and term */
+    b.neurons[4].terms[2] = term1(RHONN_FACTOR_X, 3, 0);
+    CHECK_STATUS(rhonn_init(&members[1], &b, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_run_population(nets, 2, &work, 4, X, U, NULL, Xhat_pop, st, done, &where), RHONN_E_CONFIG);
+    CHECK(where.member == 1u && where.field == (uint8_t)RHONN_FIELD_FACTOR_KIND && where.neuron == 4u &&
+          where.term == 2u && where.factor == 0u);
+    b = lim_config(1, 0, 0);
+    b.neurons[0].covariance = RHONN_COV_FULL;
+    CHECK_STATUS(rhonn_init(&members[1], &b, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_run_population(nets, 2, &work, 4, X, U, NULL, Xhat_pop, st, done, &where), RHONN_E_CONFIG);
+    CHECK(where.member == 1u && where.field == (uint8_t)RHONN_FIELD_COVARIANCE && where.neuron == 0u);
+    /* nothing ran: the members are as initialised */
+    CHECK(members[0].steps == 0u && members[1].steps == 0u);
+    /* a non-finite input stops every member at that sample */
+    b = lim_config(1, 0, 0);
+    CHECK_STATUS(rhonn_init(&members[1], &b, NULL), RHONN_OK);
+    U[2 * 2 + 1] = (rhonn_real)NAN;
+    CHECK_STATUS(rhonn_run_population(nets, 2, &work, 4, X, U, NULL, Xhat_pop, st, done, NULL),
+                 RHONN_E_INPUT_NONFINITE);
+    CHECK(st[0] == RHONN_E_INPUT_NONFINITE && st[1] == RHONN_E_INPUT_NONFINITE && done[0] == 2u && done[1] == 2u);
+    CHECK(members[0].steps == 2u && members[1].steps == 2u);
+}
+
+static double seconds(void)
+{
+    return (double)clock() / (double)CLOCKS_PER_SEC;
+}
+
+static void bench(size_t T)
+{
+    static rhonn_real bx[6 * 100000], bu[2 * 100000], by[6 * 100000];
+    static uint8_t bv[6 * 100000];
+    rhonn_config cfg[MAXN];
+    rhonn_t *nets[MAXN];
+    size_t m;
+    double t0, t1, t2;
+    T = T > 100000u / MAXN ? 100000u / MAXN : T;
+    trajectory(bx, bu, bv, T, 0);
+    for (m = 0; m < MAXN; ++m) {
+        cfg[m] = lim_config((unsigned)m, 0, 0);
+        (void)rhonn_init(&alone[m], &cfg[m], NULL);
+        (void)rhonn_init(&members[m], &cfg[m], NULL);
+        nets[m] = &members[m];
+    }
+    t0 = seconds();
+    for (m = 0; m < MAXN; ++m) {
+        (void)rhonn_run(&alone[m], T, bx, bu, NULL, by + m * T * 6u, NULL);
+    }
+    t1 = seconds();
+    (void)rhonn_run_population(nets, MAXN, &work, T, bx, bu, NULL, by, NULL, NULL, NULL);
+    t2 = seconds();
+    if (getenv("RHONN_POP_BENCH_ONLY") != NULL) { /* for a profiler: the population alone, 20 times more */
+        for (m = 0; m < 20u; ++m) {
+            (void)rhonn_run_population(nets, MAXN, &work, T, bx, bu, NULL, by, NULL, NULL, NULL);
+        }
+    }
+    printf("bench: %u samples, %d members: %.3f s alone, %.3f s population (x%.2f)\n", (unsigned)T, MAXN, t1 - t0,
+           t2 - t1, (t1 - t0) / (t2 - t1));
+}
+
+int main(void)
+{
+    const char *b = getenv("RHONN_POP_BENCH");
+    RUN(lim_population_equals_eight_runs);
+    RUN(dropouts_delays_and_differing_betas_equal_single_runs);
+    RUN(factored_covariances_equal_single_runs);
+    RUN(members_continue_from_their_own_state);
+    RUN(forgetting_ceiling_and_resets_equal_single_runs);
+    RUN(refused_updates_stop_or_reset_a_member_as_alone);
+    RUN(a_diverging_member_stops_and_the_others_go_on);
+    RUN(arguments_and_structures_are_checked);
+    if (b != NULL) {
+        bench((size_t)strtoul(b, NULL, 10));
+    }
+    return CHECK_SUMMARY();
+}
