@@ -15,6 +15,9 @@ def test_info_reports_the_compiled_capacities(capsys: pytest.CaptureFixture[str]
     data = json.loads(capsys.readouterr().out)
     assert data["capacities"]["RHONN_MAX_STATES"] >= 6
     assert data["sizeof_rhonn_t"]["float64"] > data["sizeof_rhonn_t"]["float32"]
+    from pyrhonn.population import max_population
+
+    assert data["max_population"] == max_population() >= 1
 
 
 def test_missing_or_unknown_command_exits_2_with_usage() -> None:

@@ -11,6 +11,7 @@ import json
 
 from .. import __version__
 from ..identifier import capacities
+from ..population import max_population
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,6 +28,7 @@ def run(args: argparse.Namespace) -> int:
         "version": __version__,
         "capacities": capacities("float64"),
         "unrolled_kernels": bool(getattr(_rhonn_f64.lib, "RHONN_UNROLL", 0)),
+        "max_population": max_population("float64"),
         "sizeof_rhonn_t": {"float64": _rhonn_f64.ffi.sizeof("rhonn_t"), "float32": _rhonn_f32.ffi.sizeof("rhonn_t")},
     }
     if args.json:
@@ -36,6 +38,7 @@ def run(args: argparse.Namespace) -> int:
     for name, value in data["capacities"].items():
         print(f"  {name:18} {value}")
     print(f"  unrolled EKF kernels: {'yes' if data['unrolled_kernels'] else 'no (RHONN_MAX_TERMS above 16)'}")
+    print(f"  identifiers per run_population call: {data['max_population']} (RHONN_MAX_POPULATION)")
     for dtype, size in data["sizeof_rhonn_t"].items():
         print(f"  sizeof(rhonn_t) {dtype}: {size} bytes")
     return 0
