@@ -14,6 +14,10 @@ disturbed by other load), both ways interleaved so load drifts hit both:
   end-to-end run_population(8 configs) vs [Identifier(c).run(...) for c]:
             what a caller of either writes, construction included
 
+Then `pyrhonn tune`'s search itself: the same number of trials with
+``batch`` = 8 (8 trials per core call) against ``batch`` = 1, on example3
+and the LIM trajectory, the wall time of the whole search (TPE included).
+
 The members differ in P0, Q, R and eta (a tuning search's candidates). Every
 member's predictions are checked bit for bit against its single run first.
 The machine load (1-minute load average, cores) is printed with the figures.
@@ -87,7 +91,27 @@ def main() -> None:
             print(f"{name:<14}{dtype:<9}{N:>3}  {seq_core * 1e3:>10.1f} ms {pop_core * 1e3:>8.1f} ms "
                   f"{seq_core / pop_core:>5.2f}x  {seq_all * 1e3:>16.1f} ms {pop_all * 1e3:>8.1f} ms "
                   f"{seq_all / pop_all:>5.2f}x")
+    tune_ratio(tr, T, repeats)
     print(f"load average {os.getloadavg()[0]:.2f} (1 min) at the end")
+
+
+def tune_ratio(tr, T: int, repeats: int) -> None:
+    """A whole tune search, batch 8 against batch 1, same trials count, same run."""
+    import optuna
+
+    from pyrhonn import tuning
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    trials = 32
+    for dtype in ("float64", "float32"):
+        base = load_shipped("example3").config.replace(dtype=dtype)
+        X, U, V = tr.X_meas[:T], tr.U[:T], tr.valid[:T]
+        one = eight = float("inf")
+        for _ in range(max(1, repeats // 2)):
+            one = min(one, best(lambda: tuning.tune(base, X, U, V, n_trials=trials, batch=1), 1))
+            eight = min(eight, best(lambda: tuning.tune(base, X, U, V, n_trials=trials, batch=8), 1))
+        print(f"tune example3 {dtype}, {trials} trials over {T} samples: batch 1 {one:.2f} s, batch 8 "
+              f"{eight:.2f} s: {one / eight:.2f}x")
 
 
 if __name__ == "__main__":

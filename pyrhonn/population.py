@@ -25,7 +25,7 @@ import numpy as np
 from .config import IdentifierConfig
 from .identifier import Identifier, IdentifierError, _backend
 
-__all__ = ["max_population", "run_identifiers", "run_population"]
+__all__ = ["max_population", "run_identifiers", "run_population", "run_population_outcomes"]
 
 _work = threading.local()  # one scratch per thread and dtype (it holds nothing between calls)
 
@@ -91,6 +91,23 @@ def run_population(configs: Sequence[IdentifierConfig], X: np.ndarray, U: np.nda
     or argument; :class:`~pyrhonn.IdentifierError` names the config whose
     run stopped (as ``Identifier.run`` would raise it).
     """
+    members = _members(configs)
+    return _run(members, X, U, valid, "configs")
+
+
+def run_population_outcomes(configs: Sequence[IdentifierConfig], X: np.ndarray, U: np.ndarray | None = None,
+                            valid: np.ndarray | None = None) -> list[np.ndarray | IdentifierError]:
+    """:func:`run_population`, with the outcome of each member instead of the
+    first failure: its (T, n) predictions, or the :class:`~pyrhonn.IdentifierError`
+    its own ``Identifier.run`` would raise (naming the sample; the members that
+    ran through are unaffected by it). For searches that score many tunings
+    of one structure and count the failing ones (``pyrhonn tune --batch``).
+    Bad arguments and configs still raise ``ValueError``."""
+    members = _members(configs)
+    return _run(members, X, U, valid, "configs", outcomes=True)
+
+
+def _members(configs: Sequence[IdentifierConfig]) -> list[Identifier]:
     if isinstance(configs, IdentifierConfig) or not isinstance(configs, Sequence):
         raise ValueError(f"configs: expected a sequence of IdentifierConfig, got {type(configs).__name__}")
     for k, cfg in enumerate(configs):
@@ -105,7 +122,7 @@ def run_population(configs: Sequence[IdentifierConfig], X: np.ndarray, U: np.nda
             members.append(Identifier(cfg))
         except ValueError as exc:
             raise ValueError(f"configs[{k}].{exc}") from None
-    return _run(members, X, U, valid, "configs")
+    return members
 
 
 def run_identifiers(identifiers: Sequence[Identifier], X: np.ndarray, U: np.ndarray | None = None,
@@ -126,7 +143,7 @@ def run_identifiers(identifiers: Sequence[Identifier], X: np.ndarray, U: np.ndar
 
 
 def _run(members: list[Identifier], X: np.ndarray, U: np.ndarray | None, valid: np.ndarray | None,
-         what: str) -> list[np.ndarray]:
+         what: str, outcomes: bool = False) -> list[Any]:
     first = members[0]
     n, m = first.n_states, first.n_inputs
     T, U = first._check_trajectory(X, U, valid)
@@ -158,6 +175,18 @@ def _run(members: list[Identifier], X: np.ndarray, U: np.ndarray | None, valid: 
                 ffi.memmove(ident._net, s, ffi.sizeof("rhonn_t"))
             raise ValueError(f"{what}[{int(where.member)}]: structure differs from {what}[0] "
                              f"(rhonn_field {int(where.field)}, neuron {int(where.neuron)})")
+        if rc != lib.RHONN_OK and outcomes:
+            results: list[Any] = list(out)
+            for k in range(N):
+                if status[k] != lib.RHONN_OK:
+                    fault = int(members[k]._net.fault_neuron)
+                    ffi.memmove(members[k]._net, saved[k], ffi.sizeof("rhonn_t"))
+                    try:
+                        members[k]._raise_step_error(int(status[k]), Xc, Uc, Vc, int(done[k]), single=False,
+                                                     neuron=fault)
+                    except IdentifierError as exc:
+                        results[k] = exc
+            return results
         if rc != lib.RHONN_OK:
             k = next(i for i in range(N) if status[i] != lib.RHONN_OK)
             faults = [int(ident._net.fault_neuron) for ident in members]

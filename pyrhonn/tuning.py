@@ -172,6 +172,16 @@ Parallel trials
 core releases the GIL while it runs, so long trajectories run in parallel.
 With ``n_jobs = 1`` a seed reproduces the search exactly; with more, the
 order in which trials finish, and so the search, depends on timing.
+
+``batch`` = B > 1 has each worker ask B trials at once and run their B
+configs in one call (:func:`pyrhonn.population.run_population_outcomes`:
+the tunings of one structure laid out across members, each member's run
+bit for bit its own ``Identifier.run``), then report the B scores. Every
+trial's score is exactly what it would be alone; the search differs from B
+= 1 as with ``n_jobs`` = B (TPE proposes B trials before seeing their
+scores, with ``constant_liar``), and a seed still reproduces it with
+``n_jobs = 1``. Structure search runs its trials one by one (each trial's
+terms are its own).
 """
 from __future__ import annotations
 
@@ -477,6 +487,37 @@ class _Problem:
         """The objective of ``config`` (one run serves every fold); :class:`TrialFailure` when it cannot be scored."""
         rows = self._run(config, self.folds[-1][1])
         return self._combine([self._fold_error(f, rows) for f in range(len(self.folds))])
+
+    def score_many(self, configs: Sequence[IdentifierConfig]) -> list[Score | TrialFailure]:
+        """:meth:`score` of several tunings of one structure, run in one population call;
+        each entry the config's Score or the TrialFailure ``score`` would raise for it."""
+        from .population import run_population_outcomes
+
+        end = self.folds[-1][1]
+        outcomes: list[Score | TrialFailure | None] = [None] * len(configs)
+        runnable: list[int] = []
+        for k, config in enumerate(configs):
+            if config.dtype != self.dtype:
+                raise fail("config.dtype", f"{config.dtype!r} differs from the problem's {self.dtype!r}")
+            try:
+                Identifier(config)
+            except ValueError as exc:
+                outcomes[k] = TrialFailure(f"config rejected: {exc}")
+            else:
+                runnable.append(k)
+        if runnable:
+            valid = None if self.valid is None else self.valid[:end]
+            runs = run_population_outcomes([configs[k] for k in runnable], self.X[:end], self.U[:end], valid)
+            for k, rows in zip(runnable, runs):
+                if isinstance(rows, IdentifierError):
+                    outcomes[k] = TrialFailure(f"identifier stopped: {rows}")
+                    continue
+                try:
+                    outcomes[k] = self._combine([self._fold_error(f, rows) for f in range(len(self.folds))])
+                except TrialFailure as exc:
+                    outcomes[k] = exc
+        assert all(o is not None for o in outcomes)
+        return outcomes  # type: ignore[return-value]
 
     def score_folds(self, configs: Sequence[IdentifierConfig]) -> Score:
         """The objective when fold f runs ``configs[f]`` (structure search: each fold's own selection)."""
@@ -1121,6 +1162,7 @@ def tune(
     folds: int = 1,
     n_trials: int = 50,
     n_jobs: int = 1,
+    batch: int = 1,
     seed: int = 0,
     per_neuron: bool = False,
     params: Sequence[str] = PARAMETERS,
@@ -1138,7 +1180,8 @@ def tune(
     ``X``, ``U``, ``valid`` and ``truth`` are as for :func:`held_out_score`;
     the runs use ``config.dtype``. Trials run until the study holds
     ``n_trials`` (>= 1) trials in all, those of earlier runs and of other
-    workers sharing the study included; ``n_jobs`` threads at a time;
+    workers sharing the study included; ``n_jobs`` threads at a time, each
+    running ``batch`` trials per call of the core (1..RHONN_MAX_POPULATION);
     ``progress``, if given, receives one line per finished trial. Bad
     arguments raise ``ValueError`` naming them, before any trial runs; a
     failing trial never raises.
@@ -1147,6 +1190,9 @@ def tune(
         raise fail("config", f"expected an IdentifierConfig, got {type(config).__name__}")
     n_trials = check_int("n_trials", n_trials, 1)
     n_jobs = check_int("n_jobs", n_jobs, 1)
+    from .population import max_population
+
+    batch = check_int("batch", batch, 1, max_population(config.dtype))
     seed = check_int("seed", seed, 0, 2**32 - 1)
     n_startup_trials = check_int("n_startup_trials", n_startup_trials, 0)
     if progress is not None and not callable(progress):
@@ -1203,8 +1249,9 @@ def tune(
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
             study.sampler = optuna.samplers.TPESampler(seed=(seed + runs) % 2**32, multivariate=True,
                                                        n_startup_trials=n_startup_trials,
-                                                       constant_liar=n_jobs > 1 or loc is not None)
-        ran = _run_trials(study, claim, problem, config, space, selector, structure, n_trials, n_jobs, progress)
+                                                       constant_liar=n_jobs > 1 or batch > 1 or loc is not None)
+        ran = _run_trials(study, claim, problem, config, space, selector, structure, n_trials, n_jobs,
+                          1 if selector is not None else batch, progress)
     except (json.JSONDecodeError, _storage_errors()) as exc:  # a journal cut short, a database gone mid-run
         raise _unusable(loc, exc) from None
     finally:
@@ -1259,7 +1306,7 @@ def _storage_errors() -> type[BaseException]:
 
 def _run_trials(study: Any, claim: _Claim, problem: _Problem, config: IdentifierConfig,
                 space: Sequence[Dimension], selector: _Selector | None, structure: StructureSearch | None,
-                n_trials: int, n_jobs: int, progress: Progress | None) -> int:
+                n_trials: int, n_jobs: int, batch: int, progress: Progress | None) -> int:
     """Run trials until the study holds ``n_trials``; returns how many this call ran.
 
     Each worker thread counts the study's trials (every state, those running
@@ -1274,23 +1321,30 @@ def _run_trials(study: Any, claim: _Claim, problem: _Problem, config: Identifier
 
     worker_name = f"{socket.gethostname()}:{os.getpid()}"
 
-    def objective(trial: Any) -> float:
+    def suggested(trial: Any) -> IdentifierConfig:
         trial.set_user_attr("worker", worker_name)
+        values = {d.name: trial.suggest_float(d.name, d.low, d.high, log=True) for d in space}
+        return apply_values(config, space, values)
+
+    def scored(trial: Any, score: Score) -> float:
+        trial.set_user_attr("rmse", score.rmse.tolist())
+        trial.set_user_attr("normalised_rmse", score.normalised.tolist())
+        if len(score.folds) > 1:
+            trial.set_user_attr("folds", list(score.folds))
+        return score.value
+
+    def objective(trial: Any) -> float:
         if selector is None:
-            values = {d.name: trial.suggest_float(d.name, d.low, d.high, log=True) for d in space}
-            score = problem.score(apply_values(config, space, values))
+            score = problem.score(suggested(trial))
         else:
+            trial.set_user_attr("worker", worker_name)
             assert structure is not None
             settings = {name: trial.suggest_int(name, lo, hi) for name, lo, hi in structure.dimensions()}
             values = {d.name: trial.suggest_float(d.name, d.low, d.high, log=True) for d in space}
             configs = [apply_factors(c, space, values) for c in selector.configs(settings)]
             trial.set_user_attr("terms", [sum(len(nr.terms) for nr in c.neurons) for c in configs])
             score = problem.score_folds(configs)
-        trial.set_user_attr("rmse", score.rmse.tolist())
-        trial.set_user_attr("normalised_rmse", score.normalised.tolist())
-        if len(score.folds) > 1:
-            trial.set_user_attr("folds", list(score.folds))
-        return score.value
+        return scored(trial, score)
 
     def claim_trial() -> Any:
         with claim:
@@ -1315,7 +1369,38 @@ def _run_trials(study: Any, claim: _Claim, problem: _Problem, config: Identifier
             best = "no scored trial yet"
         progress(f"trial {frozen.number} [{frozen.number + 1}/{n_trials}]: {what}; {best}")
 
+    def batch_worker() -> None:
+        """Ask up to ``batch`` trials, score their configs in one population call, tell each."""
+        while not stop.is_set():
+            trials = []
+            for _ in range(batch):
+                trial = claim_trial()
+                if trial is None:
+                    break
+                trials.append(trial)
+            if not trials:
+                return
+            told: list[Any] = []  # the trials told so far, in order: on an error the rest fail
+            try:
+                outcomes = problem.score_many([suggested(trial) for trial in trials])
+                for trial, outcome in zip(trials, outcomes):
+                    if isinstance(outcome, TrialFailure):
+                        trial.set_user_attr("failure", str(outcome))
+                        told.append(study.tell(trial, state=TrialState.PRUNED))
+                    else:
+                        told.append(study.tell(trial, scored(trial, outcome)))
+            except BaseException:
+                stop.set()
+                for trial in trials[len(told):]:
+                    study.tell(trial, state=TrialState.FAIL)
+                raise
+            for frozen in told:
+                report(frozen)
+
     def worker() -> None:
+        if batch > 1:
+            batch_worker()
+            return
         while not stop.is_set():
             trial = claim_trial()
             if trial is None:

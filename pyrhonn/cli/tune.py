@@ -34,7 +34,11 @@ file, recommended; ``.db``: SQLite, slower per trial) or a database URL
 machines share. ``--trials N`` is the number of trials the study holds when
 the command ends, counting those of earlier runs and of every worker sharing
 the study: two workers with ``--trials 20`` run 20 together, and running the
-same command again with a larger N resumes. ``--per-neuron`` searches one value per
+same command again with a larger N resumes. ``--batch B`` runs B trials per call of the
+C core, laid out across B identifiers of the same structure
+(:func:`pyrhonn.population.run_population_outcomes`): each score is exactly
+the trial's own, the throughput higher (TPE then proposes B trials at a
+time, as with ``--n-jobs B``). ``--per-neuron`` searches one value per
 neuron instead of one shared value; ``--params`` limits the searched
 parameters; ``--range NAME=LOW:HIGH`` (repeatable) replaces a default range.
 
@@ -94,6 +98,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"trials the study holds when done, counting earlier runs and every worker sharing "
                         f"--study: two workers with --trials 20 run 20 together (default {DEFAULT_TRIALS})")
     p.add_argument("--n-jobs", metavar="J", default="1", help="trials run in parallel threads (default 1)")
+    p.add_argument("--batch", metavar="B", default="1",
+                   help="trials per call of the C core, run across B identifiers at once (1..8, default 1; "
+                        "not with --structure)")
     p.add_argument("--study", metavar="FILE|URL",
                    help="optuna study to create, resume or share: a .log (optuna journal file, fast) or .db "
                         "(SQLite) file, or a database URL that workers on several machines share: "
@@ -222,6 +229,7 @@ def _int(option: str, text: str, low: int) -> int:
 class Options:
     trials: int
     n_jobs: int
+    batch: int
     seed: int
     train_fraction: float
     params: tuple[str, ...]
@@ -287,6 +295,13 @@ def _parse(args: argparse.Namespace) -> Options:
         raise ValueError(f"--train-fraction: must be between 0 and 1 (exclusive), got {args.train_fraction!r}")
     trials = _int("--trials", args.trials, 1)
     n_jobs = _int("--n-jobs", args.n_jobs, 1)
+    from ..population import max_population
+
+    batch = _int("--batch", args.batch, 1)
+    if batch > max_population():
+        raise ValueError(f"--batch: at most {max_population()} (RHONN_MAX_POPULATION), got {batch}")
+    if batch > 1 and args.structure:
+        raise ValueError("--batch: not with --structure (each trial selects its own terms, so its own structure)")
     seed = _int("--seed", args.seed, 0)
     if seed >= 2**32:
         raise ValueError(f"--seed: must be < 2**32, got {seed}")
@@ -328,7 +343,7 @@ def _parse(args: argparse.Namespace) -> Options:
             raise ValueError("--study and --out name the same file")
     if is_path(args.config) and Path(args.config).resolve() == out.resolve():
         raise ValueError("--out: would overwrite the base config --config; write the tuned config elsewhere")
-    return Options(trials, n_jobs, seed, fraction, params, ranges, dt, horizon, out, study, folds)
+    return Options(trials, n_jobs, batch, seed, fraction, params, ranges, dt, horizon, out, study, folds)
 
 
 # -- the trajectory -------------------------------------------------------------------------------------
@@ -524,7 +539,8 @@ def run(args: argparse.Namespace) -> int:
                  "a time" + (f", study {opts.study.shown}" if opts.study is not None else ""))
         result = tuning.tune(
             base, traj.X, traj.U, traj.valid, truth=traj.truth, train_fraction=opts.train_fraction,
-            folds=opts.folds, n_trials=opts.trials, n_jobs=opts.n_jobs, seed=opts.seed, per_neuron=args.per_neuron,
+            folds=opts.folds, n_trials=opts.trials, n_jobs=opts.n_jobs, batch=opts.batch, seed=opts.seed,
+            per_neuron=args.per_neuron,
             params=opts.params, ranges=opts.ranges or None, structure=structure, study_path=args.study,
             progress=progress)
     except ValueError as exc:
