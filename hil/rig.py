@@ -47,6 +47,7 @@ written as a whole, readable log marked ``partial`` in its sidecar, which
 """
 from __future__ import annotations
 
+import datetime
 import errno
 import gc
 import hashlib
@@ -451,13 +452,25 @@ class Rig:
 # -- logs ------------------------------------------------------------------------------------------
 
 
+class _ASCWriter(can.ASCWriter):
+    """python-can's ASC writer with the Triggerblock's milliseconds written as three digits.
+
+    Its own header writes ``dt.microsecond // 1000`` unpadded: a run that starts 53 ms into a
+    second gets ``...:52.53 2026``, which every reader (python-can's included) takes for 530 ms,
+    so every absolute frame time of the log is 477 ms late. CANoe and the readers expect the
+    three digits this writes."""
+
+    def _format_header_datetime(self, dt: datetime.datetime) -> str:
+        return dt.strftime(self.FORMAT_DATE.format(f"{dt.microsecond // 1000:03d}"))
+
+
 def _writer(path: Path, target: Path) -> can.io.generic.MessageWriter:
     """python-can's writer for ``path``'s format, writing to ``target``."""
     suffix = path.suffix.lower()
     if suffix == ".blf":
         return can.BLFWriter(target)
     if suffix == ".asc":
-        return can.ASCWriter(target)
+        return _ASCWriter(target)
     raise ValueError(f"log: {path.name}: expected a .blf or .asc file name")
 
 

@@ -76,6 +76,23 @@ def test_an_asc_log_starts_its_triggerblock_at_the_run_not_in_1970(tmp_path) -> 
     assert before - 1 <= ts[0] <= after and np.all(np.diff(ts) >= 0)
 
 
+@pytest.mark.parametrize("ms", [0, 7, 53, 530, 999])
+def test_an_asc_log_started_early_in_a_second_keeps_its_milliseconds(tmp_path, ms: int) -> None:
+    # python-can's own ASC header writes the milliseconds unpadded (53 ms as ".53", read back as
+    # 530 ms): every absolute frame time of such a log came out late by up to 0.9 s
+    import dataclasses
+
+    rec, before, _ = _run()
+    wall_ns = (int(before) - 5) * 1_000_000_000 + ms * 1_000_000 + 123_456
+    moved = dataclasses.replace(rec, meta={**rec.meta, "wall_time_ns": wall_ns})
+    path = write_log(moved, tmp_path / "run.asc")
+    block = re.search(r"^Begin Triggerblock \w+ (.+)$", path.read_text(), re.M).group(1)
+    assert f":{ms:03d} " in block.replace(".", ":")
+    ts = _times(can.ASCReader(path, relative_timestamp=False))
+    first = wall_ns / 1e9 + moved.events[0][0]
+    assert ts[0] == pytest.approx(first, abs=2e-6)
+
+
 @pytest.mark.parametrize("name, tol", [("run.blf", 1e-9), ("run.asc", 1e-6)])
 def test_the_relative_times_come_back_as_recorded(tmp_path, name, tol) -> None:
     rec, _, _ = _run()
