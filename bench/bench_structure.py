@@ -26,11 +26,19 @@ neurons), delays found (the estimated delay of each state, ``-`` where no
 delayed tap was chosen). For Example 1 the one-step RMSE of x4 is printed too.
 
 Cases: Example 1 (pyrhonn/plants/oscillator.py) at T = 0.2 s and 0.02 s,
-100 s; the LIM (pyrhonn/plants/lim.py, from 2 s, when its inputs switch on, to 4 s); and Example 2 of
-K. S. Narendra and K. Parthasarathy, "Identification and control of
-dynamical systems using neural networks", IEEE Trans. Neural Networks 1(1),
-1990: y(k+1) = y(k) y(k-1) (y(k) + 2.5) / (1 + y(k)^2 + y(k-1)^2) + u(k), u
-uniform in [-2, 2], simulated here.
+100 s; the robot (pyrhonn/plants/robot.py, the paper's 15 s at 0.01 s); the LIM
+(pyrhonn/plants/lim.py, from 2 s, when its inputs switch on, to 4 s); and two
+classic NARX benchmarks, simulated here:
+
+- Example 2 of K. S. Narendra and K. Parthasarathy, "Identification and
+  control of dynamical systems using neural networks", IEEE Trans. Neural
+  Networks 1(1), 1990: y(k+1) = y(k) y(k-1) (y(k) + 2.5) / (1 + y(k)^2 +
+  y(k-1)^2) + u(k), u uniform in [-2, 2];
+- the system of S. Chen, S. A. Billings and P. M. Grant, "Non-linear system
+  identification using neural networks", Int. J. Control 51(6), 1990:
+  y(k+1) = (0.8 - 0.5 exp(-y(k)^2)) y(k) - (0.3 + 0.9 exp(-y(k)^2)) y(k-1)
+  + u(k) + 0.2 u(k-1) + 0.1 u(k) u(k-1), u uniform in [-1, 1], noise-free:
+  an input read one sample back, so the candidates include u(k-1).
 
     pip install sysidentpy             # optional: the baseline (skipped cleanly without it)
     python bench/bench_structure.py            # all cases
@@ -48,7 +56,7 @@ from typing import Callable
 import numpy as np
 
 from pyrhonn import Activation, Identifier
-from pyrhonn.plants import lim, oscillator
+from pyrhonn.plants import lim, oscillator, robot
 from pyrhonn.simulation import simulate
 from pyrhonn.structure import CandidateSpace, select
 
@@ -79,6 +87,22 @@ def narendra(T: int = 4000, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     return y[:, None], U
 
 
+def chen_billings(T: int = 4000, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    U = rng.uniform(-1.0, 1.0, (T, 1))
+    y = np.zeros(T)
+    for k in range(1, T - 1):
+        g = np.exp(-y[k] ** 2)
+        y[k + 1] = ((0.8 - 0.5 * g) * y[k] - (0.3 + 0.9 * g) * y[k - 1] + U[k, 0] + 0.2 * U[k - 1, 0]
+                    + 0.1 * U[k, 0] * U[k - 1, 0])
+    return y[:, None], U
+
+
+def robot_data() -> tuple[np.ndarray, np.ndarray]:
+    tr = robot.simulate()
+    return tr.X, tr.U
+
+
 def example1(dt: float) -> Callable[[], tuple[np.ndarray, np.ndarray]]:
     def make() -> tuple[np.ndarray, np.ndarray]:
         tr = oscillator.simulate(dt=dt)
@@ -98,9 +122,12 @@ CASES = [
                                                            factors=("S", "x", "u", "1"), activations=BOTH)),
     Case("example1 T=0.02 s", example1(0.02), CandidateSpace(max_delay=60, delay_step=15, degree=2,
                                                              factors=("S", "x", "u", "1"), activations=BOTH)),
+    Case("robot", robot_data, CandidateSpace(max_delay=1, degree=2, factors=("S", "x", "u", "1"), activations=BOTH)),
     Case("LIM", lim_data, CandidateSpace(max_delay=1, degree=2, factors=("x", "u", "1"))),
     Case("Narendra-Parthasarathy ex. 2", narendra, CandidateSpace(max_delay=2, degree=3, factors=("S", "x", "u", "1"),
                                                                   activations=BOTH)),
+    Case("Chen-Billings-Grant", chen_billings, CandidateSpace(max_delay=1, degree=3, factors=("S", "x", "u", "1"),
+                                                              input_max_delay=1, activations=BOTH)),
 ]
 
 
@@ -135,7 +162,8 @@ def run_sysidentpy(case: Case, X: np.ndarray, U: np.ndarray, cut: int, first: in
     preds, frees, terms, seconds, delays = [], [], 0, 0.0, []
     for i in range(n):
         others = np.hstack([np.delete(X, i, axis=1), U])
-        xlag = [list(lags) for _ in range(n - 1)] + [[1] for _ in range(U.shape[1])]
+        ulags = list(range(1, case.space.input_max_delay + 2))  # our u(k-d) is NARX lag d+1
+        xlag = [list(lags) for _ in range(n - 1)] + [list(ulags) for _ in range(U.shape[1])]
         model = FROLS(order_selection=True, n_info_values=case.max_terms, ylag=list(lags),
                       xlag=xlag if len(xlag) > 1 else xlag[0], info_criteria="bic", estimator=LeastSquares(),
                       basis_function=Polynomial(degree=case.space.degree))
