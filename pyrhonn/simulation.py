@@ -41,7 +41,7 @@ from .identifier import Identifier
 from .metrics import rmse, rrse
 from .validation import check_int
 
-__all__ = ["Simulation", "simulate", "free_run", "steps_ahead", "scores"]
+__all__ = ["Scores", "Simulation", "simulate", "free_run", "steps_ahead", "scores"]
 
 
 @dataclass(frozen=True)

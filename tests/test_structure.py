@@ -4,6 +4,8 @@ written config loads and identifies, and every bad input is refused with a
 message naming the option, column or line."""
 from __future__ import annotations
 
+import json
+
 import csv
 from pathlib import Path
 
@@ -112,6 +114,14 @@ def test_cli_select_writes_a_config_that_identify_accepts(data, tmp_path: Path,
     out = capsys.readouterr().out
     assert "estimated delay per state: x1 -, x2 5" in out
     assert report.read_text().strip() in out
+    # the recovered model, its least-squares weights frozen, reproduces the plant one step ahead and
+    # fed its own predictions: the report says so per state, RMSE and RRSE
+    assert f"on the same data from sample {8 + 1} on:" in out
+    checked = json.loads((tmp_path / "sel.json").read_text())["validation"]
+    assert checked["from_sample"] == 9
+    for kind in ("one_step", "free_run"):
+        for name in ("x1", "x2"):
+            assert 0 <= checked[kind][name]["rrse"] < 1e-6 and 0 <= checked[kind][name]["rmse"] < 1e-6
     cf = load_config(cfg_path)
     assert {monomial(t) for t in cf.config.neurons[0].terms} == {monomial(t) for t in TRUTH[0]}
     assert main(["identify", str(csv_path), "--config", str(cfg_path), "--out", str(tmp_path / "id"),

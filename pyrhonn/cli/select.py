@@ -12,7 +12,11 @@ the columns named by ``--states`` and ``--inputs``; runs
 format of :mod:`pyrhonn.configfile`, which ``identify``, ``tune`` and
 ``export`` read) and prints the report: per neuron the terms in the order
 chosen with their error reduction ratios, and the estimated delay of each
-state. Every file is replaced whole (:mod:`pyrhonn.atomic`).
+state; then the selected model checked on the same data with its
+least-squares weights frozen: one step ahead and in free run (the network
+fed its own predictions from the first sample its taps can read on), RMSE
+and RRSE per state (:mod:`pyrhonn.simulation`). Every file is replaced whole
+(:mod:`pyrhonn.atomic`).
 """
 from __future__ import annotations
 
@@ -21,10 +25,14 @@ import json
 from contextlib import contextmanager
 from typing import Iterator
 
+import numpy as np
+
 from .. import atomic
 from ..config import DTYPES, Activation, Factor, IdentifierConfig
 from ..configfile import ConfigFile, dumps
-from ..datafile import check_suffix, read_data
+from ..datafile import Data, check_suffix, read_data
+from ..identifier import Identifier
+from ..simulation import Scores, scores, simulate
 from ..structure import FACTOR_NAMES, CandidateSpace, Criterion, Selection, select
 from .options import real_option
 
@@ -144,15 +152,53 @@ def run(args: argparse.Namespace) -> int:
         sel = select(data.X, data.U, data.valid, space=space, criterion=args.criterion, max_terms=max_terms,
                      holdout=holdout, state_names=states, input_names=inputs, first_line=data.lines)
         cf = sel.config_file(states, inputs, dtype=args.dtype, **tuning)
-    report = sel.report(states)
+    checked = _validation(cf.config, data, space.window + 1)
+    report = sel.report(states) + "\n" + _validation_text(checked, states, space.window + 1)
     atomic.write_text(args.out, dumps(cf))
     if args.report:
         atomic.write_text(args.report, report + "\n")
     if args.json:
-        atomic.write_text(args.json, json.dumps(_as_json(sel, states), indent=2) + "\n")
+        atomic.write_text(args.json, json.dumps({**_as_json(sel, states), "validation": {
+            "from_sample": space.window + 1, "weights": "least squares, frozen",
+            **{kind: {name: {"rmse": _number(sc.rmse[j]), "rrse": _number(sc.rrse[j])}
+                      for j, name in enumerate(states)} for kind, sc in checked.items()}}}, indent=2) + "\n")
     print(f"selected from {args.data}: {data.n_samples} samples; wrote {args.out}")
     print(report)
     return 0
+
+
+def _validation(config: IdentifierConfig, data: Data, start: int) -> dict[str, Scores]:
+    """One-step and free-run scores of ``config`` with its weights frozen over the data,
+    valid targets from sample ``start`` on (the first whose taps all read measured samples)."""
+    ident = Identifier(config)
+    ident.learning = False
+    X = np.where(data.valid, data.X, 0.0).astype(config.dtype)
+    U = data.U.astype(config.dtype)
+    start = min(start, data.n_samples - 1)
+    sim = simulate(ident, X, U if config.n_inputs else None, data.valid, free_run_from=start)
+    assert sim.free_run is not None
+    mask = data.valid.copy()
+    mask[:start] = False
+    return {"one_step": scores(data.X, sim.one_step.astype(np.float64), mask),
+            "free_run": scores(data.X, sim.free_run.astype(np.float64), mask)}
+
+
+def _validation_text(checked: dict[str, Scores], states: tuple[str, ...], start: int) -> str:
+    def cell(v: float) -> str:
+        return "diverged" if v == np.inf else "-" if np.isnan(v) else f"{v:.4g}"
+
+    width = max(5, *(len(s) for s in states))
+    lines = [f"the selected model, least-squares weights frozen, on the same data from sample {start} on:",
+             f"  {'state':<{width}}  {'one-step RMSE':>14}  {'RRSE':>9}  {'free-run RMSE':>14}  {'RRSE':>9}"]
+    one, free = checked["one_step"], checked["free_run"]
+    for j, name in enumerate(states):
+        lines.append(f"  {name:<{width}}  {cell(one.rmse[j]):>14}  {cell(one.rrse[j]):>9}  "
+                     f"{cell(free.rmse[j]):>14}  {cell(free.rrse[j]):>9}")
+    return "\n".join(lines)
+
+
+def _number(v: float) -> float | str | None:
+    return None if np.isnan(v) else "inf" if np.isinf(v) else float(v)
 
 
 def _as_json(sel: Selection, states: tuple[str, ...]) -> dict[str, object]:

@@ -436,7 +436,7 @@ def _report(result: tuning.TuneResult, cf: ConfigFile) -> str:
     names = cf.state_names
     width = max(5, *(len(n) for n in names))
     base, best = result.base, result.best
-    lines.append("held-out one-step-ahead RMSE (learning on), and RMSE / std of the held-out targets:")
+    lines.append("held-out one-step-ahead RMSE (learning on), and RMSE / std of the held-out targets (the RRSE):")
     lines.append(f"  {'state':<{width}}  {'std':>11}  {'RMSE base':>11}  {'RMSE tuned':>11}  "
                  f"{'norm. base':>11}  {'norm. tuned':>11}")
     for j, name in enumerate(names):
