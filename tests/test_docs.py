@@ -18,11 +18,12 @@ THIS_FILE = Path(__file__).resolve().relative_to(ROOT).as_posix()
 
 #: What a user must never see: developers' notes and their numbered sections,
 #: the project's own issue numbers (an upstream "optuna issue #4002" is fine),
-#: and absolute paths of a machine.
+#: and absolute paths of a machine. (Each pattern is written so that it does not
+#: match itself: a one-letter class breaks the literal, the meaning is the same.)
 FORBIDDEN = {
-    "developers' plant notes": r"shared/plants|plant notes|plants\.md §",
-    "an issue number": r"\bissue [0-9]",
-    "a machine path": r"/work/|/home/[A-Za-z0-9_.-]+|/root/|/Users/[A-Za-z0-9_.-]+|[A-Za-z]:\\Users\\",
+    "developers' plant notes": r"share[d]/plants|plant notes|plants\.md §",
+    "an issue number": r"\bissu[e] [0-9]",
+    "a machine path": r"/wor[k]/|/home/[A-Za-z0-9_.-]+|/root/|/Users/[A-Za-z0-9_.-]+|[A-Za-z]:\\Users\\",
 }
 ANCHOR_REF = re.compile(r"plants\.md#([A-Za-z0-9_-]+)")
 
@@ -59,9 +60,9 @@ def anchors(markdown: str) -> set[str]:
 
 def test_forbidden_patterns_catch_what_they_are_for():
     hits = {
-        "developers' plant notes": ["see /x/shared/plants.md", "the plant notes say", "plants.md §1.2"],
-        "an issue number": ["Issue 4's targets", "fixed in issue 12"],
-        "a machine path": ["/work/main/README.md", "/home/alice/x", "/root/.cache", "C:\\Users\\bob"],
+        "developers' plant notes": ["see /x/shared" "/plants.md", "the plant notes say", "plants.md §1.2"],
+        "an issue number": ["Issue" " 4's targets", "fixed in issue" " 12"],
+        "a machine path": ["/wor" "k/main/README.md", "/home/alice/x", "/root/.cache", "C:\\Users\\bob"],
     }
     for what, texts in hits.items():
         for text in texts:
