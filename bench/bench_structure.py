@@ -55,7 +55,7 @@ from typing import Callable
 
 import numpy as np
 
-from pyrhonn import Activation, Identifier
+from pyrhonn import Activation, Identifier, metrics
 from pyrhonn.plants import lim, oscillator, robot
 from pyrhonn.simulation import simulate
 from pyrhonn.structure import CandidateSpace, select
@@ -132,10 +132,8 @@ CASES = [
 
 
 def rrse(y: np.ndarray, yhat: np.ndarray) -> float:
-    """Mean over columns of sqrt(sum e^2 / sum (y - mean y)^2)."""
-    e = ((y - yhat) ** 2).sum(axis=0)
-    d = ((y - y.mean(axis=0)) ** 2).sum(axis=0)
-    return float(np.mean(np.sqrt(e / np.maximum(d, 1e-300))))
+    """Mean over the states of :func:`pyrhonn.metrics.rrse`."""
+    return float(np.mean(metrics.rrse(y, yhat)))
 
 
 def run_pyrhonn(case: Case, X: np.ndarray, U: np.ndarray, cut: int, first: int) -> dict[str, object]:
@@ -151,7 +149,7 @@ def run_pyrhonn(case: Case, X: np.ndarray, U: np.ndarray, cut: int, first: int) 
     return {"rrse": rrse(truth, pred), "free_rrse": free_rrse, "seconds": seconds,
             "terms": sum(len(n.terms) for n in sel.neurons),
             "delays": ["-" if d is None else d for d in sel.state_delays()],
-            "rmse": np.sqrt(((truth - pred) ** 2).mean(axis=0)).tolist()}
+            "rmse": metrics.rmse(truth, pred).tolist()}
 
 
 def run_sysidentpy(case: Case, X: np.ndarray, U: np.ndarray, cut: int, first: int) -> dict[str, object] | None:
@@ -184,14 +182,13 @@ def run_sysidentpy(case: Case, X: np.ndarray, U: np.ndarray, cut: int, first: in
     truth = X[first + 1:]
     free_rrse = rrse(truth, free) if np.all(np.isfinite(free)) else float("inf")
     return {"rrse": rrse(truth, pred), "free_rrse": free_rrse, "seconds": seconds, "terms": terms, "delays": delays,
-            "rmse": np.sqrt(((truth - pred) ** 2).mean(axis=0)).tolist()}
+            "rmse": metrics.rmse(truth, pred).tolist()}
 
 
 def example1_full_run(case: Case, paper: str) -> dict[str, list[float]]:
     """The paper's setting (Tables 1-4): Example 1, 100 s, terms selected on the whole run and the
     identifier run over it, learning online; the one-step RMSE and absolute deviation per state over
     every sample after the selection window, beside the paper's identifier figures."""
-    from pyrhonn.metrics import absolute_deviation
     from pyrhonn.reproduce import PAPER
 
     X, U = case.data()
@@ -200,8 +197,8 @@ def example1_full_run(case: Case, paper: str) -> dict[str, list[float]]:
     Xhat = Identifier(sel.config()).run(X, U)
     w = case.space.window + 1
     truth, est = X[w + 1:], Xhat[w:-1]
-    rmse = np.sqrt(((truth - est) ** 2).mean(axis=0))
-    ad = absolute_deviation(truth, est)
+    rmse = metrics.rmse(truth, est)
+    ad = metrics.absolute_deviation(truth, est)
     fig = PAPER[paper]
     print(f"{case.name}, 100 s, selected on the whole run, the identifier learning online: "
           + "; ".join(f"x{j + 1} RMSE {rmse[j]:.3g}"

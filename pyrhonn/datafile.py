@@ -40,6 +40,7 @@ import io
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
@@ -83,6 +84,24 @@ class Data:
     @property
     def n_samples(self) -> int:
         return int(self.X.shape[0])
+
+    def in_dtype(self, dtype: str, state_names: Sequence[str], input_names: Sequence[str],
+                 source: str) -> tuple[np.ndarray, np.ndarray]:
+        """``(X, U)`` in ``dtype`` (the core the identifier runs in); ValueError naming
+        the line and column of a measured value or input that overflows it."""
+        def convert(a: np.ndarray, names: Sequence[str], mask: np.ndarray | None) -> np.ndarray:
+            with np.errstate(over="ignore"):
+                out = a.astype(dtype)
+            bad = ~np.isfinite(out) & np.isfinite(a)
+            if mask is not None:
+                bad &= mask
+            if bad.any():
+                k, j = (int(i) for i in np.argwhere(bad)[0])
+                raise ValueError(f"{source}: line {int(self.lines[k])}, column {names[j]!r}: {float(a[k, j])!r} "
+                                 f"overflows {dtype} (--dtype {dtype})")
+            return out
+
+        return convert(self.X, state_names, self.valid), convert(self.U, input_names, None)
 
 
 def _records(text: str, source: str) -> list[tuple[int, list[str]]]:

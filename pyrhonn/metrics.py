@@ -35,11 +35,12 @@ Nothing is reshaped: pass a single state as ``x[:, None]``.
 """
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import numpy as np
 
-__all__ = ["absolute_deviation", "errors", "rmse", "rrse"]
+__all__ = ["absolute_deviation", "errors", "json_value", "rmse", "rrse"]
 
 _SQUARE_SAFE = 1e150  #: |e| up to this squares and sums without overflow (float64 max is 1.8e308)
 
@@ -117,3 +118,11 @@ def _scaled(metric: Callable[[np.ndarray], np.ndarray], e: np.ndarray) -> np.nda
         scale = np.where((peak > 0) & np.isfinite(peak), peak, 1.0)
         out = scale * metric(e / scale)
     return np.where(np.isfinite(peak), out, np.inf)
+
+
+def json_value(v: float) -> float | str | None:
+    """A metric as the reports' JSON writes it: None where nothing was scored
+    (NaN), the string "inf" where the model diverged (JSON has no infinity)."""
+    if math.isnan(v):
+        return None
+    return "inf" if math.isinf(v) else float(v)

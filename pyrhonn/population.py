@@ -25,7 +25,7 @@ import numpy as np
 from .config import IdentifierConfig
 from .identifier import Identifier, IdentifierError, _backend
 
-__all__ = ["max_population", "run_identifiers", "run_population", "run_population_outcomes"]
+__all__ = ["max_population", "run_identifiers", "run_identifiers_outcomes", "run_population"]
 
 _work = threading.local()  # one scratch per thread and dtype (it holds nothing between calls)
 
@@ -95,18 +95,6 @@ def run_population(configs: Sequence[IdentifierConfig], X: np.ndarray, U: np.nda
     return _run(members, X, U, valid, "configs")
 
 
-def run_population_outcomes(configs: Sequence[IdentifierConfig], X: np.ndarray, U: np.ndarray | None = None,
-                            valid: np.ndarray | None = None) -> list[np.ndarray | IdentifierError]:
-    """:func:`run_population`, with the outcome of each member instead of the
-    first failure: its (T, n) predictions, or the :class:`~pyrhonn.IdentifierError`
-    its own ``Identifier.run`` would raise (naming the sample; the members that
-    ran through are unaffected by it). For searches that score many tunings
-    of one structure and count the failing ones (``pyrhonn tune --batch``).
-    Bad arguments and configs still raise ``ValueError``."""
-    members = _members(configs)
-    return _run(members, X, U, valid, "configs", outcomes=True)
-
-
 def _members(configs: Sequence[IdentifierConfig]) -> list[Identifier]:
     if isinstance(configs, IdentifierConfig) or not isinstance(configs, Sequence):
         raise ValueError(f"configs: expected a sequence of IdentifierConfig, got {type(configs).__name__}")
@@ -131,6 +119,21 @@ def run_identifiers(identifiers: Sequence[Identifier], X: np.ndarray, U: np.ndar
     trajectory, each continuing from its current state, as
     ``[ident.run(X, U, valid) for ident in identifiers]`` would, bit for bit.
     On any error no identifier is changed (as ``Identifier.run``)."""
+    return _run(_identifiers(identifiers), X, U, valid, "identifiers")
+
+
+def run_identifiers_outcomes(identifiers: Sequence[Identifier], X: np.ndarray, U: np.ndarray | None = None,
+                             valid: np.ndarray | None = None) -> list[np.ndarray | IdentifierError]:
+    """:func:`run_identifiers`, with the outcome of each member instead of the
+    first failure: its (T, n) predictions, or the :class:`~pyrhonn.IdentifierError`
+    its own ``Identifier.run`` would raise (naming the sample; that identifier
+    is left as it was, the members that ran through are unaffected by it). For
+    searches that score many tunings of one structure and count the failing
+    ones (``pyrhonn tune --batch``). Bad arguments still raise ``ValueError``."""
+    return _run(_identifiers(identifiers), X, U, valid, "identifiers", outcomes=True)
+
+
+def _identifiers(identifiers: Sequence[Identifier]) -> list[Identifier]:
     if not isinstance(identifiers, Sequence) or not identifiers:
         raise ValueError("identifiers: expected a non-empty sequence of Identifier")
     for k, ident in enumerate(identifiers):
@@ -139,7 +142,7 @@ def run_identifiers(identifiers: Sequence[Identifier], X: np.ndarray, U: np.ndar
     if len({id(i) for i in identifiers}) != len(identifiers):
         raise ValueError("identifiers: the same Identifier is given twice (each member is its own state)")
     _check_members([i.config for i in identifiers], "identifiers")
-    return _run(list(identifiers), X, U, valid, "identifiers")
+    return list(identifiers)
 
 
 def _run(members: list[Identifier], X: np.ndarray, U: np.ndarray | None, valid: np.ndarray | None,
@@ -175,26 +178,21 @@ def _run(members: list[Identifier], X: np.ndarray, U: np.ndarray | None, valid: 
                 ffi.memmove(ident._net, s, ffi.sizeof("rhonn_t"))
             raise ValueError(f"{what}[{int(where.member)}]: structure differs from {what}[0] "
                              f"(rhonn_field {int(where.field)}, neuron {int(where.neuron)})")
-        if rc != lib.RHONN_OK and outcomes:
-            results: list[Any] = list(out)
-            for k in range(N):
-                if status[k] != lib.RHONN_OK:
-                    fault = int(members[k]._net.fault_neuron)
-                    ffi.memmove(members[k]._net, saved[k], ffi.sizeof("rhonn_t"))
-                    try:
-                        members[k]._raise_step_error(int(status[k]), Xc, Uc, Vc, int(done[k]), single=False,
-                                                     neuron=fault)
-                    except IdentifierError as exc:
-                        results[k] = exc
-            return results
-        if rc != lib.RHONN_OK:
-            k = next(i for i in range(N) if status[i] != lib.RHONN_OK)
-            faults = [int(ident._net.fault_neuron) for ident in members]
-            for s, ident in zip(saved, members):
-                ffi.memmove(ident._net, s, ffi.sizeof("rhonn_t"))
-            try:
-                members[k]._raise_step_error(int(status[k]), Xc, Uc, Vc, int(done[k]), single=False,
-                                             neuron=faults[k])
-            except IdentifierError as exc:
-                raise IdentifierError(exc.status, f"{what}[{k}]: {exc}", exc.sample) from None
-    return list(out)
+        if rc == lib.RHONN_OK:
+            return list(out)
+        # each stopped member's error, as its own run would raise it (read before any restore)
+        errors: dict[int, IdentifierError] = {}
+        for k in range(N):
+            if status[k] != lib.RHONN_OK:
+                try:
+                    members[k]._raise_step_error(int(status[k]), Xc, Uc, Vc, int(done[k]), single=False,
+                                                 neuron=int(members[k]._net.fault_neuron))
+                except IdentifierError as exc:
+                    errors[k] = exc
+        # outcomes: the stopped members as they were, the others on; else all as they were
+        for k in (errors if outcomes else range(N)):
+            ffi.memmove(members[k]._net, saved[k], ffi.sizeof("rhonn_t"))
+        if outcomes:
+            return [errors.get(k, out[k]) for k in range(N)]
+        k = min(errors)
+        raise IdentifierError(errors[k].status, f"{what}[{k}]: {errors[k]}", errors[k].sample)

@@ -174,7 +174,7 @@ With ``n_jobs = 1`` a seed reproduces the search exactly; with more, the
 order in which trials finish, and so the search, depends on timing.
 
 ``batch`` = B > 1 has each worker ask B trials at once and run their B
-configs in one call (:func:`pyrhonn.population.run_population_outcomes`:
+configs in one call (:func:`pyrhonn.population.run_identifiers_outcomes`:
 the tunings of one structure laid out across members, each member's run
 bit for bit its own ``Identifier.run``), then report the B scores. Every
 trial's score is exactly what it would be alone; the search differs from B
@@ -491,23 +491,21 @@ class _Problem:
     def score_many(self, configs: Sequence[IdentifierConfig]) -> list[Score | TrialFailure]:
         """:meth:`score` of several tunings of one structure, run in one population call;
         each entry the config's Score or the TrialFailure ``score`` would raise for it."""
-        from .population import run_population_outcomes
+        from .population import run_identifiers_outcomes
 
         end = self.folds[-1][1]
         outcomes: list[Score | TrialFailure | None] = [None] * len(configs)
-        runnable: list[int] = []
+        runnable: dict[int, Identifier] = {}
         for k, config in enumerate(configs):
             if config.dtype != self.dtype:
                 raise fail("config.dtype", f"{config.dtype!r} differs from the problem's {self.dtype!r}")
             try:
-                Identifier(config)
+                runnable[k] = Identifier(config)
             except ValueError as exc:
                 outcomes[k] = TrialFailure(f"config rejected: {exc}")
-            else:
-                runnable.append(k)
         if runnable:
             valid = None if self.valid is None else self.valid[:end]
-            runs = run_population_outcomes([configs[k] for k in runnable], self.X[:end], self.U[:end], valid)
+            runs = run_identifiers_outcomes(list(runnable.values()), self.X[:end], self.U[:end], valid)
             for k, rows in zip(runnable, runs):
                 if isinstance(rows, IdentifierError):
                     outcomes[k] = TrialFailure(f"identifier stopped: {rows}")

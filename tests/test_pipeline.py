@@ -79,6 +79,16 @@ def test_export_command_refuses_bad_options_naming_them(tmp_path: Path, capsys: 
     assert not list(tmp_path.glob("x*.h"))
 
 
+def test_export_names_the_line_of_a_value_the_firmware_precision_cannot_hold(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    data = tmp_path / "big.csv"
+    data.write_text("x1,x2,x3,x4,u\n1,1,1,1,0\n1,1e39,1,1,0\n")
+    assert main(["export", "--config", "example1", "--data", str(data), "--dtype", "float32", "--out",
+                 str(tmp_path / "e.h")]) == 2
+    err = capsys.readouterr().err
+    assert "line 3, column 'x2': 1e+39 overflows float32" in err and not (tmp_path / "e.h").exists()
+
+
 def test_export_command_writes_the_config_as_is_without_data(tmp_path: Path) -> None:
     assert main(["export", "--config", "firmware-lim", "--out", str(tmp_path / "lim.h"), "--dtype", "float32"]) == 0
     text = (tmp_path / "lim.h").read_text()

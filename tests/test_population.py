@@ -123,7 +123,7 @@ def test_a_member_that_stops_raises_naming_it_and_changes_nothing() -> None:
 
 
 def test_outcomes_give_each_member_its_run_or_its_own_error() -> None:
-    from pyrhonn.population import run_population_outcomes
+    from pyrhonn.population import run_identifiers_outcomes
 
     base = load_shipped("example1").config
     X, U, valid = trajectory(base, T=300, dropouts=False)
@@ -131,14 +131,17 @@ def test_outcomes_give_each_member_its_run_or_its_own_error() -> None:
     slow = base.replace(neurons=tuple(replace(nr, eta=0.5) for nr in base.neurons))
     with pytest.raises(IdentifierError) as alone:
         Identifier(bad).run(X, U, valid)
-    got = run_population_outcomes([base, bad, slow], X, U, valid)
+    members = [Identifier(base), Identifier(bad), Identifier(slow)]
+    before = state(members[1])
+    got = run_identifiers_outcomes(members, X, U, valid)
+    assert state(members[1]) == before  # the stopped member is as it was
     assert same_bits(got[0], Identifier(base).run(X, U, valid))
     assert same_bits(got[2], Identifier(slow).run(X, U, valid))
     assert isinstance(got[1], IdentifierError)
     assert str(got[1]) == str(alone.value) and got[1].sample == alone.value.sample
-    with pytest.raises(ValueError, match=r"configs\[1\]\.neurons\[0\]\.covariance: differs"):
-        run_population_outcomes([base, base.replace(neurons=(replace(base.neurons[0], covariance=CovarianceForm.UD),)
-                                                    + base.neurons[1:])], X, U, valid)
+    other = base.replace(neurons=(replace(base.neurons[0], covariance=CovarianceForm.UD),) + base.neurons[1:])
+    with pytest.raises(ValueError, match=r"identifiers\[1\]\.neurons\[0\]\.covariance: differs"):
+        run_identifiers_outcomes([Identifier(base), Identifier(other)], X, U, valid)
 
 
 def test_structures_that_differ_are_refused_naming_the_config_and_field() -> None:

@@ -356,13 +356,13 @@ def test_batched_trials_score_exactly_as_each_alone_and_count_the_failing_ones(
     import pyrhonn.population as population
 
     calls: list[int] = []
-    real = population.run_population_outcomes
+    real = population.run_identifiers_outcomes
 
-    def counted(configs, *args, **kwargs):  # type: ignore[no-untyped-def]
-        calls.append(len(configs))
-        return real(configs, *args, **kwargs)
+    def counted(identifiers, *args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(len(identifiers))
+        return real(identifiers, *args, **kwargs)
 
-    monkeypatch.setattr(population, "run_population_outcomes", counted)
+    monkeypatch.setattr(population, "run_identifiers_outcomes", counted)
     noisy = traj.remeasure(corruption=Corruption(dropout=0.1, seed=5))
     cfg = base.replace(dtype=dtype)
     # wide ranges: some trials diverge (eta >> 1, P0 beyond ~1e30) or, in float32, are refused (P0

@@ -70,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     if args.data is not None:
         check_suffix(args.valid_suffix)
         data = read_data(args.data, cf, valid_suffix=args.valid_suffix, config_source=args.config)
-        X, U = data.X.astype(cfg.dtype), data.U.astype(cfg.dtype)
+        X, U = data.in_dtype(cfg.dtype, cf.state_names, cf.input_names, args.data)
         try:
             ident.run(X, U if cfg.n_inputs else None, data.valid)
         except IdentifierError as exc:

@@ -77,7 +77,7 @@ from ..config import DTYPES, IdentifierConfig
 from ..configfile import ConfigFile, load_named
 from ..datafile import Data, TIME_COLUMN, check_suffix, read_data, write_data
 from ..identifier import Identifier, IdentifierError
-from ..metrics import absolute_deviation
+from ..metrics import absolute_deviation, json_value
 from ..simulation import Simulation, scores, simulate
 from . import bus_input
 
@@ -153,21 +153,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 # -- running ----------------------------------------------------------------------------------------
 
 
-def _to_dtype(a: np.ndarray, dtype: str, data: Data, names: Sequence[str], source: str,
-              mask: np.ndarray | None = None) -> np.ndarray:
-    """``a`` in ``dtype``; ValueError naming the line if a value overflows it."""
-    with np.errstate(over="ignore"):
-        out = a.astype(dtype)
-    bad = ~np.isfinite(out) & np.isfinite(a)
-    if mask is not None:
-        bad &= mask
-    if bad.any():
-        k, j = (int(i) for i in np.argwhere(bad)[0])
-        raise ValueError(f"{source}: line {int(data.lines[k])}, column {names[j]!r}: {float(a[k, j])!r} "
-                         f"overflows {dtype} (--dtype {dtype})")
-    return out
-
-
 def _run_identifier(cfg: IdentifierConfig, data: Data, cf: ConfigFile, source: str, config_source: str,
                     free_run_from: int | None, steps: int | None) -> Simulation:
     """The run's one-step (and free-run, k-step) predictions, aligned with the data rows."""
@@ -175,8 +160,7 @@ def _run_identifier(cfg: IdentifierConfig, data: Data, cf: ConfigFile, source: s
         ident = Identifier(cfg)
     except ValueError as exc:
         raise ValueError(f"{config_source}: {exc}") from None
-    X = _to_dtype(data.X, cfg.dtype, data, cf.state_names, source, data.valid)
-    U = _to_dtype(data.U, cfg.dtype, data, cf.input_names, source)
+    X, U = data.in_dtype(cfg.dtype, cf.state_names, cf.input_names, source)
     try:
         return simulate(ident, X, U, data.valid, free_run_from=free_run_from, steps=steps)
     except IdentifierError as exc:
@@ -199,13 +183,13 @@ def _section(data: Data, cf: ConfigFile, estimate: np.ndarray, mask: np.ndarray,
     sc = scores(data.X, estimate.astype(np.float64), mask)
     states: dict[str, Any] = {}
     for j, name in enumerate(cf.state_names):
-        entry: dict[str, Any] = {"rmse": _number(sc.rmse[j]), "rrse": _number(sc.rrse[j]),
+        entry: dict[str, Any] = {"rmse": json_value(sc.rmse[j]), "rrse": json_value(sc.rrse[j]),
                                  "scored": int(sc.scored[j])}
         if sc.missing[j]:
             entry["missing"] = int(sc.missing[j])
         if with_deviation:
             rows = mask[:, j]
-            entry["absolute_deviation"] = (_number(absolute_deviation(
+            entry["absolute_deviation"] = (json_value(absolute_deviation(
                 data.X[rows, j][:, None], estimate[rows, j][:, None].astype(np.float64))[0])
                 if rows.any() and not sc.missing[j] else None)
             entry["invalid_samples"] = int((~data.valid[:, j]).sum())
@@ -219,13 +203,6 @@ def _shown(v: float | str | None, spec: str = ".6g") -> str:
 
 def _count(k: int, noun: str) -> str:
     return f"{k} {noun}{'' if k == 1 else 's'}"
-
-
-def _number(v: float) -> float | str | None:
-    """A metric for JSON: None when nothing was scored (NaN), "inf" when the model diverged."""
-    if np.isnan(v):
-        return None
-    return "inf" if np.isinf(v) else float(v)
 
 
 def _write_predictions(path: Path, data: Data, cf: ConfigFile, sim: Simulation) -> None:

@@ -32,6 +32,7 @@ from ..config import DTYPES, Activation, Factor, IdentifierConfig
 from ..configfile import ConfigFile, dumps
 from ..datafile import Data, check_suffix, read_data
 from ..identifier import Identifier
+from ..metrics import json_value
 from ..simulation import Scores, scores, simulate
 from ..structure import FACTOR_NAMES, CandidateSpace, Criterion, Selection, select
 from .options import real_option
@@ -160,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         atomic.write_text(args.json, json.dumps({**_as_json(sel, states), "validation": {
             "from_sample": space.window + 1, "weights": "least squares, frozen",
-            **{kind: {name: {"rmse": _number(sc.rmse[j]), "rrse": _number(sc.rrse[j])}
+            **{kind: {name: {"rmse": json_value(sc.rmse[j]), "rrse": json_value(sc.rrse[j])}
                       for j, name in enumerate(states)} for kind, sc in checked.items()}}}, indent=2) + "\n")
     print(f"selected from {args.data}: {data.n_samples} samples; wrote {args.out}")
     print(report)
@@ -195,10 +196,6 @@ def _validation_text(checked: dict[str, Scores], states: tuple[str, ...], start:
         lines.append(f"  {name:<{width}}  {cell(one.rmse[j]):>14}  {cell(one.rrse[j]):>9}  "
                      f"{cell(free.rmse[j]):>14}  {cell(free.rrse[j]):>9}")
     return "\n".join(lines)
-
-
-def _number(v: float) -> float | str | None:
-    return None if np.isnan(v) else "inf" if np.isinf(v) else float(v)
 
 
 def _as_json(sel: Selection, states: tuple[str, ...]) -> dict[str, object]:

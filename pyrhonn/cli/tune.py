@@ -36,7 +36,7 @@ the command ends, counting those of earlier runs and of every worker sharing
 the study: two workers with ``--trials 20`` run 20 together, and running the
 same command again with a larger N resumes. ``--batch B`` runs B trials per call of the
 C core, laid out across B identifiers of the same structure
-(:func:`pyrhonn.population.run_population_outcomes`): each score is exactly
+(:func:`pyrhonn.population.run_identifiers_outcomes`): each score is exactly
 the trial's own, the throughput higher (TPE then proposes B trials at a
 time, as with ``--n-jobs B``). ``--per-neuron`` searches one value per
 neuron instead of one shared value; ``--params`` limits the searched
