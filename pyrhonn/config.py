@@ -57,7 +57,7 @@ class CovarianceForm(str, enum.Enum):
     """How the core stores and updates a neuron's P_i (``rhonn_covariance_form``)."""
 
     FULL = "full"  #: P_i itself, eq. 7 as written, positive definiteness checked after each update
-    UD = "ud"  #: P_i = U D U^T, Bierman's update then Thornton's for + Q: definite by construction
+    UD = "ud"  #: P_i = U D U^T, Bierman's update then Agee-Turner rank-one updates for + Q: definite by construction
 
     @property
     def code(self) -> int:

@@ -6,6 +6,7 @@ stretch; automatic recovery resets a neuron that keeps failing."""
 from __future__ import annotations
 
 from dataclasses import replace
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -253,3 +254,70 @@ def test_the_firmware_lim_position_neuron_runs_with_p0_100_and_r_1e_6_in_float32
     with pytest.raises(IdentifierError, match="RHONN_E_NOT_PD") as info:
         full.run(X, U)
     assert info.value.sample == 1  # the failing row, for a caller that skips it and goes on
+
+
+def exactly_definite(P: np.ndarray) -> bool:
+    """L D L^T of the stored matrix in exact rational arithmetic: every pivot > 0."""
+    L = P.shape[0]
+    a = [[Fraction(float(P[r, c])) for c in range(L)] for r in range(L)]
+    for j in range(L):
+        if a[j][j] <= 0:
+            return False
+        for r in range(j + 1, L):
+            f = a[r][j] / a[j][j]
+            for c in range(j + 1, L):
+                a[r][c] -= f * a[j][c]
+    return True
+
+
+def proven(ident: Identifier, i: int) -> bool:
+    """Does neuron i's committed full-form P carry the core's proof of exact definiteness?"""
+    net = ident._net
+    return bool(net.cert[i][net.bank[i]])
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+@settings(max_examples=15, deadline=None)
+@given(config=configs(), seed=st.integers(0, 2**31 - 1), data=st.data())
+def test_a_covariance_the_core_proves_definite_is_definite_in_exact_arithmetic(config: IdentifierConfig, seed: int,
+                                                                              data: st.DataObject,
+                                                                              dtype: str) -> None:
+    """The full form skips its O(L^3) factorisation when rounding-error
+    bounds prove the new P definite from the old one's proof; a proof that
+    does not hold in exact arithmetic would let an indefinite P through."""
+    q = data.draw(st.sampled_from([1e-2, 1e-4, 1e-7, 0.0]))
+    r = data.draw(st.sampled_from([1.0, 1e-3, 1e-6]))
+    config = with_neurons(config.replace(dtype=dtype), covariance=FULL, q=q, r=r)
+    ident = Identifier(config)
+    X, U, valid = trajectory(seed, 60, config.n_states, config.n_inputs, dropout=0.1, dtype=dtype)
+    for k in range(60):
+        try:
+            ident.step(X[k], U[k], valid[k])
+        except IdentifierError:
+            continue
+        if k % 6 == 5:
+            for i, P in enumerate(ident.covariances):
+                if proven(ident, i):
+                    assert exactly_definite(P), f"P_{i} after step {k}"
+
+
+def test_the_firmware_full_form_neurons_prove_their_covariance_without_factorising_on_the_rig_data() -> None:
+    """firmware-lim's four full-form neurons (Q = 1e-3 I) on the LIM
+    trajectory in float32: after their first update, the proof carries on
+    from step to step, so the M4 runs the O(L) bound instead of the O(L^3)
+    factorisation; a covariance set from outside starts without a proof."""
+    config = load_shipped("firmware-lim").config
+    full = [i for i, nr in enumerate(config.neurons) if nr.covariance is FULL]
+    assert len(full) == 4
+    ident = Identifier(config)
+    X, U = moving_lim(400)
+    carried = 0
+    for k in range(400):
+        ident.step(X[k], U[k])
+        carried += sum(proven(ident, i) for i in full)
+    assert carried >= 0.95 * 4 * 399
+    i = full[0]
+    ident.set_covariance(i, ident.get_covariance(i))
+    assert not proven(ident, i)
+    ident.step(X[0], U[0])
+    assert proven(ident, i)  # the shifted factorisation proves it again

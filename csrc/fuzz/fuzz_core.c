@@ -21,6 +21,9 @@
  *     eigenvalue clearly below zero; see cholesky_ok), or every factor d_j
  *     is a positive finite number and U is finite (U D U^T form, definite by
  *     construction);
+ *   - a full-form P_i the core marks as proven definite in exact arithmetic
+ *     (rhonn_t.cert, which lets it skip the factorisation) passes a long
+ *     double factorisation with no allowance at all;
  *   - every learning update the step committed used an innovation variance
  *     s_i = R_i + z^T P_i z >= R_i (read back from the health record as
  *     e_i^2 / (e_i^2 / s_i));
@@ -223,6 +226,40 @@ static int cholesky_ok(const rhonn_real *p, size_t L)
     return 1;
 }
 
+/* A Cholesky factorisation in long double, without any allowance: for a
+ * covariance the core marks as proven definite in exact arithmetic
+ * (rhonn_t.cert), whose smallest eigenvalue the proof puts far above the
+ * rounding of a 64-bit-mantissa factorisation. 0 when a pivot is not
+ * positive. */
+static int exactly_definite(const rhonn_real *p, size_t L)
+{
+    long double a[RHONN_MAX_TERMS][RHONN_MAX_TERMS];
+    size_t i, j, k, idx = 0;
+    for (i = 0; i < L; ++i) {
+        for (j = i; j < L; ++j, ++idx) {
+            a[i][j] = a[j][i] = (long double)p[idx];
+        }
+    }
+    for (j = 0; j < L; ++j) {
+        long double d = a[j][j];
+        for (k = 0; k < j; ++k) {
+            d -= a[j][k] * a[j][k] / a[k][k];
+        }
+        if (!(d > 0)) {
+            return 0;
+        }
+        a[j][j] = d; /* L D L^T: a[k][k] holds d_k, a[i][k] holds l_ik d_k */
+        for (i = j + 1u; i < L; ++i) {
+            long double v = a[i][j];
+            for (k = 0; k < j; ++k) {
+                v -= a[i][k] * a[j][k] / a[k][k];
+            }
+            a[i][j] = v;
+        }
+    }
+    return 1;
+}
+
 static void check_invariants(const rhonn_t *net, const uint32_t *updates_before)
 {
     const long double eps = sizeof(rhonn_real) == 4 ? 1.2e-7L : 2.3e-16L;
@@ -247,6 +284,8 @@ static void check_invariants(const rhonn_t *net, const uint32_t *updates_before)
             }
         } else if (!cholesky_ok(p, L)) {
             abort(); /* a committed full P that is not positive definite */
+        } else if (net->cert[i][net->bank[i]] && !exactly_definite(p, L)) {
+            abort(); /* a P the core calls proven definite that is not */
         }
         /* the update this step committed used s = R + z^T P z >= R:
          * s = e^2 / (e^2 / s) from the health record, to a few ulps */

@@ -24,20 +24,26 @@
  * stores P_i itself and runs eq. 7 as written. RHONN_COV_UD stores the factors
  * of P_i = U D U^T (U unit upper triangular, D diagonal > 0) and runs the same
  * filter as Bierman's scalar measurement update (the eq. 7-8 correction, with
- * K_i = P_i z_i M_i from the factors) followed by Thornton's modified weighted
- * Gram-Schmidt for + Q_i: the same filter in exact arithmetic, but every d_j
- * stays a positive number in floating point, so P_i cannot lose definiteness
- * through rounding (the conventional update can in float32 when R_i is small
- * against z^T P z and the regressors are nearly collinear). It costs about
- * (2/3) L^3 multiply-adds and 2 L divisions per neuron and step against 2 L^2
- * and 1 for the full form. RHONN_WITH_UD=0 compiles it out (configs asking
- * for it are then refused).
+ * K_i = P_i z_i M_i from the factors) followed by + Q_i as L_i rank-one
+ * updates (Agee and Turner): the same filter in exact arithmetic, but every
+ * d_j stays a positive number in floating point, so P_i cannot lose
+ * definiteness through rounding (the conventional update can in float32 when
+ * R_i is small against z^T P z and the regressors are nearly collinear). It
+ * costs about L^3 / 3 multiply-adds and L (L + 3) / 2 divisions per neuron and
+ * step against 2 L^2 and 1 for the full form (no + Q work when Q_i = 0).
+ * RHONN_WITH_UD=0 compiles it out (configs asking for it are then refused).
  * Whatever the form, a learning update whose P_i(k+1) is not positive
  * definite at working precision (a pivot of its U D U^T factorisation is not
  * a positive finite number) or whose innovation variance s_i = R_i + z^T P_i z
  * is below R_i is not committed: the step returns RHONN_E_NOT_PD or
  * RHONN_E_INNOVATION. After every RHONN_OK, each P_i is positive definite.
- *
+ * The full form usually proves it without the O(L^3) factorisation: when the
+ * old P_i was proven definite in exact arithmetic (initially by a shifted
+ * factorisation), rounding-error bounds of the update, O(L) to evaluate,
+ * show the new one is too whenever Q_i's smallest entry dominates them (no
+ * forgetting, no trace bound that step). Only when they do not is the new
+ * P_i factorised. The verdict is the factorisation's in every case.
+
  * WINDUP PROTECTION (per neuron, all off when zero, so eq. 7 stays exact):
  *   forgetting   lambda in (0, 1]: P_i <- (P_i - K_i z^T P_i) / lambda + Q_i
  *                (exponential forgetting of old information; 0 means 1)
@@ -135,7 +141,7 @@ typedef enum {
 /* How a neuron stores and updates P_i (see COVARIANCE FORM above). */
 typedef enum {
     RHONN_COV_FULL = 0,   /* P_i itself, eq. 7 as written, positive definiteness checked */
-    RHONN_COV_UD = 1      /* P_i = U D U^T, Bierman + Thornton: definite by construction */
+    RHONN_COV_UD = 1      /* P_i = U D U^T, Bierman + Agee-Turner: definite by construction */
 } rhonn_covariance_form;
 
 /* Activation S(.) of one neuron. */
@@ -250,6 +256,11 @@ typedef struct {
     uint8_t bank[RHONN_MAX_STATES];
     rhonn_real w[RHONN_MAX_STATES][2][RHONN_MAX_TERMS];
     rhonn_real p[RHONN_MAX_STATES][2][RHONN_MAX_PACKED];
+    /* cert[i][b]: bank b's full-form P_i is proven positive definite in
+     * exact arithmetic (not only at working precision), which lets the next
+     * update certify its result in O(L_i) instead of factorising it. 0
+     * whenever P_i is written from outside the update (reset, set). */
+    uint8_t cert[RHONN_MAX_STATES][2];
 
     /* Regressor z(k-1) that produced xhat(k), double-buffered by zbank. */
     uint8_t zbank;
@@ -260,7 +271,8 @@ typedef struct {
      * x_j(k-d)^p, S(x_j(k-d))^p, u_j(k-d)^p or 1 is an entry, read from
      * offset entry_off of the sample d back and raised to entry_power once
      * per step; term t of neuron i is the product of the entries
-     * term_entry[i][t][0..n_factors). */
+     * term_entry[i][t][0..n_factors), its other slots RHONN_MAX_ENTRIES
+     * (the constant 1 of the step's entry values). */
     uint16_t n_entries;
     uint8_t max_delay;              /* deepest tap the configuration reads */
     /* Step 1's own-state rule: neuron i reads its own state x_i down to

@@ -15,7 +15,7 @@
  * those rhonn_run would give on that member alone (build the core with
  * -ffp-contract=off, as always). What differs is the layout: the members'
  * learning state and EKF arithmetic (eq. 7-8 with the positive definiteness
- * check for RHONN_COV_FULL, Bierman and Thornton for RHONN_COV_UD, the
+ * check for RHONN_COV_FULL, Bierman and Agee-Turner for RHONN_COV_UD, the
  * prediction of eq. 3) are kept structure-of-arrays in the caller's
  * workspace, member innermost, so one operation is done for every member
  * at once (a vector of the compiler's, or a loop it may vectorise; see
@@ -92,9 +92,8 @@ typedef struct {
     rhonn_real sc[RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
     rhonn_real tk[RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
     rhonn_real dk[RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
-    rhonn_real uw[RHONN_MAX_PACKED][RHONN_MAX_POPULATION];    /* U D U^T form: [U~ | I] */
-    rhonn_real uq[RHONN_MAX_PACKED][RHONN_MAX_POPULATION];
-    rhonn_real ua[6][RHONN_MAX_TERMS][RHONN_MAX_POPULATION];  /* f, v, b, d~, and two rows */
+    rhonn_real uw[RHONN_MAX_PACKED][RHONN_MAX_POPULATION];    /* U D U^T form: U~ */
+    rhonn_real ua[5][RHONN_MAX_TERMS][RHONN_MAX_POPULATION];  /* f, v, b, d~, a */
     /* the regressor */
     rhonn_real cur[RHONN_MAX_POPULATION][RHONN_SAMPLE_LEN];
     rhonn_real fv[RHONN_MAX_ENTRIES];

@@ -54,6 +54,13 @@
 /* RHONN_WITH_UD=1 (the default) builds the factored covariance update
  * (RHONN_COV_UD); 0 leaves it out for the smallest code, and a config that
  * asks for it is refused as RHONN_FIELD_COVARIANCE. */
+/* RHONN_CERTIFY=0 (tests) always factorises a full-form P: CTest holds it
+ * to the default build, which proves most covariances without factorising,
+ * and requires the same verdict and the same bits. */
+#ifndef RHONN_CERTIFY
+#define RHONN_CERTIFY 1
+#endif
+
 #ifndef RHONN_WITH_UD
 #define RHONN_WITH_UD 1
 #endif
@@ -415,6 +422,15 @@ static void compile_terms(rhonn_t *net)
                 if (delay > net->max_delay) {
                     net->max_delay = delay;
                 }
+                if (f + 1u == cfg->neurons[i].terms[t].n_factors) {
+                    /* the unused factor slots read the step's constant 1
+                     * (index RHONN_MAX_ENTRIES): x * 1 is x exactly, and the
+                     * product needs no per-term factor count */
+                    size_t pad;
+                    for (pad = f + 1u; pad < (size_t)RHONN_MAX_FACTORS; ++pad) {
+                        net->term_entry[i][t][pad] = (uint16_t)RHONN_MAX_ENTRIES;
+                    }
+                }
                 if ((fa->kind == (uint8_t)RHONN_FACTOR_S || fa->kind == (uint8_t)RHONN_FACTOR_X) &&
                     fa->index == i && delay >= net->own_need[i]) {
                     net->own_need[i] = (uint8_t)(delay + 1u);
@@ -510,6 +526,8 @@ rhonn_status rhonn_reset(rhonn_t *net)
             net->p[i][0][t] = R(0.0);
             net->p[i][1][t] = R(0.0);
         }
+        net->cert[i][0] = 0;
+        net->cert[i][1] = 0;
         if (i < n) {
             load_p0(net, i, net->p[i][0]);
         }
@@ -612,9 +630,10 @@ static size_t row_start(size_t r, size_t L)
  * is read, so C is never stored. Returns 1 when every pivot d_j is a
  * positive finite number, else 0 with F partly written. About L^3/6
  * multiply-adds and L divisions; the row offsets are tabulated once so the
- * inner loops are plain strided dot products. */
+ * inner loops are plain strided dot products. shift is subtracted from each
+ * diagonal entry of C (Rump's shifted factorisation; 0 for the plain one). */
 RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, const rhonn_real *RHONN_RESTRICT sc,
-                            rhonn_real *RHONN_RESTRICT F, const size_t L)
+                            rhonn_real *RHONN_RESTRICT F, const size_t L, const rhonn_real shift)
 {
     rhonn_real t[RHONN_MAX_TERMS], d[RHONN_MAX_TERMS];
     size_t rs[RHONN_MAX_TERMS];
@@ -628,7 +647,7 @@ RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, const rhonn_real
     for (j = L; j-- > 0u;) {
         const rhonn_real *RHONN_RESTRICT uj = F + rs[j] + 1u; /* U(j, j+1..L-1) */
         const size_t tail = L - 1u - j;
-        rhonn_real dj = (P[rs[j]] * sc[j]) * sc[j], inv;
+        rhonn_real dj = (P[rs[j]] * sc[j]) * sc[j] - shift, inv; /* x - 0 is x, bit for bit */
         size_t i, k;
         /* t_k = d_k U(j,k) for the columns k > j already factorised */
         RHONN_UNROLL_LOOP
@@ -658,26 +677,41 @@ RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, const rhonn_real
     return 1;
 }
 
+/* floor(e / 2) for v = m 2^e, m in [1, 2), from the bits (e = -127 or
+ * -1023 for 0 and the subnormals). */
+static int half_exponent(rhonn_real v)
+{
+    int e;
+#ifdef RHONN_SINGLE
+    union { float f; uint32_t u; } b;
+    b.f = v;
+    e = (int)((b.u >> 23) & 0xFFu) - 127;
+#else
+    union { double f; uint64_t u; } b;
+    b.f = v;
+    e = (int)((b.u >> 52) & 0x7FFu) - 1023;
+#endif
+    return e >= 0 ? e / 2 : -((1 - e) / 2);
+}
+
+/* 2^k built from its bits, for 2^k in the normal range. */
+static rhonn_real pow2(int k)
+{
+#ifdef RHONN_SINGLE
+    union { float f; uint32_t u; } b;
+    b.u = (uint32_t)(127 + k) << 23;
+#else
+    union { double f; uint64_t u; } b;
+    b.u = (uint64_t)(1023 + k) << 52;
+#endif
+    return b.f;
+}
+
 /* 2^-h with h = floor(e / 2) for v = m 2^e, m in [1, 2): v times its
  * square is in [1, 4). Built from the bits, so scaling by it is exact. */
 static rhonn_real half_exponent_scale(rhonn_real v)
 {
-#ifdef RHONN_SINGLE
-    union { float f; uint32_t u; } b;
-    int e, h;
-    b.f = v;
-    e = (int)((b.u >> 23) & 0xFFu) - 127;
-    h = e >= 0 ? e / 2 : -((1 - e) / 2);
-    b.u = (uint32_t)(127 - h) << 23;
-#else
-    union { double f; uint64_t u; } b;
-    int e, h;
-    b.f = v;
-    e = (int)((b.u >> 52) & 0x7FFu) - 1023;
-    h = e >= 0 ? e / 2 : -((1 - e) / 2);
-    b.u = (uint64_t)(1023 - h) << 52;
-#endif
-    return b.f;
+    return pow2(-half_exponent(v));
 }
 
 /* Is the packed symmetric P positive definite at working precision: does
@@ -688,15 +722,17 @@ static rhonn_real half_exponent_scale(rhonn_real v)
  *
  * This is a working-precision verdict, as any floating-point Cholesky test:
  * a nearly singular P passes or fails by a few ulps, and one indefinite by
- * less than its own rounding can pass. A certificate (Rump's shifted
- * Cholesky, or a pivot margin) would refuse the covariances an ordinary
+ * less than its own rounding can pass. Refusing those too (Rump's shifted
+ * factorisation as the verdict) would refuse the covariances an ordinary
  * float32 filter reaches with a small R: at rest, 15 updates of
  * firmware-lim's velocity neuron leave eigenvalues near eps of the diagonal.
  * Where that matters, the U D U^T form keeps P definite by construction.
+ * The shifted factorisation serves instead to prove a P definite in exact
+ * arithmetic (shifted_check), which the next update builds on.
  * A diagonal below the normal range is refused: such a P is singular at
  * this precision. */
 RHONN_INLINE int scaled_udu(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHONN_RESTRICT F,
-                            rhonn_real *RHONN_RESTRICT sc, const size_t L)
+                            rhonn_real *RHONN_RESTRICT sc, const size_t L, const rhonn_real shift)
 {
     size_t i, idx;
     for (i = 0, idx = 0; i < L; idx += L - i, ++i) {
@@ -706,14 +742,126 @@ RHONN_INLINE int scaled_udu(const rhonn_real *RHONN_RESTRICT P, rhonn_real *RHON
         }
         sc[i] = half_exponent_scale(v);
     }
-    return udu_factor(P, sc, F, L);
+    return udu_factor(P, sc, F, L, shift);
 }
 
 RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L)
 {
     rhonn_real F[RHONN_MAX_PACKED], sc[RHONN_MAX_TERMS];
-    return scaled_udu(P, F, sc, L);
+    return scaled_udu(P, F, sc, L, R(0.0));
 }
+
+#if RHONN_CERTIFY
+/* An upper bound on sqrt(v), v >= 0 finite, within a factor 2: 2^(h + 1)
+ * with h = floor(e / 2) (sqrt(m 2^e) < 2^(e/2 + 1/2)); integer work only,
+ * no libm and no division. */
+static rhonn_real sqrt_bound(rhonn_real v)
+{
+    return pow2(half_exponent(v) + 1);
+}
+
+/* Rounding-error constants: the unit roundoff u = eps / 2 and
+ * gamma_k = k u / (1 - k u) <= 1.01 k u (k u is below 1e-5 for any
+ * capacity here). */
+#define RHONN_UNIT (RHONN_EPSILON * R(0.5))
+static rhonn_real gamma_of(size_t k)
+{
+    return R(1.01) * (rhonn_real)k * RHONN_UNIT;
+}
+
+/* Is P positive definite in exact arithmetic, with room to spare? The
+ * factorisation of C - alpha I, C = S P S scaled to a diagonal in [1, 4),
+ * alpha = 17 L gamma_{L+1}. Its computed factors are those of
+ * C - alpha I + dC, |dC| <= gamma_{L+1} |U| D |U|^T (Higham, Accuracy and
+ * Stability, Thm 10.3), whose 2-norm is at most 4.04 L gamma_{L+1} here; the
+ * shift rounds by at most 4u. Success therefore proves
+ * lambda_min(C) > 12.9 L gamma_{L+1}: P is definite, and above Demmel's
+ * bound (Higham Thm 10.7: lambda_min of the unit-diagonal scaling above
+ * L gamma_{L+1} / (1 - L gamma_{L+1}), at most 4.04 L gamma_{L+1} for C)
+ * under which the plain factorisation of pd_check always succeeds. So a P
+ * this accepts, pd_check accepts too: the verdict does not change. */
+RHONN_INLINE int shifted_check(const rhonn_real *RHONN_RESTRICT P, const size_t L)
+{
+    rhonn_real F[RHONN_MAX_PACKED], sc[RHONN_MAX_TERMS];
+    return scaled_udu(P, F, sc, L, R(17.0) * (rhonn_real)L * gamma_of(L + 1u));
+}
+
+/* |v| by clearing the sign bit: no compare and branch. */
+static rhonn_real abs_of(rhonn_real v)
+{
+#ifdef RHONN_SINGLE
+    union { float f; uint32_t u; } b;
+    b.f = v;
+    b.u &= 0x7FFFFFFFUL;
+#else
+    union { double f; uint64_t u; } b;
+    b.f = v;
+    b.u &= 0x7FFFFFFFFFFFFFFFULL;
+#endif
+    return b.f;
+}
+
+/* The certificate of a full-form update (eq. 7 without forgetting or trace
+ * bound) whose old P is definite in exact arithmetic (cert): O(L) work that
+ * proves the new P definite and accepted by pd_check, so the O(L^3)
+ * factorisation is skipped. Returns 0 (not proven: factorise) whenever a
+ * bound is out of reach, never a wrong 1.
+ *
+ * P' = P - v v^T / s + Q as computed, v = fl(P z), s = fl(R + z^T v). With
+ * M = P - v v^T / s_e, s_e = R + z^T v exactly, P' = M + Q + E:
+ *  - lambda_min(M) >= -2 |delta|^2 / (R + z^T delta) for v = P z + delta,
+ *    P definite (Cauchy-Schwarz in P's inner product, then the best split
+ *    of (y^T P z + y^T delta)^2); |delta| <= gamma_L |P| |z| and, P being
+ *    definite, |P_rc| <= sqrt(P_rr P_cc), so with
+ *    w = sum_c sqrt(P_cc) |z_c|: |delta|^2 <= gamma_L^2 tr(P) w^2 and
+ *    z^T delta >= -gamma_L w^2;
+ *  - |E| (2-norm) <= (3 rho + 8u) |v|^2 / s + 2u (tr(P) + max_r P'_rr),
+ *    rho = gamma_{L+1} (R + |z|^T |v|) / s the relative error of s: the
+ *    roundings of 1 / s, k_r = v_r / s, k_r v_c, the subtraction and + q,
+ *    with |P|_F <= tr(P);
+ * so lambda_min(P') >= q_min - eta - |E|. Accepted when twice
+ * (eta + |E| + Demmel's bound 1.01 L gamma_{L+1} max P'_rr) is at most
+ * q_min: P' is definite with lambda_min >= q_min / 2, and pd_check (every
+ * diagonal above q_min / 2 >= the normal range) would accept it. The factor
+ * 2 also covers the rounding of these bounds themselves (1 / s is the
+ * rounded inv_s), and sqrt_bound stands in for sqrt. Overflow or NaN
+ * anywhere fails a comparison, and every entry of P' is finite, at most
+ * (tr(P) + |v|^2 / s)(1 + u) off the diagonal, which is bounded here; the
+ * diagonal's largest is pmax. */
+RHONN_INLINE int certified_update(const rhonn_real *RHONN_RESTRICT P, const rhonn_real *RHONN_RESTRICT z,
+                                  const rhonn_real *RHONN_RESTRICT v, const rhonn_real inv_s,
+                                  const rhonn_real *RHONN_RESTRICT Pn, const rhonn_neuron_config *nc,
+                                  const size_t L)
+{
+    const rhonn_real gl = gamma_of(L), g1 = gamma_of(L + 1u);
+    rhonn_real tr = R(0.0), w = R(0.0), vv = R(0.0), zv = R(0.0), pmax = R(0.0), qmin = nc->q[0];
+    rhonn_real r_low, eta, rho, err, vs;
+    size_t r, idx;
+    RHONN_UNROLL_LOOP
+    for (r = 0, idx = 0; r < L; idx += L - r, ++r) {
+        const rhonn_real az = abs_of(z[r]);
+        tr += P[idx];
+        w += sqrt_bound(P[idx]) * az;
+        vv += v[r] * v[r];
+        zv += az * abs_of(v[r]);
+        pmax = Pn[idx] > pmax ? Pn[idx] : pmax;
+        qmin = nc->q[r] < qmin ? nc->q[r] : qmin;
+    }
+    if (!(qmin >= R(2.0) * RHONN_MIN_NORMAL)) {
+        return 0;
+    }
+    r_low = nc->r - gl * (w * w);
+    rho = g1 * (nc->r + zv) * inv_s;
+    vs = vv * inv_s;
+    if (!(r_low > R(0.0)) || !(rho <= R(0.25)) || !(tr + vs <= RHONN_MAX_REAL * R(0.25)) ||
+        !(pmax <= RHONN_MAX_REAL)) {
+        return 0;
+    }
+    eta = R(2.0) * (gl * gl) * (tr * (w * w)) / r_low;
+    err = (R(3.0) * rho + R(8.0) * RHONN_UNIT) * vs + R(2.0) * RHONN_UNIT * (tr + pmax);
+    return R(2.0) * (eta + err + R(1.01) * (rhonn_real)L * g1 * pmax) <= qmin;
+}
+#endif
 
 #if RHONN_WITH_UD
 /* The U D U^T factors of P itself, from those of the scaled C = S P S that
@@ -725,7 +873,7 @@ static int udu_of(const rhonn_real *P, rhonn_real *F, size_t L)
 {
     rhonn_real sc[RHONN_MAX_TERMS];
     size_t i, j;
-    if (!scaled_udu(P, F, sc, L)) {
+    if (!scaled_udu(P, F, sc, L, R(0.0))) {
         return 0;
     }
     for (j = 0; j < L; ++j) {
@@ -882,6 +1030,21 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
     if (nc->p_trace_max > R(0.0)) {
         bound_trace(Pn, L, nc->p_trace_max, bounded);
     }
+    /* The committed P must be definite. Proven in O(L) from the old P's
+     * proof when it has one; else by the shifted factorisation, which also
+     * gives the new P its proof; else only at working precision (pd_check).
+     * Every path accepts exactly the P that pd_check accepts. */
+#if RHONN_CERTIFY
+    if (net->cert[i][b] && inv_lambda == R(0.0) && !*bounded && certified_update(P, z, pz, inv_s, Pn, nc, L)) {
+        net->cert[i][b ^ 1u] = 1u;
+        return RHONN_OK;
+    }
+    if (shifted_check(Pn, L)) {
+        net->cert[i][b ^ 1u] = 1u;
+        return RHONN_OK;
+    }
+#endif
+    net->cert[i][b ^ 1u] = 0u;
     if (!pd_check(Pn, L)) {
         /* which way it failed, off the hot path */
         return neuron_fault(net, i, any_nonfinite(Pn, packed_size(L)) ? RHONN_E_COVARIANCE : RHONN_E_NOT_PD);
@@ -890,6 +1053,18 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
 }
 
 #if RHONN_WITH_UD
+/* Is neuron nc's Q all zero (nothing to add)? */
+static int zero_q(const rhonn_neuron_config *nc, size_t L)
+{
+    size_t j;
+    for (j = 0; j < L; ++j) {
+        if (nc->q[j] != R(0.0)) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
 /* eq. 7-8 for a RHONN_COV_UD neuron: P = U D U^T is stored as its factors
  * (D on the packed diagonal, U beside it).
  *
@@ -898,9 +1073,16 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
  * d_j = d_j a_{j-1} / a_j stays in (0, d_j]; U(k,j) += -f_j / a_{j-1} b_k
  * with b accumulating P z, so the gain K = b / s is that of eq. 7.
  *
- * Then / lambda (D / lambda) and + Q (Thornton's modified weighted
- * Gram-Schmidt on the rows of [U | I] weighted by [D, diag(Q)]): each new
- * d_j is a weighted sum of squares containing d_j * 1, hence positive. */
+ * Then / lambda (D / lambda) and + Q as L rank-one updates
+ * P + q_J e_J e_J^T (Agee and Turner; Bierman, Factorization Methods for
+ * Discrete Sequential Estimation, 1977), each from column J back to column
+ * 0, the columns right of J being untouched: with a = e_J and c = q_J,
+ * column j takes p = a_j, d~_j = d_j + c p^2, b = c p / d~_j,
+ * c <- c d_j / d~_j, then a_i -= p U(i,j) and U(i,j) += b a_i for i < j.
+ * c >= 0 makes every d~_j >= d_j > 0: definite by construction, in about
+ * L^3 / 3 multiply-adds and L (L + 1) / 2 divisions, half the work of a
+ * Gram-Schmidt re-factorisation of [U | I] (Thornton's). A neuron whose Q is
+ * all zero skips it. */
 RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
                                   uint8_t *bounded, const size_t L)
 {
@@ -910,13 +1092,13 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
     rhonn_real *RHONN_RESTRICT Fn = net->p[i][bk ^ 1u];
     const rhonn_real *RHONN_RESTRICT w = net->w[i][bk];
     rhonn_real *RHONN_RESTRICT wn = net->w[i][bk ^ 1u];
-    rhonn_real wu[RHONN_MAX_PACKED], wq[RHONN_MAX_PACKED];
+    rhonn_real wu[RHONN_MAX_PACKED];
     rhonn_real f[RHONN_MAX_TERMS], v[RHONN_MAX_TERMS], b[RHONN_MAX_TERMS], dt[RHONN_MAX_TERMS];
-    rhonn_real cu[RHONN_MAX_TERMS], cq[RHONN_MAX_TERMS];
+    rhonn_real a[RHONN_MAX_TERMS];
     size_t rs[RHONN_MAX_TERMS];
     rhonn_real alpha, alpha_new, inv, inv_prev, s, gain;
     const rhonn_real inv_lambda = inverse_forgetting(nc);
-    size_t j, k, c;
+    size_t j, k, at;
 
     rs[0] = 0;
     for (j = 0; j + 1u < L; ++j) {
@@ -942,10 +1124,11 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
         alpha_new = alpha + f[j] * v[j];
         inv = R(1.0) / alpha_new;
         dt[j] = F[rs[j]] * (alpha * inv);
-            for (k = 0; k < j; ++k) {
-            const size_t idx = rs[k] + (j - k);
-            const rhonn_real ukj = F[idx];
-            wu[idx] = ukj + lam * b[k];
+        /* column j of U walks the packed rows: U(k,j) then U(k+1,j) sits
+         * L - 1 - k entries further (row k + 1 is one shorter) */
+        for (k = 0, at = j; k < j; at += L - 1u - k, ++k) {
+            const rhonn_real ukj = F[at];
+            wu[at] = ukj + lam * b[k];
             b[k] += ukj * v[j];
         }
         wu[rs[j]] = R(1.0);
@@ -970,34 +1153,44 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
             dt[j] *= inv_lambda;
         }
     }
-    /* + Q: rows of W = [U~ | I] in wu and wq (both upper triangular), from the
-     * last row up; row j is final once the rows below it are processed. */
+    /* The measurement's factors into the new bank, then + Q in place. */
     for (j = 0; j < L; ++j) {
-            for (c = 0; c < L - j; ++c) {
-            wq[rs[j] + c] = c == 0u ? R(1.0) : R(0.0);
+        Fn[rs[j]] = dt[j];
+        for (k = 0; k < j; ++k) {
+            Fn[rs[k] + (j - k)] = wu[rs[k] + (j - k)];
         }
     }
-    for (j = L; j-- > 0u;) {
-        const size_t rj = rs[j], len = L - j;
-        rhonn_real dj;
-            for (c = 0; c < len; ++c) {
-            cu[c] = dt[j + c] * wu[rj + c];
-            cq[c] = nc->q[j + c] * wq[rj + c];
-        }
-        dj = dot(&wu[rj], cu, len) + dot(&wq[rj], cq, len);
-        if (!(dj > R(0.0)) || !is_finite(dj)) {
-            return neuron_fault(net, i, RHONN_E_NOT_PD);
-        }
-        Fn[rj] = dj;
-        inv = R(1.0) / dj;
-            for (k = 0; k < j; ++k) {
-            const size_t at = rs[k] + (j - k);
-            const rhonn_real ukj = (dot(&wu[at], cu, len) + dot(&wq[at], cq, len)) * inv;
-            Fn[at] = ukj;
-                    for (c = 0; c < len; ++c) {
-                wu[at + c] -= ukj * wu[rj + c];
-                wq[at + c] -= ukj * wq[rj + c];
+    if (!zero_q(nc, L)) {
+        size_t J;
+        for (J = 0; J < L; ++J) {
+            /* column J: p = a_J = 1, and a_i = -U(i,J) */
+            rhonn_real c = nc->q[J];
+            rhonn_real dj = Fn[rs[J]], dn = dj + c, inv_dn = R(1.0) / dn, bj = c * inv_dn;
+            c = (c * dj) * inv_dn;
+            Fn[rs[J]] = dn;
+            for (k = 0, at = J; k < J; at += L - 1u - k, ++k) {
+                a[k] = -Fn[at];
+                Fn[at] += bj * a[k];
             }
+            /* the columns left of it */
+            for (j = J; j-- > 0u;) {
+                const rhonn_real p = a[j];
+                dj = Fn[rs[j]];
+                dn = dj + c * (p * p);
+                inv_dn = R(1.0) / dn;
+                bj = (c * p) * inv_dn;
+                c = (c * dj) * inv_dn;
+                Fn[rs[j]] = dn;
+                for (k = 0, at = j; k < j; at += L - 1u - k, ++k) {
+                    a[k] -= p * Fn[at];
+                    Fn[at] += bj * a[k];
+                }
+            }
+        }
+    }
+    for (j = 0; j < L; ++j) {
+        if (!(Fn[rs[j]] > R(0.0))) { /* a d~_j that underflowed */
+            return neuron_fault(net, i, RHONN_E_NOT_PD);
         }
     }
     if (nc->p_trace_max > R(0.0)) {
@@ -1245,7 +1438,7 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
                                  const uint8_t *valid, rhonn_real *xhat_next)
 {
     rhonn_real cur[RHONN_SAMPLE_LEN];                      /* this sample, effective */
-    rhonn_real fv[RHONN_MAX_ENTRIES];                      /* the entries' values */
+    rhonn_real fv[RHONN_MAX_ENTRIES + 1];                  /* the entries' values, then 1 */
     rhonn_real xnew[RHONN_MAX_STATES];
     uint8_t updated[RHONN_MAX_STATES];
     rhonn_real innov[RHONN_MAX_STATES], nis[RHONN_MAX_STATES];
@@ -1289,6 +1482,7 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
                         net->w[i][nb][t] = net->w[i][net->bank[i]][t];
                     }
                     load_p0(net, i, net->p[i][nb]);
+                    net->cert[i][nb] = 0;
                 }
                 bounded[i] = 0;
                 recovered[i] = 1;
@@ -1299,6 +1493,7 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
 
     /* 2-3. This sample and the entries' values. */
     features(net, x, u, valid, cur, fv);
+    fv[RHONN_MAX_ENTRIES] = R(1.0);
 
     /* 4. z(k) (eq. 4) and xhat(k+1) = w(k+1)^T z(k) (eq. 3). */
     zb_new = (uint8_t)(net->zbank ^ 1u);
@@ -1311,11 +1506,11 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
 
         for (t = 0; t < L; ++t) {
             const uint16_t *te = net->term_entry[i][t];
-            const size_t nf = nc->terms[t].n_factors;
             rhonn_real prod = fv[te[0]];
             size_t f;
-            for (f = 1; f < nf; ++f) {
-                prod *= fv[te[f]];
+            RHONN_UNROLL_LOOP
+            for (f = 1; f < (size_t)RHONN_MAX_FACTORS; ++f) {
+                prod *= fv[te[f]]; /* 1 past the term's own factors */
             }
             z[t] = prod;
             acc += w[t] * prod;
@@ -1543,6 +1738,7 @@ rhonn_status rhonn_set_covariance(rhonn_t *net, size_t neuron, const rhonn_real 
     }
 #endif
     copy_reals(net->p[neuron][net->bank[neuron]], p, len);
+    net->cert[neuron][net->bank[neuron]] = 0;
     return RHONN_OK;
 }
 

@@ -572,41 +572,22 @@ POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L
     }
     verdicts(wk, Pn, packed, out_s, tmp, out_wsum, out_ok, NULL);
 }
-/* Thornton's step for a row of [U~ | I] at offset at of the triangle:
- * dot(wu[at..], cu) + dot(wq[at..], cq) over len entries, each dot with
- * rhonn.c's two accumulators, into out. */
-POP_ALWAYS_INLINE void row_dots(rhonn_population_work *wk, size_t at, size_t len, rhonn_real *out)
-{
-    const rhonn_real *wu = &wk->uw[0][0], *wq = &wk->uq[0][0], *cu = &wk->ua[4][0][0], *cq = &wk->ua[5][0][0];
-    lanev s0 = VC(wk->zeros, 0), s1 = s0, t0 = s0, t1 = s0;
-    size_t c;
-    for (c = 0; c + 1u < len; c += 2u) {
-        s0 += VC(wu, at + c) * VC(cu, c);
-        s1 += VC(wu, at + c + 1u) * VC(cu, c + 1u);
-        t0 += VC(wq, at + c) * VC(cq, c);
-        t1 += VC(wq, at + c + 1u) * VC(cq, c + 1u);
-    }
-    if (c < len) {
-        s0 += VC(wu, at + c) * VC(cu, c);
-        t0 += VC(wq, at + c) * VC(cq, c);
-    }
-    V(out, 0) = (s0 + s1) + (t0 + t1);
-}
-
 /* The U D U^T form (rhonn.c ekf_ud), every member at once, operation for
  * operation. Measurement (Bierman): f = U^T z, v = D f, a_0 = R,
  * a_j = a_{j-1} + f_j v_j, d_j a_{j-1} / a_j, U(k,j) + (-f_j / a_{j-1}) b_k,
- * the gain b / s; then D / lambda and + Q by Thornton's modified weighted
- * Gram-Schmidt on the rows of [U | I] weighted by [D, diag(Q)]. */
+ * the gain b / s; then D / lambda and + Q by Agee and Turner's rank-one
+ * updates P + q_J e_J e_J^T. */
 POP_CLONES static void ud_kernel(rhonn_population_work *wk, size_t i, size_t L)
 {
     const rhonn_real *F = &wk->p[wk->pb[i]][i][0][0];
     rhonn_real *Fn = &wk->p[wk->pb[i] ^ 1u][i][0][0];
     const rhonn_real *z = &wk->z[wk->zb][i][0][0];
     const rhonn_real *q = &wk->q[i][0][0];
-    rhonn_real *wu = &wk->uw[0][0], *wq = &wk->uq[0][0];
+    rhonn_real *wu = &wk->uw[0][0];
     rhonn_real *f = &wk->ua[0][0][0], *v = &wk->ua[1][0][0], *b = &wk->ua[2][0][0], *dt = &wk->ua[3][0][0];
-    rhonn_real *cu = &wk->ua[4][0][0], *cq = &wk->ua[5][0][0];
+    rhonn_real *a = &wk->ua[4][0][0];
+    uint8_t zero_q[RHONN_MAX_POPULATION];
+    int any_q;
     const lanev rr = VC(wk->r[i], 0), ilam = VC(wk->inv_lambda[i], 0);
     const lanev zero = VC(wk->zeros, 0);
     const lanev one = zero + R(1.0);
@@ -658,39 +639,67 @@ POP_CLONES static void ud_kernel(rhonn_population_work *wk, size_t i, size_t L)
     for (j = 0; j < L; ++j) {
         V(dt, j) *= ilam;
     }
-    /* + Q: rows of W = [U~ | I] in wu and wq, from the last row up */
+    /* The measurement's factors into the new bank, then + Q in place by
+     * rank-one updates (rhonn.c ekf_ud, operation for operation). rhonn.c
+     * skips them for a neuron whose Q is all zero: here they run unless
+     * every member's Q is zero, and a member with a zero Q gets the
+     * measurement's factors back afterwards. */
     for (j = 0; j < L; ++j) {
-        for (c = 0; c < L - j; ++c) {
-            V(wq, rs[j] + c) = c == 0u ? one : zero;
+        V(Fn, rs[j]) = V(dt, j);
+        for (k = 0; k < j; ++k) {
+            V(Fn, rs[k] + (j - k)) = V(wu, rs[k] + (j - k));
+        }
+    }
+    any_q = 0;
+    for (m = 0; m < NPOP; ++m) {
+        zero_q[m] = 1;
+        for (j = 0; j < L; ++j) {
+            zero_q[m] = (uint8_t)(zero_q[m] && q[j * NPOP + m] == R(0.0));
+        }
+        any_q |= !zero_q[m];
+    }
+    if (any_q) {
+        size_t J;
+        for (J = 0; J < L; ++J) {
+            lanev cw = VC(q, J), dj = V(Fn, rs[J]), dn = dj + cw, inv_dn = one / dn, bj = cw * inv_dn;
+            cw = (cw * dj) * inv_dn;
+            V(Fn, rs[J]) = dn;
+            for (k = 0; k < J; ++k) {
+                V(a, k) = -V(Fn, rs[k] + (J - k));
+                V(Fn, rs[k] + (J - k)) += bj * V(a, k);
+            }
+            for (j = J; j-- > 0u;) {
+                const lanev p = V(a, j);
+                dj = V(Fn, rs[j]);
+                dn = dj + cw * (p * p);
+                inv_dn = one / dn;
+                bj = (cw * p) * inv_dn;
+                cw = (cw * dj) * inv_dn;
+                V(Fn, rs[j]) = dn;
+                for (k = 0; k < j; ++k) {
+                    V(a, k) -= p * V(Fn, rs[k] + (j - k));
+                    V(Fn, rs[k] + (j - k)) += bj * V(a, k);
+                }
+            }
+        }
+        for (m = 0; m < NPOP; ++m) {
+            if (zero_q[m]) {
+                for (j = 0; j < L; ++j) {
+                    Fn[rs[j] * NPOP + m] = dt[j * NPOP + m];
+                    for (k = 0; k < j; ++k) {
+                        Fn[(rs[k] + (j - k)) * NPOP + m] = wu[(rs[k] + (j - k)) * NPOP + m];
+                    }
+                }
+            }
         }
     }
     for (m = 0; m < NPOP; ++m) {
         out_ok[m] = R(1.0);
     }
-    for (j = L; j-- > 0u;) {
-        const size_t rj = rs[j], len = L - j;
-        lanev dj, inv;
-        for (c = 0; c < len; ++c) {
-            V(cu, c) = V(dt, j + c) * V(wu, rj + c);
-            V(cq, c) = VC(q, j + c) * V(wq, rj + c);
-        }
-        row_dots(wk, rj, len, tmp);
-        dj = VC(tmp, 0);
+    for (j = 0; j < L; ++j) {
         for (m = 0; m < NPOP; ++m) {
-            out_ok[m] = tmp[m] > R(0.0) && tmp[m] <= RHONN_MAX_REAL ? out_ok[m] : R(0.0);
-        }
-        V(Fn, rj) = dj;
-        inv = one / dj;
-        for (k = 0; k < j; ++k) {
-            const size_t at = rs[k] + (j - k);
-            lanev ukj;
-            row_dots(wk, at, len, tmp);
-            ukj = VC(tmp, 0) * inv;
-            V(Fn, at) = ukj;
-            for (c = 0; c < len; ++c) {
-                V(wu, at + c) -= ukj * V(wu, rj + c);
-                V(wq, at + c) -= ukj * V(wq, rj + c);
-            }
+            /* rhonn.c: a d~_j that underflowed */
+            out_ok[m] = Fn[rs[j] * NPOP + m] > R(0.0) ? out_ok[m] : R(0.0);
         }
     }
     /* The trace ceiling: trace(U D U^T) = sum_j d_j (1 + sum_{i<j} U(i,j)^2);
@@ -842,6 +851,11 @@ static void store_lane(const rhonn_population_work *wk, rhonn_t *net, size_t m)
         for (t = 0; t < L * (L + 1u) / 2u; ++t) {
             net->p[i][b][t] = wk->p[wk->pb[i]][i][t][m];
         }
+        /* The lanes keep no exact-definiteness proofs (rhonn_t.cert): the
+         * member's next update proves its P afresh. Its verdicts are the
+         * same either way. */
+        net->cert[i][0] = 0;
+        net->cert[i][1] = 0;
     }
 }
 
