@@ -1053,6 +1053,15 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
 }
 
 #if RHONN_WITH_UD
+/* The U D U^T kernel's loops are unrolled where every size it runs at is a
+ * compile-time constant (RHONN_UNROLL with RHONN_MAX_TERMS <= 8, e.g. the
+ * firmware's build): a runtime-L copy unrolled 16 times is all guards. */
+#if RHONN_UNROLL && RHONN_MAX_TERMS <= 8
+#define RHONN_UD_UNROLL_LOOP RHONN_UNROLL_LOOP
+#else
+#define RHONN_UD_UNROLL_LOOP
+#endif
+
 /* Is neuron nc's Q all zero (nothing to add)? */
 static int zero_q(const rhonn_neuron_config *nc, size_t L)
 {
@@ -1101,24 +1110,30 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
     size_t j, k, at;
 
     rs[0] = 0;
+    RHONN_UD_UNROLL_LOOP
     for (j = 0; j + 1u < L; ++j) {
         rs[j + 1u] = rs[j] + (L - j);
     }
     /* f = U^T z (U unit upper triangular), v = D f */
+    RHONN_UD_UNROLL_LOOP
     for (j = 0; j < L; ++j) {
         f[j] = z[j];
     }
+    RHONN_UD_UNROLL_LOOP
     for (k = 0; k < L; ++k) {
-            for (j = k + 1u; j < L; ++j) {
+        RHONN_UD_UNROLL_LOOP
+        for (j = k + 1u; j < L; ++j) {
             f[j] += F[rs[k] + (j - k)] * z[k];
         }
     }
+    RHONN_UD_UNROLL_LOOP
     for (j = 0; j < L; ++j) {
         v[j] = F[rs[j]] * f[j];
     }
     /* Bierman's update, column by column; wu receives U~ with a unit diagonal */
     alpha = nc->r;
     inv_prev = R(0.0);
+    RHONN_UD_UNROLL_LOOP
     for (j = 0; j < L; ++j) {
         const rhonn_real lam = -f[j] * inv_prev;
         alpha_new = alpha + f[j] * v[j];
@@ -1126,6 +1141,7 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
         dt[j] = F[rs[j]] * (alpha * inv);
         /* column j of U walks the packed rows: U(k,j) then U(k+1,j) sits
          * L - 1 - k entries further (row k + 1 is one shorter) */
+        RHONN_UD_UNROLL_LOOP
         for (k = 0, at = j; k < j; at += L - 1u - k, ++k) {
             const rhonn_real ukj = F[at];
             wu[at] = ukj + lam * b[k];
@@ -1142,6 +1158,7 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
     }
     *nis = e * (e * inv_prev);
     gain = nc->eta * e * inv_prev;
+    RHONN_UD_UNROLL_LOOP
     for (j = 0; j < L; ++j) {
         wn[j] = w[j] + gain * b[j];
     }
@@ -1149,45 +1166,53 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
         return neuron_fault(net, i, RHONN_E_DIVERGED);
     }
     if (inv_lambda > R(0.0)) {
-            for (j = 0; j < L; ++j) {
+        RHONN_UD_UNROLL_LOOP
+        for (j = 0; j < L; ++j) {
             dt[j] *= inv_lambda;
         }
     }
     /* The measurement's factors into the new bank, then + Q in place. */
+    RHONN_UD_UNROLL_LOOP
     for (j = 0; j < L; ++j) {
         Fn[rs[j]] = dt[j];
+        RHONN_UD_UNROLL_LOOP
         for (k = 0; k < j; ++k) {
             Fn[rs[k] + (j - k)] = wu[rs[k] + (j - k)];
         }
     }
     if (!zero_q(nc, L)) {
-        size_t J;
+        size_t J, jp;
+        RHONN_UD_UNROLL_LOOP
         for (J = 0; J < L; ++J) {
             /* column J: p = a_J = 1, and a_i = -U(i,J) */
             rhonn_real c = nc->q[J];
             rhonn_real dj = Fn[rs[J]], dn = dj + c, inv_dn = R(1.0) / dn, bj = c * inv_dn;
             c = (c * dj) * inv_dn;
             Fn[rs[J]] = dn;
+            RHONN_UD_UNROLL_LOOP
             for (k = 0, at = J; k < J; at += L - 1u - k, ++k) {
                 a[k] = -Fn[at];
                 Fn[at] += bj * a[k];
             }
             /* the columns left of it */
-            for (j = J; j-- > 0u;) {
-                const rhonn_real p = a[j];
-                dj = Fn[rs[j]];
+            RHONN_UD_UNROLL_LOOP
+            for (jp = J; jp > 0u; --jp) {
+                const rhonn_real p = a[jp - 1u];
+                dj = Fn[rs[jp - 1u]];
                 dn = dj + c * (p * p);
                 inv_dn = R(1.0) / dn;
                 bj = (c * p) * inv_dn;
                 c = (c * dj) * inv_dn;
-                Fn[rs[j]] = dn;
-                for (k = 0, at = j; k < j; at += L - 1u - k, ++k) {
+                Fn[rs[jp - 1u]] = dn;
+                RHONN_UD_UNROLL_LOOP
+                for (k = 0, at = jp - 1u; k + 1u < jp; at += L - 1u - k, ++k) {
                     a[k] -= p * Fn[at];
                     Fn[at] += bj * a[k];
                 }
             }
         }
     }
+    RHONN_UD_UNROLL_LOOP
     for (j = 0; j < L; ++j) {
         if (!(Fn[rs[j]] > R(0.0))) { /* a d~_j that underflowed */
             return neuron_fault(net, i, RHONN_E_NOT_PD);
@@ -1197,6 +1222,7 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
         const rhonn_real tr = ud_trace(Fn, L);
         if (tr > nc->p_trace_max) {
             const rhonn_real scale = nc->p_trace_max / tr;
+            RHONN_UD_UNROLL_LOOP
             for (j = 0; j < L; ++j) {
                 Fn[rs[j]] *= scale;
                 if (!(Fn[rs[j]] > R(0.0))) { /* scaled into underflow */
@@ -1212,11 +1238,16 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
     return RHONN_OK;
 }
 
+#if !RHONN_UNROLL || RHONN_MAX_TERMS > 8
+/* The kernel for a runtime L: the generic build's, and the unrolled one's
+ * above its specialised sizes (up to L = 8: where loop overhead dominates,
+ * at a bounded code size). */
 static rhonn_status ekf_ud_generic(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
                                    uint8_t *bounded, size_t L)
 {
     return ekf_ud(net, i, e, z, nis, bounded, L);
 }
+#endif
 #endif
 
 #define RHONN_KERNEL(n) ekf_kernel(net, i, e, z, nis, bounded, n)
@@ -1236,20 +1267,45 @@ static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn
 {
     const size_t L = CFG(net)->neurons[i].n_terms;
 #if RHONN_WITH_UD
-    /* The factored form is the robust one, not the fast one: specialised
-     * for the small neurons where loop overhead would dominate, one
-     * generic kernel above (its O(L^3) work is the cost there). */
+    /* As the full form: one specialised kernel per size up to 8 in the
+     * unrolled build (see RHONN_UNROLL), the loop-based one otherwise. */
     if (CFG(net)->neurons[i].covariance == (uint8_t)RHONN_COV_UD) {
 #if RHONN_UNROLL
         switch (L) {
-        case 1: return ekf_ud(net, i, e, z, nis, bounded, 1);
-        case 2: return ekf_ud(net, i, e, z, nis, bounded, 2);
-        case 3: return ekf_ud(net, i, e, z, nis, bounded, 3);
-        case 4: return ekf_ud(net, i, e, z, nis, bounded, 4);
-        default: break;
-        }
+#define RHONN_UD_CASE(n) case n: return ekf_ud(net, i, e, z, nis, bounded, n);
+        RHONN_UD_CASE(1)
+#if RHONN_MAX_TERMS >= 2
+        RHONN_UD_CASE(2)
 #endif
+#if RHONN_MAX_TERMS >= 3
+        RHONN_UD_CASE(3)
+#endif
+#if RHONN_MAX_TERMS >= 4
+        RHONN_UD_CASE(4)
+#endif
+#if RHONN_MAX_TERMS >= 5
+        RHONN_UD_CASE(5)
+#endif
+#if RHONN_MAX_TERMS >= 6
+        RHONN_UD_CASE(6)
+#endif
+#if RHONN_MAX_TERMS >= 7
+        RHONN_UD_CASE(7)
+#endif
+#if RHONN_MAX_TERMS >= 8
+        RHONN_UD_CASE(8)
+#endif
+#undef RHONN_UD_CASE
+        default:
+#if RHONN_MAX_TERMS > 8
+            return ekf_ud_generic(net, i, e, z, nis, bounded, L);
+#else
+            return RHONN_E_NOT_INIT; /* L outside 1..RHONN_MAX_TERMS: rhonn_init never allows it */
+#endif
+        }
+#else
         return ekf_ud_generic(net, i, e, z, nis, bounded, L);
+#endif
     }
 #endif
 #if RHONN_UNROLL
