@@ -279,6 +279,7 @@ typedef struct {
      * x_i(k - own_need[i] + 1) (0: not at all); valid_run[j] counts the
      * samples in a row, up to the newest, in which x_j was measured. */
     uint8_t own_need[RHONN_MAX_STATES];
+    rhonn_real q_min[RHONN_MAX_STATES];  /* min_t Q_i[t], for the definiteness proof */
     uint8_t valid_run[RHONN_MAX_STATES];
     uint8_t entry_delay[RHONN_MAX_ENTRIES];
     uint8_t entry_power[RHONN_MAX_ENTRIES];

@@ -51,9 +51,6 @@
 #define RHONN_UNROLL_LOOP
 #endif
 
-/* RHONN_WITH_UD=1 (the default) builds the factored covariance update
- * (RHONN_COV_UD); 0 leaves it out for the smallest code, and a config that
- * asks for it is refused as RHONN_FIELD_COVARIANCE. */
 /* RHONN_CERTIFY=0 (tests) always factorises a full-form P: CTest holds it
  * to the default build, which proves most covariances without factorising,
  * and requires the same verdict and the same bits. */
@@ -61,6 +58,9 @@
 #define RHONN_CERTIFY 1
 #endif
 
+/* RHONN_WITH_UD=1 (the default) builds the factored covariance update
+ * (RHONN_COV_UD); 0 leaves it out for the smallest code, and a config that
+ * asks for it is refused as RHONN_FIELD_COVARIANCE. */
 #ifndef RHONN_WITH_UD
 #define RHONN_WITH_UD 1
 #endif
@@ -93,7 +93,9 @@ static int is_finite(rhonn_real v)
 /* The core's own exp: exp(-a) = 2^-k * exp(-r), a = k ln2 + r, |r| <= ln2/2.
  * Same bits on glibc and newlib targets, which a libm exp cannot promise. */
 
-rhonn_real rhonn_exp_neg(rhonn_real a)
+/* The bodies of rhonn_exp_neg and rhonn_activate, inlined into the step's
+ * S(x) loop (a call per state was a tenth of its cost on the Cortex-M4). */
+RHONN_INLINE rhonn_real exp_neg(rhonn_real a)
 {
     /* ln2 split in a high part with trailing zero bits, so k * LN2_HI is
      * exact for the k this range reduction produces (Cody-Waite). */
@@ -150,11 +152,16 @@ rhonn_real rhonn_exp_neg(rhonn_real a)
     return p * scale.f;
 }
 
-rhonn_real rhonn_activate(uint8_t activation, rhonn_real beta, rhonn_real s)
+rhonn_real rhonn_exp_neg(rhonn_real a)
+{
+    return exp_neg(a);
+}
+
+RHONN_INLINE rhonn_real activate(uint8_t activation, rhonn_real beta, rhonn_real s)
 {
     /* t = exp(-beta |s|) lies in (0, 1], so neither form can overflow. */
     rhonn_real bs = beta * s;
-    rhonn_real t = rhonn_exp_neg(bs < R(0.0) ? -bs : bs);
+    rhonn_real t = exp_neg(bs < R(0.0) ? -bs : bs);
     if (activation == (uint8_t)RHONN_BIPOLAR) {
         /* eq. 19: (1 - e^-bs) / (1 + e^-bs) is odd in s */
         rhonn_real v = (R(1.0) - t) / (R(1.0) + t);
@@ -162,6 +169,11 @@ rhonn_real rhonn_activate(uint8_t activation, rhonn_real beta, rhonn_real s)
     }
     /* eq. 6: 1 / (1 + e^-bs), and e^bs / (1 + e^bs) for bs < 0 */
     return bs < R(0.0) ? t / (R(1.0) + t) : R(1.0) / (R(1.0) + t);
+}
+
+rhonn_real rhonn_activate(uint8_t activation, rhonn_real beta, rhonn_real s)
+{
+    return activate(activation, beta, s);
 }
 
 /* ------------------------------------------------------------------------ */
@@ -392,8 +404,13 @@ static void compile_terms(rhonn_t *net)
     net->max_delay = 0;
     for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
         net->own_need[i] = 0;
+        net->q_min[i] = R(0.0);
     }
     for (i = 0; i < cfg->n_states; ++i) {
+        net->q_min[i] = cfg->neurons[i].q[0];
+        for (t = 1; t < cfg->neurons[i].n_terms; ++t) {
+            net->q_min[i] = cfg->neurons[i].q[t] < net->q_min[i] ? cfg->neurons[i].q[t] : net->q_min[i];
+        }
         for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
             for (f = 0; f < cfg->neurons[i].terms[t].n_factors; ++f) {
                 const rhonn_factor *fa = &cfg->neurons[i].terms[t].factors[f];
@@ -753,11 +770,22 @@ RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L)
 
 #if RHONN_CERTIFY
 /* An upper bound on sqrt(v), v >= 0 finite, within a factor 2: 2^(h + 1)
- * with h = floor(e / 2) (sqrt(m 2^e) < 2^(e/2 + 1/2)); integer work only,
- * no libm and no division. */
+ * with h = floor(e / 2) for v = m 2^e (sqrt(m 2^e) < 2^(e/2 + 1/2)), whose
+ * biased exponent is (E + 1) / 2 + 64 (float) or + 512 (double) for v's
+ * biased exponent E (0 for 0 and the subnormals, where the bound still
+ * holds); integer work only, no libm, no branch, no division. */
 static rhonn_real sqrt_bound(rhonn_real v)
 {
-    return pow2(half_exponent(v) + 1);
+#ifdef RHONN_SINGLE
+    union { float f; uint32_t u; } b;
+    b.f = v;
+    b.u = ((((b.u >> 23) & 0xFFu) + 1u) / 2u + 64u) << 23;
+#else
+    union { double f; uint64_t u; } b;
+    b.f = v;
+    b.u = ((((b.u >> 52) & 0x7FFu) + 1u) / 2u + 512u) << 52;
+#endif
+    return b.f;
 }
 
 /* Rounding-error constants: the unit roundoff u = eps / 2 and
@@ -831,11 +859,11 @@ static rhonn_real abs_of(rhonn_real v)
 RHONN_INLINE int certified_update(const rhonn_real *RHONN_RESTRICT P, const rhonn_real *RHONN_RESTRICT z,
                                   const rhonn_real *RHONN_RESTRICT v, const rhonn_real inv_s,
                                   const rhonn_real *RHONN_RESTRICT Pn, const rhonn_neuron_config *nc,
-                                  const size_t L)
+                                  const rhonn_real qmin, const size_t L)
 {
     const rhonn_real gl = gamma_of(L), g1 = gamma_of(L + 1u);
-    rhonn_real tr = R(0.0), w = R(0.0), vv = R(0.0), zv = R(0.0), pmax = R(0.0), qmin = nc->q[0];
-    rhonn_real r_low, eta, rho, err, vs;
+    rhonn_real tr = R(0.0), w = R(0.0), vv = R(0.0), zv = R(0.0), pmax = R(0.0);
+    rhonn_real r_low, eta_r, rho, err, vs;
     size_t r, idx;
     RHONN_UNROLL_LOOP
     for (r = 0, idx = 0; r < L; idx += L - r, ++r) {
@@ -845,7 +873,6 @@ RHONN_INLINE int certified_update(const rhonn_real *RHONN_RESTRICT P, const rhon
         vv += v[r] * v[r];
         zv += az * abs_of(v[r]);
         pmax = Pn[idx] > pmax ? Pn[idx] : pmax;
-        qmin = nc->q[r] < qmin ? nc->q[r] : qmin;
     }
     if (!(qmin >= R(2.0) * RHONN_MIN_NORMAL)) {
         return 0;
@@ -857,9 +884,10 @@ RHONN_INLINE int certified_update(const rhonn_real *RHONN_RESTRICT P, const rhon
         !(pmax <= RHONN_MAX_REAL)) {
         return 0;
     }
-    eta = R(2.0) * (gl * gl) * (tr * (w * w)) / r_low;
+    /* 2 (eta + err + Demmel) <= q_min, with eta = 2 X / r_low: no division */
+    eta_r = R(2.0) * (gl * gl) * (tr * (w * w));
     err = (R(3.0) * rho + R(8.0) * RHONN_UNIT) * vs + R(2.0) * RHONN_UNIT * (tr + pmax);
-    return R(2.0) * (eta + err + R(1.01) * (rhonn_real)L * g1 * pmax) <= qmin;
+    return R(2.0) * eta_r <= (qmin - R(2.0) * (err + R(1.01) * (rhonn_real)L * g1 * pmax)) * r_low;
 }
 #endif
 
@@ -1035,7 +1063,7 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
      * gives the new P its proof; else only at working precision (pd_check).
      * Every path accepts exactly the P that pd_check accepts. */
 #if RHONN_CERTIFY
-    if (net->cert[i][b] && inv_lambda == R(0.0) && !*bounded && certified_update(P, z, pz, inv_s, Pn, nc, L)) {
+    if (net->cert[i][b] && inv_lambda == R(0.0) && !*bounded && certified_update(P, z, pz, inv_s, Pn, nc, net->q_min[i], L)) {
         net->cert[i][b ^ 1u] = 1u;
         return RHONN_OK;
     }
@@ -1388,18 +1416,27 @@ static void load_p0(const rhonn_t *net, size_t i, rhonn_real *dst)
 #endif
 }
 
-/* The part of a sample the regressor reads: x, S(x) of each group, u, 1. */
+/* The part of a sample the regressor reads: x, S(x) of each group, u, 1.
+ * The copies run to the capacities with the count as a condition: a plain
+ * copy loop is turned into a memmove call by the compiler, which costs more
+ * than the few values a sample holds (a tenth of commit_sample on the M4). */
 static void store_sample(rhonn_real *RHONN_RESTRICT dst, const rhonn_real *RHONN_RESTRICT src, size_t n,
                          size_t groups, size_t m)
 {
     size_t g, j;
     for (g = 0; g <= groups; ++g) { /* x at offset 0, then the groups' S(x) */
-        for (j = 0; j < n; ++j) {
-            dst[(size_t)RHONN_MAX_STATES * g + j] = src[(size_t)RHONN_MAX_STATES * g + j];
+        RHONN_UNROLL_LOOP
+        for (j = 0; j < (size_t)RHONN_MAX_STATES; ++j) {
+            if (j < n) {
+                dst[(size_t)RHONN_MAX_STATES * g + j] = src[(size_t)RHONN_MAX_STATES * g + j];
+            }
         }
     }
-    for (j = 0; j < m; ++j) {
-        dst[OFF_U + j] = src[OFF_U + j];
+    RHONN_UNROLL_LOOP
+    for (j = 0; j < (size_t)RHONN_MAX_INPUTS; ++j) {
+        if (j < m) {
+            dst[OFF_U + j] = src[OFF_U + j];
+        }
     }
     /* The constant 1 sits after the last possible input, not after the
      * m-th: copying index m would store a slot the step never wrote. */
@@ -1444,11 +1481,14 @@ static void features(const rhonn_t *net, const rhonn_real *x, const rhonn_real *
     for (g = 0; g < groups; ++g) {
         rhonn_real *sg = cur + OFF_S(g);
         for (j = 0; j < n; ++j) {
-            sg[j] = rhonn_activate(net->group_activation[g], net->group_beta[g], cur[j]);
+            sg[j] = activate(net->group_activation[g], net->group_beta[g], cur[j]);
         }
     }
-    for (j = 0; j < m; ++j) {
-        cur[OFF_U + j] = u[j];
+    RHONN_UNROLL_LOOP
+    for (j = 0; j < (size_t)RHONN_MAX_INPUTS; ++j) {
+        if (j < m) { /* not a plain copy loop: see store_sample */
+            cur[OFF_U + j] = u[j];
+        }
     }
     cur[OFF_ONE] = R(1.0);
 
