@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import functools
 import threading
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -36,6 +37,9 @@ from . import _rhonn_f32, _rhonn_f64
 from .config import IdentifierConfig
 
 __all__ = ["Identifier", "IdentifierError", "NeuronHealth", "capacities"]
+
+_ndarray = np.ndarray
+_BOOL = np.dtype(np.bool_)
 
 _BACKENDS: dict[str, ModuleType] = {"float64": _rhonn_f64, "float32": _rhonn_f32}
 
@@ -220,6 +224,7 @@ class Identifier:
         self._out_ptr = self._ffi.from_buffer(self._real_array, self._out)
         self._null = self._ffi.NULL
         self._no_inputs = self._ffi.from_buffer(self._real_array, np.zeros(1, dtype=self._dtype))
+        self.step = self._fast_step()  # type: ignore[method-assign]
 
     # -- construction helpers -------------------------------------------------
 
@@ -416,7 +421,88 @@ class Identifier:
         ``x`` has shape (n,), ``u`` shape (m,) (None when m = 0), ``valid`` is
         None (all measured) or a bool array of shape (n,); an entry of x whose
         flag is False is ignored (it may be NaN) and replaced by x̂_j(k).
+
+        ``ident.step`` is the identifier's own fast version of this method
+        (:meth:`_fast_step`); it accepts, refuses and returns exactly the same.
         """
+        return self._step_checked(x, u, valid)
+
+    def _fast_step(self) -> Callable[..., np.ndarray]:
+        """The identifier's own :meth:`step`, bound once (it shadows the
+        method on the instance).
+
+        Arguments that are already exactly right -- numpy arrays of the
+        identifier's dtype (the very dtype object numpy uses for it) and
+        shape, C-contiguous, ``valid`` None or bool -- are copied into
+        preallocated C buffers and stepped, with everything the call needs
+        held in the closure: no attribute lookups, no ``from_buffer``, the C
+        function bound once. Anything else, right or wrong, goes to
+        :meth:`_step_checked`, which accepts, copies and refuses exactly as
+        before (a non-contiguous array is refused by ``memmove`` and falls
+        through to it too). The copies happen under the identifier's lock,
+        since the buffers are shared by every thread using it. The closure
+        holds the identifier only weakly: no reference cycle keeps a dropped
+        identifier's (large) C state alive until the garbage collector runs.
+        """
+        ffi = self._ffi
+        dt, xshape, ushape, m = self._dtype, self._xshape, self._ushape, self._m
+        memmove, c_step, net, out, out_ptr, null = ffi.memmove, self._lib.rhonn_step, self._net, self._out, \
+            self._out_ptr, self._null
+        x_buf = ffi.new(f"{'double' if dt == np.float64 else 'float'}[]", self._n)
+        u_buf = ffi.new(f"{'double' if dt == np.float64 else 'float'}[]", max(m, 1))
+        v_buf = ffi.new("uint8_t[]", self._n)
+        x_bytes, u_bytes, v_bytes = self._n * dt.itemsize, m * dt.itemsize, self._n
+        acquire, release = self._lock.acquire, self._lock.release
+        copy = np.ndarray.copy
+        me = weakref.ref(self)
+
+        def owner() -> "Identifier":
+            ident = me()
+            if ident is None:  # only when step was kept and the identifier itself dropped
+                raise ReferenceError("step: its Identifier no longer exists (keep the Identifier, not only "
+                                     "its step method)")
+            return ident
+
+        def checked(x: Any, u: Any, valid: Any) -> np.ndarray:
+            return owner()._step_checked(x, u, valid)
+
+        def step(x: np.ndarray, u: np.ndarray | None = None, valid: np.ndarray | None = None) -> np.ndarray:
+            if type(x) is not _ndarray or x.dtype is not dt or x.shape != xshape:
+                return checked(x, u, valid)
+            if u is None:
+                if m:
+                    return checked(x, u, valid)
+            elif type(u) is not _ndarray or u.dtype is not dt or u.shape != ushape or not m:
+                return checked(x, u, valid)
+            if valid is not None and (type(valid) is not _ndarray or valid.dtype is not _BOOL
+                                      or valid.shape != xshape):
+                return checked(x, u, valid)
+            acquire()  # one step at a time on this identifier (see the class docs)
+            try:
+                try:
+                    memmove(x_buf, x, x_bytes)
+                    if u is not None:
+                        memmove(u_buf, u, u_bytes)
+                    if valid is not None:
+                        memmove(v_buf, valid, v_bytes)
+                except ValueError:  # not C-contiguous: the checked path copies it
+                    pass
+                else:
+                    status = c_step(net, x_buf, u_buf, null if valid is None else v_buf, out_ptr)
+                    if status:
+                        owner()._raise_step_error(status, x[None, :], None if u is None else u[None, :],
+                                                None if valid is None else valid[None, :], 0, single=True)
+                    return copy(out)
+            finally:
+                release()
+            return checked(x, u, valid)
+
+        functools.update_wrapper(step, Identifier.step)
+        return step
+
+    def _step_checked(self, x: np.ndarray, u: np.ndarray | None, valid: np.ndarray | None) -> np.ndarray:
+        """:meth:`step` for any arguments: checks them (ValueError naming the
+        argument), copies a non-contiguous one, then steps."""
         if type(x) is not np.ndarray or x.dtype != self._dtype or x.shape != self._xshape \
                 or not x.flags.c_contiguous:
             self._require(x, "x", self._xshape)
