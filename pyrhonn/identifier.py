@@ -33,7 +33,7 @@ from typing import Any, Callable, TypeVar
 
 import numpy as np
 
-from . import _rhonn_f32, _rhonn_f64
+from . import _rhonn_f32, _rhonn_f64, _rhonn_small_f32, _rhonn_small_f64
 from .config import IdentifierConfig
 
 __all__ = ["Identifier", "IdentifierError", "NeuronHealth", "capacities"]
@@ -42,6 +42,17 @@ _ndarray = np.ndarray
 _BOOL = np.dtype(np.bool_)
 
 _BACKENDS: dict[str, ModuleType] = {"float64": _rhonn_f64, "float32": _rhonn_f32}
+#: Every build of each precision, smallest ``rhonn_t`` first: the small-capacity
+#: pair (``pyrhonn._build.SMALL_CAPACITIES``) and the large one of _BACKENDS.
+#: An identifier runs on the first that holds its config; all give the same
+#: results bit for bit (same sources, same flags; only the array capacities,
+#: and with them the strides, differ).
+_BUILDS: dict[str, tuple[ModuleType, ...]] = {
+    dtype: tuple(sorted({small, large}, key=lambda mod: int(mod.ffi.sizeof("rhonn_t"))))
+    for dtype, small, large in (("float64", _rhonn_small_f64, _rhonn_f64), ("float32", _rhonn_small_f32, _rhonn_f32))
+}
+_CAPACITY_NAMES = ("RHONN_MAX_STATES", "RHONN_MAX_INPUTS", "RHONN_MAX_TERMS", "RHONN_MAX_FACTORS",
+                   "RHONN_MAX_DELAY", "RHONN_MAX_POWER")
 
 _FIELD_NAMES = {
     1: "n_states", 2: "n_inputs", 3: "x0", 4: "terms", 5: "activation", 6: "beta", 7: "eta",
@@ -82,13 +93,28 @@ class IdentifierError(ValueError):
 
 
 def capacities(dtype: str = "float64") -> dict[str, int]:
-    """The compile-time capacities the extension was built with."""
-    lib = _backend(dtype).lib
-    return {
-        name: int(getattr(lib, name))
-        for name in ("RHONN_MAX_STATES", "RHONN_MAX_INPUTS", "RHONN_MAX_TERMS", "RHONN_MAX_FACTORS",
-                     "RHONN_MAX_DELAY", "RHONN_MAX_POWER")
-    }
+    """The compile-time capacities the extension was built with: those of
+    the large build, the most an identifier of this dtype can hold."""
+    return build_capacities(_backend(dtype))
+
+
+def build_capacities(build: ModuleType) -> dict[str, int]:
+    """The compile-time capacities of one build (an extension module)."""
+    return {name: int(getattr(build.lib, name)) for name in _CAPACITY_NAMES}
+
+
+def _build_for(config: IdentifierConfig) -> ModuleType:
+    """The smallest build of ``config.dtype`` that holds ``config``; ValueError
+    naming the field that exceeds even the largest one's capacity."""
+    builds = _BUILDS[config.dtype]
+    for build in builds[:-1]:
+        try:
+            _check_capacity(config, build_capacities(build))
+        except ValueError:
+            continue
+        return build
+    _check_capacity(config, build_capacities(builds[-1]))
+    return builds[-1]
 
 
 def _backend(dtype: str) -> ModuleType:
@@ -201,10 +227,10 @@ class Identifier:
     def __init__(self, config: IdentifierConfig) -> None:
         if not isinstance(config, IdentifierConfig):
             raise ValueError(f"config: expected an IdentifierConfig, got {type(config).__name__}")
-        backend = _backend(config.dtype)
+        _backend(config.dtype)  # ValueError naming an unknown dtype
+        backend = self._build = _build_for(config)
         self._ffi = backend.ffi
         self._lib = backend.lib
-        _check_capacity(config, capacities(config.dtype))
         self._config = config
         self._dtype = np.dtype(config.dtype)
         self._n = config.n_states
