@@ -166,9 +166,7 @@ def _run(members: list[Identifier], X: np.ndarray, U: np.ndarray | None, valid: 
     with ExitStack() as locks:
         for ident in sorted(members, key=id):  # one order for every caller: no lock-order deadlock
             locks.enter_context(ident._lock)
-        saved = [ffi.new("rhonn_t *") for _ in members]
-        for s, ident in zip(saved, members):
-            ffi.memmove(s, ident._net, ffi.sizeof("rhonn_t"))
+        saved = [ident._checkpoint() for ident in members]
         nets = ffi.new("rhonn_t *[]", [ident._net for ident in members])
         status = ffi.new("rhonn_status[]", N)
         done = ffi.new("size_t[]", N)
@@ -180,7 +178,7 @@ def _run(members: list[Identifier], X: np.ndarray, U: np.ndarray | None, valid: 
             ffi.from_buffer(real, out), status, done, where)
         if rc == lib.RHONN_E_CONFIG:  # _check_members makes this unreachable; kept as the core's word
             for s, ident in zip(saved, members):
-                ffi.memmove(ident._net, s, ffi.sizeof("rhonn_t"))
+                ident._rollback(s)
             raise ValueError(f"{what}[{int(where.member)}]: structure differs from {what}[0] "
                              f"(rhonn_field {int(where.field)}, neuron {int(where.neuron)})")
         if rc == lib.RHONN_OK:
@@ -196,7 +194,7 @@ def _run(members: list[Identifier], X: np.ndarray, U: np.ndarray | None, valid: 
                     errors[k] = exc
         # outcomes: the stopped members as they were, the others on; else all as they were
         for k in (errors if outcomes else range(N)):
-            ffi.memmove(members[k]._net, saved[k], ffi.sizeof("rhonn_t"))
+            members[k]._rollback(saved[k])
         if outcomes:
             return [errors.get(k, out[k]) for k in range(N)]
         k = min(errors)

@@ -1,8 +1,9 @@
 """The two builds of the core per precision (pyrhonn._build: a small one with
 the firmware default capacities, a large one for structure search): an
 identifier runs on the smallest that holds its config, and which one runs
-changes no bit of any result. Also step()'s fast path takes exactly the
-arguments the checked path takes."""
+changes no bit of any result. Also what run() and step() rely on to be cheap:
+the rollback checkpoint leaves out only what running never writes, and
+step()'s fast path takes exactly the arguments the checked path takes."""
 from __future__ import annotations
 
 import dataclasses
@@ -127,6 +128,40 @@ def test_info_lists_both_builds_of_each_precision(capsys: pytest.CaptureFixture[
         assert small["sizeof_rhonn_t"] < large["sizeof_rhonn_t"]
         assert small["unrolled_kernels"]
         assert all(small["capacities"][k] <= large["capacities"][k] for k in small["capacities"])
+
+
+@pytest.mark.parametrize("large", [False, True], ids=["small build", "large build"])
+def test_running_never_writes_the_part_of_the_struct_the_checkpoint_leaves_out(large: bool) -> None:
+    # The rollback of run() saves rhonn_t from n_groups on: the configuration before it is
+    # written by rhonn_init alone. Steps, runs, failures, restarts and learning switches
+    # must leave it as it was, byte for byte.
+    cfg = load_shipped("example1").config
+    if large:
+        with only_the_large_build("float64"):
+            ident = Identifier(cfg)
+    else:
+        ident = Identifier(cfg)
+    head = ident._mutable[0]
+    before = bytes(ident._ffi.buffer(ident._net))[:head]
+    X, U, valid = trajectory(3, 400, 4, 1, 0.2)
+    drive(ident, X, U, valid)
+    ident.set_weights(0, np.full(cfg.neurons[0].n_terms, 1e308))  # the next prediction overflows
+    with pytest.raises(IdentifierError, match=r"^neurons\[0\]: weights or prediction would not be finite"):
+        ident.run(X, U, valid)
+    assert bytes(ident._ffi.buffer(ident._net))[:head] == before
+
+
+def test_a_failing_run_puts_back_every_byte_of_the_state() -> None:
+    cfg = IdentifierConfig.uniform(((Factor.x(0, power=8),), (Factor.one(),)), n_states=1, n_inputs=0,
+                                   p0=1.0, q=0.0, r=1.0, w0=np.array([1.0, 0.0]))
+    ident = Identifier(cfg)
+    ident.run(np.full((5, 1), 0.5))
+    before = bytes(ident._ffi.buffer(ident._net))
+    X = np.full((20, 1), 0.5)
+    X[12, 0] = 1e50
+    with pytest.raises(IdentifierError, match="at sample 12"):
+        ident.run(X)
+    assert bytes(ident._ffi.buffer(ident._net)) == before
 
 
 def _warm() -> tuple[Identifier, np.ndarray, np.ndarray, np.ndarray]:
