@@ -58,6 +58,26 @@ CORE_SOURCES = ("csrc/src/rhonn.c", "csrc/src/rhonn_population.c")
 CORE_HEADERS = ("rhonn.h", "rhonn_population.h")
 #: The integer macros of the core extensions: CONSTANTS and rhonn_population.h's capacity.
 CORE_CONSTANTS = CONSTANTS + ("RHONN_MAX_POPULATION",)
+#: Host glue compiled into each core extension (not part of the core):
+#: ``Identifier.step``'s fast path steps through one pointer to a struct of
+#: its preallocated buffers, the cheapest call cffi makes (one argument to
+#: convert instead of rhonn_step's five: about 75 ns less per step).
+STEP_GLUE_DECLARATIONS = """
+typedef struct {
+    rhonn_t *net;
+    const rhonn_real *x;
+    const rhonn_real *u;
+    const uint8_t *valid;
+    rhonn_real *xhat_next;
+} pyrhonn_step_call;
+rhonn_status pyrhonn_step(const pyrhonn_step_call *call);
+"""
+STEP_GLUE = STEP_GLUE_DECLARATIONS + """
+rhonn_status pyrhonn_step(const pyrhonn_step_call *call)
+{
+    return rhonn_step(call->net, call->x, call->u, call->valid, call->xhat_next);
+}
+"""
 
 #: Capacities of the Python extension (``RHONN_MAX_*``): room for structure
 #: search (64 terms per neuron, 16 states and inputs, delays up to 64,
@@ -141,11 +161,11 @@ def make_ffi(dtype: str, caps: dict[str, int] | None = None, small: bool = False
     caps = (dict(SMALL_CAPACITIES) if small else capacities()) if caps is None else caps
     ffi = FFI()
     # RHONN_UNROLL is a build option of rhonn.c, not of the header: declared here so `pyrhonn info` can say.
-    ffi.cdef(header_declarations(dtype, caps) + "#define RHONN_UNROLL ...\n")
+    ffi.cdef(header_declarations(dtype, caps) + "#define RHONN_UNROLL ...\n" + STEP_GLUE_DECLARATIONS)
     # Paths relative to the project root, where setup.py runs.
     ffi.set_source(
         module_name(dtype, small),
-        "".join(f'#include "{name}"\n' for name in CORE_HEADERS),
+        "".join(f'#include "{name}"\n' for name in CORE_HEADERS) + STEP_GLUE,
         sources=list(CORE_SOURCES),
         include_dirs=["csrc/include"],
         # The host has room for one unrolled EKF kernel per neuron size (up to 16 terms).

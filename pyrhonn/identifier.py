@@ -469,8 +469,9 @@ class Identifier:
         identifier's dtype (the very dtype object numpy uses for it) and
         shape, C-contiguous, ``valid`` None or bool -- are copied into
         preallocated C buffers and stepped, with everything the call needs
-        held in the closure: no attribute lookups, no ``from_buffer``, the C
-        function bound once. Anything else, right or wrong, goes to
+        held in the closure: no attribute lookups, no ``from_buffer``, and
+        one C call with a single argument (``pyrhonn_step``, host glue of
+        :mod:`pyrhonn._build` around ``rhonn_step``). Anything else, right or wrong, goes to
         :meth:`_step_checked`, which accepts, copies and refuses exactly as
         before (a non-contiguous array is refused by ``memmove`` and falls
         through to it too). The copies happen under the identifier's lock,
@@ -480,12 +481,18 @@ class Identifier:
         """
         ffi = self._ffi
         dt, xshape, ushape, m = self._dtype, self._xshape, self._ushape, self._m
-        memmove, c_step, net, out, out_ptr, null = ffi.memmove, self._lib.rhonn_step, self._net, self._out, \
-            self._out_ptr, self._null
-        x_buf = ffi.new(f"{'double' if dt == np.float64 else 'float'}[]", self._n)
-        u_buf = ffi.new(f"{'double' if dt == np.float64 else 'float'}[]", max(m, 1))
+        memmove, c_step, out = ffi.memmove, self._lib.pyrhonn_step, self._out
+        x_buf = ffi.new(self._real_array, self._n)
+        u_buf = ffi.new(self._real_array, max(m, 1))
         v_buf = ffi.new("uint8_t[]", self._n)
         x_bytes, u_bytes, v_bytes = self._n * dt.itemsize, m * dt.itemsize, self._n
+        # The two calls (all measured, or with valid flags) with their
+        # buffers: one argument for cffi to convert (pyrhonn._build.STEP_GLUE).
+        # The struct holds raw pointers; the closure keeps what they point to.
+        all_measured, flagged = ffi.new("pyrhonn_step_call *"), ffi.new("pyrhonn_step_call *")
+        for call, flags in ((all_measured, self._null), (flagged, v_buf)):
+            call.net, call.x, call.u, call.valid, call.xhat_next = self._net, x_buf, u_buf, flags, self._out_ptr
+        keep = (self._net, self._out_ptr)
         acquire, release = self._lock.acquire, self._lock.release
         copy = np.ndarray.copy
         me = weakref.ref(self)
@@ -522,7 +529,7 @@ class Identifier:
                 except ValueError:  # not C-contiguous: the checked path copies it
                     pass
                 else:
-                    status = c_step(net, x_buf, u_buf, null if valid is None else v_buf, out_ptr)
+                    status = c_step(all_measured if valid is None else flagged)
                     if status:
                         owner()._raise_step_error(status, x[None, :], None if u is None else u[None, :],
                                                 None if valid is None else valid[None, :], 0, single=True)
@@ -532,6 +539,7 @@ class Identifier:
             return checked(x, u, valid)
 
         functools.update_wrapper(step, Identifier.step)
+        step._keep = keep  # type: ignore[attr-defined]  # the state and output the calls point to
         return step
 
     def _step_checked(self, x: np.ndarray, u: np.ndarray | None, valid: np.ndarray | None) -> np.ndarray:
