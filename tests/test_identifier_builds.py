@@ -189,6 +189,15 @@ def test_step_takes_strided_and_odd_dtype_arguments_as_the_contiguous_ones() -> 
     assert state_of(ident) == state_of(twin)
 
 
+def test_the_class_step_method_steps_as_the_identifier_s_own_fast_step() -> None:
+    ident, X, U, valid = _warm()
+    twin, _, _, _ = _warm()
+    assert ident.step is not Identifier.step and ident.step.__doc__ == Identifier.step.__doc__
+    for k in range(30, 60):
+        np.testing.assert_array_equal(Identifier.step(ident, X[k], U[k], valid[k]), twin.step(X[k], U[k], valid[k]))
+    assert state_of(ident) == state_of(twin)
+
+
 def test_a_dropped_identifier_is_freed_at_once_though_its_step_is_bound() -> None:
     ident, X, U, valid = _warm()
     ref = weakref.ref(ident)
