@@ -258,7 +258,8 @@ class Identifier:
         self._out_ptr = self._ffi.from_buffer(self._real_array, self._out)
         self._null = self._ffi.NULL
         self._no_inputs = self._ffi.from_buffer(self._real_array, np.zeros(1, dtype=self._dtype))
-        self.step = self._fast_step()  # type: ignore[method-assign]
+        if type(self).step is Identifier.step:  # a subclass's own step() is left to it
+            self.step = self._fast_step()  # type: ignore[method-assign]
 
     # -- construction helpers -------------------------------------------------
 

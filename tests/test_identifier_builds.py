@@ -198,6 +198,21 @@ def test_the_class_step_method_steps_as_the_identifier_s_own_fast_step() -> None
     assert state_of(ident) == state_of(twin)
 
 
+def test_a_subclass_that_overrides_step_keeps_its_own() -> None:
+    class Counting(Identifier):
+        calls = 0
+
+        def step(self, x, u=None, valid=None):  # type: ignore[no-untyped-def]
+            Counting.calls += 1
+            return super().step(x, u, valid)
+
+    ident = Counting(load_shipped("firmware-lim").config.replace(dtype="float64"))
+    X, U, valid = trajectory(5, 3, 6, 2)
+    for k in range(3):
+        ident.step(X[k], U[k], valid[k])
+    assert Counting.calls == 3 and ident.steps == 3
+
+
 def test_a_dropped_identifier_is_freed_at_once_though_its_step_is_bound() -> None:
     ident, X, U, valid = _warm()
     ref = weakref.ref(ident)
