@@ -127,4 +127,4 @@ else
 endif
 
 clean:
-	rm -rf $(BUILD) $(VENV) pyrhonn/_rhonn_f*.so pyrhonn/_rhonn_f*.c pyrhonn/_rhonn_f*.o pyrhonn/_fwapp*
+	rm -rf $(BUILD) $(VENV) pyrhonn/_rhonn_*.so pyrhonn/_rhonn_*.c pyrhonn/_rhonn_*.o pyrhonn/_fwapp*

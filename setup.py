@@ -1,4 +1,5 @@
-"""Build hook: compiles the C core into the two cffi extensions, and ships the
+"""Build hook: compiles the C core into the cffi extensions (two precisions,
+each in a large and a small build, see pyrhonn/_build.py), and ships the
 core's public headers inside the package (``pyrhonn/core_include``), so that
 an installed pyrhonn can measure ``sizeof(rhonn_t)`` for an exported
 identifier (``pyrhonn.export``) without the source tree.
@@ -25,4 +26,5 @@ class BuildPyWithCoreHeaders(build_py):
 
 
 setup(cmdclass={"build_py": BuildPyWithCoreHeaders},
-      cffi_modules=["pyrhonn/_build.py:ffi_f64", "pyrhonn/_build.py:ffi_f32", "pyrhonn/_build.py:ffi_fwapp"])
+      cffi_modules=["pyrhonn/_build.py:ffi_f64", "pyrhonn/_build.py:ffi_f32", "pyrhonn/_build.py:ffi_small_f64",
+                    "pyrhonn/_build.py:ffi_small_f32", "pyrhonn/_build.py:ffi_fwapp"])

@@ -10,8 +10,16 @@ structure search on the host (``pyrhonn select``): :data:`CAPACITIES`, which
 the environment variable ``PYRHONN_CAPACITIES`` overrides at build time, e.g.
 ``PYRHONN_CAPACITIES="TERMS=32,DELAY=128"`` (names with or without the
 ``RHONN_MAX_`` prefix; the ones not given keep their value here).
-``pyrhonn info`` prints what an installed build holds. The firmware
-application (``pyrhonn._fwapp``) keeps the firmware's own capacities.
+
+Beside them, ``pyrhonn._rhonn_small_f64`` and ``pyrhonn._rhonn_small_f32``
+are the same sources built with :data:`SMALL_CAPACITIES` (the firmware
+default): room for the paper's examples and the LIM, in a ``rhonn_t`` over
+20 times smaller whose arrays have short strides, with the unrolled kernels.
+:class:`pyrhonn.Identifier` runs a config on the smallest build that holds
+it; the builds give the same results bit for bit (tested), so which one runs
+is invisible but for speed. ``pyrhonn info`` prints what the installed
+builds hold. The firmware application (``pyrhonn._fwapp``) keeps the
+firmware's own capacities.
 
 The EKF kernel is unrolled per neuron size (``RHONN_UNROLL``) only when
 ``RHONN_MAX_TERMS`` is at most 16, the most the core unrolls; above that the
@@ -50,6 +58,26 @@ CORE_SOURCES = ("csrc/src/rhonn.c", "csrc/src/rhonn_population.c")
 CORE_HEADERS = ("rhonn.h", "rhonn_population.h")
 #: The integer macros of the core extensions: CONSTANTS and rhonn_population.h's capacity.
 CORE_CONSTANTS = CONSTANTS + ("RHONN_MAX_POPULATION",)
+#: Host glue compiled into each core extension (not part of the core):
+#: ``Identifier.step``'s fast path steps through one pointer to a struct of
+#: its preallocated buffers, the cheapest call cffi makes (one argument to
+#: convert instead of rhonn_step's five: about 75 ns less per step).
+STEP_GLUE_DECLARATIONS = """
+typedef struct {
+    rhonn_t *net;
+    const rhonn_real *x;
+    const rhonn_real *u;
+    const uint8_t *valid;
+    rhonn_real *xhat_next;
+} pyrhonn_step_call;
+rhonn_status pyrhonn_step(const pyrhonn_step_call *call);
+"""
+STEP_GLUE = STEP_GLUE_DECLARATIONS + """
+rhonn_status pyrhonn_step(const pyrhonn_step_call *call)
+{
+    return rhonn_step(call->net, call->x, call->u, call->valid, call->xhat_next);
+}
+"""
 
 #: Capacities of the Python extension (``RHONN_MAX_*``): room for structure
 #: search (64 terms per neuron, 16 states and inputs, delays up to 64,
@@ -57,6 +85,15 @@ CORE_CONSTANTS = CONSTANTS + ("RHONN_MAX_POPULATION",)
 CAPACITIES: dict[str, int] = {
     "RHONN_MAX_STATES": 16, "RHONN_MAX_INPUTS": 16, "RHONN_MAX_TERMS": 64, "RHONN_MAX_FACTORS": 4,
     "RHONN_MAX_DELAY": 64, "RHONN_MAX_POWER": 8,
+}
+#: Capacities of the small pair of extensions (``pyrhonn._rhonn_small_*``):
+#: the firmware default of rhonn_capacity.h, which holds the paper's examples
+#: and the LIM with room to spare (8 states, 4 inputs, 16 terms per neuron,
+#: products of 4 factors, delays up to 8, powers up to 8); not overridden by
+#: PYRHONN_CAPACITIES (a config that does not fit runs on the large build).
+SMALL_CAPACITIES: dict[str, int] = {
+    "RHONN_MAX_STATES": 8, "RHONN_MAX_INPUTS": 4, "RHONN_MAX_TERMS": 16, "RHONN_MAX_FACTORS": 4,
+    "RHONN_MAX_DELAY": 8, "RHONN_MAX_POWER": 8,
 }
 #: The most terms the core's unrolled kernels cover (``RHONN_UNROLL`` in rhonn.c).
 UNROLL_MAX_TERMS = 16
@@ -110,25 +147,46 @@ def header_declarations(dtype: str, caps: dict[str, int] | None = None) -> str:
     return "".join(f"#define {name} ...\n" for name in CORE_CONSTANTS) + result.stdout
 
 
-def make_ffi(dtype: str, caps: dict[str, int] | None = None) -> FFI:
+def build_depends(include_dirs: tuple[str, ...] | list[str]) -> list[str]:
+    """What an extension's build depends on beyond its sources, relative to
+    the project root: the headers of its include folders and this file (its
+    flags and capacities). setuptools rebuilds an extension only when one of
+    its sources or of these is newer than it, so without them a changed
+    header or flag would leave a stale extension to install."""
+    headers = sorted(str(h.relative_to(ROOT)) for d in include_dirs for h in (ROOT / d).glob("*.h"))
+    return headers + [str(Path(__file__).resolve().relative_to(ROOT))]
+
+
+def module_name(dtype: str, small: bool = False) -> str:
+    """The extension module of one precision, large (default) or small build."""
+    return f"pyrhonn._rhonn_{'small_' if small else ''}{'f64' if dtype == 'float64' else 'f32'}"
+
+
+def make_ffi(dtype: str, caps: dict[str, int] | None = None, small: bool = False) -> FFI:
     """An FFI builder for the float64 or float32 core with capacities
-    ``caps`` (default :func:`capacities`)."""
+    ``caps`` (default :func:`capacities`, or :data:`SMALL_CAPACITIES` for
+    the ``small`` build, which is another module)."""
     if dtype not in ("float64", "float32"):
         raise ValueError(f"dtype: expected 'float64' or 'float32', got {dtype!r}")
-    caps = capacities() if caps is None else caps
+    caps = (dict(SMALL_CAPACITIES) if small else capacities()) if caps is None else caps
     ffi = FFI()
     # RHONN_UNROLL is a build option of rhonn.c, not of the header: declared here so `pyrhonn info` can say.
-    ffi.cdef(header_declarations(dtype, caps) + "#define RHONN_UNROLL ...\n")
+    ffi.cdef(header_declarations(dtype, caps) + "#define RHONN_UNROLL ...\n" + STEP_GLUE_DECLARATIONS)
     # Paths relative to the project root, where setup.py runs.
     ffi.set_source(
-        f"pyrhonn._rhonn_{'f64' if dtype == 'float64' else 'f32'}",
-        "".join(f'#include "{name}"\n' for name in CORE_HEADERS),
+        module_name(dtype, small),
+        "".join(f'#include "{name}"\n' for name in CORE_HEADERS) + STEP_GLUE,
         sources=list(CORE_SOURCES),
         include_dirs=["csrc/include"],
+        depends=build_depends(["csrc/include"]),
         # The host has room for one unrolled EKF kernel per neuron size (up to 16 terms).
         define_macros=capacity_macros(caps) + [("RHONN_TARGET_CLONES", "1")]
         + ([("RHONN_SINGLE", "1")] if dtype == "float32" else []),
-        extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math"],
+        # -O3 as CMake's Release build of the core: about 10% off the LIM's
+        # batched step against -O2 (same run). Strict IEEE arithmetic either
+        # way (no contraction, no reassociation), so the same bits as the
+        # -O2 builds of tests/test_export.py and of the firmware.
+        extra_compile_args=["-O3", "-ffp-contract=off", "-fno-fast-math"],
     )
     return ffi
 
@@ -238,6 +296,7 @@ def make_fwapp_ffi() -> FFI:
         FIRMWARE_GLUE % ", ".join(str(b) for b in dbc),
         sources=list(FIRMWARE_SOURCES),
         include_dirs=list(FIRMWARE_INCLUDES),
+        depends=build_depends(FIRMWARE_INCLUDES),
         define_macros=[("RHONN_UNROLL", "1"), ("RHONN_SINGLE", "1")],
         extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math"],
     )
@@ -246,9 +305,11 @@ def make_fwapp_ffi() -> FFI:
 
 ffi_f64 = make_ffi("float64")
 ffi_f32 = make_ffi("float32")
+ffi_small_f64 = make_ffi("float64", small=True)
+ffi_small_f32 = make_ffi("float32", small=True)
 ffi_fwapp = make_fwapp_ffi()
 
 if __name__ == "__main__":
     os.chdir(ROOT)
-    for builder in (ffi_f64, ffi_f32, ffi_fwapp):
+    for builder in (ffi_f64, ffi_f32, ffi_small_f64, ffi_small_f32, ffi_fwapp):
         builder.compile(tmpdir=str(ROOT), verbose=True)

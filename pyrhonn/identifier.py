@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import functools
 import threading
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -32,12 +33,26 @@ from typing import Any, Callable, TypeVar
 
 import numpy as np
 
-from . import _rhonn_f32, _rhonn_f64
+from . import _rhonn_f32, _rhonn_f64, _rhonn_small_f32, _rhonn_small_f64
 from .config import IdentifierConfig
 
 __all__ = ["Identifier", "IdentifierError", "NeuronHealth", "capacities"]
 
+_ndarray = np.ndarray
+_BOOL = np.dtype(np.bool_)
+
 _BACKENDS: dict[str, ModuleType] = {"float64": _rhonn_f64, "float32": _rhonn_f32}
+#: Every build of each precision, smallest ``rhonn_t`` first: the small-capacity
+#: pair (``pyrhonn._build.SMALL_CAPACITIES``) and the large one of _BACKENDS.
+#: An identifier runs on the first that holds its config; all give the same
+#: results bit for bit (same sources, same flags; only the array capacities,
+#: and with them the strides, differ).
+_BUILDS: dict[str, tuple[ModuleType, ...]] = {
+    dtype: tuple(sorted({small, large}, key=lambda mod: int(mod.ffi.sizeof("rhonn_t"))))
+    for dtype, small, large in (("float64", _rhonn_small_f64, _rhonn_f64), ("float32", _rhonn_small_f32, _rhonn_f32))
+}
+_CAPACITY_NAMES = ("RHONN_MAX_STATES", "RHONN_MAX_INPUTS", "RHONN_MAX_TERMS", "RHONN_MAX_FACTORS",
+                   "RHONN_MAX_DELAY", "RHONN_MAX_POWER")
 
 _FIELD_NAMES = {
     1: "n_states", 2: "n_inputs", 3: "x0", 4: "terms", 5: "activation", 6: "beta", 7: "eta",
@@ -78,13 +93,34 @@ class IdentifierError(ValueError):
 
 
 def capacities(dtype: str = "float64") -> dict[str, int]:
-    """The compile-time capacities the extension was built with."""
-    lib = _backend(dtype).lib
-    return {
-        name: int(getattr(lib, name))
-        for name in ("RHONN_MAX_STATES", "RHONN_MAX_INPUTS", "RHONN_MAX_TERMS", "RHONN_MAX_FACTORS",
-                     "RHONN_MAX_DELAY", "RHONN_MAX_POWER")
-    }
+    """The compile-time capacities the extension was built with: those of
+    the large build, the most an identifier of this dtype can hold."""
+    return build_capacities(_backend(dtype))
+
+
+def build_capacities(build: ModuleType) -> dict[str, int]:
+    """The compile-time capacities of one build (an extension module)."""
+    return {name: int(getattr(build.lib, name)) for name in _CAPACITY_NAMES}
+
+
+def _build_for(config: IdentifierConfig) -> ModuleType:
+    """The smallest build of ``config.dtype`` that holds ``config``; ValueError
+    naming the field that exceeds even the largest one's capacity."""
+    builds = _BUILDS[config.dtype]
+    for build in builds[:-1]:
+        try:
+            _check_capacity(config, build_capacities(build))
+        except ValueError:
+            continue
+        return build
+    _check_capacity(config, build_capacities(builds[-1]))
+    return builds[-1]
+
+
+@functools.lru_cache(maxsize=None)
+def _raw_allocator(build: ModuleType) -> Callable[..., Any]:
+    """``ffi.new`` of one build without the zeroing, for buffers written whole at once."""
+    return build.ffi.new_allocator(should_clear_after_alloc=False)  # type: ignore[no-any-return]
 
 
 def _backend(dtype: str) -> ModuleType:
@@ -197,10 +233,10 @@ class Identifier:
     def __init__(self, config: IdentifierConfig) -> None:
         if not isinstance(config, IdentifierConfig):
             raise ValueError(f"config: expected an IdentifierConfig, got {type(config).__name__}")
-        backend = _backend(config.dtype)
+        _backend(config.dtype)  # ValueError naming an unknown dtype
+        backend = self._build = _build_for(config)
         self._ffi = backend.ffi
         self._lib = backend.lib
-        _check_capacity(config, capacities(config.dtype))
         self._config = config
         self._dtype = np.dtype(config.dtype)
         self._n = config.n_states
@@ -216,10 +252,14 @@ class Identifier:
         if status != self._lib.RHONN_OK:
             raise ValueError(self._config_error_message(where) + _float32_note(config, int(where.field),
                                                                                 int(where.neuron)))
+        at = self._ffi.offsetof("rhonn_t", "n_groups")
+        self._mutable = (at, self._ffi.sizeof("rhonn_t") - at)
         self._out = np.empty(self._n, dtype=self._dtype)
         self._out_ptr = self._ffi.from_buffer(self._real_array, self._out)
         self._null = self._ffi.NULL
         self._no_inputs = self._ffi.from_buffer(self._real_array, np.zeros(1, dtype=self._dtype))
+        if type(self).step is Identifier.step:  # a subclass's own step() is left to it
+            self.step = self._fast_step()  # type: ignore[method-assign]
 
     # -- construction helpers -------------------------------------------------
 
@@ -416,7 +456,96 @@ class Identifier:
         ``x`` has shape (n,), ``u`` shape (m,) (None when m = 0), ``valid`` is
         None (all measured) or a bool array of shape (n,); an entry of x whose
         flag is False is ignored (it may be NaN) and replaced by x̂_j(k).
+
+        ``ident.step`` is the identifier's own fast version of this method
+        (:meth:`_fast_step`); it accepts, refuses and returns exactly the same.
         """
+        return self._step_checked(x, u, valid)
+
+    def _fast_step(self) -> Callable[..., np.ndarray]:
+        """The identifier's own :meth:`step`, bound once (it shadows the
+        method on the instance).
+
+        Arguments that are already exactly right -- numpy arrays of the
+        identifier's dtype (the very dtype object numpy uses for it) and
+        shape, C-contiguous, ``valid`` None or bool -- are copied into
+        preallocated C buffers and stepped, with everything the call needs
+        held in the closure: no attribute lookups, no ``from_buffer``, and
+        one C call with a single argument (``pyrhonn_step``, host glue of
+        :mod:`pyrhonn._build` around ``rhonn_step``). Anything else, right or wrong, goes to
+        :meth:`_step_checked`, which accepts, copies and refuses exactly as
+        before (a non-contiguous array is refused by ``memmove`` and falls
+        through to it too). The copies happen under the identifier's lock,
+        since the buffers are shared by every thread using it. The closure
+        holds the identifier only weakly: no reference cycle keeps a dropped
+        identifier's (large) C state alive until the garbage collector runs.
+        """
+        ffi = self._ffi
+        dt, xshape, ushape, m = self._dtype, self._xshape, self._ushape, self._m
+        memmove, c_step, out = ffi.memmove, self._lib.pyrhonn_step, self._out
+        x_buf = ffi.new(self._real_array, self._n)
+        u_buf = ffi.new(self._real_array, max(m, 1))
+        v_buf = ffi.new("uint8_t[]", self._n)
+        x_bytes, u_bytes, v_bytes = self._n * dt.itemsize, m * dt.itemsize, self._n
+        # The two calls (all measured, or with valid flags) with their
+        # buffers: one argument for cffi to convert (pyrhonn._build.STEP_GLUE).
+        # The struct holds raw pointers; the closure keeps what they point to.
+        all_measured, flagged = ffi.new("pyrhonn_step_call *"), ffi.new("pyrhonn_step_call *")
+        for call, flags in ((all_measured, self._null), (flagged, v_buf)):
+            call.net, call.x, call.u, call.valid, call.xhat_next = self._net, x_buf, u_buf, flags, self._out_ptr
+        keep = (self._net, self._out_ptr)
+        acquire, release = self._lock.acquire, self._lock.release
+        copy = np.ndarray.copy
+        me = weakref.ref(self)
+
+        def owner() -> "Identifier":
+            ident = me()
+            if ident is None:  # only when step was kept and the identifier itself dropped
+                raise ReferenceError("step: its Identifier no longer exists (keep the Identifier, not only "
+                                     "its step method)")
+            return ident
+
+        def checked(x: Any, u: Any, valid: Any) -> np.ndarray:
+            return owner()._step_checked(x, u, valid)
+
+        def step(x: np.ndarray, u: np.ndarray | None = None, valid: np.ndarray | None = None) -> np.ndarray:
+            if type(x) is not _ndarray or x.dtype is not dt or x.shape != xshape:
+                return checked(x, u, valid)
+            if u is None:
+                if m:
+                    return checked(x, u, valid)
+            elif type(u) is not _ndarray or u.dtype is not dt or u.shape != ushape or not m:
+                return checked(x, u, valid)
+            if valid is not None and (type(valid) is not _ndarray or valid.dtype is not _BOOL
+                                      or valid.shape != xshape):
+                return checked(x, u, valid)
+            acquire()  # one step at a time on this identifier (see the class docs)
+            try:
+                try:
+                    memmove(x_buf, x, x_bytes)
+                    if u is not None:
+                        memmove(u_buf, u, u_bytes)
+                    if valid is not None:
+                        memmove(v_buf, valid, v_bytes)
+                except ValueError:  # not C-contiguous: the checked path copies it
+                    pass
+                else:
+                    status = c_step(all_measured if valid is None else flagged)
+                    if status:
+                        owner()._raise_step_error(status, x[None, :], None if u is None else u[None, :],
+                                                None if valid is None else valid[None, :], 0, single=True)
+                    return copy(out)
+            finally:
+                release()
+            return checked(x, u, valid)
+
+        functools.update_wrapper(step, Identifier.step)
+        step._keep = keep  # type: ignore[attr-defined]  # the state and output the calls point to
+        return step
+
+    def _step_checked(self, x: np.ndarray, u: np.ndarray | None, valid: np.ndarray | None) -> np.ndarray:
+        """:meth:`step` for any arguments: checks them (ValueError naming the
+        argument), copies a non-contiguous one, then steps."""
         if type(x) is not np.ndarray or x.dtype != self._dtype or x.shape != self._xshape \
                 or not x.flags.c_contiguous:
             self._require(x, "x", self._xshape)
@@ -491,13 +620,21 @@ class Identifier:
     # -- validation passes (used by pyrhonn.simulation; not public API) -----------------
 
     def _checkpoint(self) -> Any:
-        """A copy of the whole core state, for :meth:`_rollback`."""
-        saved = self._ffi.new("rhonn_t *")
-        self._ffi.memmove(saved, self._net, self._ffi.sizeof("rhonn_t"))
+        """A copy of the core state that running can change, for :meth:`_rollback`:
+        ``rhonn_t`` from ``n_groups`` to its end. What precedes it, ``magic``
+        and ``cfg`` (the validated copy of the configuration, about 30% of
+        the struct in either build), only ``rhonn_init`` writes; a test holds
+        running to that. The copy is not zeroed first (it is overwritten
+        whole at once): with the smaller copy, a checkpoint of the large
+        build costs about 20 us instead of 50."""
+        at, length = self._mutable
+        saved = _raw_allocator(self._build)("char[]", length)
+        self._ffi.memmove(saved, self._ffi.cast("char *", self._net) + at, length)
         return saved
 
     def _rollback(self, saved: Any) -> None:
-        self._ffi.memmove(self._net, saved, self._ffi.sizeof("rhonn_t"))
+        at, length = self._mutable
+        self._ffi.memmove(self._ffi.cast("char *", self._net) + at, saved, length)
 
     def _pass(self, X: np.ndarray, U: np.ndarray, V: np.ndarray | None, first: int, stop: int,
               out: np.ndarray, *, ahead: int = 0, ahead_out: np.ndarray | None = None) -> tuple[int, int]:

@@ -23,25 +23,27 @@ from typing import Any, Sequence
 import numpy as np
 
 from .config import IdentifierConfig
-from .identifier import Identifier, IdentifierError, _backend
+from .identifier import _BUILDS, Identifier, IdentifierError, _backend
 
 __all__ = ["max_population", "run_identifiers", "run_identifiers_outcomes", "run_population"]
 
-_work = threading.local()  # one scratch per thread and dtype (it holds nothing between calls)
+_work = threading.local()  # one scratch per thread and build of the core (it holds nothing between calls)
 
 
 def max_population(dtype: str = "float64") -> int:
-    """How many members one call runs (the build's ``RHONN_MAX_POPULATION``)."""
-    return int(_backend(dtype).lib.RHONN_MAX_POPULATION)
+    """How many members one call runs (the builds' ``RHONN_MAX_POPULATION``)."""
+    _backend(dtype)  # ValueError naming an unknown dtype
+    return min(int(build.lib.RHONN_MAX_POPULATION) for build in _BUILDS[dtype])
 
 
-def _workspace(dtype: str) -> Any:
-    cache = getattr(_work, "by_dtype", None)
+def _workspace(build: Any) -> Any:
+    """This thread's scratch for one build of the core (an extension module)."""
+    cache = getattr(_work, "by_build", None)
     if cache is None:
-        cache = _work.by_dtype = {}
-    if dtype not in cache:
-        cache[dtype] = _backend(dtype).ffi.new("rhonn_population_work *")
-    return cache[dtype]
+        cache = _work.by_build = {}
+    if build.__name__ not in cache:
+        cache[build.__name__] = build.ffi.new("rhonn_population_work *")
+    return cache[build.__name__]
 
 
 def _structure_difference(a: IdentifierConfig, b: IdentifierConfig) -> str | None:
@@ -155,27 +157,28 @@ def _run(members: list[Identifier], X: np.ndarray, U: np.ndarray | None, valid: 
     if T == 0:
         return list(out)
     Xc, Uc, Vc = first._finite_trajectory(X, U, valid)
-    backend = _backend(first.config.dtype)
+    # The members share their structure, so the same (smallest) build of the core holds them all.
+    backend = first._build
+    if any(ident._build is not backend for ident in members):
+        raise AssertionError("members of one structure on different builds of the core")
     ffi, lib = backend.ffi, backend.lib
     real = "double[]" if first.config.dtype == "float64" else "float[]"
     with ExitStack() as locks:
         for ident in sorted(members, key=id):  # one order for every caller: no lock-order deadlock
             locks.enter_context(ident._lock)
-        saved = [ffi.new("rhonn_t *") for _ in members]
-        for s, ident in zip(saved, members):
-            ffi.memmove(s, ident._net, ffi.sizeof("rhonn_t"))
+        saved = [ident._checkpoint() for ident in members]
         nets = ffi.new("rhonn_t *[]", [ident._net for ident in members])
         status = ffi.new("rhonn_status[]", N)
         done = ffi.new("size_t[]", N)
         where = ffi.new("rhonn_population_error *")
         rc = lib.rhonn_run_population(
-            nets, N, _workspace(first.config.dtype), T, ffi.from_buffer(real, Xc),
+            nets, N, _workspace(backend), T, ffi.from_buffer(real, Xc),
             ffi.from_buffer(real, Uc) if m else first._no_inputs,
             ffi.NULL if Vc is None else ffi.from_buffer("uint8_t[]", Vc),
             ffi.from_buffer(real, out), status, done, where)
         if rc == lib.RHONN_E_CONFIG:  # _check_members makes this unreachable; kept as the core's word
             for s, ident in zip(saved, members):
-                ffi.memmove(ident._net, s, ffi.sizeof("rhonn_t"))
+                ident._rollback(s)
             raise ValueError(f"{what}[{int(where.member)}]: structure differs from {what}[0] "
                              f"(rhonn_field {int(where.field)}, neuron {int(where.neuron)})")
         if rc == lib.RHONN_OK:
@@ -191,7 +194,7 @@ def _run(members: list[Identifier], X: np.ndarray, U: np.ndarray | None, valid: 
                     errors[k] = exc
         # outcomes: the stopped members as they were, the others on; else all as they were
         for k in (errors if outcomes else range(N)):
-            ffi.memmove(members[k]._net, saved[k], ffi.sizeof("rhonn_t"))
+            members[k]._rollback(saved[k])
         if outcomes:
             return [errors.get(k, out[k]) for k in range(N)]
         k = min(errors)

@@ -1,16 +1,19 @@
-"""``pyrhonn info``: the build the package was compiled with.
+"""``pyrhonn info``: the builds the package was compiled with.
 
-The capacities are those of the Python extension, sized for structure
-search (``pyrhonn select``); firmware builds the core with its own (the
-defaults of ``csrc/include/rhonn_capacity.h`` unless it sets them). The
-README says how to build the extension with other capacities."""
+Each precision has two builds of the core: a large one whose capacities are
+sized for structure search (``pyrhonn select``), and a small one with the
+firmware default capacities (``csrc/include/rhonn_capacity.h``), which runs
+every identifier that fits in it (faster, same results bit for bit). The
+top-level ``capacities``, ``unrolled_kernels`` and ``sizeof_rhonn_t`` are
+the large build's (what an identifier can hold at most); ``builds`` lists
+both. The README says how to build the extension with other capacities."""
 from __future__ import annotations
 
 import argparse
 import json
 
 from .. import __version__
-from ..identifier import capacities
+from ..identifier import _BUILDS, build_capacities, capacities
 from ..population import max_population
 
 
@@ -30,6 +33,10 @@ def run(args: argparse.Namespace) -> int:
         "unrolled_kernels": bool(getattr(_rhonn_f64.lib, "RHONN_UNROLL", 0)),
         "max_population": max_population("float64"),
         "sizeof_rhonn_t": {"float64": _rhonn_f64.ffi.sizeof("rhonn_t"), "float32": _rhonn_f32.ffi.sizeof("rhonn_t")},
+        "builds": [{"module": build.__name__, "dtype": dtype, "capacities": build_capacities(build),
+                    "unrolled_kernels": bool(getattr(build.lib, "RHONN_UNROLL", 0)),
+                    "sizeof_rhonn_t": build.ffi.sizeof("rhonn_t")}
+                   for dtype, builds in _BUILDS.items() for build in builds],
     }
     if args.json:
         print(json.dumps(data, indent=2))
@@ -41,4 +48,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"  identifiers per run_population call: {data['max_population']} (RHONN_MAX_POPULATION)")
     for dtype, size in data["sizeof_rhonn_t"].items():
         print(f"  sizeof(rhonn_t) {dtype}: {size} bytes")
+    print("builds (an identifier runs on the smallest that holds its config):")
+    for b in data["builds"]:
+        caps = ", ".join(f"{k[len('RHONN_MAX_'):]}={v}" for k, v in b["capacities"].items())
+        print(f"  {b['module']:26} {b['dtype']:8} sizeof(rhonn_t) {b['sizeof_rhonn_t']:8} bytes, "
+              f"unrolled {'yes' if b['unrolled_kernels'] else 'no '}; {caps}")
     return 0
