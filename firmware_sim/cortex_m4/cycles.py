@@ -202,7 +202,7 @@ def estimate(elf: Path, objects: Path | Sequence[Path], step_symbol: str = "rhon
     ``nested`` = (symbol, object): also the cycles of each call of that
     symbol made inside a call (e.g. rhonn_step inside fw_app_on_frame),
     from its entry until control is back in a counted function that the
-    object does not define. ``args``: the image's semihosting command line.
+    object does not define, and the index of the call each was made in. ``args``: the image's semihosting command line.
 
     Returns the calls, instructions and estimated cycles per call (mean,
     min, max, 99th percentile and every call's in ``cycles_each``), and the
@@ -236,6 +236,7 @@ def estimate(elf: Path, objects: Path | Sequence[Path], step_symbol: str = "rhon
     counts: collections.Counter[tuple[int, bool]] = collections.Counter()
     per_call: list[int] = []
     per_nested: list[int] = []
+    nested_in: list[int] = []  # the call of step_symbol each nested call was made in
     per_call_instructions: list[int] = []
     inside = in_nested = False
     proc = subprocess.Popen([*cmd, "-dfilter", dfilter, "-kernel", str(elf)], stdout=subprocess.DEVNULL,
@@ -274,6 +275,7 @@ def estimate(elf: Path, objects: Path | Sequence[Path], step_symbol: str = "rhon
             if pc == nested_entry:
                 in_nested = True
                 per_nested.append(0)
+                nested_in.append(len(per_call) - 1)
             elif in_nested and name not in nested_own:
                 in_nested = False
         prev = pc
@@ -305,7 +307,8 @@ def estimate(elf: Path, objects: Path | Sequence[Path], step_symbol: str = "rhon
     if nested:
         out["nested"] = {"symbol": nested[0], "calls": len(per_nested),
                          "estimated_cycles_per_call": sum(per_nested) / len(per_nested) if per_nested else 0.0,
-                         "estimated_cycles_max": max(per_nested, default=0), "cycles_each": per_nested}
+                         "estimated_cycles_max": max(per_nested, default=0), "cycles_each": per_nested,
+                         "call_of_each": nested_in}
     return out
 
 

@@ -261,7 +261,12 @@ def frame_cycles(elf: Path, objs: dict[str, Path], lines: list[str], kinds: list
         else:
             frames[-1].append(line.split()[1])
     each, steps = est.pop("cycles_each"), est["nested"].pop("cycles_each")
+    step_of = est["nested"].pop("call_of_each")
     stepped = [k for k in range(len(each)) if kinds[k] == "measurement" and frames[k][0] in ("FW_OK", "FW_E_STEP")]
+    # the step cycles inside each frame (a weight transfer's warm start steps too)
+    in_frame: dict[int, int] = {}
+    for k, s in zip(step_of, steps):
+        in_frame[k] = in_frame.get(k, 0) + s
     groups: dict[str, list[int]] = {}
     overhead: list[int] = []
     for k, c in enumerate(each):
@@ -269,8 +274,7 @@ def frame_cycles(elf: Path, objs: dict[str, Path], lines: list[str], kinds: list
         if kind == "measurement":
             kind += " + Diagnostics and Health" if "130" in frames[k][1:] else "" if k in stepped else " (rejected)"
         groups.setdefault(kind, []).append(c)
-    if len(stepped) == len(steps):
-        overhead = [each[k] - s for k, s in zip(stepped, steps) if "130" not in frames[k][1:]]
+    overhead = [each[k] - in_frame[k] for k in stepped if k in in_frame and "130" not in frames[k][1:]]
     plain = groups.get("measurement", [0])
     own = set().union(*(cycles.core_functions(o) for o in objs.values()))
     by_function = est["cycles_per_call_by_function"]
