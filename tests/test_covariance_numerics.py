@@ -321,3 +321,28 @@ def test_the_firmware_full_form_neurons_prove_their_covariance_without_factorisi
     assert not proven(ident, i)
     ident.step(X[0], U[0])
     assert proven(ident, i)  # the shifted factorisation proves it again
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_a_population_skips_the_factorisation_only_where_it_proves_the_covariance(dtype: str) -> None:
+    """run_identifiers carries each member's proof in and out: its members
+    end with the proof (the population ran the O(L) bound, not the
+    factorisation), every proven P is definite in exact arithmetic, and the
+    members match identifiers run alone bit for bit, proofs included."""
+    from pyrhonn.population import run_identifiers
+
+    base = load_shipped("firmware-lim").config.replace(dtype=dtype)
+    full = [i for i, nr in enumerate(base.neurons) if nr.covariance is FULL]
+    configs = [with_neurons(base, q=q) if q is not None else base for q in (None, 1e-2, 1e-4, 1e-7)]
+    X, U = moving_lim(300, dtype)
+    members, alone = [Identifier(c) for c in configs], [Identifier(c) for c in configs]
+    run_identifiers(members, X, U)
+    for a, b in zip(members, alone):
+        b.run(X, U)
+        for i in range(base.n_states):
+            np.testing.assert_array_equal(a.get_covariance(i), b.get_covariance(i))
+            if i in full:
+                assert proven(a, i) == proven(b, i)
+                if proven(a, i):
+                    assert exactly_definite(a.get_covariance(i))
+    assert all(proven(members[0], i) for i in full)

@@ -1115,7 +1115,11 @@ static int zero_q(const rhonn_neuron_config *nc, size_t L)
  * Discrete Sequential Estimation, 1977), each from column J back to column
  * 0, the columns right of J being untouched: with a = e_J and c = q_J,
  * column j takes p = a_j, d~_j = d_j + c p^2, b = c p / d~_j,
- * c <- c d_j / d~_j, then a_i -= p U(i,j) and U(i,j) += b a_i for i < j.
+ * c <- c d_j / d~_j, then for i < j U(i,j) <- U(i,j) d_j / d~_j + b a_i and
+ * a_i -= p U(i,j) (the old U(i,j)). That is Agee and Turner's
+ * U + b (a_i - p U) regrouped: when q_J dwarfs d_j, b p is 1 to rounding
+ * and U - b p U would cancel to rounding noise of U's size; the product
+ * with d_j / d~_j keeps U(i,j)'s relative accuracy.
  * c >= 0 makes every d~_j >= d_j > 0: definite by construction, in about
  * L^3 / 3 multiply-adds and L (L + 1) / 2 divisions, half the work of a
  * Gram-Schmidt re-factorisation of [U | I] (Thornton's). A neuron whose Q is
@@ -1214,13 +1218,13 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
         for (J = 0; J < L; ++J) {
             /* column J: p = a_J = 1, and a_i = -U(i,J) */
             rhonn_real c = nc->q[J];
-            rhonn_real dj = Fn[rs[J]], dn = dj + c, inv_dn = R(1.0) / dn, bj = c * inv_dn;
-            c = (c * dj) * inv_dn;
+            rhonn_real dj = Fn[rs[J]], dn = dj + c, inv_dn = R(1.0) / dn, bj, ratio = dj * inv_dn;
+            c = c * ratio;
             Fn[rs[J]] = dn;
             RHONN_UD_UNROLL_LOOP
             for (k = 0, at = J; k < J; at += L - 1u - k, ++k) {
                 a[k] = -Fn[at];
-                Fn[at] += bj * a[k];
+                Fn[at] *= ratio;
             }
             /* the columns left of it */
             RHONN_UD_UNROLL_LOOP
@@ -1230,12 +1234,14 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
                 dn = dj + c * (p * p);
                 inv_dn = R(1.0) / dn;
                 bj = (c * p) * inv_dn;
-                c = (c * dj) * inv_dn;
+                ratio = dj * inv_dn;
+                c = c * ratio;
                 Fn[rs[jp - 1u]] = dn;
                 RHONN_UD_UNROLL_LOOP
                 for (k = 0, at = jp - 1u; k + 1u < jp; at += L - 1u - k, ++k) {
-                    a[k] -= p * Fn[at];
-                    Fn[at] += bj * a[k];
+                    const rhonn_real u = Fn[at];
+                    Fn[at] = u * ratio + bj * a[k];
+                    a[k] -= p * u;
                 }
             }
         }

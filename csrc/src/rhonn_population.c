@@ -25,11 +25,13 @@
 #define R(c) c##f
 #define RHONN_MIN_NORMAL 1.1754943508e-38f
 #define RHONN_MAX_REAL 3.402823466e38f
+#define RHONN_EPSILON 1.1920928955e-7f
 typedef uint32_t pop_bits;
 #else
 #define R(c) c
 #define RHONN_MIN_NORMAL 2.2250738585072014e-308
 #define RHONN_MAX_REAL 1.7976931348623157e308
+#define RHONN_EPSILON 2.220446049250313e-16
 typedef uint64_t pop_bits;
 #endif
 
@@ -121,6 +123,130 @@ POP_ALWAYS_INLINE void verdicts(rhonn_population_work *wk, const rhonn_real *Pn,
     }
 }
 
+/* rhonn.c's definiteness proof (certified_update: see its comment for the
+ * bounds) for member m of a full-form update, from the lane arrays: P the
+ * committed covariance (proven definite in exact arithmetic), z, v = P z,
+ * inv_s = 1 / s, Pn the update. 1 when it proves Pn definite with the margin
+ * under which the plain factorisation accepts it, so that skipping the
+ * factorisation changes no verdict; 0 when it cannot. Scalar: O(L) per
+ * member against the factorisation's O(L^3). */
+/* The end of the proof from its sums over the terms (tr = trace P, w =
+ * sum sqrt_bound(P_rr) |z_r|, vv = |v|^2, zv = |z|^T |v|, pmax = largest
+ * diagonal of Pn) and q_min: rhonn.c's certified_update after its loop. */
+POP_ALWAYS_INLINE int proof_holds(rhonn_real tr, rhonn_real w, rhonn_real vv, rhonn_real zv, rhonn_real pmax,
+                                  rhonn_real qmin, rhonn_real r_i, rhonn_real inv_s, size_t L)
+{
+    const rhonn_real unit = RHONN_EPSILON * R(0.5);
+    const rhonn_real gl = R(1.01) * (rhonn_real)L * unit, g1 = R(1.01) * (rhonn_real)(L + 1u) * unit;
+    rhonn_real r_low, rho, vs, err, eta_r;
+    if (!(qmin >= R(2.0) * RHONN_MIN_NORMAL)) {
+        return 0;
+    }
+    r_low = r_i - gl * (w * w);
+    rho = g1 * (r_i + zv) * inv_s;
+    vs = vv * inv_s;
+    if (!(r_low > R(0.0)) || !(rho <= R(0.25)) || !(tr + vs <= RHONN_MAX_REAL * R(0.25)) ||
+        !(pmax <= RHONN_MAX_REAL)) {
+        return 0;
+    }
+    eta_r = R(2.0) * (gl * gl) * (tr * (w * w));
+    err = (R(3.0) * rho + R(8.0) * unit) * vs + R(2.0) * unit * (tr + pmax);
+    return R(2.0) * eta_r <= (qmin - R(2.0) * (err + R(1.01) * (rhonn_real)L * g1 * pmax)) * r_low;
+}
+
+/* min_r q_r of member m. Both inlined into their (possibly target-cloned)
+ * callers: a baseline-ISA call from an AVX-512 clone ran 3x slower here. */
+POP_ALWAYS_INLINE rhonn_real lane_qmin(const rhonn_real *q, size_t L, size_t m)
+{
+    rhonn_real qmin = q[m];
+    size_t r;
+    for (r = 1; r < L; ++r) {
+        qmin = q[r * NPOP + m] < qmin ? q[r * NPOP + m] : qmin;
+    }
+    return qmin;
+}
+
+#if !RHONN_POP_VECTOR
+/* rhonn.c's definiteness proof (certified_update: see its comment for the
+ * bounds) for member m of a full-form update, from the lane arrays: P the
+ * committed covariance (proven definite in exact arithmetic), z, v = P z,
+ * inv_s = 1 / s, Pn the update. 1 when it proves Pn definite with the margin
+ * under which the plain factorisation accepts it, so that skipping the
+ * factorisation changes no verdict; 0 when it cannot. */
+static int lane_proof(const rhonn_real *P, const rhonn_real *z, const rhonn_real *v, rhonn_real inv_s,
+                      const rhonn_real *Pn, const rhonn_real *q, rhonn_real r_i, size_t L, size_t m)
+{
+    rhonn_real tr = R(0.0), w = R(0.0), vv = R(0.0), zv = R(0.0), pmax = R(0.0);
+    size_t r, idx;
+    for (r = 0, idx = 0; r < L; idx += L - r, ++r) {
+        const rhonn_real d = P[idx * NPOP + m], zr = z[r * NPOP + m], vr = v[r * NPOP + m];
+        const rhonn_real az = zr < R(0.0) ? -zr : zr, av = vr < R(0.0) ? -vr : vr;
+        const rhonn_real dn = Pn[idx * NPOP + m];
+        union { rhonn_real f; pop_bits u; } b;
+        /* sqrt(d) <= 2^(floor(e / 2) + 1): rhonn.c's sqrt_bound */
+        b.f = d;
+#ifdef RHONN_SINGLE
+        b.u = ((((b.u >> 23) & 0xFFu) + 1u) / 2u + 64u) << 23;
+#else
+        b.u = (pop_bits)((((b.u >> 52) & 0x7FFu) + 1u) / 2u + 512u) << 52;
+#endif
+        tr += d;
+        w += b.f * az;
+        vv += vr * vr;
+        zv += az * av;
+        pmax = dn > pmax ? dn : pmax;
+    }
+    return proof_holds(tr, w, vv, zv, pmax, lane_qmin(q, L, m), r_i, inv_s, L);
+}
+
+/* Which members' updates the proof covers (fast[m]: a learning member whose
+ * committed P carries a proof, without forgetting or a trace bound this
+ * step, proven). Returns 1 when it covers every learning member: the
+ * factorisation is skipped. */
+static int lane_proofs(rhonn_population_work *wk, size_t i, size_t L, const rhonn_real *inv_s, uint8_t *fast)
+{
+    const rhonn_real *P = &wk->p[wk->pb[i]][i][0][0], *Pn = &wk->p[wk->pb[i] ^ 1u][i][0][0];
+    int all = 1;
+    size_t m;
+    for (m = 0; m < NPOP; ++m) {
+        fast[m] = (uint8_t)(wk->learn[i][m] && wk->cert[i][m] && wk->inv_lambda[i][m] == R(1.0) &&
+                            !wk->bounded[i][m] &&
+                            lane_proof(P, &wk->z[wk->zb][i][0][0], &wk->pz[0][0], inv_s[m], Pn, &wk->q[i][0][0],
+                                       wk->r[i][m], L, m));
+        all &= fast[m] || !wk->learn[i][m];
+    }
+    return all;
+}
+#endif
+
+/* The verdict of the check with the proofs: a member whose update was
+ * proven, or whose P passed the factorisation shifted by
+ * 17 L gamma_{L+1} (rhonn.c shifted_check: that also proves it), or else
+ * passed the plain one. shifted_ok and plain_ok as the check gives them
+ * (plain_ok NULL when it was not run); sets the members' new proofs. */
+static void proof_verdicts(rhonn_population_work *wk, size_t i, const uint8_t *fast, const rhonn_real *shifted_ok,
+                           const rhonn_real *plain_ok, rhonn_real *ok)
+{
+    size_t m;
+    for (m = 0; m < NPOP; ++m) {
+        const int proven = fast[m] || shifted_ok[m] == R(1.0);
+        wk->cert_new[i][m] = (uint8_t)proven;
+        ok[m] = proven || (plain_ok != NULL && plain_ok[m] == R(1.0)) ? R(1.0) : R(0.0);
+    }
+}
+
+/* Does any learning member still need the plain factorisation's verdict? */
+static int plain_needed(const rhonn_population_work *wk, size_t i, const uint8_t *fast, const rhonn_real *shifted_ok)
+{
+    size_t m;
+    for (m = 0; m < NPOP; ++m) {
+        if (wk->learn[i][m] && !fast[m] && shifted_ok[m] != R(1.0)) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 #if !RHONN_POP_VECTOR
 /* rhonn.c's half_exponent_scale (2^-floor(e/2) for v = m 2^e) in unsigned
  * arithmetic on the biased exponent b: 1023 - floor((b - 1023) / 2) =
@@ -168,6 +294,84 @@ static void lane_dot(const rhonn_real *POP_RESTRICT a, const rhonn_real *POP_RES
     }
 }
 
+/* The check of full_kernel_loops (rhonn.c scaled_udu + udu_factor) with
+ * shift[m] subtracted from each scaled diagonal entry (0: the plain check,
+ * x - 0 being x bit for bit): pd_ok[m] 1 when member m passed. */
+static void loops_check(rhonn_population_work *wk, const rhonn_real *POP_RESTRICT Pn, size_t L, const size_t *rs,
+                        const rhonn_real *POP_RESTRICT shift, rhonn_real *POP_RESTRICT pd_ok)
+{
+    rhonn_real *POP_RESTRICT F = &wk->f[0][0];
+    rhonn_real *POP_RESTRICT sc = &wk->sc[0][0];
+    rhonn_real *POP_RESTRICT tk = &wk->tk[0][0];
+    rhonn_real *POP_RESTRICT dk = &wk->dk[0][0];
+    size_t r, m, j, k;
+
+    /* The check (rhonn.c scaled_udu + udu_factor): diagonal normal and
+     * finite, scaled by powers of two to [1, 4), every pivot positive. */
+    for (m = 0; m < NPOP; ++m) {
+        pd_ok[m] = R(1.0);
+    }
+    for (r = 0; r < L; ++r) {
+        const rhonn_real *POP_RESTRICT d = LANE(Pn, rs[r]);
+        rhonn_real *POP_RESTRICT sr = LANE(sc, r);
+        for (m = 0; m < NPOP; ++m) {
+            /* normal and finite: MIN_NORMAL <= v <= MAX (false for NaN) */
+            pd_ok[m] = d[m] >= RHONN_MIN_NORMAL ? (d[m] <= RHONN_MAX_REAL ? pd_ok[m] : R(0.0)) : R(0.0);
+            sr[m] = half_exponent_scale(d[m]);
+        }
+    }
+    for (j = L; j-- > 0u;) {
+        const rhonn_real *POP_RESTRICT uj = LANE(F, rs[j] + 1u);
+        const rhonn_real *POP_RESTRICT sj = LANE(sc, j);
+        const size_t tail = L - 1u - j;
+        rhonn_real dj[RHONN_MAX_POPULATION], inv[RHONN_MAX_POPULATION];
+        size_t ii;
+        {
+            const rhonn_real *POP_RESTRICT pjj = LANE(Pn, rs[j]);
+            for (m = 0; m < NPOP; ++m) {
+                dj[m] = (pjj[m] * sj[m]) * sj[m] - shift[m];
+            }
+        }
+        for (k = 0; k < tail; ++k) {
+            const rhonn_real *POP_RESTRICT dd = LANE(dk, j + 1u + k), *POP_RESTRICT uk = LANE(uj, k);
+            rhonn_real *POP_RESTRICT tt = LANE(tk, k);
+            for (m = 0; m < NPOP; ++m) {
+                tt[m] = dd[m] * uk[m];
+                dj[m] -= uk[m] * tt[m];
+            }
+        }
+        {
+            rhonn_real *POP_RESTRICT dd = LANE(dk, j), *POP_RESTRICT fj = LANE(F, rs[j]);
+            for (m = 0; m < NPOP; ++m) {
+                dd[m] = dj[m];
+                fj[m] = dj[m];
+                inv[m] = R(1.0) / dj[m];
+            }
+        }
+        for (m = 0; m < NPOP; ++m) {
+            pd_ok[m] = dj[m] > R(0.0) ? (dj[m] <= RHONN_MAX_REAL ? pd_ok[m] : R(0.0)) : R(0.0);
+        }
+        for (ii = 0; ii < j; ++ii) {
+            rhonn_real *POP_RESTRICT fi = LANE(F, rs[ii] + (j - ii));
+            const rhonn_real *POP_RESTRICT pij = LANE(Pn, rs[ii] + (j - ii));
+            const rhonn_real *POP_RESTRICT si = LANE(sc, ii);
+            rhonn_real a[RHONN_MAX_POPULATION];
+            for (m = 0; m < NPOP; ++m) {
+                a[m] = (pij[m] * si[m]) * sj[m];
+            }
+            for (k = 0; k < tail; ++k) {
+                const rhonn_real *POP_RESTRICT fk = LANE(fi, 1u + k), *POP_RESTRICT tt = LANE(tk, k);
+                for (m = 0; m < NPOP; ++m) {
+                    a[m] -= fk[m] * tt[m];
+                }
+            }
+            for (m = 0; m < NPOP; ++m) {
+                fi[m] = a[m] * inv[m];
+            }
+        }
+    }
+}
+
 /* ------------------------------------------------------------------------ */
 /* The full-form kernel (rhonn.c ekf_kernel, then pd_check), every member at
  * once: eq. 8 s = R + z^T P z, eq. 7 w + (eta e / s) P z and
@@ -183,10 +387,6 @@ static void full_kernel_loops(rhonn_population_work *wk, size_t i, size_t L)
     const rhonn_real *POP_RESTRICT w = &wk->w[wk->wb][i][0][0];
     rhonn_real *POP_RESTRICT wn = &wk->w[wk->wb ^ 1u][i][0][0];
     rhonn_real *POP_RESTRICT pz = &wk->pz[0][0];
-    rhonn_real *POP_RESTRICT F = &wk->f[0][0];
-    rhonn_real *POP_RESTRICT sc = &wk->sc[0][0];
-    rhonn_real *POP_RESTRICT tk = &wk->tk[0][0];
-    rhonn_real *POP_RESTRICT dk = &wk->dk[0][0];
     const rhonn_real *POP_RESTRICT rr = wk->r[i];
     const rhonn_real *POP_RESTRICT eta = wk->eta[i];
     const rhonn_real *POP_RESTRICT ilam = wk->inv_lambda[i];
@@ -200,8 +400,9 @@ static void full_kernel_loops(rhonn_population_work *wk, size_t i, size_t L)
      * is 1 while every pivot passed, 0 after; wsum is the sum of w - w over
      * the new weights, 0 when all are finite, NaN otherwise */
     rhonn_real pd_ok[RHONN_MAX_POPULATION], wsum[RHONN_MAX_POPULATION];
+    uint8_t fast[RHONN_MAX_POPULATION];
     size_t rs[RHONN_MAX_TERMS];
-    size_t r, c, m, j, k, len;
+    size_t r, c, m, len;
     const size_t packed = L * (L + 1u) / 2u;
 
     rs[0] = 0;
@@ -292,68 +493,28 @@ static void full_kernel_loops(rhonn_population_work *wk, size_t i, size_t L)
             pc[m] *= scale[m];
         }
     }
-    /* The check (rhonn.c scaled_udu + udu_factor): diagonal normal and
-     * finite, scaled by powers of two to [1, 4), every pivot positive. */
-    for (m = 0; m < NPOP; ++m) {
-        pd_ok[m] = R(1.0);
-    }
-    for (r = 0; r < L; ++r) {
-        const rhonn_real *POP_RESTRICT d = LANE(Pn, rs[r]);
-        rhonn_real *POP_RESTRICT sr = LANE(sc, r);
+    /* The check: the proofs, then the shifted factorisation, then the
+     * plain one, each only for what the one before left open. */
+    if (lane_proofs(wk, i, L, inv_s, fast)) {
         for (m = 0; m < NPOP; ++m) {
-            /* normal and finite: MIN_NORMAL <= v <= MAX (false for NaN) */
-            pd_ok[m] = d[m] >= RHONN_MIN_NORMAL ? (d[m] <= RHONN_MAX_REAL ? pd_ok[m] : R(0.0)) : R(0.0);
-            sr[m] = half_exponent_scale(d[m]);
+            wk->cert_new[i][m] = fast[m];
+            pd_ok[m] = R(1.0);
         }
-    }
-    for (j = L; j-- > 0u;) {
-        const rhonn_real *POP_RESTRICT uj = LANE(F, rs[j] + 1u);
-        const rhonn_real *POP_RESTRICT sj = LANE(sc, j);
-        const size_t tail = L - 1u - j;
-        rhonn_real dj[RHONN_MAX_POPULATION], inv[RHONN_MAX_POPULATION];
-        size_t ii;
-        {
-            const rhonn_real *POP_RESTRICT pjj = LANE(Pn, rs[j]);
-            for (m = 0; m < NPOP; ++m) {
-                dj[m] = (pjj[m] * sj[m]) * sj[m];
-            }
-        }
-        for (k = 0; k < tail; ++k) {
-            const rhonn_real *POP_RESTRICT dd = LANE(dk, j + 1u + k), *POP_RESTRICT uk = LANE(uj, k);
-            rhonn_real *POP_RESTRICT tt = LANE(tk, k);
-            for (m = 0; m < NPOP; ++m) {
-                tt[m] = dd[m] * uk[m];
-                dj[m] -= uk[m] * tt[m];
-            }
-        }
-        {
-            rhonn_real *POP_RESTRICT dd = LANE(dk, j), *POP_RESTRICT fj = LANE(F, rs[j]);
-            for (m = 0; m < NPOP; ++m) {
-                dd[m] = dj[m];
-                fj[m] = dj[m];
-                inv[m] = R(1.0) / dj[m];
-            }
-        }
+    } else {
+        rhonn_real shift[RHONN_MAX_POPULATION], shifted_ok[RHONN_MAX_POPULATION];
         for (m = 0; m < NPOP; ++m) {
-            pd_ok[m] = dj[m] > R(0.0) ? (dj[m] <= RHONN_MAX_REAL ? pd_ok[m] : R(0.0)) : R(0.0);
+            shift[m] = R(17.0) * (rhonn_real)L * (R(1.01) * (rhonn_real)(L + 1u) * (RHONN_EPSILON * R(0.5)));
         }
-        for (ii = 0; ii < j; ++ii) {
-            rhonn_real *POP_RESTRICT fi = LANE(F, rs[ii] + (j - ii));
-            const rhonn_real *POP_RESTRICT pij = LANE(Pn, rs[ii] + (j - ii));
-            const rhonn_real *POP_RESTRICT si = LANE(sc, ii);
-            rhonn_real a[RHONN_MAX_POPULATION];
+        loops_check(wk, Pn, L, rs, shift, shifted_ok);
+        if (plain_needed(wk, i, fast, shifted_ok)) {
+            rhonn_real plain_ok[RHONN_MAX_POPULATION];
             for (m = 0; m < NPOP; ++m) {
-                a[m] = (pij[m] * si[m]) * sj[m];
+                shift[m] = R(0.0);
             }
-            for (k = 0; k < tail; ++k) {
-                const rhonn_real *POP_RESTRICT fk = LANE(fi, 1u + k), *POP_RESTRICT tt = LANE(tk, k);
-                for (m = 0; m < NPOP; ++m) {
-                    a[m] -= fk[m] * tt[m];
-                }
-            }
-            for (m = 0; m < NPOP; ++m) {
-                fi[m] = a[m] * inv[m];
-            }
+            loops_check(wk, Pn, L, rs, shift, plain_ok);
+            proof_verdicts(wk, i, fast, shifted_ok, plain_ok, pd_ok);
+        } else {
+            proof_verdicts(wk, i, fast, shifted_ok, NULL, pd_ok);
         }
     }
     /* The verdicts, in rhonn.c's order: the innovation (s finite and
@@ -382,12 +543,16 @@ typedef uint32_t pop_ubits;
 #define POP_EXP_FIELD 0xFF
 #define POP_SCALE_TOP 255  /* 2^-floor(e/2) = bits (255 - floor((b + 129) / 2)) << 23 */
 #define POP_SCALE_ADD 129
+#define POP_SQRT_ADD 64    /* sqrt_bound: bits ((b + 1) / 2 + 64) << 23 */
+#define POP_ABS_MASK 0x7FFFFFFFu
 #else
 typedef uint64_t pop_ubits;
 #define POP_EXP_SHIFT 52
 #define POP_EXP_FIELD 0x7FF
 #define POP_SCALE_TOP 2047 /* 2^-floor(e/2) = bits (2047 - floor((b + 1025) / 2)) << 52 */
 #define POP_SCALE_ADD 1025
+#define POP_SQRT_ADD 512   /* sqrt_bound: bits ((b + 1) / 2 + 512) << 52 */
+#define POP_ABS_MASK 0x7FFFFFFFFFFFFFFFull
 #endif
 /* A value of every member; aligned as rhonn_real, so a vector is read and
  * written in place in the workspace's [...][member] arrays. */
@@ -440,23 +605,122 @@ POP_ALWAYS_INLINE void weights_update(rhonn_population_work *wk, size_t i, size_
  * ceiling, and the U D U^T factorisation of the scaled P(k+1), whose
  * pivots must be positive. No branch on a member's numbers: the verdicts
  * are gathered as masks and read at the end. */
+/* lane_proofs of the loop kernel with the sums over the terms done for
+ * every member at once (the largest diagonal by a mask: no NaN reaches it,
+ * as P and the gain's products are finite here), then each member's tail
+ * (proof_holds). */
+POP_ALWAYS_INLINE int vec_proofs(rhonn_population_work *wk, size_t i, size_t L, const size_t *rs, const lanev inv_s,
+                                 uint8_t *fast)
+{
+    const rhonn_real *P = &wk->p[wk->pb[i]][i][0][0], *Pn = &wk->p[wk->pb[i] ^ 1u][i][0][0];
+    const rhonn_real *z = &wk->z[wk->zb][i][0][0], *pz = &wk->pz[0][0];
+    const lanev zero = VC(wk->zeros, 0);
+    lanev tr = zero, w = zero, vv = zero, zv = zero, pmax = zero;
+    rhonn_real a_tr[RHONN_MAX_POPULATION], a_w[RHONN_MAX_POPULATION], a_vv[RHONN_MAX_POPULATION];
+    rhonn_real a_zv[RHONN_MAX_POPULATION], a_pmax[RHONN_MAX_POPULATION], a_is[RHONN_MAX_POPULATION];
+    size_t r, m;
+    int all = 1;
+    for (r = 0; r < L; ++r) {
+        const lanev d = VC(P, rs[r]), vr = VC(pz, r), dn = VC(Pn, rs[r]);
+        const lanev az = (lanev)((lanei)VC(z, r) & (pop_ubits)POP_ABS_MASK);
+        const lanev av = (lanev)((lanei)vr & (pop_ubits)POP_ABS_MASK);
+        const lanei sb = (((((lanei)d >> POP_EXP_SHIFT) & POP_EXP_FIELD) + 1u) / 2u + POP_SQRT_ADD) << POP_EXP_SHIFT;
+        const lanei gt = (lanei)(dn > pmax);
+        tr += d;
+        w += (lanev)sb * az;
+        vv += vr * vr;
+        zv += az * av;
+        pmax = (lanev)(((lanei)dn & gt) | ((lanei)pmax & ~gt));
+    }
+    V(a_tr, 0) = tr;
+    V(a_w, 0) = w;
+    V(a_vv, 0) = vv;
+    V(a_zv, 0) = zv;
+    V(a_pmax, 0) = pmax;
+    V(a_is, 0) = inv_s;
+    for (m = 0; m < NPOP; ++m) {
+        fast[m] = (uint8_t)(wk->learn[i][m] && wk->cert[i][m] && wk->inv_lambda[i][m] == R(1.0) &&
+                            !wk->bounded[i][m] &&
+                            proof_holds(a_tr[m], a_w[m], a_vv[m], a_zv[m], a_pmax[m],
+                                        lane_qmin(&wk->q[i][0][0], L, m), wk->r[i][m], a_is[m], L));
+        all &= fast[m] || !wk->learn[i][m];
+    }
+    return all;
+}
+
+/* The check of full_kernel (rhonn.c scaled_udu + udu_factor) with shift
+ * subtracted from each scaled diagonal entry (zero: the plain check, x - 0
+ * being x bit for bit): out_ok[m] 1 when member m passed. */
+POP_ALWAYS_INLINE void vec_check(rhonn_population_work *wk, const rhonn_real *Pn, size_t L, const size_t *rs,
+                                 const lanev shift, rhonn_real *out_ok)
+{
+    rhonn_real *F = &wk->f[0][0], *sc = &wk->sc[0][0];
+    rhonn_real *tk = &wk->tk[0][0], *dk = &wk->dk[0][0];
+    const lanev one = VC(wk->zeros, 0) + R(1.0);
+    size_t r, j, k, ii, m;
+
+    /* The check (rhonn.c scaled_udu + udu_factor): each diagonal normal and
+     * finite (MIN_NORMAL <= v <= MAX, false for NaN) and scaled by 2^-h,
+     * h = floor(e / 2), built from its exponent bits; then every pivot
+     * positive and finite. */
+    for (r = 0; r < L; ++r) {
+        const lanev d = VC(Pn, rs[r]);
+        const lanei b = ((lanei)d >> POP_EXP_SHIFT) & POP_EXP_FIELD;
+        V(sc, r) = (lanev)((POP_SCALE_TOP - ((b + POP_SCALE_ADD) >> 1)) << POP_EXP_SHIFT);
+    }
+    for (j = L; j-- > 0u;) {
+        const size_t tail = L - 1u - j;
+        const lanev sj = V(sc, j);
+        lanev dj = (VC(Pn, rs[j]) * sj) * sj - shift, inv;
+        for (k = 0; k < tail; ++k) {
+            const lanev ujk = V(F, rs[j] + 1u + k), t = V(dk, j + 1u + k) * ujk;
+            V(tk, k) = t;
+            dj -= ujk * t;
+        }
+        V(dk, j) = dj;
+        V(F, rs[j]) = dj;
+        inv = one / dj;
+        for (ii = 0; ii < j; ++ii) {
+            const size_t at = rs[ii] + (j - ii);
+            lanev a = (VC(Pn, at) * V(sc, ii)) * sj;
+            for (k = 0; k < tail; ++k) {
+                a -= V(F, at + 1u + k) * V(tk, k);
+            }
+            V(F, at) = a * inv;
+        }
+    }
+    /* the pivots' verdict, member by member from the stored d_j and the
+     * diagonal (vector compares' masks convert poorly on some targets) */
+    for (m = 0; m < NPOP; ++m) {
+        out_ok[m] = R(1.0);
+    }
+    for (r = 0; r < L; ++r) {
+        const rhonn_real *d = LANE(Pn, rs[r]), *pv = LANE(dk, r);
+        for (m = 0; m < NPOP; ++m) {
+            const int good = d[m] >= RHONN_MIN_NORMAL && d[m] <= RHONN_MAX_REAL && pv[m] > R(0.0) &&
+                             pv[m] <= RHONN_MAX_REAL;
+            out_ok[m] = good ? out_ok[m] : R(0.0);
+        }
+    }
+}
+
 POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L)
 {
     const rhonn_real *P = &wk->p[wk->pb[i]][i][0][0];
     rhonn_real *Pn = &wk->p[wk->pb[i] ^ 1u][i][0][0];
     const rhonn_real *z = &wk->z[wk->zb][i][0][0];
     const rhonn_real *q = &wk->q[i][0][0];
-    rhonn_real *pz = &wk->pz[0][0], *F = &wk->f[0][0], *sc = &wk->sc[0][0];
-    rhonn_real *tk = &wk->tk[0][0], *dk = &wk->dk[0][0];
+    rhonn_real *pz = &wk->pz[0][0];
     const lanev rr = VC(wk->r[i], 0), ilam = VC(wk->inv_lambda[i], 0);
     const lanev zero = VC(wk->zeros, 0);
     const lanev one = zero + R(1.0);
     lanev s, inv_s, acc, s0, s1, scale;
     size_t rs[RHONN_MAX_TERMS];
-    size_t r, c, j, k, ii, len;
+    size_t r, c, len;
     const size_t packed = L * (L + 1u) / 2u;
     rhonn_real out_s[RHONN_MAX_POPULATION], out_wsum[RHONN_MAX_POPULATION], out_ok[RHONN_MAX_POPULATION];
     rhonn_real tmp[RHONN_MAX_POPULATION];
+    uint8_t fast[RHONN_MAX_POPULATION];
     size_t m;
 
     rs[0] = 0;
@@ -523,47 +787,23 @@ POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L
     for (c = 0; c < packed; ++c) {
         V(Pn, c) *= scale;
     }
-    /* The check (rhonn.c scaled_udu + udu_factor): each diagonal normal and
-     * finite (MIN_NORMAL <= v <= MAX, false for NaN) and scaled by 2^-h,
-     * h = floor(e / 2), built from its exponent bits; then every pivot
-     * positive and finite. */
-    for (r = 0; r < L; ++r) {
-        const lanev d = V(Pn, rs[r]);
-        const lanei b = ((lanei)d >> POP_EXP_SHIFT) & POP_EXP_FIELD;
-        V(sc, r) = (lanev)((POP_SCALE_TOP - ((b + POP_SCALE_ADD) >> 1)) << POP_EXP_SHIFT);
-    }
-    for (j = L; j-- > 0u;) {
-        const size_t tail = L - 1u - j;
-        const lanev sj = V(sc, j);
-        lanev dj = (V(Pn, rs[j]) * sj) * sj, inv;
-        for (k = 0; k < tail; ++k) {
-            const lanev ujk = V(F, rs[j] + 1u + k), t = V(dk, j + 1u + k) * ujk;
-            V(tk, k) = t;
-            dj -= ujk * t;
-        }
-        V(dk, j) = dj;
-        V(F, rs[j]) = dj;
-        inv = one / dj;
-        for (ii = 0; ii < j; ++ii) {
-            const size_t at = rs[ii] + (j - ii);
-            lanev a = (V(Pn, at) * V(sc, ii)) * sj;
-            for (k = 0; k < tail; ++k) {
-                a -= V(F, at + 1u + k) * V(tk, k);
-            }
-            V(F, at) = a * inv;
-        }
-    }
-    /* the pivots' verdict, member by member from the stored d_j and the
-     * diagonal (vector compares' masks convert poorly on some targets) */
-    for (m = 0; m < NPOP; ++m) {
-        out_ok[m] = R(1.0);
-    }
-    for (r = 0; r < L; ++r) {
-        const rhonn_real *d = LANE(Pn, rs[r]), *pv = LANE(dk, r);
+    /* The check: the proofs, then the shifted factorisation, then the
+     * plain one, each only for what the one before left open. */
+    if (vec_proofs(wk, i, L, rs, inv_s, fast)) {
         for (m = 0; m < NPOP; ++m) {
-            const int good = d[m] >= RHONN_MIN_NORMAL && d[m] <= RHONN_MAX_REAL && pv[m] > R(0.0) &&
-                             pv[m] <= RHONN_MAX_REAL;
-            out_ok[m] = good ? out_ok[m] : R(0.0);
+            wk->cert_new[i][m] = fast[m];
+            out_ok[m] = R(1.0);
+        }
+    } else {
+        rhonn_real shifted_ok[RHONN_MAX_POPULATION];
+        vec_check(wk, Pn, L, rs, zero + R(17.0) * (rhonn_real)L *
+                  (R(1.01) * (rhonn_real)(L + 1u) * (RHONN_EPSILON * R(0.5))), shifted_ok);
+        if (plain_needed(wk, i, fast, shifted_ok)) {
+            rhonn_real plain_ok[RHONN_MAX_POPULATION];
+            vec_check(wk, Pn, L, rs, zero, plain_ok);
+            proof_verdicts(wk, i, fast, shifted_ok, plain_ok, out_ok);
+        } else {
+            proof_verdicts(wk, i, fast, shifted_ok, NULL, out_ok);
         }
     }
     for (m = 0; m < NPOP; ++m) {
@@ -661,12 +901,12 @@ POP_CLONES static void ud_kernel(rhonn_population_work *wk, size_t i, size_t L)
     if (any_q) {
         size_t J;
         for (J = 0; J < L; ++J) {
-            lanev cw = VC(q, J), dj = V(Fn, rs[J]), dn = dj + cw, inv_dn = one / dn, bj = cw * inv_dn;
-            cw = (cw * dj) * inv_dn;
+            lanev cw = VC(q, J), dj = V(Fn, rs[J]), dn = dj + cw, inv_dn = one / dn, bj, ratio = dj * inv_dn;
+            cw = cw * ratio;
             V(Fn, rs[J]) = dn;
             for (k = 0; k < J; ++k) {
                 V(a, k) = -V(Fn, rs[k] + (J - k));
-                V(Fn, rs[k] + (J - k)) += bj * V(a, k);
+                V(Fn, rs[k] + (J - k)) *= ratio;
             }
             for (j = J; j-- > 0u;) {
                 const lanev p = V(a, j);
@@ -674,11 +914,13 @@ POP_CLONES static void ud_kernel(rhonn_population_work *wk, size_t i, size_t L)
                 dn = dj + cw * (p * p);
                 inv_dn = one / dn;
                 bj = (cw * p) * inv_dn;
-                cw = (cw * dj) * inv_dn;
+                ratio = dj * inv_dn;
+                cw = cw * ratio;
                 V(Fn, rs[j]) = dn;
                 for (k = 0; k < j; ++k) {
-                    V(a, k) -= p * V(Fn, rs[k] + (j - k));
-                    V(Fn, rs[k] + (j - k)) += bj * V(a, k);
+                    const lanev u = V(Fn, rs[k] + (j - k));
+                    V(Fn, rs[k] + (j - k)) = u * ratio + bj * V(a, k);
+                    V(a, k) -= p * u;
                 }
             }
         }
@@ -824,6 +1066,7 @@ static void load_lane(rhonn_population_work *wk, const rhonn_t *net, size_t m)
         for (t = 0; t < L * (L + 1u) / 2u; ++t) {
             wk->p[wk->pb[i]][i][t][m] = net->p[i][b][t];
         }
+        wk->cert[i][m] = nc->covariance == (uint8_t)RHONN_COV_UD ? 0u : net->cert[i][b];
         wk->xhat[i][m] = net->xhat[i];
         wk->r[i][m] = nc->r;
         wk->eta[i][m] = nc->eta;
@@ -851,11 +1094,9 @@ static void store_lane(const rhonn_population_work *wk, rhonn_t *net, size_t m)
         for (t = 0; t < L * (L + 1u) / 2u; ++t) {
             net->p[i][b][t] = wk->p[wk->pb[i]][i][t][m];
         }
-        /* The lanes keep no exact-definiteness proofs (rhonn_t.cert): the
-         * member's next update proves its P afresh. Its verdicts are the
-         * same either way. */
-        net->cert[i][0] = 0;
-        net->cert[i][1] = 0;
+        /* the lane's proof of definiteness goes with its P (rhonn_t.cert) */
+        net->cert[i][b] = cfg->neurons[i].covariance == (uint8_t)RHONN_COV_UD ? 0u : wk->cert[i][m];
+        net->cert[i][b ^ 1u] = 0;
     }
 }
 
@@ -1184,6 +1425,9 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                     h->fail_run = 0;
                 }
                 net->bank[i] = (uint8_t)(net->bank[i] ^ wk->updated[i][m]);
+                if (wk->updated[i][m]) {
+                    wk->cert[i][m] = (uint8_t)(wk->recovered[i][m] ? 0u : wk->cert_new[i][m]);
+                }
                 if (!wk->updated[i][m]) {
                     /* P(k+1) = P(k): into the bank that becomes committed */
                     const size_t pb = wk->pb[i];
