@@ -280,6 +280,8 @@ typedef struct {
      * samples in a row, up to the newest, in which x_j was measured. */
     uint8_t own_need[RHONN_MAX_STATES];
     rhonn_real q_min[RHONN_MAX_STATES];  /* min_t Q_i[t], for the definiteness proof */
+    rhonn_real inv_lambda[RHONN_MAX_STATES];  /* 1 / forgetting, 0 when off */
+    uint8_t q_zero[RHONN_MAX_STATES];         /* Q_i all zero: nothing to add */
     uint8_t valid_run[RHONN_MAX_STATES];
     uint8_t entry_delay[RHONN_MAX_ENTRIES];
     uint8_t entry_power[RHONN_MAX_ENTRIES];

@@ -199,6 +199,8 @@ static size_t packed_size(size_t L)
 RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L);
 static rhonn_real full_trace(const rhonn_real *P, size_t L);
 static void load_p0(const rhonn_t *net, size_t i, rhonn_real *dst);
+static uint8_t p0_proven(const rhonn_neuron_config *nc);
+static rhonn_real inverse_forgetting(const rhonn_neuron_config *nc);
 #if RHONN_WITH_UD
 static int udu_of(const rhonn_real *P, rhonn_real *F, size_t L);
 #endif
@@ -405,8 +407,15 @@ static void compile_terms(rhonn_t *net)
     for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
         net->own_need[i] = 0;
         net->q_min[i] = R(0.0);
+        net->inv_lambda[i] = R(0.0);
+        net->q_zero[i] = 1u;
     }
     for (i = 0; i < cfg->n_states; ++i) {
+        net->inv_lambda[i] = inverse_forgetting(&cfg->neurons[i]);
+        net->q_zero[i] = 1u;
+        for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
+            net->q_zero[i] = (uint8_t)(net->q_zero[i] && cfg->neurons[i].q[t] == R(0.0));
+        }
         net->q_min[i] = cfg->neurons[i].q[0];
         for (t = 1; t < cfg->neurons[i].n_terms; ++t) {
             net->q_min[i] = cfg->neurons[i].q[t] < net->q_min[i] ? cfg->neurons[i].q[t] : net->q_min[i];
@@ -547,6 +556,7 @@ rhonn_status rhonn_reset(rhonn_t *net)
         net->cert[i][1] = 0;
         if (i < n) {
             load_p0(net, i, net->p[i][0]);
+            net->cert[i][0] = p0_proven(nc);
         }
         net->xhat[i] = i < n ? CFG(net)->x0[i] : R(0.0);
     }
@@ -991,7 +1001,7 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
     rhonn_real *RHONN_RESTRICT wn = net->w[i][b ^ 1u];
     rhonn_real pz[RHONN_MAX_TERMS];
     rhonn_real s, inv_s, gain;
-    const rhonn_real inv_lambda = inverse_forgetting(nc);
+    const rhonn_real inv_lambda = net->inv_lambda[i];
     size_t r, c, len;
     const rhonn_real *row;
 
@@ -1090,18 +1100,6 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
 #define RHONN_UD_UNROLL_LOOP
 #endif
 
-/* Is neuron nc's Q all zero (nothing to add)? */
-static int zero_q(const rhonn_neuron_config *nc, size_t L)
-{
-    size_t j;
-    for (j = 0; j < L; ++j) {
-        if (nc->q[j] != R(0.0)) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 /* eq. 7-8 for a RHONN_COV_UD neuron: P = U D U^T is stored as its factors
  * (D on the packed diagonal, U beside it).
  *
@@ -1138,7 +1136,7 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
     rhonn_real a[RHONN_MAX_TERMS];
     size_t rs[RHONN_MAX_TERMS];
     rhonn_real alpha, alpha_new, inv, inv_prev, s, gain;
-    const rhonn_real inv_lambda = inverse_forgetting(nc);
+    const rhonn_real inv_lambda = net->inv_lambda[i];
     size_t j, k, at;
 
     rs[0] = 0;
@@ -1212,7 +1210,7 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
             Fn[rs[k] + (j - k)] = wu[rs[k] + (j - k)];
         }
     }
-    if (!zero_q(nc, L)) {
+    if (!net->q_zero[i]) {
         size_t J, jp;
         RHONN_UD_UNROLL_LOOP
         for (J = 0; J < L; ++J) {
@@ -1408,6 +1406,26 @@ static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn
 
 /* P_i(0) in neuron i's storage form: a copy, or its U D U^T factors (the
  * config was validated, so the factorisation succeeds). */
+/* A full-form P_i(0) that is diagonal (the paper's, and the default) is
+ * definite in exact arithmetic with nothing to prove (its entries were
+ * validated positive): its proof starts at once, so the first update after
+ * init, reset or a recovery costs no factorisation either. */
+static uint8_t p0_proven(const rhonn_neuron_config *nc)
+{
+    size_t r, c, idx;
+    if (nc->covariance != (uint8_t)RHONN_COV_FULL) {
+        return 0u;
+    }
+    for (r = 0, idx = 0; r < nc->n_terms; ++r) {
+        for (c = r; c < nc->n_terms; ++c, ++idx) {
+            if (c != r && nc->p0[idx] != R(0.0)) {
+                return 0u;
+            }
+        }
+    }
+    return 1u;
+}
+
 static void load_p0(const rhonn_t *net, size_t i, rhonn_real *dst)
 {
     const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
@@ -1584,7 +1602,7 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
                         net->w[i][nb][t] = net->w[i][net->bank[i]][t];
                     }
                     load_p0(net, i, net->p[i][nb]);
-                    net->cert[i][nb] = 0;
+                    net->cert[i][nb] = p0_proven(nc);
                 }
                 bounded[i] = 0;
                 recovered[i] = 1;
