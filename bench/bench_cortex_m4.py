@@ -85,6 +85,8 @@ def application(app: dict, budget: int) -> None:
         print(f"{kind:44} {k['frames']:6d} {k['mean']:12.0f} {k['max']:7d} {k['mean'] / budget:9.3f}")
     print(f"{'rhonn_step inside a measurement frame':44} {c['steps']:6d} {c['step_mean']:12.0f} {c['step_max']:7d} "
           f"{c['step_mean'] / budget:9.3f}")
+    print(f"{'  its median, 99th percentile':44} {'':6} {c['step_median']:12.0f} {c['step_p99']:7.0f} "
+          f"{c['step_p99'] / budget:9.3f}")
     print(f"the application around the step (decode, checks, encode, HAL): {c['app_overhead_mean']:.0f} cycles per "
           f"measurement frame; library routines ({', '.join(app['library_routines'])}): "
           f"{c['library_cycles_per_frame']:.0f} per frame, of them software double arithmetic "

@@ -118,6 +118,7 @@ def test_cortex_m4_cycle_estimate_covers_the_frame_and_its_step(m4) -> None:
     assert c["frames"] == CYCLE_FRAMES and c["steps"] == CYCLE_FRAMES   # the prefix: measurements only
     assert 0 < c["step_mean"] < c["measurement_frame_mean"]            # the frame holds its step and more
     assert c["app_overhead_mean"] > 0
+    assert 0 < c["step_median"] <= c["step_p99"] <= c["step_max"]
     assert c["frame_target_met"] == (c["measurement_frame_max"] <= c["frame_target"])
     print(f"\ncycles: {c['measurement_frame_mean']:.0f} per measurement frame (target {c['frame_target']}), "
           f"{c['step_mean']:.0f} per rhonn_step")

@@ -857,12 +857,13 @@ static rhonn_real abs_of(rhonn_real v)
  *    rho = gamma_{L+1} (R + |z|^T |v|) / s the relative error of s: the
  *    roundings of 1 / s, k_r = v_r / s, k_r v_c, the subtraction and + q,
  *    with |P|_F <= tr(P);
- * so lambda_min(P') >= q_min - eta - |E|. Accepted when twice
+ * so lambda_min(P') >= q_min - eta - |E|. Accepted when 9/8 of
  * (eta + |E| + Demmel's bound 1.01 L gamma_{L+1} max P'_rr) is at most
- * q_min: P' is definite with lambda_min >= q_min / 2, and pd_check (every
- * diagonal above q_min / 2 >= the normal range) would accept it. The factor
- * 2 also covers the rounding of these bounds themselves (1 / s is the
- * rounded inv_s), and sqrt_bound stands in for sqrt. Overflow or NaN
+ * q_min: P' is definite with lambda_min >= q_min / 9 + Demmel's bound, and
+ * pd_check (every diagonal above q_min / 9 >= the normal range) would
+ * accept it. The 1/8 also covers the rounding of these bounds themselves
+ * (a few dozen roundings, below 1e-5 relative; 1 / s is the rounded
+ * inv_s), and sqrt_bound stands in for sqrt. Overflow or NaN
  * anywhere fails a comparison, and every entry of P' is finite, at most
  * (tr(P) + |v|^2 / s)(1 + u) off the diagonal, which is bounded here; the
  * diagonal's largest is pmax. */
@@ -884,7 +885,7 @@ RHONN_INLINE int certified_update(const rhonn_real *RHONN_RESTRICT P, const rhon
         zv += az * abs_of(v[r]);
         pmax = Pn[idx] > pmax ? Pn[idx] : pmax;
     }
-    if (!(qmin >= R(2.0) * RHONN_MIN_NORMAL)) {
+    if (!(qmin >= R(16.0) * RHONN_MIN_NORMAL)) {
         return 0;
     }
     r_low = nc->r - gl * (w * w);
@@ -894,10 +895,10 @@ RHONN_INLINE int certified_update(const rhonn_real *RHONN_RESTRICT P, const rhon
         !(pmax <= RHONN_MAX_REAL)) {
         return 0;
     }
-    /* 2 (eta + err + Demmel) <= q_min, with eta = 2 X / r_low: no division */
+    /* 9/8 (eta + err + Demmel) <= q_min, with eta = 2 X / r_low: no division */
     eta_r = R(2.0) * (gl * gl) * (tr * (w * w));
     err = (R(3.0) * rho + R(8.0) * RHONN_UNIT) * vs + R(2.0) * RHONN_UNIT * (tr + pmax);
-    return R(2.0) * eta_r <= (qmin - R(2.0) * (err + R(1.01) * (rhonn_real)L * g1 * pmax)) * r_low;
+    return R(1.125) * eta_r <= (qmin - R(1.125) * (err + R(1.01) * (rhonn_real)L * g1 * pmax)) * r_low;
 }
 #endif
 

@@ -139,7 +139,7 @@ POP_ALWAYS_INLINE int proof_holds(rhonn_real tr, rhonn_real w, rhonn_real vv, rh
     const rhonn_real unit = RHONN_EPSILON * R(0.5);
     const rhonn_real gl = R(1.01) * (rhonn_real)L * unit, g1 = R(1.01) * (rhonn_real)(L + 1u) * unit;
     rhonn_real r_low, rho, vs, err, eta_r;
-    if (!(qmin >= R(2.0) * RHONN_MIN_NORMAL)) {
+    if (!(qmin >= R(16.0) * RHONN_MIN_NORMAL)) {
         return 0;
     }
     r_low = r_i - gl * (w * w);
@@ -151,7 +151,7 @@ POP_ALWAYS_INLINE int proof_holds(rhonn_real tr, rhonn_real w, rhonn_real vv, rh
     }
     eta_r = R(2.0) * (gl * gl) * (tr * (w * w));
     err = (R(3.0) * rho + R(8.0) * unit) * vs + R(2.0) * unit * (tr + pmax);
-    return R(2.0) * eta_r <= (qmin - R(2.0) * (err + R(1.01) * (rhonn_real)L * g1 * pmax)) * r_low;
+    return R(1.125) * eta_r <= (qmin - R(1.125) * (err + R(1.01) * (rhonn_real)L * g1 * pmax)) * r_low;
 }
 
 /* min_r q_r of member m. Both inlined into their (possibly target-cloned)

@@ -185,7 +185,8 @@ def _class(m: str, w: int) -> str:
     return "integer"
 
 
-def _percentile(values: list[float], q: float) -> float:
+def percentile(values: list[float], q: float) -> float:
+    """The q-quantile of values (nearest rank, from below)."""
     ordered = sorted(values)
     return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
 
@@ -299,7 +300,7 @@ def estimate(elf: Path, objects: Path | Sequence[Path], step_symbol: str = "rhon
         "estimated_cycles_per_call": cycles / calls,
         "estimated_cycles_min": min(per_call),
         "estimated_cycles_max": max(per_call),
-        "estimated_cycles_p99": _percentile(per_call, 0.99),
+        "estimated_cycles_p99": percentile(per_call, 0.99),
         "cycles_each": per_call,
         "cycle_share_by_class": {k: round(v / cycles, 4) for k, v in by_class.most_common()},
         "cycles_per_call_by_function": {k: round(v / calls, 1) for k, v in by_function.most_common()},

@@ -285,6 +285,9 @@ def frame_cycles(elf: Path, objs: dict[str, Path], lines: list[str], kinds: list
         "measurement_frame_max": max(plain),
         "step_mean": est["nested"]["estimated_cycles_per_call"],
         "step_max": est["nested"]["estimated_cycles_max"],
+        # a real-time loop's figures: the typical step and all but the slowest 1 %
+        "step_median": sorted(steps)[len(steps) // 2] if steps else 0,
+        "step_p99": cycles.percentile(steps, 0.99) if steps else 0,
         "steps": est["nested"]["calls"],
         "app_overhead_mean": sum(overhead) / len(overhead) if overhead else None,
         "library_cycles_per_frame": round(sum(v for k, v in by_function.items() if k not in own), 1),
