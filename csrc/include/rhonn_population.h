@@ -82,6 +82,7 @@ typedef struct {
     rhonn_real inv_lambda[RHONN_MAX_STATES][RHONN_MAX_POPULATION];  /* 1 / forgetting; 1 when off */
     rhonn_real p_trace_max[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* 0 when off */
     rhonn_real q[RHONN_MAX_STATES][RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
+    rhonn_real q_min[RHONN_MAX_STATES][RHONN_MAX_POPULATION];  /* min_t q (rhonn_t.q_min) */
     /* full form: the committed P carries rhonn.c's proof of definiteness
      * (rhonn_t.cert), and the step's candidate does */
     uint8_t cert[RHONN_MAX_STATES][RHONN_MAX_POPULATION];

@@ -10,19 +10,11 @@
 
 #define RHONN_MAGIC 0x52484E4EUL /* "RHNN" */
 
+/* Beyond this, exp(-a) is below the smallest normal float (double): return 0. */
 #ifdef RHONN_SINGLE
-#define R(c) c##f
-/* Beyond this, exp(-a) is below the smallest normal float: return 0. */
 #define RHONN_EXP_CUTOFF 87.0f
-#define RHONN_MAX_REAL 3.402823466e38f
-#define RHONN_EPSILON 1.1920928955e-7f
-#define RHONN_MIN_NORMAL 1.1754943508e-38f
 #else
-#define R(c) c
 #define RHONN_EXP_CUTOFF 708.0
-#define RHONN_MAX_REAL 1.7976931348623157e308
-#define RHONN_EPSILON 2.220446049250313e-16
-#define RHONN_MIN_NORMAL 2.2250738585072014e-308
 #endif
 
 #if defined(__GNUC__) || defined(__clang__)
@@ -704,41 +696,26 @@ RHONN_INLINE int udu_factor(const rhonn_real *RHONN_RESTRICT P, const rhonn_real
     return 1;
 }
 
-/* floor(e / 2) for v = m 2^e, m in [1, 2), from the bits (e = -127 or
- * -1023 for 0 and the subnormals). */
-static int half_exponent(rhonn_real v)
-{
-    int e;
-#ifdef RHONN_SINGLE
-    union { float f; uint32_t u; } b;
-    b.f = v;
-    e = (int)((b.u >> 23) & 0xFFu) - 127;
-#else
-    union { double f; uint64_t u; } b;
-    b.f = v;
-    e = (int)((b.u >> 52) & 0x7FFu) - 1023;
-#endif
-    return e >= 0 ? e / 2 : -((1 - e) / 2);
-}
-
-/* 2^k built from its bits, for 2^k in the normal range. */
-static rhonn_real pow2(int k)
-{
-#ifdef RHONN_SINGLE
-    union { float f; uint32_t u; } b;
-    b.u = (uint32_t)(127 + k) << 23;
-#else
-    union { double f; uint64_t u; } b;
-    b.u = (uint64_t)(1023 + k) << 52;
-#endif
-    return b.f;
-}
-
 /* 2^-h with h = floor(e / 2) for v = m 2^e, m in [1, 2): v times its
  * square is in [1, 4). Built from the bits, so scaling by it is exact. */
 static rhonn_real half_exponent_scale(rhonn_real v)
 {
-    return pow2(-half_exponent(v));
+#ifdef RHONN_SINGLE
+    union { float f; uint32_t u; } b;
+    int e, h;
+    b.f = v;
+    e = (int)((b.u >> 23) & 0xFFu) - 127;
+    h = e >= 0 ? e / 2 : -((1 - e) / 2);
+    b.u = (uint32_t)(127 - h) << 23;
+#else
+    union { double f; uint64_t u; } b;
+    int e, h;
+    b.f = v;
+    e = (int)((b.u >> 52) & 0x7FFu) - 1023;
+    h = e >= 0 ? e / 2 : -((1 - e) / 2);
+    b.u = (uint64_t)(1023 - h) << 52;
+#endif
+    return b.f;
 }
 
 /* Is the packed symmetric P positive definite at working precision: does
@@ -779,37 +756,10 @@ RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L)
 }
 
 #if RHONN_CERTIFY
-/* An upper bound on sqrt(v), v >= 0 finite, within a factor 2: 2^(h + 1)
- * with h = floor(e / 2) for v = m 2^e (sqrt(m 2^e) < 2^(e/2 + 1/2)), whose
- * biased exponent is (E + 1) / 2 + 64 (float) or + 512 (double) for v's
- * biased exponent E (0 for 0 and the subnormals, where the bound still
- * holds); integer work only, no libm, no branch, no division. */
-static rhonn_real sqrt_bound(rhonn_real v)
-{
-#ifdef RHONN_SINGLE
-    union { float f; uint32_t u; } b;
-    b.f = v;
-    b.u = ((((b.u >> 23) & 0xFFu) + 1u) / 2u + 64u) << 23;
-#else
-    union { double f; uint64_t u; } b;
-    b.f = v;
-    b.u = ((((b.u >> 52) & 0x7FFu) + 1u) / 2u + 512u) << 52;
-#endif
-    return b.f;
-}
-
-/* Rounding-error constants: the unit roundoff u = eps / 2 and
- * gamma_k = k u / (1 - k u) <= 1.01 k u (k u is below 1e-5 for any
- * capacity here). */
-#define RHONN_UNIT (RHONN_EPSILON * R(0.5))
-static rhonn_real gamma_of(size_t k)
-{
-    return R(1.01) * (rhonn_real)k * RHONN_UNIT;
-}
-
 /* Is P positive definite in exact arithmetic, with room to spare? The
  * factorisation of C - alpha I, C = S P S scaled to a diagonal in [1, 4),
- * alpha = 17 L gamma_{L+1}. Its computed factors are those of
+ * alpha = 17 L gamma_{L+1} (rhonn_proof_shift; u the unit roundoff,
+ * gamma_k = k u / (1 - k u) <= 1.01 k u). Its computed factors are those of
  * C - alpha I + dC, |dC| <= gamma_{L+1} |U| D |U|^T (Higham, Accuracy and
  * Stability, Thm 10.3), whose 2-norm is at most 4.04 L gamma_{L+1} here; the
  * shift rounds by at most 4u. Success therefore proves
@@ -821,7 +771,7 @@ static rhonn_real gamma_of(size_t k)
 RHONN_INLINE int shifted_check(const rhonn_real *RHONN_RESTRICT P, const size_t L)
 {
     rhonn_real F[RHONN_MAX_PACKED], sc[RHONN_MAX_TERMS];
-    return scaled_udu(P, F, sc, L, R(17.0) * (rhonn_real)L * gamma_of(L + 1u));
+    return scaled_udu(P, F, sc, L, rhonn_proof_shift(L));
 }
 
 /* |v| by clearing the sign bit: no compare and branch. */
@@ -866,39 +816,25 @@ static rhonn_real abs_of(rhonn_real v)
  * inv_s), and sqrt_bound stands in for sqrt. Overflow or NaN
  * anywhere fails a comparison, and every entry of P' is finite, at most
  * (tr(P) + |v|^2 / s)(1 + u) off the diagonal, which is bounded here; the
- * diagonal's largest is pmax. */
+ * diagonal's largest is pmax. The sums are taken here; rhonn_internal.h's
+ * rhonn_proof_holds (shared with the population kernels) does the rest. */
 RHONN_INLINE int certified_update(const rhonn_real *RHONN_RESTRICT P, const rhonn_real *RHONN_RESTRICT z,
                                   const rhonn_real *RHONN_RESTRICT v, const rhonn_real inv_s,
                                   const rhonn_real *RHONN_RESTRICT Pn, const rhonn_neuron_config *nc,
                                   const rhonn_real qmin, const size_t L)
 {
-    const rhonn_real gl = gamma_of(L), g1 = gamma_of(L + 1u);
     rhonn_real tr = R(0.0), w = R(0.0), vv = R(0.0), zv = R(0.0), pmax = R(0.0);
-    rhonn_real r_low, eta_r, rho, err, vs;
     size_t r, idx;
     RHONN_UNROLL_LOOP
     for (r = 0, idx = 0; r < L; idx += L - r, ++r) {
         const rhonn_real az = abs_of(z[r]);
         tr += P[idx];
-        w += sqrt_bound(P[idx]) * az;
+        w += rhonn_sqrt_bound(P[idx]) * az;
         vv += v[r] * v[r];
         zv += az * abs_of(v[r]);
         pmax = Pn[idx] > pmax ? Pn[idx] : pmax;
     }
-    if (!(qmin >= R(16.0) * RHONN_MIN_NORMAL)) {
-        return 0;
-    }
-    r_low = nc->r - gl * (w * w);
-    rho = g1 * (nc->r + zv) * inv_s;
-    vs = vv * inv_s;
-    if (!(r_low > R(0.0)) || !(rho <= R(0.25)) || !(tr + vs <= RHONN_MAX_REAL * R(0.25)) ||
-        !(pmax <= RHONN_MAX_REAL)) {
-        return 0;
-    }
-    /* 9/8 (eta + err + Demmel) <= q_min, with eta = 2 X / r_low: no division */
-    eta_r = R(2.0) * (gl * gl) * (tr * (w * w));
-    err = (R(3.0) * rho + R(8.0) * RHONN_UNIT) * vs + R(2.0) * RHONN_UNIT * (tr + pmax);
-    return R(1.125) * eta_r <= (qmin - R(1.125) * (err + R(1.01) * (rhonn_real)L * g1 * pmax)) * r_low;
+    return rhonn_proof_holds(tr, w, vv, zv, pmax, qmin, nc->r, inv_s, L);
 }
 #endif
 

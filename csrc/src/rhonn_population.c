@@ -22,16 +22,8 @@
 #include "rhonn_internal.h"
 
 #ifdef RHONN_SINGLE
-#define R(c) c##f
-#define RHONN_MIN_NORMAL 1.1754943508e-38f
-#define RHONN_MAX_REAL 3.402823466e38f
-#define RHONN_EPSILON 1.1920928955e-7f
 typedef uint32_t pop_bits;
 #else
-#define R(c) c
-#define RHONN_MIN_NORMAL 2.2250738585072014e-308
-#define RHONN_MAX_REAL 1.7976931348623157e308
-#define RHONN_EPSILON 2.220446049250313e-16
 typedef uint64_t pop_bits;
 #endif
 
@@ -130,42 +122,6 @@ POP_ALWAYS_INLINE void verdicts(rhonn_population_work *wk, const rhonn_real *Pn,
  * under which the plain factorisation accepts it, so that skipping the
  * factorisation changes no verdict; 0 when it cannot. Scalar: O(L) per
  * member against the factorisation's O(L^3). */
-/* The end of the proof from its sums over the terms (tr = trace P, w =
- * sum sqrt_bound(P_rr) |z_r|, vv = |v|^2, zv = |z|^T |v|, pmax = largest
- * diagonal of Pn) and q_min: rhonn.c's certified_update after its loop. */
-POP_ALWAYS_INLINE int proof_holds(rhonn_real tr, rhonn_real w, rhonn_real vv, rhonn_real zv, rhonn_real pmax,
-                                  rhonn_real qmin, rhonn_real r_i, rhonn_real inv_s, size_t L)
-{
-    const rhonn_real unit = RHONN_EPSILON * R(0.5);
-    const rhonn_real gl = R(1.01) * (rhonn_real)L * unit, g1 = R(1.01) * (rhonn_real)(L + 1u) * unit;
-    rhonn_real r_low, rho, vs, err, eta_r;
-    if (!(qmin >= R(16.0) * RHONN_MIN_NORMAL)) {
-        return 0;
-    }
-    r_low = r_i - gl * (w * w);
-    rho = g1 * (r_i + zv) * inv_s;
-    vs = vv * inv_s;
-    if (!(r_low > R(0.0)) || !(rho <= R(0.25)) || !(tr + vs <= RHONN_MAX_REAL * R(0.25)) ||
-        !(pmax <= RHONN_MAX_REAL)) {
-        return 0;
-    }
-    eta_r = R(2.0) * (gl * gl) * (tr * (w * w));
-    err = (R(3.0) * rho + R(8.0) * unit) * vs + R(2.0) * unit * (tr + pmax);
-    return R(1.125) * eta_r <= (qmin - R(1.125) * (err + R(1.01) * (rhonn_real)L * g1 * pmax)) * r_low;
-}
-
-/* min_r q_r of member m. Both inlined into their (possibly target-cloned)
- * callers: a baseline-ISA call from an AVX-512 clone ran 3x slower here. */
-POP_ALWAYS_INLINE rhonn_real lane_qmin(const rhonn_real *q, size_t L, size_t m)
-{
-    rhonn_real qmin = q[m];
-    size_t r;
-    for (r = 1; r < L; ++r) {
-        qmin = q[r * NPOP + m] < qmin ? q[r * NPOP + m] : qmin;
-    }
-    return qmin;
-}
-
 #if !RHONN_POP_VECTOR
 /* rhonn.c's definiteness proof (certified_update: see its comment for the
  * bounds) for member m of a full-form update, from the lane arrays: P the
@@ -174,7 +130,7 @@ POP_ALWAYS_INLINE rhonn_real lane_qmin(const rhonn_real *q, size_t L, size_t m)
  * under which the plain factorisation accepts it, so that skipping the
  * factorisation changes no verdict; 0 when it cannot. */
 static int lane_proof(const rhonn_real *P, const rhonn_real *z, const rhonn_real *v, rhonn_real inv_s,
-                      const rhonn_real *Pn, const rhonn_real *q, rhonn_real r_i, size_t L, size_t m)
+                      const rhonn_real *Pn, rhonn_real qmin, rhonn_real r_i, size_t L, size_t m)
 {
     rhonn_real tr = R(0.0), w = R(0.0), vv = R(0.0), zv = R(0.0), pmax = R(0.0);
     size_t r, idx;
@@ -182,21 +138,13 @@ static int lane_proof(const rhonn_real *P, const rhonn_real *z, const rhonn_real
         const rhonn_real d = P[idx * NPOP + m], zr = z[r * NPOP + m], vr = v[r * NPOP + m];
         const rhonn_real az = zr < R(0.0) ? -zr : zr, av = vr < R(0.0) ? -vr : vr;
         const rhonn_real dn = Pn[idx * NPOP + m];
-        union { rhonn_real f; pop_bits u; } b;
-        /* sqrt(d) <= 2^(floor(e / 2) + 1): rhonn.c's sqrt_bound */
-        b.f = d;
-#ifdef RHONN_SINGLE
-        b.u = ((((b.u >> 23) & 0xFFu) + 1u) / 2u + 64u) << 23;
-#else
-        b.u = (pop_bits)((((b.u >> 52) & 0x7FFu) + 1u) / 2u + 512u) << 52;
-#endif
         tr += d;
-        w += b.f * az;
+        w += rhonn_sqrt_bound(d) * az;
         vv += vr * vr;
         zv += az * av;
         pmax = dn > pmax ? dn : pmax;
     }
-    return proof_holds(tr, w, vv, zv, pmax, lane_qmin(q, L, m), r_i, inv_s, L);
+    return rhonn_proof_holds(tr, w, vv, zv, pmax, qmin, r_i, inv_s, L);
 }
 
 /* Which members' updates the proof covers (fast[m]: a learning member whose
@@ -211,7 +159,7 @@ static int lane_proofs(rhonn_population_work *wk, size_t i, size_t L, const rhon
     for (m = 0; m < NPOP; ++m) {
         fast[m] = (uint8_t)(wk->learn[i][m] && wk->cert[i][m] && wk->inv_lambda[i][m] == R(1.0) &&
                             !wk->bounded[i][m] &&
-                            lane_proof(P, &wk->z[wk->zb][i][0][0], &wk->pz[0][0], inv_s[m], Pn, &wk->q[i][0][0],
+                            lane_proof(P, &wk->z[wk->zb][i][0][0], &wk->pz[0][0], inv_s[m], Pn, wk->q_min[i][m],
                                        wk->r[i][m], L, m));
         all &= fast[m] || !wk->learn[i][m];
     }
@@ -503,7 +451,7 @@ static void full_kernel_loops(rhonn_population_work *wk, size_t i, size_t L)
     } else {
         rhonn_real shift[RHONN_MAX_POPULATION], shifted_ok[RHONN_MAX_POPULATION];
         for (m = 0; m < NPOP; ++m) {
-            shift[m] = R(17.0) * (rhonn_real)L * (R(1.01) * (rhonn_real)(L + 1u) * (RHONN_EPSILON * R(0.5)));
+            shift[m] = rhonn_proof_shift(L);
         }
         loops_check(wk, Pn, L, rs, shift, shifted_ok);
         if (plain_needed(wk, i, fast, shifted_ok)) {
@@ -608,16 +556,16 @@ POP_ALWAYS_INLINE void weights_update(rhonn_population_work *wk, size_t i, size_
 /* lane_proofs of the loop kernel with the sums over the terms done for
  * every member at once (the largest diagonal by a mask: no NaN reaches it,
  * as P and the gain's products are finite here), then each member's tail
- * (proof_holds). */
-POP_ALWAYS_INLINE int vec_proofs(rhonn_population_work *wk, size_t i, size_t L, const size_t *rs, const lanev inv_s,
-                                 uint8_t *fast)
+ * (rhonn_proof_holds). */
+POP_ALWAYS_INLINE int vec_proofs(rhonn_population_work *wk, size_t i, size_t L, const size_t *rs,
+                                 const rhonn_real *inv_s, uint8_t *fast)
 {
     const rhonn_real *P = &wk->p[wk->pb[i]][i][0][0], *Pn = &wk->p[wk->pb[i] ^ 1u][i][0][0];
     const rhonn_real *z = &wk->z[wk->zb][i][0][0], *pz = &wk->pz[0][0];
     const lanev zero = VC(wk->zeros, 0);
     lanev tr = zero, w = zero, vv = zero, zv = zero, pmax = zero;
     rhonn_real a_tr[RHONN_MAX_POPULATION], a_w[RHONN_MAX_POPULATION], a_vv[RHONN_MAX_POPULATION];
-    rhonn_real a_zv[RHONN_MAX_POPULATION], a_pmax[RHONN_MAX_POPULATION], a_is[RHONN_MAX_POPULATION];
+    rhonn_real a_zv[RHONN_MAX_POPULATION], a_pmax[RHONN_MAX_POPULATION];
     size_t r, m;
     int all = 1;
     for (r = 0; r < L; ++r) {
@@ -637,22 +585,21 @@ POP_ALWAYS_INLINE int vec_proofs(rhonn_population_work *wk, size_t i, size_t L, 
     V(a_vv, 0) = vv;
     V(a_zv, 0) = zv;
     V(a_pmax, 0) = pmax;
-    V(a_is, 0) = inv_s;
     for (m = 0; m < NPOP; ++m) {
         fast[m] = (uint8_t)(wk->learn[i][m] && wk->cert[i][m] && wk->inv_lambda[i][m] == R(1.0) &&
                             !wk->bounded[i][m] &&
-                            proof_holds(a_tr[m], a_w[m], a_vv[m], a_zv[m], a_pmax[m],
-                                        lane_qmin(&wk->q[i][0][0], L, m), wk->r[i][m], a_is[m], L));
+                            rhonn_proof_holds(a_tr[m], a_w[m], a_vv[m], a_zv[m], a_pmax[m], wk->q_min[i][m],
+                                              wk->r[i][m], inv_s[m], L));
         all &= fast[m] || !wk->learn[i][m];
     }
     return all;
 }
 
-/* The check of full_kernel (rhonn.c scaled_udu + udu_factor) with shift
- * subtracted from each scaled diagonal entry (zero: the plain check, x - 0
+/* The check of full_kernel (rhonn.c scaled_udu + udu_factor) with shift[m]
+ * subtracted from each scaled diagonal entry (0: the plain check, x - 0
  * being x bit for bit): out_ok[m] 1 when member m passed. */
 POP_ALWAYS_INLINE void vec_check(rhonn_population_work *wk, const rhonn_real *Pn, size_t L, const size_t *rs,
-                                 const lanev shift, rhonn_real *out_ok)
+                                 const rhonn_real *shift, rhonn_real *out_ok)
 {
     rhonn_real *F = &wk->f[0][0], *sc = &wk->sc[0][0];
     rhonn_real *tk = &wk->tk[0][0], *dk = &wk->dk[0][0];
@@ -671,7 +618,7 @@ POP_ALWAYS_INLINE void vec_check(rhonn_population_work *wk, const rhonn_real *Pn
     for (j = L; j-- > 0u;) {
         const size_t tail = L - 1u - j;
         const lanev sj = V(sc, j);
-        lanev dj = (VC(Pn, rs[j]) * sj) * sj - shift, inv;
+        lanev dj = (VC(Pn, rs[j]) * sj) * sj - VC(shift, 0), inv;
         for (k = 0; k < tail; ++k) {
             const lanev ujk = V(F, rs[j] + 1u + k), t = V(dk, j + 1u + k) * ujk;
             V(tk, k) = t;
@@ -789,18 +736,19 @@ POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L
     }
     /* The check: the proofs, then the shifted factorisation, then the
      * plain one, each only for what the one before left open. */
-    if (vec_proofs(wk, i, L, rs, inv_s, fast)) {
+    V(tmp, 0) = inv_s;
+    if (vec_proofs(wk, i, L, rs, tmp, fast)) {
         for (m = 0; m < NPOP; ++m) {
             wk->cert_new[i][m] = fast[m];
             out_ok[m] = R(1.0);
         }
     } else {
         rhonn_real shifted_ok[RHONN_MAX_POPULATION];
-        vec_check(wk, Pn, L, rs, zero + R(17.0) * (rhonn_real)L *
-                  (R(1.01) * (rhonn_real)(L + 1u) * (RHONN_EPSILON * R(0.5))), shifted_ok);
+        V(tmp, 0) = zero + rhonn_proof_shift(L);
+        vec_check(wk, Pn, L, rs, tmp, shifted_ok);
         if (plain_needed(wk, i, fast, shifted_ok)) {
             rhonn_real plain_ok[RHONN_MAX_POPULATION];
-            vec_check(wk, Pn, L, rs, zero, plain_ok);
+            vec_check(wk, Pn, L, rs, wk->zeros, plain_ok);
             proof_verdicts(wk, i, fast, shifted_ok, plain_ok, out_ok);
         } else {
             proof_verdicts(wk, i, fast, shifted_ok, NULL, out_ok);
@@ -1067,6 +1015,7 @@ static void load_lane(rhonn_population_work *wk, const rhonn_t *net, size_t m)
             wk->p[wk->pb[i]][i][t][m] = net->p[i][b][t];
         }
         wk->cert[i][m] = nc->covariance == (uint8_t)RHONN_COV_UD ? 0u : net->cert[i][b];
+        wk->q_min[i][m] = net->q_min[i];
         wk->xhat[i][m] = net->xhat[i];
         wk->r[i][m] = nc->r;
         wk->eta[i][m] = nc->eta;
