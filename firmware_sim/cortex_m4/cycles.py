@@ -193,7 +193,7 @@ def percentile(values: list[float], q: float) -> float:
 
 def estimate(elf: Path, objects: Path | Sequence[Path], step_symbol: str = "rhonn_step", *,
              harness: Sequence[str] = ("main",), nested: tuple[str, Path] | None = None,
-             args: Sequence[str] = (), timeout: float = 600.0) -> dict:
+             args: Sequence[str] = (), timeout: float = 600.0, by_address: bool = False) -> dict:
     """Run the image once under QEMU and estimate the cycles of every call
     of ``step_symbol``: from its entry until the program is back in one of
     the ``harness`` functions (its callers), counting the instructions of
@@ -203,7 +203,10 @@ def estimate(elf: Path, objects: Path | Sequence[Path], step_symbol: str = "rhon
     ``nested`` = (symbol, object): also the cycles of each call of that
     symbol made inside a call (e.g. rhonn_step inside fw_app_on_frame),
     from its entry until control is back in a counted function that the
-    object does not define, and the index of the call each was made in. ``args``: the image's semihosting command line.
+    object does not define, and the index of the call each was made in.
+    ``args``: the image's semihosting command line. ``by_address``: also
+    the cycles per call spent at each instruction address (for
+    ``source_lines``).
 
     Returns the calls, instructions and estimated cycles per call (mean,
     min, max, 99th percentile and every call's in ``cycles_each``), and the
@@ -305,6 +308,11 @@ def estimate(elf: Path, objects: Path | Sequence[Path], step_symbol: str = "rhon
         "cycle_share_by_class": {k: round(v / cycles, 4) for k, v in by_class.most_common()},
         "cycles_per_call_by_function": {k: round(v / calls, 1) for k, v in by_function.most_common()},
     }
+    if by_address:
+        at: collections.Counter[int] = collections.Counter()
+        for (pc, taken), n in counts.items():
+            at[pc] += weight(table[pc], taken) * n
+        out["cycles_per_call_by_address"] = {pc: c / calls for pc, c in at.items()}
     if nested:
         out["nested"] = {"symbol": nested[0], "calls": len(per_nested),
                          "estimated_cycles_per_call": sum(per_nested) / len(per_nested) if per_nested else 0.0,
@@ -313,18 +321,39 @@ def estimate(elf: Path, objects: Path | Sequence[Path], step_symbol: str = "rhon
     return out
 
 
+def source_lines(elf: Path, by_address: dict[int, float]) -> list[tuple[str, float]]:
+    """The cycles of ``by_address`` summed per source line (file:line, from
+    the image's debug information), most expensive first."""
+    addrs = sorted(by_address)
+    out = subprocess.run(["arm-none-eabi-addr2line", "-e", str(elf)], input="".join(f"0x{a:x}\n" for a in addrs),
+                         check=True, capture_output=True, text=True).stdout.splitlines()
+    per_line: collections.Counter[str] = collections.Counter()
+    for a, where in zip(addrs, out):
+        per_line[Path(where.split(" ")[0]).name if ":" in where else where] += by_address[a]
+    return per_line.most_common()
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("elf", type=Path)
     ap.add_argument("objects", type=Path, nargs="+", help="object files whose functions are counted")
     ap.add_argument("--steps-symbol", default="rhonn_step", help="the function whose calls are estimated")
     ap.add_argument("--harness", default="main", help="comma-separated callers of it, not counted (default main)")
+    ap.add_argument("--args", default="", help="comma-separated command line for the image (semihosting)")
+    ap.add_argument("--lines", type=int, default=0, metavar="N",
+                    help="also list the N source lines that cost the most cycles per call")
     args = ap.parse_args(argv)
+    if args.lines < 0:
+        ap.error(f"--lines must be >= 0, not {args.lines}")
     for path in (args.elf, *args.objects):
         if not path.is_file():
             ap.error(f"{path}: no such file")
     try:
-        est = estimate(args.elf, args.objects, args.steps_symbol, harness=args.harness.split(","))
+        est = estimate(args.elf, args.objects, args.steps_symbol, harness=args.harness.split(","),
+                       args=[a for a in args.args.split(",") if a], by_address=args.lines > 0)
+        if args.lines > 0:
+            est["cycles_per_call_by_line"] = dict(
+                (k, round(v, 1)) for k, v in source_lines(args.elf, est.pop("cycles_per_call_by_address"))[:args.lines])
     except (RuntimeError, OSError, subprocess.SubprocessError) as exc:
         print(f"cycles: {exc}", file=sys.stderr)
         return 2
