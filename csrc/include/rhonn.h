@@ -267,12 +267,13 @@ typedef struct {
     rhonn_real z[2][RHONN_MAX_STATES][RHONN_MAX_TERMS];
     rhonn_real xhat[RHONN_MAX_STATES];        /* xhat(k) */
 
-    /* The terms compiled by rhonn_init (eq. 4): every distinct factor value
-     * x_j(k-d)^p, S(x_j(k-d))^p, u_j(k-d)^p or 1 is an entry, read from
-     * offset entry_off of the sample d back and raised to entry_power once
-     * per step; term t of neuron i is the product of the entries
-     * term_entry[i][t][0..n_factors), its other slots RHONN_MAX_ENTRIES
-     * (the constant 1 of the step's entry values). */
+    /* The terms compiled by rhonn_init (eq. 4). A step's values are this
+     * sample (RHONN_SAMPLE_LEN: x_j(k), S(x_j(k)), u_j(k), 1) followed by
+     * the entries: every distinct other factor value x_j(k-d)^p,
+     * S(x_j(k-d))^p or u_j(k-d)^p (d > 0 or p > 1), read from offset
+     * entry_off of the sample d back and raised to entry_power once per
+     * step. Term t of neuron i is the product of the values
+     * term_entry[i][t][0..n_factors), its other slots the sample's 1. */
     uint16_t n_entries;
     uint8_t max_delay;              /* deepest tap the configuration reads */
     /* Step 1's own-state rule: neuron i reads its own state x_i down to

@@ -65,6 +65,11 @@
 #define RHONN_MAX_ENTRIES (RHONN_MAX_STATES * RHONN_MAX_TERMS * RHONN_MAX_FACTORS)
 #endif
 
+/* The values a step's regressor reads by index: this sample (RHONN_SAMPLE_LEN,
+ * the factors x_j(k), S(x_j(k)), u_j(k) and 1 in place) followed by the
+ * entries that are not in it (a delayed tap or a power above 1). */
+#define RHONN_VALUES_LEN (RHONN_SAMPLE_LEN + RHONN_MAX_ENTRIES)
+
 #if RHONN_MAX_STATES < 1 || RHONN_MAX_STATES > 255
 #error "RHONN_MAX_STATES must be in 1..255"
 #endif
@@ -87,8 +92,8 @@
 #if RHONN_MAX_ENTRIES < 1 || RHONN_MAX_ENTRIES > 65535
 #error "RHONN_MAX_ENTRIES must be in 1..65535"
 #endif
-#if RHONN_SAMPLE_LEN > 65535
-#error "RHONN_MAX_STATES and RHONN_MAX_INPUTS too large: a sample must fit 65535 values"
+#if RHONN_VALUES_LEN > 65535
+#error "RHONN_MAX_STATES, RHONN_MAX_INPUTS and RHONN_MAX_ENTRIES too large: a sample and the entries must fit 65535 values"
 #endif
 
 #endif /* RHONN_CAPACITY_H */

@@ -100,8 +100,8 @@ typedef struct {
     rhonn_real uw[RHONN_MAX_PACKED][RHONN_MAX_POPULATION];    /* U D U^T form: U~ */
     rhonn_real ua[5][RHONN_MAX_TERMS][RHONN_MAX_POPULATION];  /* f, v, b, d~, a */
     /* the regressor */
-    rhonn_real cur[RHONN_MAX_POPULATION][RHONN_SAMPLE_LEN];
-    rhonn_real fv[RHONN_MAX_ENTRIES];
+    rhonn_real cur[RHONN_MAX_POPULATION][RHONN_SAMPLE_LEN];   /* each member's sample, to commit */
+    rhonn_real val[RHONN_VALUES_LEN];                        /* one member's values (rhonn.h) */
     /* per member and neuron: 1 = learning this step, updated, bounded, recovered */
     uint8_t learn[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint8_t updated[RHONN_MAX_STATES][RHONN_MAX_POPULATION];

@@ -386,10 +386,13 @@ rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *
     return RHONN_OK;
 }
 
-/* Compile the terms (eq. 4) into the entry table: each distinct factor value
- * once, located by its offset in a sample and its delay, so the step reads
- * values by index instead of interpreting factor kinds. The configuration
- * was validated: the entries fit RHONN_MAX_ENTRIES. */
+/* Compile the terms (eq. 4) into indices of the step's values (see
+ * features): a factor of this sample at power 1 is read in place, at its
+ * offset in the sample; every other distinct factor value (a delayed tap, a
+ * power) is an entry, computed once per step after the sample. So the step
+ * reads values by index instead of interpreting factor kinds, and copies
+ * nothing for the common factor. The configuration was validated: the
+ * entries fit RHONN_MAX_ENTRIES (which counts every distinct factor). */
 static void compile_terms(rhonn_t *net)
 {
     const rhonn_config *cfg = CFG(net);
@@ -424,29 +427,33 @@ static void compile_terms(rhonn_t *net)
                 } else if (fa->kind == (uint8_t)RHONN_FACTOR_U) {
                     off = OFF_U + fa->index;
                 }
-                for (e = 0; e < net->n_entries; ++e) {
-                    if (net->entry_off[e] == off && net->entry_delay[e] == delay &&
-                        net->entry_power[e] == fa->power) {
-                        break;
+                if (delay == 0u && fa->power == 1u) {
+                    net->term_entry[i][t][f] = (uint16_t)off;
+                } else {
+                    for (e = 0; e < net->n_entries; ++e) {
+                        if (net->entry_off[e] == off && net->entry_delay[e] == delay &&
+                            net->entry_power[e] == fa->power) {
+                            break;
+                        }
                     }
+                    if (e == net->n_entries && e < (size_t)RHONN_MAX_ENTRIES) {
+                        net->entry_off[e] = (uint16_t)off;
+                        net->entry_delay[e] = delay;
+                        net->entry_power[e] = fa->power;
+                        net->n_entries = (uint16_t)(e + 1u);
+                    }
+                    net->term_entry[i][t][f] = (uint16_t)((size_t)RHONN_SAMPLE_LEN + (e < (size_t)RHONN_MAX_ENTRIES ? e : 0u));
                 }
-                if (e == net->n_entries && e < (size_t)RHONN_MAX_ENTRIES) {
-                    net->entry_off[e] = (uint16_t)off;
-                    net->entry_delay[e] = delay;
-                    net->entry_power[e] = fa->power;
-                    net->n_entries = (uint16_t)(e + 1u);
-                }
-                net->term_entry[i][t][f] = (uint16_t)(e < (size_t)RHONN_MAX_ENTRIES ? e : 0u);
                 if (delay > net->max_delay) {
                     net->max_delay = delay;
                 }
                 if (f + 1u == cfg->neurons[i].terms[t].n_factors) {
-                    /* the unused factor slots read the step's constant 1
-                     * (index RHONN_MAX_ENTRIES): x * 1 is x exactly, and the
-                     * product needs no per-term factor count */
+                    /* the unused factor slots read the sample's constant 1:
+                     * x * 1 is x exactly, and the product needs no per-term
+                     * factor count */
                     size_t pad;
                     for (pad = f + 1u; pad < (size_t)RHONN_MAX_FACTORS; ++pad) {
-                        net->term_entry[i][t][pad] = (uint16_t)RHONN_MAX_ENTRIES;
+                        net->term_entry[i][t][pad] = (uint16_t)OFF_ONE;
                     }
                 }
                 if ((fa->kind == (uint8_t)RHONN_FACTOR_S || fa->kind == (uint8_t)RHONN_FACTOR_X) &&
@@ -774,19 +781,27 @@ RHONN_INLINE int shifted_check(const rhonn_real *RHONN_RESTRICT P, const size_t 
     return scaled_udu(P, F, sc, L, rhonn_proof_shift(L));
 }
 
-/* |v| by clearing the sign bit: no compare and branch. */
+/* |v| by clearing the sign bit: no compare and branch (GCC and clang emit
+ * the FPU's own absolute value, VABS on the Cortex-M4, for the builtin). */
 static rhonn_real abs_of(rhonn_real v)
 {
+#if defined(__GNUC__) || defined(__clang__)
 #ifdef RHONN_SINGLE
+    return __builtin_fabsf(v);
+#else
+    return __builtin_fabs(v);
+#endif
+#elif defined(RHONN_SINGLE)
     union { float f; uint32_t u; } b;
     b.f = v;
     b.u &= 0x7FFFFFFFUL;
+    return b.f;
 #else
     union { double f; uint64_t u; } b;
     b.f = v;
     b.u &= 0x7FFFFFFFFFFFFFFFULL;
-#endif
     return b.f;
+#endif
 }
 
 /* The certificate of a full-form update (eq. 7 without forgetting or trace
@@ -1230,9 +1245,12 @@ static rhonn_status ekf_kernel_generic(rhonn_t *net, size_t i, rhonn_real e, con
 }
 #endif
 
-/* One neuron's learning update into its inactive bank (eq. 7-9). */
-static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
-                               uint8_t *bounded)
+/* One neuron's learning update into its inactive bank (eq. 7-9). Inlined
+ * into learn's loop in the unrolled build: the kernels keep many values in
+ * registers, and saving and restoring them once per step instead of once
+ * per neuron is a few hundred cycles on the Cortex-M4. */
+RHONN_INLINE rhonn_status ekf_dispatch(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
+                                       uint8_t *bounded)
 {
     const size_t L = CFG(net)->neurons[i].n_terms;
 #if RHONN_WITH_UD
@@ -1341,6 +1359,12 @@ static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn
 }
 #undef RHONN_KERNEL
 
+static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
+                               uint8_t *bounded)
+{
+    return ekf_dispatch(net, i, e, z, nis, bounded);
+}
+
 /* P_i(0) in neuron i's storage form: a copy, or its U D U^T factors (the
  * config was validated, so the factorisation succeeds). */
 /* A full-form P_i(0) that is diagonal (the paper's, and the default) is
@@ -1410,6 +1434,7 @@ static rhonn_status check_inputs(const rhonn_t *net, const rhonn_real *x, const 
 {
     const size_t n = CFG(net)->n_states, m = CFG(net)->n_inputs;
     size_t j;
+    RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
     for (j = 0; j < n; ++j) {
         if ((valid == NULL || valid[j] != 0u) && !is_finite(x[j])) {
             return RHONN_E_INPUT_NONFINITE;
@@ -1423,47 +1448,51 @@ static rhonn_status check_inputs(const rhonn_t *net, const rhonn_real *x, const 
     return RHONN_OK;
 }
 
-/* Steps 2-3 of a step: the sample as the regressor reads it (cur) and the
- * values of the compiled entries (fv). */
+/* Steps 2-3 of a step: the values the regressor reads (RHONN_VALUES_LEN):
+ * this sample as the regressor reads it (RHONN_SAMPLE_LEN values, which
+ * commit_sample stores), then the compiled entries' values. */
 static void features(const rhonn_t *net, const rhonn_real *x, const rhonn_real *u, const uint8_t *valid,
-                     rhonn_real *RHONN_RESTRICT cur, rhonn_real *RHONN_RESTRICT fv)
+                     rhonn_real *RHONN_RESTRICT val)
 {
     const rhonn_real *vb[RHONN_HISTORY_LEN];               /* sample d back */
     const size_t n = CFG(net)->n_states, m = CFG(net)->n_inputs, groups = net->n_groups;
     const size_t maxd = net->max_delay;
+    rhonn_real *RHONN_RESTRICT ent = val + RHONN_SAMPLE_LEN;
     size_t j, g, e, d;
+    RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
 
     /* 2. This sample as the regressor reads it: a missing measurement is
      *    replaced by its own prediction, then S(x_j(k)) once per activation
      *    group, u(k) and 1. */
     for (j = 0; j < n; ++j) {
-        cur[j] = (valid == NULL || valid[j] != 0u) ? x[j] : net->xhat[j];
+        val[j] = (valid == NULL || valid[j] != 0u) ? x[j] : net->xhat[j];
     }
     for (g = 0; g < groups; ++g) {
-        rhonn_real *sg = cur + OFF_S(g);
+        rhonn_real *sg = val + OFF_S(g);
         for (j = 0; j < n; ++j) {
-            sg[j] = activate(net->group_activation[g], net->group_beta[g], cur[j]);
+            sg[j] = activate(net->group_activation[g], net->group_beta[g], val[j]);
         }
     }
     RHONN_UNROLL_LOOP
     for (j = 0; j < (size_t)RHONN_MAX_INPUTS; ++j) {
         if (j < m) { /* not a plain copy loop: see store_sample */
-            cur[OFF_U + j] = u[j];
+            val[OFF_U + j] = u[j];
         }
     }
-    cur[OFF_ONE] = R(1.0);
+    val[OFF_ONE] = R(1.0);
 
-    /* 3. The entries (eq. 4's factors with their powers), each once. Delay d
-     *    reads the ring slot d back (the newest stored slot is k-1); before
-     *    the first sample the history is the first sample itself. */
-    vb[0] = cur;
+    /* 3. The entries (eq. 4's factors that are not this sample's values at
+     *    power 1), each once. Delay d reads the ring slot d back (the newest
+     *    stored slot is k-1); before the first sample the history is the
+     *    first sample itself. */
+    vb[0] = val;
     for (d = 1; d <= maxd; ++d) {
         const size_t slot = ((size_t)net->head + (size_t)RHONN_HISTORY_LEN + 1u - d) % (size_t)RHONN_HISTORY_LEN;
-        vb[d] = net->started ? net->hist[slot] : cur;
+        vb[d] = net->started ? net->hist[slot] : val;
     }
     for (e = 0; e < net->n_entries; ++e) {
         const rhonn_real v = vb[net->entry_delay[e]][net->entry_off[e]];
-        fv[e] = net->entry_power[e] == 1u ? v : ipow(v, net->entry_power[e]);
+        ent[e] = net->entry_power[e] == 1u ? v : ipow(v, net->entry_power[e]);
     }
 }
 
@@ -1474,6 +1503,7 @@ static void commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *va
     const size_t n = CFG(net)->n_states, m = CFG(net)->n_inputs, groups = net->n_groups;
     const uint8_t next_head = (uint8_t)((net->head + 1u) % (unsigned)RHONN_HISTORY_LEN);
     size_t j;
+    RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
     if (net->max_delay > 0u) {
         size_t h;
         for (h = 0; h < (size_t)RHONN_HISTORY_LEN; ++h) {
@@ -1484,90 +1514,122 @@ static void commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *va
         }
     }
     net->head = next_head;
-    for (j = 0; j < n; ++j) {
-        const int ok = valid == NULL || valid[j] != 0u;
-        net->valid_run[j] = !ok ? 0u : (!net->started ? 0xFFu : (uint8_t)(net->valid_run[j] + (net->valid_run[j] < 0xFFu)));
+    {
+        /* the first sample starts every run full: there is nothing older */
+        const uint8_t first = net->started ? 0u : 0xFFu;
+        for (j = 0; j < n; ++j) {
+            const uint8_t run = net->valid_run[j];
+            const uint8_t next = (uint8_t)((uint8_t)(run + (run < 0xFFu)) | first);
+            net->valid_run[j] = (valid == NULL || valid[j] != 0u) ? next : 0u;
+        }
     }
+}
+
+/* What step 1 did per neuron, for the commit. */
+typedef struct {
+    uint8_t updated[RHONN_MAX_STATES];   /* its inactive bank holds the update */
+    uint8_t bounded[RHONN_MAX_STATES];
+    uint8_t recovered[RHONN_MAX_STATES]; /* skipped, covariance back to P_i(0) */
+    rhonn_real innov[RHONN_MAX_STATES];
+    rhonn_real nis[RHONN_MAX_STATES];
+} learned;
+
+/* A neuron's update was refused (st): counted; with reset_after reached,
+ * recovered instead (RHONN_OK): the update skipped, the weights kept and
+ * the covariance restarted from P_i(0). Off the hot path. */
+static rhonn_status refused(rhonn_t *net, size_t i, rhonn_status st, learned *out)
+{
+    const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
+    rhonn_health *h = &net->health[i];
+    const uint8_t nb = (uint8_t)(net->bank[i] ^ 1u);
+    size_t t;
+    h->rejected += 1u;
+    if (h->fail_run < 0xFFFFu) {
+        h->fail_run = (uint16_t)(h->fail_run + 1u);
+    }
+    if (nc->reset_after == 0u || h->fail_run < nc->reset_after) {
+        return st;
+    }
+    for (t = 0; t < nc->n_terms; ++t) {
+        net->w[i][nb][t] = net->w[i][net->bank[i]][t];
+    }
+    load_p0(net, i, net->p[i][nb]);
+    net->cert[i][nb] = p0_proven(nc);
+    out->bounded[i] = 0;
+    out->recovered[i] = 1;
+    return RHONN_OK;
+}
+
+/* Step 1: learn from e(k) = x(k) - xhat(k) (eq. 9) with z(k-1), into the
+ * inactive banks; nothing is committed until every neuron passed. Which
+ * neurons learn is settled first, so that the loop around the inlined
+ * kernels carries little more than i. */
+static rhonn_status learn(rhonn_t *net, const rhonn_real *x, const uint8_t *valid, learned *out)
+{
+    const size_t n = CFG(net)->n_states;
+    const int on = net->started && net->learning;
+    size_t i;
+    RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
+    for (i = 0; i < n; ++i) {
+        out->updated[i] = (uint8_t)(on && (valid == NULL || valid[i] != 0u) && net->valid_run[i] >= net->own_need[i]);
+        out->bounded[i] = 0;
+        out->recovered[i] = 0;
+    }
+    for (i = 0; i < n; ++i) {
+        if (out->updated[i]) {
+            rhonn_status st;
+            out->innov[i] = x[i] - net->xhat[i];
+            st = ekf_dispatch(net, i, out->innov[i], net->z[net->zbank][i], &out->nis[i], &out->bounded[i]);
+            if (st != RHONN_OK && refused(net, i, st, out) != RHONN_OK) {
+                return st;
+            }
+        }
+    }
+    return RHONN_OK;
 }
 
 /* rhonn_step after the argument checks (rhonn_run makes them once). */
 static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
                                  const uint8_t *valid, rhonn_real *xhat_next)
 {
-    rhonn_real cur[RHONN_SAMPLE_LEN];                      /* this sample, effective */
-    rhonn_real fv[RHONN_MAX_ENTRIES + 1];                  /* the entries' values, then 1 */
+    rhonn_real val[RHONN_VALUES_LEN];                      /* this sample, then the entries */
     rhonn_real xnew[RHONN_MAX_STATES];
-    uint8_t updated[RHONN_MAX_STATES];
-    rhonn_real innov[RHONN_MAX_STATES], nis[RHONN_MAX_STATES];
-    uint8_t bounded[RHONN_MAX_STATES], recovered[RHONN_MAX_STATES];
+    learned out;
     const size_t n = CFG(net)->n_states;
     rhonn_status st;
     size_t i, t;
     uint8_t zb_new;
+    RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
 
     st = check_inputs(net, x, u, valid);
     if (st != RHONN_OK) {
         return st;
     }
 
-    /* 1. Learn from e(k) = x(k) - xhat(k) (eq. 9) with z(k-1), into the
-     *    inactive banks; nothing is committed until every neuron passed. */
-    for (i = 0; i < n; ++i) {
-        const int learn = net->started && net->learning && (valid == NULL || valid[i] != 0u) &&
-                          net->valid_run[i] >= net->own_need[i];
-        updated[i] = 0;
-        bounded[i] = 0;
-        recovered[i] = 0;
-        if (learn) {
-            innov[i] = x[i] - net->xhat[i];
-            st = ekf_update(net, i, innov[i], net->z[net->zbank][i], &nis[i], &bounded[i]);
-            if (st != RHONN_OK) {
-                const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
-                rhonn_health *h = &net->health[i];
-                h->rejected += 1u;
-                if (h->fail_run < 0xFFFFu) {
-                    h->fail_run = (uint16_t)(h->fail_run + 1u);
-                }
-                if (nc->reset_after == 0u || h->fail_run < nc->reset_after) {
-                    return st;
-                }
-                /* Recovery (reset_after): skip this update, keep the
-                 * weights and restart the covariance from P_i(0). */
-                {
-                    const uint8_t nb = (uint8_t)(net->bank[i] ^ 1u);
-                    for (t = 0; t < nc->n_terms; ++t) {
-                        net->w[i][nb][t] = net->w[i][net->bank[i]][t];
-                    }
-                    load_p0(net, i, net->p[i][nb]);
-                    net->cert[i][nb] = p0_proven(nc);
-                }
-                bounded[i] = 0;
-                recovered[i] = 1;
-            }
-            updated[i] = 1;
-        }
+    st = learn(net, x, valid, &out);
+    if (st != RHONN_OK) {
+        return st;
     }
 
     /* 2-3. This sample and the entries' values. */
-    features(net, x, u, valid, cur, fv);
-    fv[RHONN_MAX_ENTRIES] = R(1.0);
+    features(net, x, u, valid, val);
 
     /* 4. z(k) (eq. 4) and xhat(k+1) = w(k+1)^T z(k) (eq. 3). */
     zb_new = (uint8_t)(net->zbank ^ 1u);
     for (i = 0; i < n; ++i) {
         const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
         const size_t L = nc->n_terms;
-        const rhonn_real *w = net->w[i][net->bank[i] ^ updated[i]];
+        const rhonn_real *w = net->w[i][net->bank[i] ^ out.updated[i]];
         rhonn_real *z = net->z[zb_new][i];
         rhonn_real acc = R(0.0);
 
         for (t = 0; t < L; ++t) {
             const uint16_t *te = net->term_entry[i][t];
-            rhonn_real prod = fv[te[0]];
+            rhonn_real prod = val[te[0]];
             size_t f;
             RHONN_UNROLL_LOOP
             for (f = 1; f < (size_t)RHONN_MAX_FACTORS; ++f) {
-                prod *= fv[te[f]]; /* 1 past the term's own factors */
+                prod *= val[te[f]]; /* 1 past the term's own factors */
             }
             z[t] = prod;
             acc += w[t] * prod;
@@ -1580,22 +1642,23 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
     }
 
     /* Commit. */
-    commit_sample(net, cur, valid);
+    commit_sample(net, val, valid);
     for (i = 0; i < n; ++i) {
-        if (recovered[i]) {
-            net->health[i].resets += 1u;
-            net->health[i].fail_run = 0;
-        } else if (updated[i]) {
+        if (out.updated[i]) {
             rhonn_health *h = &net->health[i];
-            h->innovation = innov[i];
-            h->nis = nis[i];
-            h->updates += 1u;
-            h->bounded += bounded[i];
+            if (out.recovered[i]) {
+                h->resets += 1u;
+            } else {
+                h->innovation = out.innov[i];
+                h->nis = out.nis[i];
+                h->updates += 1u;
+                h->bounded += out.bounded[i];
+            }
             h->fail_run = 0;
+            net->bank[i] = (uint8_t)(net->bank[i] ^ 1u);
         }
-        net->bank[i] = (uint8_t)(net->bank[i] ^ updated[i]);
         net->xhat[i] = xnew[i];
-        if (xhat_next != NULL) {
+        if (xhat_next != NULL) { /* here, not in a loop of its own: that becomes a memcpy call */
             xhat_next[i] = xnew[i];
         }
     }
@@ -1618,9 +1681,9 @@ rhonn_status rhonn_internal_check_inputs(const rhonn_t *net, const rhonn_real *x
 }
 
 void rhonn_internal_features(const rhonn_t *net, const rhonn_real *x, const rhonn_real *u, const uint8_t *valid,
-                             rhonn_real *cur, rhonn_real *fv)
+                             rhonn_real *val)
 {
-    features(net, x, u, valid, cur, fv);
+    features(net, x, u, valid, val);
 }
 
 void rhonn_internal_commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *valid)

@@ -108,6 +108,22 @@ RHONN_INTERNAL_INLINE int rhonn_proof_holds(rhonn_real tr, rhonn_real w, rhonn_r
 #define CFG(net) (&(net)->cfg)
 #endif
 
+/* A fact the compiler may rely on (GCC, clang); nothing elsewhere. The
+ * step's loops over the states state n <= RHONN_MAX_STATES, which check_net
+ * guarantees before any step runs: it sizes the loops for the compiler (GCC
+ * -O3 otherwise vectorises them past the arrays' ends, and warns) at no
+ * cost, where clamping n cost a compare and a select per loop. */
+#if defined(__GNUC__) || defined(__clang__)
+#define RHONN_ASSUME(c) \
+    do {                \
+        if (!(c)) {     \
+            __builtin_unreachable(); \
+        }               \
+    } while (0)
+#else
+#define RHONN_ASSUME(c) ((void)0)
+#endif
+
 /* check_net: an initialised identifier whose sizes are within capacity. */
 rhonn_status rhonn_internal_check_net(const rhonn_t *net);
 
@@ -116,13 +132,13 @@ rhonn_status rhonn_internal_check_net(const rhonn_t *net);
 rhonn_status rhonn_internal_check_inputs(const rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
                                          const uint8_t *valid);
 
-/* Steps 2-3 of ORDER OF ONE STEP (rhonn.h): this sample as the regressor
- * reads it (cur, RHONN_SAMPLE_LEN values: a missing x_j replaced by
- * xhat_j(k), S(x) per activation group, u, 1) and the values of the compiled
- * entries (fv, net->n_entries values), reading the history. Writes nothing
- * in net. */
+/* Steps 2-3 of ORDER OF ONE STEP (rhonn.h): the RHONN_VALUES_LEN values
+ * that net->term_entry indexes: this sample as the regressor reads it (the
+ * first RHONN_SAMPLE_LEN: a missing x_j replaced by xhat_j(k), S(x) per
+ * activation group, u, 1), then the compiled entries' values (net->n_entries
+ * of them), reading the history. Writes nothing in net. */
 void rhonn_internal_features(const rhonn_t *net, const rhonn_real *x, const rhonn_real *u, const uint8_t *valid,
-                             rhonn_real *cur, rhonn_real *fv);
+                             rhonn_real *val);
 
 /* The history part of a step's commit: cur into the ring (when a tap reads
  * it), the head advanced, the valid runs counted. Reads net->started, so it

@@ -1126,9 +1126,18 @@ static int same_features(const rhonn_t *a, const rhonn_t *b)
     return 1;
 }
 
-/* z(k) of one member from the entries' values (rhonn.c step 4's products,
+/* The sample part of the values just computed, kept for member m's commit. */
+static void keep_sample(rhonn_population_work *wk, size_t m)
+{
+    size_t j;
+    for (j = 0; j < (size_t)RHONN_SAMPLE_LEN; ++j) {
+        wk->cur[m][j] = wk->val[j];
+    }
+}
+
+/* z(k) of one member from the step's values (rhonn.c step 4's products,
  * factor by factor in the same order), into lane m of bank zb. */
-static void lane_regressor(rhonn_population_work *wk, const rhonn_t *net, const rhonn_real *fv, size_t zb, size_t m)
+static void lane_regressor(rhonn_population_work *wk, const rhonn_t *net, const rhonn_real *val, size_t zb, size_t m)
 {
     const rhonn_config *cfg = CFG(net);
     size_t i, t, f;
@@ -1136,9 +1145,9 @@ static void lane_regressor(rhonn_population_work *wk, const rhonn_t *net, const 
         for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
             const uint16_t *te = net->term_entry[i][t];
             const size_t nf = cfg->neurons[i].terms[t].n_factors;
-            rhonn_real prod = fv[te[0]];
+            rhonn_real prod = val[te[0]];
             for (f = 1; f < nf; ++f) {
-                prod *= fv[te[f]];
+                prod *= val[te[f]];
             }
             wk->z[zb][i][t][m] = prod;
         }
@@ -1319,8 +1328,9 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         }
         shared = shareable && all_valid && lead < NPOP && (all_fresh || (all_started && agree >= maxd));
         if (shared) {
-            rhonn_internal_features(nets[lead], x, u, v, wk->cur[0], wk->fv);
-            lane_regressor(wk, nets[lead], wk->fv, zb_new, 0);
+            rhonn_internal_features(nets[lead], x, u, v, wk->val);
+            keep_sample(wk, 0);
+            lane_regressor(wk, nets[lead], wk->val, zb_new, 0);
             for (i = 0; i < n; ++i) {
                 L = CFG(nets[0])->neurons[i].n_terms;
                 for (t = 0; t < L; ++t) {
@@ -1332,8 +1342,9 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         } else {
             for (m = 0; m < N; ++m) {
                 if (alive[m] && !fail[m]) {
-                    rhonn_internal_features(nets[m], x, u, v, wk->cur[m], wk->fv);
-                    lane_regressor(wk, nets[m], wk->fv, zb_new, m);
+                    rhonn_internal_features(nets[m], x, u, v, wk->val);
+                    keep_sample(wk, m);
+                    lane_regressor(wk, nets[m], wk->val, zb_new, m);
                 }
             }
         }

@@ -137,17 +137,21 @@ static FW_RARE int32_t quantise_exact(float value, uint32_t inv_scale, int32_t r
  * half-integer is a float, so none lies between the exact product and y
  * (it would be nearer than y), and both round to the same integer, unless
  * y itself is halfway: then the exact product may lie on either side. That
- * case, |y| >= 2^23, inf and NaN go to quantise_exact. t = trunc(y) is exact
- * and so is the fraction y - t. (Needs -ffp-contract=off, as all of the
- * firmware: a fused y - t would not see y.) */
+ * case, |y| >= 2^22, inf and NaN go to quantise_exact. (Needs
+ * -ffp-contract=off and round-to-nearest, as all of the firmware: a fused
+ * or reassociated (y + c) - c would not round y.) */
 static int32_t quantise_f32(float value, uint32_t inv_scale, int32_t raw_min, int32_t raw_max, uint8_t *sat)
 {
     const float y = value * (float)inv_scale;
-    if (y > -0x1p23f && y < 0x1p23f) { /* false for NaN */
-        const int32_t t = (int32_t)y;  /* toward zero */
-        const float f = y - (float)t;  /* exact, |f| < 1 */
+    if (y > -0x1p22f && y < 0x1p22f) { /* false for NaN */
+        /* y to the nearest integer, ties to even, in two roundings: adding
+         * 1.5 * 2^23 leaves no fraction bits in the sum (its ulp is 1 for
+         * |y| < 2^22), and subtracting it again is exact. f = y - n is
+         * exact, |f| <= 1/2, and 1/2 only when y is halfway. */
+        const float n = (y + 0x1.8p23f) - 0x1.8p23f;
+        const float f = y - n;
         if (f != 0.5f && f != -0.5f) {
-            const int32_t r = t + (f > 0.5f) - (f < -0.5f);
+            const int32_t r = (int32_t)n;
             if (r < raw_min) {
                 *sat = 1;
                 return raw_min;
@@ -189,6 +193,11 @@ fw_status fw_quantise_f32(float value, uint32_t inv_scale, int32_t raw_min, int3
 #define FW_DECODE(decode_fn, raw, SIG) ((rhonn_real)decode_fn(raw))
 #endif
 
+/* A signed signal's raw value within its DBC range: the test of the
+ * generated *_is_in_range(), with the bounds rhonn_id_limits.h states for
+ * it, compared here instead of called (a call per signal and frame). */
+#define FW_IN_RANGE(raw, SIG) ((int32_t)(raw) >= (int32_t)SIG##_RAW_MIN && (int32_t)(raw) <= (int32_t)SIG##_RAW_MAX)
+
 fw_status fw_measurement_decode(const uint8_t *data, size_t len, fw_measurement *m)
 {
     struct rhonn_id_measurement_t f;
@@ -216,14 +225,14 @@ fw_status fw_measurement_decode(const uint8_t *data, size_t len, fw_measurement 
         && rhonn_id_measurement_valid_lambda_b_is_in_range(f.valid_lambda_b)
         && rhonn_id_measurement_valid_ia_is_in_range(f.valid_ia)
         && rhonn_id_measurement_valid_ib_is_in_range(f.valid_ib)
-        && (!f.valid_qm || rhonn_id_measurement_qm_is_in_range(f.qm))
-        && (!f.valid_v || rhonn_id_measurement_v_is_in_range(f.v))
-        && (!f.valid_lambda_a || rhonn_id_measurement_lambda_a_is_in_range(f.lambda_a))
-        && (!f.valid_lambda_b || rhonn_id_measurement_lambda_b_is_in_range(f.lambda_b))
-        && (!f.valid_ia || rhonn_id_measurement_ia_is_in_range(f.ia))
-        && (!f.valid_ib || rhonn_id_measurement_ib_is_in_range(f.ib))
-        && rhonn_id_measurement_ua_is_in_range(f.ua)
-        && rhonn_id_measurement_ub_is_in_range(f.ub);
+        && (!f.valid_qm || FW_IN_RANGE(f.qm, RHONN_ID_MEASUREMENT_QM))
+        && (!f.valid_v || FW_IN_RANGE(f.v, RHONN_ID_MEASUREMENT_V))
+        && (!f.valid_lambda_a || FW_IN_RANGE(f.lambda_a, RHONN_ID_MEASUREMENT_LAMBDA_A))
+        && (!f.valid_lambda_b || FW_IN_RANGE(f.lambda_b, RHONN_ID_MEASUREMENT_LAMBDA_B))
+        && (!f.valid_ia || FW_IN_RANGE(f.ia, RHONN_ID_MEASUREMENT_IA))
+        && (!f.valid_ib || FW_IN_RANGE(f.ib, RHONN_ID_MEASUREMENT_IB))
+        && FW_IN_RANGE(f.ua, RHONN_ID_MEASUREMENT_UA)
+        && FW_IN_RANGE(f.ub, RHONN_ID_MEASUREMENT_UB);
     if (!in_range) {
         return FW_E_RANGE;
     }
