@@ -202,7 +202,8 @@ typedef enum {
     RHONN_FIELD_ETA, RHONN_FIELD_R, RHONN_FIELD_Q, RHONN_FIELD_W0, RHONN_FIELD_P0,
     RHONN_FIELD_N_FACTORS, RHONN_FIELD_FACTOR_KIND, RHONN_FIELD_FACTOR_INDEX,
     RHONN_FIELD_FACTOR_DELAY, RHONN_FIELD_FACTOR_POWER,
-    RHONN_FIELD_COVARIANCE, RHONN_FIELD_FORGETTING, RHONN_FIELD_P_TRACE_MAX
+    RHONN_FIELD_COVARIANCE, RHONN_FIELD_FORGETTING, RHONN_FIELD_P_TRACE_MAX,
+    RHONN_FIELD_RESET_AFTER
 } rhonn_field;
 
 typedef struct {
@@ -235,6 +236,20 @@ typedef struct {
 #ifndef RHONN_CONST_CONFIG
 #define RHONN_CONST_CONFIG 0
 #endif
+
+/* RHONN_FIXED_CONFIG=<name>, with RHONN_FIXED_CONFIG_HEADER="<file.h>" that
+ * defines the configuration <name> (a static const rhonn_config, as
+ * pyrhonn.export.export_header writes it): the core compiled for that one
+ * configuration. Options of the core's own source file only (rhonn_t is the
+ * same with or without them). Every size, covariance form and constant of
+ * the configuration is then known where the step is compiled: the loops
+ * over the neurons unroll into straight code, one kernel per neuron with
+ * nothing to dispatch (the firmware's LIM step on the Cortex-M4 costs about
+ * a sixth less, its code about a third less: firmware_sim/README.md). The
+ * same floating-point operations run in the same order, so every result is
+ * bit for bit the general core's. rhonn_init then accepts only a
+ * configuration equal to <name> in every field; RHONN_E_CONFIG names the
+ * first that differs. */
 
 /* The identifier. Caller-owned; treat the fields as private and use the
  * functions below. Its size is sizeof(rhonn_t), fixed by the capacities. */

@@ -465,6 +465,94 @@ static void compile_terms(rhonn_t *net)
     }
 }
 
+#ifdef RHONN_FIXED_CONFIG
+/* Is cfg the configuration the core was compiled for (RHONN_FIXED_CONFIG)?
+ * Field by field, in the order rhonn_validate_config reports them; the first
+ * that differs is named. cfg was validated: its counts are within range. */
+static rhonn_status fixed_config_matches(const rhonn_config *cfg, rhonn_config_error *where)
+{
+    const rhonn_config *fx = &RHONN_FIXED_CONFIG;
+    size_t i, t, f, k;
+    if (cfg->n_states != fx->n_states) {
+        return config_error(where, RHONN_FIELD_N_STATES, 0, 0, 0);
+    }
+    if (cfg->n_inputs != fx->n_inputs) {
+        return config_error(where, RHONN_FIELD_N_INPUTS, 0, 0, 0);
+    }
+    for (i = 0; i < cfg->n_states; ++i) {
+        if (bits_of(cfg->x0[i]) != bits_of(fx->x0[i])) {
+            return config_error(where, RHONN_FIELD_X0, i, 0, i);
+        }
+    }
+    for (i = 0; i < cfg->n_states; ++i) {
+        const rhonn_neuron_config *a = &cfg->neurons[i], *b = &fx->neurons[i];
+        if (a->n_terms != b->n_terms) {
+            return config_error(where, RHONN_FIELD_N_TERMS, i, 0, 0);
+        }
+        if (a->activation != b->activation) {
+            return config_error(where, RHONN_FIELD_ACTIVATION, i, 0, 0);
+        }
+        if (bits_of(a->beta) != bits_of(b->beta)) {
+            return config_error(where, RHONN_FIELD_BETA, i, 0, 0);
+        }
+        if (bits_of(a->eta) != bits_of(b->eta)) {
+            return config_error(where, RHONN_FIELD_ETA, i, 0, 0);
+        }
+        if (bits_of(a->r) != bits_of(b->r)) {
+            return config_error(where, RHONN_FIELD_R, i, 0, 0);
+        }
+        for (t = 0; t < a->n_terms; ++t) {
+            if (bits_of(a->q[t]) != bits_of(b->q[t])) {
+                return config_error(where, RHONN_FIELD_Q, i, t, t);
+            }
+            if (bits_of(a->w0[t]) != bits_of(b->w0[t])) {
+                return config_error(where, RHONN_FIELD_W0, i, t, t);
+            }
+        }
+        for (t = 0, k = 0; t < a->n_terms; ++t) { /* row t of the packed triangle */
+            for (f = t; f < a->n_terms; ++f, ++k) {
+                if (bits_of(a->p0[k]) != bits_of(b->p0[k])) {
+                    return config_error(where, RHONN_FIELD_P0, i, t, k);
+                }
+            }
+        }
+        for (t = 0; t < a->n_terms; ++t) {
+            if (a->terms[t].n_factors != b->terms[t].n_factors) {
+                return config_error(where, RHONN_FIELD_N_FACTORS, i, t, 0);
+            }
+            for (f = 0; f < a->terms[t].n_factors; ++f) {
+                const rhonn_factor *fa = &a->terms[t].factors[f], *fb = &b->terms[t].factors[f];
+                if (fa->kind != fb->kind) {
+                    return config_error(where, RHONN_FIELD_FACTOR_KIND, i, t, f);
+                }
+                if (fa->index != fb->index) {
+                    return config_error(where, RHONN_FIELD_FACTOR_INDEX, i, t, f);
+                }
+                if (fa->delay != fb->delay) {
+                    return config_error(where, RHONN_FIELD_FACTOR_DELAY, i, t, f);
+                }
+                if (fa->power != fb->power) {
+                    return config_error(where, RHONN_FIELD_FACTOR_POWER, i, t, f);
+                }
+            }
+        }
+        if (a->covariance != b->covariance) {
+            return config_error(where, RHONN_FIELD_COVARIANCE, i, 0, 0);
+        }
+        if (bits_of(a->forgetting) != bits_of(b->forgetting)) {
+            return config_error(where, RHONN_FIELD_FORGETTING, i, 0, 0);
+        }
+        if (bits_of(a->p_trace_max) != bits_of(b->p_trace_max)) {
+            return config_error(where, RHONN_FIELD_P_TRACE_MAX, i, 0, 0);
+        }
+        if (a->reset_after != b->reset_after) {
+            return config_error(where, RHONN_FIELD_RESET_AFTER, i, 0, 0);
+        }
+    }
+    return RHONN_OK;
+}
+#endif
+
 rhonn_status rhonn_init(rhonn_t *net, const rhonn_config *cfg, rhonn_config_error *where)
 {
     rhonn_status st;
@@ -474,6 +562,11 @@ rhonn_status rhonn_init(rhonn_t *net, const rhonn_config *cfg, rhonn_config_erro
         return RHONN_E_NULL;
     }
     st = rhonn_validate_config(cfg, where);
+#ifdef RHONN_FIXED_CONFIG
+    if (st == RHONN_OK) {
+        st = fixed_config_matches(cfg, where);
+    }
+#endif
     if (st != RHONN_OK) {
         return st;
     }
@@ -1435,6 +1528,7 @@ static rhonn_status check_inputs(const rhonn_t *net, const rhonn_real *x, const 
     const size_t n = CFG(net)->n_states, m = CFG(net)->n_inputs;
     size_t j;
     RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
+    RHONN_NEURON_LOOP
     for (j = 0; j < n; ++j) {
         if ((valid == NULL || valid[j] != 0u) && !is_finite(x[j])) {
             return RHONN_E_INPUT_NONFINITE;
@@ -1464,11 +1558,13 @@ static void features(const rhonn_t *net, const rhonn_real *x, const rhonn_real *
     /* 2. This sample as the regressor reads it: a missing measurement is
      *    replaced by its own prediction, then S(x_j(k)) once per activation
      *    group, u(k) and 1. */
+    RHONN_NEURON_LOOP
     for (j = 0; j < n; ++j) {
         val[j] = (valid == NULL || valid[j] != 0u) ? x[j] : net->xhat[j];
     }
     for (g = 0; g < groups; ++g) {
         rhonn_real *sg = val + OFF_S(g);
+        RHONN_NEURON_LOOP
         for (j = 0; j < n; ++j) {
             sg[j] = activate(net->group_activation[g], net->group_beta[g], val[j]);
         }
@@ -1517,6 +1613,7 @@ static void commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *va
     {
         /* the first sample starts every run full: there is nothing older */
         const uint8_t first = net->started ? 0u : 0xFFu;
+        RHONN_NEURON_LOOP
         for (j = 0; j < n; ++j) {
             const uint8_t run = net->valid_run[j];
             const uint8_t next = (uint8_t)((uint8_t)(run + (run < 0xFFu)) | first);
@@ -1570,11 +1667,13 @@ static rhonn_status learn(rhonn_t *net, const rhonn_real *x, const uint8_t *vali
     const int on = net->started && net->learning;
     size_t i;
     RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
+    RHONN_NEURON_LOOP
     for (i = 0; i < n; ++i) {
         out->updated[i] = (uint8_t)(on && (valid == NULL || valid[i] != 0u) && net->valid_run[i] >= net->own_need[i]);
         out->bounded[i] = 0;
         out->recovered[i] = 0;
     }
+    RHONN_NEURON_LOOP
     for (i = 0; i < n; ++i) {
         if (out->updated[i]) {
             rhonn_status st;
@@ -1616,6 +1715,7 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
 
     /* 4. z(k) (eq. 4) and xhat(k+1) = w(k+1)^T z(k) (eq. 3). */
     zb_new = (uint8_t)(net->zbank ^ 1u);
+    RHONN_NEURON_LOOP
     for (i = 0; i < n; ++i) {
         const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
         const size_t L = nc->n_terms;
@@ -1623,6 +1723,7 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
         rhonn_real *z = net->z[zb_new][i];
         rhonn_real acc = R(0.0);
 
+        RHONN_NEURON_LOOP
         for (t = 0; t < L; ++t) {
             const uint16_t *te = net->term_entry[i][t];
             rhonn_real prod = val[te[0]];
@@ -1643,6 +1744,7 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
 
     /* Commit. */
     commit_sample(net, val, valid);
+    RHONN_NEURON_LOOP
     for (i = 0; i < n; ++i) {
         if (out.updated[i]) {
             rhonn_health *h = &net->health[i];

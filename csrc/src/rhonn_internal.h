@@ -100,12 +100,21 @@ RHONN_INTERNAL_INLINE int rhonn_proof_holds(rhonn_real tr, rhonn_real w, rhonn_r
     return R(1.125) * eta_r <= (qmin - R(1.125) * (err + R(1.01) * (rhonn_real)L * g1 * pmax)) * r_low;
 }
 
-/* The validated configuration: rhonn_t's copy, or the caller's constant
- * (RHONN_CONST_CONFIG, see rhonn.h). */
-#if RHONN_CONST_CONFIG
+/* The validated configuration: the one the core was compiled for
+ * (RHONN_FIXED_CONFIG), the caller's constant (RHONN_CONST_CONFIG), or
+ * rhonn_t's copy; see rhonn.h. */
+#ifdef RHONN_FIXED_CONFIG
+#include RHONN_FIXED_CONFIG_HEADER
+#define CFG(net) ((void)(net), &RHONN_FIXED_CONFIG)
+/* The loops over the neurons unrolled: each neuron's sizes, covariance form
+ * and constants are then known where its code is compiled. */
+#define RHONN_NEURON_LOOP _Pragma("GCC unroll 255")
+#elif RHONN_CONST_CONFIG
 #define CFG(net) ((net)->cfg)
+#define RHONN_NEURON_LOOP
 #else
 #define CFG(net) (&(net)->cfg)
+#define RHONN_NEURON_LOOP
 #endif
 
 /* A fact the compiler may rely on (GCC, clang); nothing elsewhere. The
