@@ -96,21 +96,33 @@ static fw_status reject(fw_app *app, fw_status why)
     return why;
 }
 
-static fw_status send_frame(fw_app *app, uint32_t id, const uint8_t *data, uint8_t len)
+/* A frame to send with len payload bytes (len <= FW_MAX_FRAME_LEN), the
+ * payload past them zero; the caller writes the first len. */
+static void frame_start(fw_frame *f, uint32_t id, uint8_t len)
 {
-    fw_frame f;
+    f->id = id;
+    f->len = len;
+    f->flags = (uint8_t)(FW_FRAME_FD | FW_FRAME_BRS);
+    memset(f->data + len, 0, sizeof f->data - len);
+}
 
-    memset(&f, 0, sizeof f);
-    f.id = id;
-    f.len = len;
-    f.flags = (uint8_t)(FW_FRAME_FD | FW_FRAME_BRS);
-    memcpy(f.data, data, len);
-    if (app->hal.send(app->hal.ctx, &f) != FW_OK) {
+static fw_status transmit(fw_app *app, const fw_frame *f)
+{
+    if (app->hal.send(app->hal.ctx, f) != FW_OK) {
         ++app->counters.hal_errors;
         return FW_E_HAL;
     }
     ++app->counters.frames_out;
     return FW_OK;
+}
+
+static fw_status send_frame(fw_app *app, uint32_t id, const uint8_t *data, uint8_t len)
+{
+    fw_frame f;
+
+    frame_start(&f, id, len);
+    memcpy(f.data, data, len);
+    return transmit(app, &f);
 }
 
 static void close_weights(fw_app *app)
@@ -179,6 +191,8 @@ fw_status fw_app_init(fw_app *app, const fw_app_config *cfg, const fw_hal *hal)
         app->n_terms[i] = id->neurons[i].n_terms;
     }
     memset(&app->counters, 0, sizeof app->counters);
+    memset(&app->tx_estimate, 0, sizeof app->tx_estimate);
+    frame_start(&app->tx_estimate, RHONN_ID_ESTIMATE_FRAME_ID, (uint8_t)RHONN_ID_ESTIMATE_LENGTH);
     app->last_seq = 0;
     app->diag_counter = 0;
     app->last_time_ns = 0;
@@ -195,7 +209,6 @@ static fw_status on_measurement(fw_app *app, const uint8_t *data, size_t len, ui
 {
     fw_measurement m;
     fw_estimate e;
-    uint8_t frame[RHONN_ID_ESTIMATE_LENGTH];
     rhonn_status rs;
     fw_status st;
     uint64_t t_end;
@@ -251,9 +264,11 @@ static fw_status on_measurement(fw_app *app, const uint8_t *data, size_t len, ui
     e.learning = app->learning;
     e.resync = app->resync;
     app->resync = 0;
-    st = fw_estimate_encode(&e, frame, sizeof frame, NULL);
+    /* encoded into the frame kept for it: no payload copy, and its header
+     * and zero padding were set once, at init */
+    st = fw_estimate_encode(&e, app->tx_estimate.data, RHONN_ID_ESTIMATE_LENGTH, NULL);
     if (st == FW_OK) {
-        st = send_frame(app, RHONN_ID_ESTIMATE_FRAME_ID, frame, (uint8_t)RHONN_ID_ESTIMATE_LENGTH);
+        st = transmit(app, &app->tx_estimate);
     }
 
     if (app->have_last_time) {

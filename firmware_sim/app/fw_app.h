@@ -157,6 +157,7 @@ typedef struct {
     uint8_t started;            /* a step succeeded since init/reset */
     uint8_t have_last_time;
     uint64_t last_time_ns;      /* reception time of the last accepted measurement */
+    fw_frame tx_estimate;       /* the Estimate frame: set up at init, its payload encoded per measurement */
     uint8_t diag_counter;
     /* weight transfer (staged; the filter is untouched until commit) */
     uint8_t weights_open;

@@ -140,7 +140,10 @@ static FW_RARE int32_t quantise_exact(float value, uint32_t inv_scale, int32_t r
  * case, |y| >= 2^22, inf and NaN go to quantise_exact. (Needs
  * -ffp-contract=off and round-to-nearest, as all of the firmware: a fused
  * or reassociated (y + c) - c would not round y.) */
-static int32_t quantise_f32(float value, uint32_t inv_scale, int32_t raw_min, int32_t raw_max, uint8_t *sat)
+#if defined(__GNUC__) || defined(__clang__)
+__attribute__((always_inline)) /* six calls a frame: each one's N and range become constants */
+#endif
+static inline int32_t quantise_f32(float value, uint32_t inv_scale, int32_t raw_min, int32_t raw_max, uint8_t *sat)
 {
     const float y = value * (float)inv_scale;
     if (y > -0x1p22f && y < 0x1p22f) { /* false for NaN */
@@ -193,10 +196,12 @@ fw_status fw_quantise_f32(float value, uint32_t inv_scale, int32_t raw_min, int3
 #define FW_DECODE(decode_fn, raw, SIG) ((rhonn_real)decode_fn(raw))
 #endif
 
-/* A signed signal's raw value within its DBC range: the test of the
- * generated *_is_in_range(), with the bounds rhonn_id_limits.h states for
- * it, compared here instead of called (a call per signal and frame). */
-#define FW_IN_RANGE(raw, SIG) ((int32_t)(raw) >= (int32_t)SIG##_RAW_MIN && (int32_t)(raw) <= (int32_t)SIG##_RAW_MAX)
+/* A signal's raw value within its DBC range: the test of the generated
+ * *_is_in_range(), with the bounds rhonn_id_limits.h states for it, made
+ * inline (not a call per signal and frame) as one unsigned comparison:
+ * raw - min wraps above max - min exactly when raw is outside [min, max]. */
+#define FW_IN_RANGE(raw, SIG) \
+    ((uint32_t)(raw) - (uint32_t)(SIG##_RAW_MIN) <= (uint32_t)(SIG##_RAW_MAX) - (uint32_t)(SIG##_RAW_MIN))
 
 fw_status fw_measurement_decode(const uint8_t *data, size_t len, fw_measurement *m)
 {
@@ -218,13 +223,13 @@ fw_status fw_measurement_decode(const uint8_t *data, size_t len, fw_measurement 
     }
     /* A state flagged invalid is not range-checked: the rig may send a
      * sentinel there, and the core ignores it. Inputs are always used. */
-    in_range = rhonn_id_measurement_seq_is_in_range(f.seq)
-        && rhonn_id_measurement_valid_qm_is_in_range(f.valid_qm)
-        && rhonn_id_measurement_valid_v_is_in_range(f.valid_v)
-        && rhonn_id_measurement_valid_lambda_a_is_in_range(f.valid_lambda_a)
-        && rhonn_id_measurement_valid_lambda_b_is_in_range(f.valid_lambda_b)
-        && rhonn_id_measurement_valid_ia_is_in_range(f.valid_ia)
-        && rhonn_id_measurement_valid_ib_is_in_range(f.valid_ib)
+    in_range = FW_IN_RANGE(f.seq, RHONN_ID_MEASUREMENT_SEQ)
+        && FW_IN_RANGE(f.valid_qm, RHONN_ID_MEASUREMENT_VALID_QM)
+        && FW_IN_RANGE(f.valid_v, RHONN_ID_MEASUREMENT_VALID_V)
+        && FW_IN_RANGE(f.valid_lambda_a, RHONN_ID_MEASUREMENT_VALID_LAMBDA_A)
+        && FW_IN_RANGE(f.valid_lambda_b, RHONN_ID_MEASUREMENT_VALID_LAMBDA_B)
+        && FW_IN_RANGE(f.valid_ia, RHONN_ID_MEASUREMENT_VALID_IA)
+        && FW_IN_RANGE(f.valid_ib, RHONN_ID_MEASUREMENT_VALID_IB)
         && (!f.valid_qm || FW_IN_RANGE(f.qm, RHONN_ID_MEASUREMENT_QM))
         && (!f.valid_v || FW_IN_RANGE(f.v, RHONN_ID_MEASUREMENT_V))
         && (!f.valid_lambda_a || FW_IN_RANGE(f.lambda_a, RHONN_ID_MEASUREMENT_LAMBDA_A))
