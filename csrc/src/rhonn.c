@@ -192,7 +192,6 @@ RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L);
 static rhonn_real full_trace(const rhonn_real *P, size_t L);
 static void load_p0(const rhonn_t *net, size_t i, rhonn_real *dst);
 static uint8_t p0_proven(const rhonn_neuron_config *nc);
-static rhonn_real inverse_forgetting(const rhonn_neuron_config *nc);
 #if RHONN_WITH_UD
 static int udu_of(const rhonn_real *P, rhonn_real *F, size_t L);
 #endif
@@ -386,6 +385,70 @@ rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *
     return RHONN_OK;
 }
 
+/* A neuron's constants derived from its configuration: 1 / forgetting (0
+ * when off), the smallest Q entry (for the definiteness proof), whether Q
+ * is all zero (nothing to add). rhonn_init keeps them in rhonn_t; with
+ * RHONN_FIXED_CONFIG the kernels take them from here, where the compiler
+ * folds them into constants. */
+RHONN_INLINE rhonn_real inverse_forgetting(const rhonn_neuron_config *nc)
+{
+    return (nc->forgetting > R(0.0) && nc->forgetting < R(1.0)) ? R(1.0) / nc->forgetting : R(0.0);
+}
+
+RHONN_INLINE rhonn_real q_min_of(const rhonn_neuron_config *nc)
+{
+    rhonn_real qm = nc->q[0];
+    size_t t;
+    RHONN_NEURON_LOOP
+    for (t = 1; t < nc->n_terms; ++t) {
+        qm = nc->q[t] < qm ? nc->q[t] : qm;
+    }
+    return qm;
+}
+
+RHONN_INLINE uint8_t q_zero_of(const rhonn_neuron_config *nc)
+{
+    uint8_t zero = 1u;
+    size_t t;
+    RHONN_NEURON_LOOP
+    for (t = 0; t < nc->n_terms; ++t) {
+        zero = (uint8_t)(zero && nc->q[t] == R(0.0));
+    }
+    return zero;
+}
+
+#ifdef RHONN_FIXED_CONFIG
+#define INV_LAMBDA(net, i) inverse_forgetting(&CFG(net)->neurons[i])
+#define Q_MIN(net, i) q_min_of(&CFG(net)->neurons[i])
+#define Q_ZERO(net, i) q_zero_of(&CFG(net)->neurons[i])
+#else
+#define INV_LAMBDA(net, i) ((net)->inv_lambda[i])
+#define Q_MIN(net, i) ((net)->q_min[i])
+#define Q_ZERO(net, i) ((net)->q_zero[i])
+#endif
+
+/* Where a factor's value sits in a sample (its delay and power aside), for
+ * a neuron whose activation group is group. */
+RHONN_INLINE size_t sample_offset(const rhonn_factor *fa, size_t group)
+{
+    if (fa->kind == (uint8_t)RHONN_FACTOR_S) {
+        return OFF_S(group) + fa->index;
+    }
+    if (fa->kind == (uint8_t)RHONN_FACTOR_X) {
+        return fa->index;
+    }
+    if (fa->kind == (uint8_t)RHONN_FACTOR_U) {
+        return OFF_U + fa->index;
+    }
+    return OFF_ONE;
+}
+
+/* Is a factor's value this sample's own (no delay, power 1), read in place? */
+RHONN_INLINE int in_sample(const rhonn_factor *fa)
+{
+    return (fa->kind == (uint8_t)RHONN_FACTOR_ONE || fa->delay == 0u) && fa->power == 1u;
+}
+
 /* Compile the terms (eq. 4) into indices of the step's values (see
  * features): a factor of this sample at power 1 is read in place, at its
  * offset in the sample; every other distinct factor value (a delayed tap, a
@@ -407,27 +470,14 @@ static void compile_terms(rhonn_t *net)
     }
     for (i = 0; i < cfg->n_states; ++i) {
         net->inv_lambda[i] = inverse_forgetting(&cfg->neurons[i]);
-        net->q_zero[i] = 1u;
-        for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
-            net->q_zero[i] = (uint8_t)(net->q_zero[i] && cfg->neurons[i].q[t] == R(0.0));
-        }
-        net->q_min[i] = cfg->neurons[i].q[0];
-        for (t = 1; t < cfg->neurons[i].n_terms; ++t) {
-            net->q_min[i] = cfg->neurons[i].q[t] < net->q_min[i] ? cfg->neurons[i].q[t] : net->q_min[i];
-        }
+        net->q_zero[i] = q_zero_of(&cfg->neurons[i]);
+        net->q_min[i] = q_min_of(&cfg->neurons[i]);
         for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
             for (f = 0; f < cfg->neurons[i].terms[t].n_factors; ++f) {
                 const rhonn_factor *fa = &cfg->neurons[i].terms[t].factors[f];
                 const uint8_t delay = fa->kind == (uint8_t)RHONN_FACTOR_ONE ? 0u : fa->delay;
-                size_t off = OFF_ONE;
-                if (fa->kind == (uint8_t)RHONN_FACTOR_S) {
-                    off = OFF_S(net->group_of[i]) + fa->index;
-                } else if (fa->kind == (uint8_t)RHONN_FACTOR_X) {
-                    off = fa->index;
-                } else if (fa->kind == (uint8_t)RHONN_FACTOR_U) {
-                    off = OFF_U + fa->index;
-                }
-                if (delay == 0u && fa->power == 1u) {
+                const size_t off = sample_offset(fa, net->group_of[i]);
+                if (in_sample(fa)) {
                     net->term_entry[i][t][f] = (uint16_t)off;
                 } else {
                     for (e = 0; e < net->n_entries; ++e) {
@@ -1005,10 +1055,6 @@ static rhonn_real full_trace(const rhonn_real *P, size_t L)
 }
 
 /* 1 / lambda of a neuron's forgetting factor, or 0 when forgetting is off. */
-static rhonn_real inverse_forgetting(const rhonn_neuron_config *nc)
-{
-    return (nc->forgetting > R(0.0) && nc->forgetting < R(1.0)) ? R(1.0) / nc->forgetting : R(0.0);
-}
 
 static rhonn_status neuron_fault(rhonn_t *net, size_t i, rhonn_status st)
 {
@@ -1046,7 +1092,7 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
     rhonn_real *RHONN_RESTRICT wn = net->w[i][b ^ 1u];
     rhonn_real pz[RHONN_MAX_TERMS];
     rhonn_real s, inv_s, gain;
-    const rhonn_real inv_lambda = net->inv_lambda[i];
+    const rhonn_real inv_lambda = INV_LAMBDA(net, i);
     size_t r, c, len;
     const rhonn_real *row;
 
@@ -1118,7 +1164,7 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
      * gives the new P its proof; else only at working precision (pd_check).
      * Every path accepts exactly the P that pd_check accepts. */
 #if RHONN_CERTIFY
-    if (net->cert[i][b] && inv_lambda == R(0.0) && !*bounded && certified_update(P, z, pz, inv_s, Pn, nc, net->q_min[i], L)) {
+    if (net->cert[i][b] && inv_lambda == R(0.0) && !*bounded && certified_update(P, z, pz, inv_s, Pn, nc, Q_MIN(net, i), L)) {
         net->cert[i][b ^ 1u] = 1u;
         return RHONN_OK;
     }
@@ -1181,7 +1227,7 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
     rhonn_real a[RHONN_MAX_TERMS];
     size_t rs[RHONN_MAX_TERMS];
     rhonn_real alpha, alpha_new, inv, inv_prev, s, gain;
-    const rhonn_real inv_lambda = net->inv_lambda[i];
+    const rhonn_real inv_lambda = INV_LAMBDA(net, i);
     size_t j, k, at;
 
     rs[0] = 0;
@@ -1255,7 +1301,7 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
             Fn[rs[k] + (j - k)] = wu[rs[k] + (j - k)];
         }
     }
-    if (!net->q_zero[i]) {
+    if (!Q_ZERO(net, i)) {
         size_t J, jp;
         RHONN_UD_UNROLL_LOOP
         for (J = 0; J < L; ++J) {
@@ -1592,6 +1638,25 @@ static void features(const rhonn_t *net, const rhonn_real *x, const rhonn_real *
     }
 }
 
+/* Where factor f of term t of neuron i is read among the step's values
+ * (compile_terms). With RHONN_FIXED_CONFIG the configuration's constants
+ * give it where it is this sample's own value, so the step reads it at a
+ * constant offset instead of loading its index; else (and for delayed or
+ * powered factors) the compiled index. */
+RHONN_INLINE size_t value_index(const rhonn_t *net, size_t i, size_t t, size_t f)
+{
+#ifdef RHONN_FIXED_CONFIG
+    const rhonn_term *tm = &CFG(net)->neurons[i].terms[t];
+    if (f >= tm->n_factors) {
+        return OFF_ONE;
+    }
+    if (in_sample(&tm->factors[f])) {
+        return sample_offset(&tm->factors[f], net->group_of[i]);
+    }
+#endif
+    return net->term_entry[i][t][f];
+}
+
 /* The history part of the commit. The ring is only kept when a tap reads
  * it; valid_run counts the samples in a row in which x_j was measured. */
 static void commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *valid)
@@ -1725,12 +1790,11 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
 
         RHONN_NEURON_LOOP
         for (t = 0; t < L; ++t) {
-            const uint16_t *te = net->term_entry[i][t];
-            rhonn_real prod = val[te[0]];
+            rhonn_real prod = val[value_index(net, i, t, 0)];
             size_t f;
             RHONN_UNROLL_LOOP
             for (f = 1; f < (size_t)RHONN_MAX_FACTORS; ++f) {
-                prod *= val[te[f]]; /* 1 past the term's own factors */
+                prod *= val[value_index(net, i, t, f)]; /* 1 past the term's own factors */
             }
             z[t] = prod;
             acc += w[t] * prod;
