@@ -135,3 +135,26 @@ def test_cortex_m4_application_runs_no_software_double_arithmetic(m4) -> None:
     assert app["library_routines"], "the library routines were not listed"   # memcpy, memset at least
     assert app["soft_double_routines"] == [], app["soft_double_routines"]
     assert app["cycles"]["soft_double_cycles_per_frame"] == 0
+
+
+@needs_m4
+def test_cortex_m4_cycle_profile_names_the_source_lines_that_cost_most(m4) -> None:
+    """cycles.py --lines: the estimated cycles per call summed per source line
+    of the image's debug information, the costliest first, within the
+    call's total; a negative count is refused with exit status 2."""
+    _, build, _ = m4
+    elf = build / "unrolled" / "rhonn_m4.elf"
+    objs = sorted((build / "unrolled" / "CMakeFiles" / "rhonn_m4.elf.dir").rglob("rhonn.c.obj"))
+    assert elf.is_file() and len(objs) == 1, objs
+    proc = subprocess.run([sys.executable, str(M4 / "cycles.py"), str(elf), str(objs[0]), "--lines", "5"],
+                          capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr
+    est = json.loads(proc.stdout)
+    lines = est["cycles_per_call_by_line"]
+    assert len(lines) == 5 and all(k.startswith("rhonn") and ":" in k for k in lines), lines
+    costs = list(lines.values())
+    assert costs == sorted(costs, reverse=True) and costs[-1] > 0
+    assert sum(costs) <= est["estimated_cycles_per_call"]
+    bad = subprocess.run([sys.executable, str(M4 / "cycles.py"), str(elf), str(objs[0]), "--lines", "-1"],
+                         capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2 and "--lines must be >= 0" in bad.stderr
