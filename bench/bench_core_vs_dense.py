@@ -14,6 +14,10 @@ the same samples through:
           (activations included), runs each neuron's update (packed P, or
           U D U^T where the config says so) with its positive-definiteness
           check, predicts;
+          built three ways: "unrolled" (per-size kernels), "generic" (loops)
+          and "fixed" (the core compiled for this one configuration,
+          RHONN_FIXED_CONFIG, as the firmware builds it), all three giving
+          the Identifier's predictions bit for bit;
   dense   per neuron, on the recorded regressors (handed to it, so it does
           no activation or regressor work): S = H P H^T + R,
           K = P H^T / S, w += eta K e, P = (I - K H) P + Q with full L x L
@@ -104,18 +108,24 @@ def compiler() -> list[str]:
     return shlex.split(os.environ.get("CC", "cc"))
 
 
-def build(samples: Samples, folder: Path, opt: str, unroll: bool) -> tuple[Path, Path]:
+KERNELS = ("fixed", "unrolled", "generic")
+
+
+def build(samples: Samples, folder: Path, opt: str, unroll: bool = True, fixed: bool = False) -> tuple[Path, Path]:
     """Compile the harness for ``samples``' config into ``folder``; returns
-    (the program, its data file)."""
+    (the program, its data file). ``fixed``: the core compiled for that one
+    configuration (RHONN_FIXED_CONFIG, as the firmware builds it; unrolled)."""
     folder.mkdir(parents=True, exist_ok=True)
     cfg = samples.config
     export_header(cfg, folder / "bench_config.h", name="bench_config")
     data = folder / "data.bin"
     atomic.write_bytes(data, samples.X.tobytes() + samples.U.tobytes() + samples.Z.tobytes())
-    exe = folder / f"core_vs_dense-{opt}-{'unrolled' if unroll else 'generic'}"
+    kernel = "fixed" if fixed else "unrolled" if unroll else "generic"
+    exe = folder / f"core_vs_dense-{opt}-{kernel}"
     single = ["-DRHONN_SINGLE", "-DDENSE_SINGLE"] if cfg.dtype == "float32" else []
-    cmd = [*compiler(), "-std=c99", *OPT_LEVELS[opt], "-ffp-contract=off", *WARNINGS, *single,
-           f"-DRHONN_UNROLL={int(unroll)}", '-DRHONN_USER_CAPACITY="bench_config_capacity.h"',
+    pinned = ["-DRHONN_FIXED_CONFIG=bench_config", '-DRHONN_FIXED_CONFIG_HEADER="bench_config.h"'] if fixed else []
+    cmd = [*compiler(), "-std=c99", *OPT_LEVELS[opt], "-ffp-contract=off", *WARNINGS, *single, *pinned,
+           f"-DRHONN_UNROLL={int(unroll or fixed)}", '-DRHONN_USER_CAPACITY="bench_config_capacity.h"',
            f"-I{folder}", f"-I{INCLUDE}", f"-I{C_DIR}",
            str(CORE), str(C_DIR / "dense_ekf.c"), str(C_DIR / "core_vs_dense.c"), "-o", str(exe), "-lm"]
     proc = subprocess.run(cmd, capture_output=True, text=True)
@@ -196,16 +206,17 @@ class Row:
         return None if self.core_ir is None or self.dense_ir is None else self.dense_ir / self.core_ir
 
 
-def measure(samples: Samples, name: str, folder: Path, opt: str, unroll: bool, *, repeats: int,
+def measure(samples: Samples, name: str, folder: Path, opt: str, kernel: str, *, repeats: int,
             count_steps: int, float64_xhat: np.ndarray | None = None) -> Row:
-    """One build's row; ``float64_xhat``: the float64 Identifier's predictions
-    on the same samples, to measure a float32 row's rounding against."""
-    exe, data = build(samples, folder, opt, unroll)
+    """One build's row (``kernel``: one of KERNELS); ``float64_xhat``: the
+    float64 Identifier's predictions on the same samples, to measure a
+    float32 row's rounding against."""
+    exe, data = build(samples, folder, opt, unroll=kernel != "generic", fixed=kernel == "fixed")
     T = samples.X.shape[0]
     core, dense, status = predictions(exe, data, samples)
     t = timed(exe, data, T, repeats)
     n_count = min(count_steps, T)
-    return Row(config=name, dtype=samples.config.dtype, opt=opt, kernel="unrolled" if unroll else "generic",
+    return Row(config=name, dtype=samples.config.dtype, opt=opt, kernel=kernel,
                core_ns=float(t["core_ns_per_step"]), dense_ns=float(t["dense_ns_per_step"]),
                core_ir=instructions_per_step(exe, data, n_count, "core"),
                dense_ir=instructions_per_step(exe, data, n_count, "dense"),
@@ -273,9 +284,9 @@ def main(argv: list[str] | None = None) -> int:
                 if dtype == "float64":
                     float64_xhat[name] = samples.Xhat
                 for opt in opts:
-                    for unroll in (True, False):
-                        folder = Path(tmp) / f"{name}-{dtype}-{opt}-{int(unroll)}"
-                        rows.append(measure(samples, name, folder, opt, unroll, repeats=repeats, count_steps=2000,
+                    for kernel in KERNELS:
+                        folder = Path(tmp) / f"{name}-{dtype}-{opt}-{kernel}"
+                        rows.append(measure(samples, name, folder, opt, kernel, repeats=repeats, count_steps=2000,
                                             float64_xhat=float64_xhat.get(name) if dtype == "float32" else None))
     for opt in opts:
         print(f"\n{opt}:")

@@ -62,3 +62,15 @@ def test_the_harness_times_both_filters_and_callgrind_counts_their_instructions(
         # The count covers the filter's own steps, not the process around them
         # (start-up, loading the data): per step, it does not depend on the run's length.
         assert short > 0 and 0.8 < short / long < 1.25, (which, short, long)
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_the_core_compiled_for_the_config_predicts_the_identifiers_bits(bench, dtype: str, tmp_path: Path) -> None:
+    """The benchmark's "fixed" build (RHONN_FIXED_CONFIG, as the firmware
+    builds the core) runs the same operations: pyrhonn's predictions, bit
+    for bit."""
+    samples = bench.record(bench.lim_config("firmware-lim", dtype), STEPS)
+    exe, data = bench.build(samples, tmp_path, "O2", fixed=True)
+    core, _, status = bench.predictions(exe, data, samples)
+    assert status == f"core: RHONN_OK after {STEPS} steps"
+    assert core.dtype == samples.Xhat.dtype and core.tobytes() == samples.Xhat.tobytes()
