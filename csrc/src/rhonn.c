@@ -1498,10 +1498,31 @@ RHONN_INLINE rhonn_status ekf_dispatch(rhonn_t *net, size_t i, rhonn_real e, con
 }
 #undef RHONN_KERNEL
 
-static rhonn_status ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
-                               uint8_t *bounded)
+/* The updates of the neurons that learns marks, from *from on, each from
+ * its innovation e[i] and regressor z[i] (eq. 7-9), into their inactive
+ * banks. Stops at the first refused one: returns its status, *from its
+ * index. The one function with the kernels inlined: step 1 runs it over all
+ * neurons, the population's per-member fallback over one, so the kernels'
+ * code is in the core once. Its loop runs over every neuron (a constant
+ * count under RHONN_FIXED_CONFIG, whose kernels are then specialised per
+ * neuron) and skips the others. */
+static rhonn_status update_neurons(rhonn_t *net, const uint8_t *learns, const rhonn_real *e,
+                                   rhonn_real (*z)[RHONN_MAX_TERMS], rhonn_real *nis, uint8_t *bounded, size_t *from)
 {
-    return ekf_dispatch(net, i, e, z, nis, bounded);
+    const size_t n = CFG(net)->n_states, start = *from;
+    size_t i;
+    RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
+    RHONN_NEURON_LOOP
+    for (i = 0; i < n; ++i) {
+        if (i >= start && learns[i]) {
+            const rhonn_status st = ekf_dispatch(net, i, e[i], z[i], &nis[i], &bounded[i]);
+            if (st != RHONN_OK) {
+                *from = i;
+                return st;
+            }
+        }
+    }
+    return RHONN_OK;
 }
 
 /* P_i(0) in neuron i's storage form: a copy, or its U D U^T factors (the
@@ -1723,31 +1744,29 @@ static rhonn_status refused(rhonn_t *net, size_t i, rhonn_status st, learned *ou
 }
 
 /* Step 1: learn from e(k) = x(k) - xhat(k) (eq. 9) with z(k-1), into the
- * inactive banks; nothing is committed until every neuron passed. Which
- * neurons learn is settled first, so that the loop around the inlined
- * kernels carries little more than i. */
+ * inactive banks; nothing is committed until every neuron passed. A neuron
+ * whose update is refused stops the step, or (reset_after) is recovered and
+ * the others go on. */
 static rhonn_status learn(rhonn_t *net, const rhonn_real *x, const uint8_t *valid, learned *out)
 {
     const size_t n = CFG(net)->n_states;
     const int on = net->started && net->learning;
-    size_t i;
+    size_t i, from = 0;
+    rhonn_status st;
     RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
     RHONN_NEURON_LOOP
     for (i = 0; i < n; ++i) {
         out->updated[i] = (uint8_t)(on && (valid == NULL || valid[i] != 0u) && net->valid_run[i] >= net->own_need[i]);
         out->bounded[i] = 0;
         out->recovered[i] = 0;
+        out->innov[i] = out->updated[i] ? x[i] - net->xhat[i] : R(0.0);
     }
-    RHONN_NEURON_LOOP
-    for (i = 0; i < n; ++i) {
-        if (out->updated[i]) {
-            rhonn_status st;
-            out->innov[i] = x[i] - net->xhat[i];
-            st = ekf_dispatch(net, i, out->innov[i], net->z[net->zbank][i], &out->nis[i], &out->bounded[i]);
-            if (st != RHONN_OK && refused(net, i, st, out) != RHONN_OK) {
-                return st;
-            }
+    while ((st = update_neurons(net, out->updated, out->innov, net->z[net->zbank], out->nis, out->bounded, &from)) !=
+           RHONN_OK) {
+        if (refused(net, from, st, out) != RHONN_OK) {
+            return st;
         }
+        ++from; /* recovered: the others go on */
     }
     return RHONN_OK;
 }
@@ -1860,7 +1879,21 @@ void rhonn_internal_commit_sample(rhonn_t *net, const rhonn_real *cur, const uin
 rhonn_status rhonn_internal_ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
                                        uint8_t *bounded)
 {
-    return ekf_update(net, i, e, z, nis, bounded);
+    uint8_t learns[RHONN_MAX_STATES] = {0}, bnd[RHONN_MAX_STATES] = {0};
+    rhonn_real ev[RHONN_MAX_STATES], zv[RHONN_MAX_STATES][RHONN_MAX_TERMS], nv[RHONN_MAX_STATES];
+    size_t t, from = i;
+    rhonn_status st;
+    learns[i] = 1;
+    ev[i] = e;
+    nv[i] = *nis; /* as the kernel leaves them when it refuses early */
+    bnd[i] = *bounded;
+    for (t = 0; t < CFG(net)->neurons[i].n_terms; ++t) {
+        zv[i][t] = z[t];
+    }
+    st = update_neurons(net, learns, ev, zv, nv, bnd, &from);
+    *nis = nv[i];
+    *bounded = bnd[i];
+    return st;
 }
 
 void rhonn_internal_load_p0(const rhonn_t *net, size_t i, rhonn_real *dst)
