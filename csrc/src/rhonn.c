@@ -960,7 +960,8 @@ static rhonn_real abs_of(rhonn_real v)
  *    of (y^T P z + y^T delta)^2); |delta| <= gamma_L |P| |z| and, P being
  *    definite, |P_rc| <= sqrt(P_rr P_cc), so with
  *    w = sum_c sqrt(P_cc) |z_c|: |delta|^2 <= gamma_L^2 tr(P) w^2 and
- *    z^T delta >= -gamma_L w^2;
+ *    z^T delta >= -gamma_L w^2; and w^2 <= L sum_c P_cc z_c^2 (Cauchy-
+ *    Schwarz over the L terms), which takes no square root;
  *  - |E| (2-norm) <= (3 rho + 8u) |v|^2 / s + 2u (tr(P) + max_r P'_rr),
  *    rho = gamma_{L+1} (R + |z|^T |v|) / s the relative error of s: the
  *    roundings of 1 / s, k_r = v_r / s, k_r v_c, the subtraction and + q,
@@ -971,7 +972,7 @@ static rhonn_real abs_of(rhonn_real v)
  * pd_check (every diagonal above q_min / 9 >= the normal range) would
  * accept it. The 1/8 also covers the rounding of these bounds themselves
  * (a few dozen roundings, below 1e-5 relative; 1 / s is the rounded
- * inv_s), and sqrt_bound stands in for sqrt. Overflow or NaN
+ * inv_s). Overflow or NaN
  * anywhere fails a comparison, and every entry of P' is finite, at most
  * (tr(P) + |v|^2 / s)(1 + u) off the diagonal, which is bounded here; the
  * diagonal's largest is pmax. The sums are taken here; rhonn_internal.h's
@@ -981,18 +982,17 @@ RHONN_INLINE int certified_update(const rhonn_real *RHONN_RESTRICT P, const rhon
                                   const rhonn_real *RHONN_RESTRICT Pn, const rhonn_neuron_config *nc,
                                   const rhonn_real qmin, const size_t L)
 {
-    rhonn_real tr = R(0.0), w = R(0.0), vv = R(0.0), zv = R(0.0), pmax = R(0.0);
+    rhonn_real tr = R(0.0), pzz = R(0.0), vv = R(0.0), zv = R(0.0), pmax = R(0.0);
     size_t r, idx;
     RHONN_UNROLL_LOOP
     for (r = 0, idx = 0; r < L; idx += L - r, ++r) {
-        const rhonn_real az = abs_of(z[r]);
         tr += P[idx];
-        w += rhonn_sqrt_bound(P[idx]) * az;
+        pzz += (P[idx] * z[r]) * z[r];
         vv += v[r] * v[r];
-        zv += az * abs_of(v[r]);
+        zv += abs_of(z[r]) * abs_of(v[r]);
         pmax = Pn[idx] > pmax ? Pn[idx] : pmax;
     }
-    return rhonn_proof_holds(tr, w, vv, zv, pmax, qmin, nc->r, inv_s, L);
+    return rhonn_proof_holds(tr, pzz, vv, zv, pmax, qmin, nc->r, inv_s, L);
 }
 #endif
 

@@ -36,25 +36,6 @@
 #define RHONN_INTERNAL_INLINE static inline
 #endif
 
-/* An upper bound on sqrt(v), v >= 0 finite, within a factor 2: 2^(h + 1)
- * with h = floor(e / 2) for v = m 2^e (sqrt(m 2^e) < 2^(e/2 + 1/2)), whose
- * biased exponent is (E + 1) / 2 + 64 (float) or + 512 (double) for v's
- * biased exponent E (0 for 0 and the subnormals, where the bound still
- * holds); integer work only, no libm, no branch, no division. */
-RHONN_INTERNAL_INLINE rhonn_real rhonn_sqrt_bound(rhonn_real v)
-{
-#ifdef RHONN_SINGLE
-    union { float f; uint32_t u; } b;
-    b.f = v;
-    b.u = ((((b.u >> 23) & 0xFFu) + 1u) / 2u + 64u) << 23;
-#else
-    union { double f; uint64_t u; } b;
-    b.f = v;
-    b.u = ((((b.u >> 52) & 0x7FFu) + 1u) / 2u + 512u) << 52;
-#endif
-    return b.f;
-}
-
 /* The shift alpha = 17 L gamma_{L+1} of the factorisation that proves a P
  * definite (rhonn.c shifted_check has the derivation). */
 RHONN_INTERNAL_INLINE rhonn_real rhonn_proof_shift(size_t L)
@@ -65,29 +46,32 @@ RHONN_INTERNAL_INLINE rhonn_real rhonn_proof_shift(size_t L)
 /* The proof that a full-form update kept P definite (rhonn.c
  * certified_update has the derivation), from its sums over the L terms of
  * the old P, z, v = fl(P z) and the new P': tr = trace P,
- * w = sum sqrt_bound(P_rr) |z_r|, vv = |v|^2, zv = |z|^T |v|, pmax = the
- * largest diagonal of P'; and q_min, R and inv_s = fl(1 / s). With the unit
- * roundoff u and gamma_k <= 1.01 k u:
- *   r_low = R - gamma_L w^2 (a lower bound on R + z^T delta),
+ * pzz = sum_r P_rr z_r^2, vv = |v|^2, zv = |z|^T |v|, pmax = the largest
+ * diagonal of P'; and q_min, R and inv_s = fl(1 / s). With the unit
+ * roundoff u, gamma_k <= 1.01 k u and ww = L pzz, which bounds
+ * w^2 = (sum_r sqrt(P_rr) |z_r|)^2 (Cauchy-Schwarz over the L terms, each
+ * P_rr paired with its own z_r, with no square root to take):
+ *   r_low = R - gamma_L ww (a lower bound on R + z^T delta),
  *   rho   = gamma_{L+1} (R + zv) / s (the relative error of s),
- *   eta   = 2 gamma_L^2 tr w^2 / r_low (the rounding of P z),
+ *   eta   = 2 gamma_L^2 tr ww / r_low (the rounding of P z),
  *   err   = (3 rho + 8u) vv / s + 2u (tr + pmax) (the update's roundings),
  *   and Demmel's bound 1.01 L gamma_{L+1} pmax;
  * 1 when 9/8 of their sum is within q_min (and the bounds are finite, r_low
  * > 0, rho <= 1/4, tr + vv / s far from overflow): P' is then definite with
  * lambda_min >= q_min / 9 + Demmel's bound, which the plain factorisation
  * accepts. 0 when it cannot tell: factorise. */
-RHONN_INTERNAL_INLINE int rhonn_proof_holds(rhonn_real tr, rhonn_real w, rhonn_real vv, rhonn_real zv,
+RHONN_INTERNAL_INLINE int rhonn_proof_holds(rhonn_real tr, rhonn_real pzz, rhonn_real vv, rhonn_real zv,
                                             rhonn_real pmax, rhonn_real qmin, rhonn_real r_i, rhonn_real inv_s,
                                             size_t L)
 {
     const rhonn_real unit = RHONN_EPSILON * R(0.5);
     const rhonn_real gl = R(1.01) * (rhonn_real)L * unit, g1 = R(1.01) * (rhonn_real)(L + 1u) * unit;
+    const rhonn_real ww = (rhonn_real)L * pzz;
     rhonn_real r_low, rho, vs, err, eta_r;
     if (!(qmin >= R(16.0) * RHONN_MIN_NORMAL)) {
         return 0;
     }
-    r_low = r_i - gl * (w * w);
+    r_low = r_i - gl * ww;
     rho = g1 * (r_i + zv) * inv_s;
     vs = vv * inv_s;
     if (!(r_low > R(0.0)) || !(rho <= R(0.25)) || !(tr + vs <= RHONN_MAX_REAL * R(0.25)) ||
@@ -95,7 +79,7 @@ RHONN_INTERNAL_INLINE int rhonn_proof_holds(rhonn_real tr, rhonn_real w, rhonn_r
         return 0;
     }
     /* 9/8 (eta + err + Demmel) <= q_min, with eta = eta_r / r_low: no division */
-    eta_r = R(2.0) * (gl * gl) * (tr * (w * w));
+    eta_r = R(2.0) * (gl * gl) * (tr * ww);
     err = (R(3.0) * rho + R(8.0) * unit) * vs + R(2.0) * unit * (tr + pmax);
     return R(1.125) * eta_r <= (qmin - R(1.125) * (err + R(1.01) * (rhonn_real)L * g1 * pmax)) * r_low;
 }

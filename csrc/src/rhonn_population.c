@@ -132,19 +132,19 @@ POP_ALWAYS_INLINE void verdicts(rhonn_population_work *wk, const rhonn_real *Pn,
 static int lane_proof(const rhonn_real *P, const rhonn_real *z, const rhonn_real *v, rhonn_real inv_s,
                       const rhonn_real *Pn, rhonn_real qmin, rhonn_real r_i, size_t L, size_t m)
 {
-    rhonn_real tr = R(0.0), w = R(0.0), vv = R(0.0), zv = R(0.0), pmax = R(0.0);
+    rhonn_real tr = R(0.0), pzz = R(0.0), vv = R(0.0), zv = R(0.0), pmax = R(0.0);
     size_t r, idx;
     for (r = 0, idx = 0; r < L; idx += L - r, ++r) {
         const rhonn_real d = P[idx * NPOP + m], zr = z[r * NPOP + m], vr = v[r * NPOP + m];
         const rhonn_real az = zr < R(0.0) ? -zr : zr, av = vr < R(0.0) ? -vr : vr;
         const rhonn_real dn = Pn[idx * NPOP + m];
         tr += d;
-        w += rhonn_sqrt_bound(d) * az;
+        pzz += (d * zr) * zr;
         vv += vr * vr;
         zv += az * av;
         pmax = dn > pmax ? dn : pmax;
     }
-    return rhonn_proof_holds(tr, w, vv, zv, pmax, qmin, r_i, inv_s, L);
+    return rhonn_proof_holds(tr, pzz, vv, zv, pmax, qmin, r_i, inv_s, L);
 }
 
 /* Which members' updates the proof covers (fast[m]: a learning member whose
@@ -491,7 +491,6 @@ typedef uint32_t pop_ubits;
 #define POP_EXP_FIELD 0xFF
 #define POP_SCALE_TOP 255  /* 2^-floor(e/2) = bits (255 - floor((b + 129) / 2)) << 23 */
 #define POP_SCALE_ADD 129
-#define POP_SQRT_ADD 64    /* sqrt_bound: bits ((b + 1) / 2 + 64) << 23 */
 #define POP_ABS_MASK 0x7FFFFFFFu
 #else
 typedef uint64_t pop_ubits;
@@ -499,7 +498,6 @@ typedef uint64_t pop_ubits;
 #define POP_EXP_FIELD 0x7FF
 #define POP_SCALE_TOP 2047 /* 2^-floor(e/2) = bits (2047 - floor((b + 1025) / 2)) << 52 */
 #define POP_SCALE_ADD 1025
-#define POP_SQRT_ADD 512   /* sqrt_bound: bits ((b + 1) / 2 + 512) << 52 */
 #define POP_ABS_MASK 0x7FFFFFFFFFFFFFFFull
 #endif
 /* A value of every member; aligned as rhonn_real, so a vector is read and
@@ -563,32 +561,31 @@ POP_ALWAYS_INLINE int vec_proofs(rhonn_population_work *wk, size_t i, size_t L, 
     const rhonn_real *P = &wk->p[wk->pb[i]][i][0][0], *Pn = &wk->p[wk->pb[i] ^ 1u][i][0][0];
     const rhonn_real *z = &wk->z[wk->zb][i][0][0], *pz = &wk->pz[0][0];
     const lanev zero = VC(wk->zeros, 0);
-    lanev tr = zero, w = zero, vv = zero, zv = zero, pmax = zero;
-    rhonn_real a_tr[RHONN_MAX_POPULATION], a_w[RHONN_MAX_POPULATION], a_vv[RHONN_MAX_POPULATION];
+    lanev tr = zero, pzz = zero, vv = zero, zv = zero, pmax = zero;
+    rhonn_real a_tr[RHONN_MAX_POPULATION], a_pzz[RHONN_MAX_POPULATION], a_vv[RHONN_MAX_POPULATION];
     rhonn_real a_zv[RHONN_MAX_POPULATION], a_pmax[RHONN_MAX_POPULATION];
     size_t r, m;
     int all = 1;
     for (r = 0; r < L; ++r) {
-        const lanev d = VC(P, rs[r]), vr = VC(pz, r), dn = VC(Pn, rs[r]);
-        const lanev az = (lanev)((lanei)VC(z, r) & (pop_ubits)POP_ABS_MASK);
+        const lanev d = VC(P, rs[r]), zr = VC(z, r), vr = VC(pz, r), dn = VC(Pn, rs[r]);
+        const lanev az = (lanev)((lanei)zr & (pop_ubits)POP_ABS_MASK);
         const lanev av = (lanev)((lanei)vr & (pop_ubits)POP_ABS_MASK);
-        const lanei sb = (((((lanei)d >> POP_EXP_SHIFT) & POP_EXP_FIELD) + 1u) / 2u + POP_SQRT_ADD) << POP_EXP_SHIFT;
         const lanei gt = (lanei)(dn > pmax);
         tr += d;
-        w += (lanev)sb * az;
+        pzz += (d * zr) * zr;
         vv += vr * vr;
         zv += az * av;
         pmax = (lanev)(((lanei)dn & gt) | ((lanei)pmax & ~gt));
     }
     V(a_tr, 0) = tr;
-    V(a_w, 0) = w;
+    V(a_pzz, 0) = pzz;
     V(a_vv, 0) = vv;
     V(a_zv, 0) = zv;
     V(a_pmax, 0) = pmax;
     for (m = 0; m < NPOP; ++m) {
         fast[m] = (uint8_t)(wk->learn[i][m] && wk->cert[i][m] && wk->inv_lambda[i][m] == R(1.0) &&
                             !wk->bounded[i][m] &&
-                            rhonn_proof_holds(a_tr[m], a_w[m], a_vv[m], a_zv[m], a_pmax[m], wk->q_min[i][m],
+                            rhonn_proof_holds(a_tr[m], a_pzz[m], a_vv[m], a_zv[m], a_pmax[m], wk->q_min[i][m],
                                               wk->r[i][m], inv_s[m], L));
         all &= fast[m] || !wk->learn[i][m];
     }
