@@ -443,10 +443,16 @@ RHONN_INLINE size_t sample_offset(const rhonn_factor *fa, size_t group)
     return OFF_ONE;
 }
 
+/* A factor's delay (the constant 1 has none, whatever the field says). */
+RHONN_INLINE uint8_t factor_delay(const rhonn_factor *fa)
+{
+    return fa->kind == (uint8_t)RHONN_FACTOR_ONE ? 0u : fa->delay;
+}
+
 /* Is a factor's value this sample's own (no delay, power 1), read in place? */
 RHONN_INLINE int in_sample(const rhonn_factor *fa)
 {
-    return (fa->kind == (uint8_t)RHONN_FACTOR_ONE || fa->delay == 0u) && fa->power == 1u;
+    return factor_delay(fa) == 0u && fa->power == 1u;
 }
 
 /* Compile the terms (eq. 4) into indices of the step's values (see
@@ -475,7 +481,7 @@ static void compile_terms(rhonn_t *net)
         for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
             for (f = 0; f < cfg->neurons[i].terms[t].n_factors; ++f) {
                 const rhonn_factor *fa = &cfg->neurons[i].terms[t].factors[f];
-                const uint8_t delay = fa->kind == (uint8_t)RHONN_FACTOR_ONE ? 0u : fa->delay;
+                const uint8_t delay = factor_delay(fa);
                 const size_t off = sample_offset(fa, net->group_of[i]);
                 if (in_sample(fa)) {
                     net->term_entry[i][t][f] = (uint16_t)off;
