@@ -780,11 +780,37 @@ RHONN_INLINE rhonn_real dot(const rhonn_real *RHONN_RESTRICT a, const rhonn_real
 }
 
 /* 1 if any of v[0..len) is NaN or +-Inf: integer tests of the exponent
- * bits ORed together, so no floating-point chain and no branch per entry. */
+ * bits ORed together, so no floating-point chain and no branch per entry.
+ * With RHONN_FINITE_BY_SUM (the default on a Cortex-M FPU, where moving a
+ * value to an integer register and testing it costs four cycles and an
+ * FPU add one), a finite sum of the entries first proves them all finite
+ * (a NaN or an infinity makes any sum NaN or infinite); only a sum that is
+ * not finite, because of a bad entry or an overflow of finite ones, goes
+ * on to the exact test. The same answer either way. */
+#ifndef RHONN_FINITE_BY_SUM
+#if defined(__ARM_ARCH_PROFILE) && defined(__ARM_FP)
+#if __ARM_ARCH_PROFILE == 'M'
+#define RHONN_FINITE_BY_SUM 1
+#endif
+#endif
+#endif
+#ifndef RHONN_FINITE_BY_SUM
+#define RHONN_FINITE_BY_SUM 0
+#endif
 RHONN_INLINE int any_nonfinite(const rhonn_real *v, size_t len)
 {
     int bad = 0;
     size_t c;
+#if RHONN_FINITE_BY_SUM
+    rhonn_real sum = R(0.0);
+    RHONN_UNROLL_LOOP
+    for (c = 0; c < len; ++c) {
+        sum += v[c];
+    }
+    if (RHONN_LIKELY(is_finite(sum))) {
+        return 0;
+    }
+#endif
     RHONN_UNROLL_LOOP
     for (c = 0; c < len; ++c) {
         bad |= (bits_of(v[c]) & (rhonn_bits)RHONN_EXP_MASK) == (rhonn_bits)RHONN_EXP_MASK;
@@ -995,7 +1021,7 @@ RHONN_INLINE int certified_update(const rhonn_real *RHONN_RESTRICT P, const rhon
         tr += P[idx];
         pzz += (P[idx] * z[r]) * z[r];
         vv += v[r] * v[r];
-        zv += abs_of(z[r]) * abs_of(v[r]);
+        zv += abs_of(z[r] * v[r]); /* = |z_r| |v_r|, bit for bit: one VABS */
         pmax = Pn[idx] > pmax ? Pn[idx] : pmax;
     }
     return rhonn_proof_holds(tr, pzz, vv, zv, pmax, qmin, nc->r, inv_s, L);
@@ -1060,9 +1086,9 @@ static rhonn_real full_trace(const rhonn_real *P, size_t L)
     return tr;
 }
 
-/* 1 / lambda of a neuron's forgetting factor, or 0 when forgetting is off. */
-
-static rhonn_status neuron_fault(rhonn_t *net, size_t i, rhonn_status st)
+/* The fault of neuron i: only on a refused update (cold: the paths that
+ * reach it are compiled as rare). */
+RHONN_COLD static rhonn_status neuron_fault(rhonn_t *net, size_t i, rhonn_status st)
 {
     net->fault_neuron = (uint8_t)i;
     return st;
@@ -1170,7 +1196,8 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
      * gives the new P its proof; else only at working precision (pd_check).
      * Every path accepts exactly the P that pd_check accepts. */
 #if RHONN_CERTIFY
-    if (net->cert[i][b] && inv_lambda == R(0.0) && !*bounded && certified_update(P, z, pz, inv_s, Pn, nc, Q_MIN(net, i), L)) {
+    if (RHONN_LIKELY(net->cert[i][b] && inv_lambda == R(0.0) && !*bounded &&
+                     certified_update(P, z, pz, inv_s, Pn, nc, Q_MIN(net, i), L))) {
         net->cert[i][b ^ 1u] = 1u;
         return RHONN_OK;
     }
@@ -1522,7 +1549,7 @@ static rhonn_status update_neurons(rhonn_t *net, const uint8_t *learns, const rh
     for (i = 0; i < n; ++i) {
         if (i >= start && learns[i]) {
             const rhonn_status st = ekf_dispatch(net, i, e[i], z[i], &nis[i], &bounded[i]);
-            if (st != RHONN_OK) {
+            if (RHONN_UNLIKELY(st != RHONN_OK)) {
                 *from = i;
                 return st;
             }

@@ -544,6 +544,39 @@ static void overflowing_prediction_reports_divergence(void)
     CHECK(memcmp(&before, &after, sizeof before) == 0);
 }
 
+/* Finite weights whose sum overflows are finite weights: a learning step
+ * with them is not refused as diverged (the Cortex-M build tests finiteness
+ * by a sum first, RHONN_FINITE_BY_SUM, and must fall back to the exact test). */
+static void finite_weights_whose_sum_overflows_still_learn(void)
+{
+    rhonn_t net;
+    rhonn_config c = small_config();
+    rhonn_real x[2] = {0, 0}, u[1] = {0}, y[2], w[4];
+    rhonn_health h;
+#ifdef RHONN_SINGLE
+    const rhonn_real big = 0.6f * FLT_MAX;
+#else
+    const rhonn_real big = (rhonn_real)(0.6 * DBL_MAX);
+#endif
+    size_t t;
+
+    /* w_0 + w_1 overflows; the prediction (terms below 1) does not, and a
+     * huge R makes the correction tiny beside the weights */
+    c.neurons[0].w0[0] = big;
+    c.neurons[0].w0[1] = big;
+    c.neurons[0].r = (rhonn_real)1e30;
+    CHECK_STATUS(rhonn_init(&net, &c, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_step(&net, x, u, NULL, y), RHONN_OK);
+    CHECK(isfinite(y[0]) && y[0] > 0);
+    CHECK_STATUS(rhonn_step(&net, x, u, NULL, y), RHONN_OK);
+    CHECK_STATUS(rhonn_get_health(&net, 0, &h), RHONN_OK);
+    CHECK(h.updates == 1);
+    CHECK_STATUS(rhonn_get_weights(&net, 0, w, 4), RHONN_OK);
+    for (t = 0; t < 4; ++t) {
+        CHECK(isfinite(w[t]));
+    }
+}
+
 static void setters_reject_bad_values(void)
 {
     rhonn_t net;
@@ -775,6 +808,7 @@ int main(void)
     RUN(a_badly_scaled_indefinite_covariance_is_refused);
     RUN(overflowing_covariance_reports_covariance_error);
     RUN(overflowing_prediction_reports_divergence);
+    RUN(finite_weights_whose_sum_overflows_still_learn);
     RUN(setters_reject_bad_values);
     RUN(run_equals_repeated_steps_and_stops_at_failure);
     RUN(reset_restores_the_initial_filter);
