@@ -141,12 +141,15 @@ def test_cortex_m4_application_runs_no_software_double_arithmetic(m4) -> None:
 def test_cortex_m4_cycle_profile_names_the_source_lines_that_cost_most(m4) -> None:
     """cycles.py --lines: the estimated cycles per call summed per source line
     of the image's debug information, the costliest first, within the
-    call's total; a negative count is refused with exit status 2."""
+    call's total; a negative count is refused with exit status 2. On the
+    application image's rhonn_step over its first frames (the core image's
+    whole vector, single-stepped, took half a minute)."""
     _, build, _ = m4
-    elf = build / "unrolled" / "rhonn_m4.elf"
-    objs = sorted((build / "unrolled" / "CMakeFiles" / "rhonn_m4.elf.dir").rglob("rhonn.c.obj"))
+    elf = build / "unrolled" / "fw_app_m4.elf"
+    objs = sorted((build / "unrolled" / "CMakeFiles" / "fw_app_m4.dir").rglob("rhonn.c.obj"))
     assert elf.is_file() and len(objs) == 1, objs
-    proc = subprocess.run([sys.executable, str(M4 / "cycles.py"), str(elf), str(objs[0]), "--lines", "5"],
+    proc = subprocess.run([sys.executable, str(M4 / "cycles.py"), str(elf), str(objs[0]), "--steps-symbol", "rhonn_step",
+                           "--harness", "fw_app_on_frame", "--args", str(CYCLE_FRAMES), "--lines", "5"],
                           capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr
     est = json.loads(proc.stdout)

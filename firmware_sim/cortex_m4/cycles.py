@@ -18,7 +18,7 @@ The weights (cycles):
 instruction                            cycles  note
 =====================================  ======  ====================================
 VDIV.F32, VSQRT.F32                      14
-VMLA/VMLS/VNMLA/VNMLS/VFMA/VFMS.F32       3    not emitted with -ffp-contract=off
+VMLA/VMLS/VNMLA/VNMLS/VFMA/VFMS.F32       3    no VFMA with -ffp-contract=off
 other FPU data processing, VMOV, VCMP     1    VADD, VSUB, VMUL, VNEG, VABS, VCVT
 VLDR, VSTR                                2
 VLDM, VSTM, VPUSH, VPOP                 1 + N  N registers
