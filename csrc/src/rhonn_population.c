@@ -115,13 +115,6 @@ POP_ALWAYS_INLINE void verdicts(rhonn_population_work *wk, const rhonn_real *Pn,
     }
 }
 
-/* rhonn.c's definiteness proof (certified_update: see its comment for the
- * bounds) for member m of a full-form update, from the lane arrays: P the
- * committed covariance (proven definite in exact arithmetic), z, v = P z,
- * inv_s = 1 / s, Pn the update. 1 when it proves Pn definite with the margin
- * under which the plain factorisation accepts it, so that skipping the
- * factorisation changes no verdict; 0 when it cannot. Scalar: O(L) per
- * member against the factorisation's O(L^3). */
 #if !RHONN_POP_VECTOR
 /* rhonn.c's definiteness proof (certified_update: see its comment for the
  * bounds) for member m of a full-form update, from the lane arrays: P the
@@ -524,6 +517,37 @@ static void trace_scale(rhonn_population_work *wk, size_t i, const rhonn_real *t
     }
 }
 
+/* Whether some member of neuron i has the trace ceiling on. Where none
+ * has, the ceiling's work (a trace, a scaling by exactly 1) changes nothing
+ * and is skipped, and no member is bounded. */
+static int any_ceiling(rhonn_population_work *wk, size_t i)
+{
+    int any = 0;
+    size_t m;
+    for (m = 0; m < NPOP; ++m) {
+        any |= wk->p_trace_max[i][m] > R(0.0);
+    }
+    if (!any) {
+        for (m = 0; m < NPOP; ++m) {
+            wk->bounded[i][m] = 0;
+        }
+    }
+    return any;
+}
+
+/* Whether some member of neuron i forgets (1 / lambda is exactly 1 for the
+ * others): where none does, the multiplication by 1 is skipped, as rhonn.c
+ * skips it. */
+static int any_forgetting(const rhonn_population_work *wk, size_t i)
+{
+    int any = 0;
+    size_t m;
+    for (m = 0; m < NPOP; ++m) {
+        any |= wk->inv_lambda[i][m] != R(1.0);
+    }
+    return any;
+}
+
 /* e^2 / s into nis and eq. 7's w + (eta e / s) k, k = P z, into the
  * candidate weights (rhonn.c: nis = e (e M), gain = eta e M, w + gain k);
  * returns the sum of w - w over them: 0 when all are finite, else NaN. */
@@ -666,6 +690,7 @@ POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L
     rhonn_real tmp[RHONN_MAX_POPULATION];
     uint8_t fast[RHONN_MAX_POPULATION];
     size_t m;
+    int forgets;
 
     rs[0] = 0;
     for (r = 0; r + 1u < L; ++r) {
@@ -710,26 +735,36 @@ POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L
     V(tmp, 0) = inv_s;
     weights_update(wk, i, L, tmp, pz, out_wsum);
     /* eq. 7: (P - (P z)(P z)^T M) / lambda + Q. Without forgetting rhonn.c
-     * skips the division; multiplying by 1 instead is exact. */
+     * skips the division; a member without it among members with it
+     * multiplies by 1, which is exact. */
+    forgets = any_forgetting(wk, i);
     for (r = 0; r < L; ++r) {
         const lanev kr = V(pz, r) * inv_s;
         len = L - r;
-        for (c = 0; c < len; ++c) {
-            V(Pn, rs[r] + c) = (VC(P, rs[r] + c) - kr * V(pz, r + c)) * ilam;
+        if (forgets) {
+            for (c = 0; c < len; ++c) {
+                V(Pn, rs[r] + c) = (VC(P, rs[r] + c) - kr * V(pz, r + c)) * ilam;
+            }
+        } else {
+            for (c = 0; c < len; ++c) {
+                V(Pn, rs[r] + c) = VC(P, rs[r] + c) - kr * V(pz, r + c);
+            }
         }
         V(Pn, rs[r]) += VC(q, r);
     }
     /* The trace ceiling: P(k+1) scaled by p_trace_max / trace when above
      * it; by exactly 1 elsewhere, which changes nothing. */
-    acc = zero;
-    for (r = 0; r < L; ++r) {
-        acc += V(Pn, rs[r]);
-    }
-    V(out_s, 0) = acc;
-    trace_scale(wk, i, out_s, tmp);
-    scale = VC(tmp, 0);
-    for (c = 0; c < packed; ++c) {
-        V(Pn, c) *= scale;
+    if (any_ceiling(wk, i)) {
+        acc = zero;
+        for (r = 0; r < L; ++r) {
+            acc += V(Pn, rs[r]);
+        }
+        V(out_s, 0) = acc;
+        trace_scale(wk, i, out_s, tmp);
+        scale = VC(tmp, 0);
+        for (c = 0; c < packed; ++c) {
+            V(Pn, c) *= scale;
+        }
     }
     /* The check: the proofs, then the shifted factorisation, then the
      * plain one, each only for what the one before left open. */
@@ -821,8 +856,10 @@ POP_CLONES static void ud_kernel(rhonn_population_work *wk, size_t i, size_t L)
     V(tmp, 0) = inv_prev;
     weights_update(wk, i, L, tmp, b, out_wsum);
     /* / lambda (rhonn.c skips it without forgetting; * 1 is exact) */
-    for (j = 0; j < L; ++j) {
-        V(dt, j) *= ilam;
+    if (any_forgetting(wk, i)) {
+        for (j = 0; j < L; ++j) {
+            V(dt, j) *= ilam;
+        }
     }
     /* The measurement's factors into the new bank, then + Q in place by
      * rank-one updates (rhonn.c ekf_ud, operation for operation). rhonn.c
@@ -891,25 +928,27 @@ POP_CLONES static void ud_kernel(rhonn_population_work *wk, size_t i, size_t L)
     }
     /* The trace ceiling: trace(U D U^T) = sum_j d_j (1 + sum_{i<j} U(i,j)^2);
      * above p_trace_max, D scaled by p_trace_max / trace (by 1 elsewhere). */
-    tr = zero;
-    for (j = 0; j < L; ++j) {
-        lanev col = one;
-        for (k = 0; k < j; ++k) {
-            const lanev u = V(Fn, rs[k] + (j - k));
-            col += u * u;
+    if (any_ceiling(wk, i)) {
+        tr = zero;
+        for (j = 0; j < L; ++j) {
+            lanev col = one;
+            for (k = 0; k < j; ++k) {
+                const lanev u = V(Fn, rs[k] + (j - k));
+                col += u * u;
+            }
+            tr += V(Fn, rs[j]) * col;
         }
-        tr += V(Fn, rs[j]) * col;
+        V(out_s, 0) = tr;
+        trace_scale(wk, i, out_s, tmp);
+        for (j = 0; j < L; ++j) {
+            V(Fn, rs[j]) *= VC(tmp, 0);
+            V(out_s, 0) = V(Fn, rs[j]);
+            for (m = 0; m < NPOP; ++m) {
+                out_ok[m] = out_s[m] > R(0.0) ? out_ok[m] : R(0.0); /* scaled into underflow */
+            }
+        }
     }
-    V(out_s, 0) = tr;
-    trace_scale(wk, i, out_s, tmp);
     fsum = zero;
-    for (j = 0; j < L; ++j) {
-        V(Fn, rs[j]) *= VC(tmp, 0);
-        V(out_s, 0) = V(Fn, rs[j]);
-        for (m = 0; m < NPOP; ++m) {
-            out_ok[m] = out_s[m] > R(0.0) ? out_ok[m] : R(0.0); /* scaled into underflow */
-        }
-    }
     for (c = 0; c < packed; ++c) {
         fsum += V(Fn, c) - V(Fn, c);
     }

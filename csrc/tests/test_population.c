@@ -261,14 +261,27 @@ static void forgetting_ceiling_and_resets_equal_single_runs(void)
 {
     rhonn_config cfg[MAXN];
     size_t m, i;
-    for (m = 0; m < 6; ++m) {
-        cfg[m] = lim_config((unsigned)m, 0, 0);
-        for (i = 0; i < 6; ++i) {
-            cfg[m].neurons[i].forgetting = m % 2u ? (rhonn_real)0.98 : (rhonn_real)0.0;
-            cfg[m].neurons[i].p_trace_max = m >= 2u ? (rhonn_real)(11.0 * 7.0 * (1.0 + 0.25 * (double)m)) : (rhonn_real)0.0;
+    int ud;
+    /* members with and without each, then (the kernels skip the work for a
+     * neuron where no member has it) with neither, in both covariance forms */
+    for (ud = 0; ud < 2; ++ud) {
+        for (m = 0; m < 6; ++m) {
+            cfg[m] = lim_config((unsigned)m, 0, ud);
+            for (i = 0; i < 6; ++i) {
+                cfg[m].neurons[i].forgetting = m % 2u ? (rhonn_real)0.98 : (rhonn_real)0.0;
+                cfg[m].neurons[i].p_trace_max =
+                    m >= 2u ? (rhonn_real)(11.0 * 7.0 * (1.0 + 0.25 * (double)m)) : (rhonn_real)0.0;
+            }
         }
+        CHECK(compare(cfg, 6, NULL, 1) == 0);
+        for (m = 0; m < 6; ++m) {
+            for (i = 0; i < 6; ++i) {
+                cfg[m].neurons[i].forgetting = (rhonn_real)0.0;
+                cfg[m].neurons[i].p_trace_max = (rhonn_real)0.0;
+            }
+        }
+        CHECK(compare(cfg, 6, NULL, 1) == 0);
     }
-    CHECK(compare(cfg, 6, NULL, 1) == 0);
 }
 
 /* Forgetting with lambda = 1e-3 multiplies P by 1000 a step until it
