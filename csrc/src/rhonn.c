@@ -1846,6 +1846,11 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
             size_t f;
             RHONN_UNROLL_LOOP
             for (f = 1; f < (size_t)RHONN_MAX_FACTORS; ++f) {
+#ifdef RHONN_FIXED_CONFIG
+                if (f >= CFG(net)->neurons[i].terms[t].n_factors) {
+                    break; /* known here: x * 1 is x, so the multiply is left out */
+                }
+#endif
                 prod *= val[value_index(net, i, t, f)]; /* 1 past the term's own factors */
             }
             z[t] = prod;
