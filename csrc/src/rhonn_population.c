@@ -1172,11 +1172,13 @@ static void keep_sample(rhonn_population_work *wk, size_t m)
 }
 
 /* z(k) of one member from the step's values (rhonn.c step 4's products,
- * factor by factor in the same order), into lane m of bank zb. */
-static void lane_regressor(rhonn_population_work *wk, const rhonn_t *net, const rhonn_real *val, size_t zb, size_t m)
+ * factor by factor in the same order), into lane m of bank zb, or into
+ * every lane when it is the regressor all members share. */
+static void lane_regressor(rhonn_population_work *wk, const rhonn_t *net, const rhonn_real *val, size_t zb, size_t m,
+                           int every_lane)
 {
     const rhonn_config *cfg = CFG(net);
-    size_t i, t, f;
+    size_t i, t, f, k;
     for (i = 0; i < cfg->n_states; ++i) {
         for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
             const uint16_t *te = net->term_entry[i][t];
@@ -1185,7 +1187,13 @@ static void lane_regressor(rhonn_population_work *wk, const rhonn_t *net, const 
             for (f = 1; f < nf; ++f) {
                 prod *= val[te[f]];
             }
-            wk->z[zb][i][t][m] = prod;
+            if (every_lane) { /* the shared regressor, stored once into every lane */
+                for (k = 0; k < NPOP; ++k) {
+                    wk->z[zb][i][t][k] = prod;
+                }
+            } else {
+                wk->z[zb][i][t][m] = prod;
+            }
         }
     }
 }
@@ -1366,21 +1374,13 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         if (shared) {
             rhonn_internal_features(nets[lead], x, u, v, wk->val);
             keep_sample(wk, 0);
-            lane_regressor(wk, nets[lead], wk->val, zb_new, 0);
-            for (i = 0; i < n; ++i) {
-                L = CFG(nets[0])->neurons[i].n_terms;
-                for (t = 0; t < L; ++t) {
-                    for (m = 1; m < NPOP; ++m) {
-                        wk->z[zb_new][i][t][m] = wk->z[zb_new][i][t][0];
-                    }
-                }
-            }
+            lane_regressor(wk, nets[lead], wk->val, zb_new, 0, 1);
         } else {
             for (m = 0; m < N; ++m) {
                 if (alive[m] && !fail[m]) {
                     rhonn_internal_features(nets[m], x, u, v, wk->val);
                     keep_sample(wk, m);
-                    lane_regressor(wk, nets[m], wk->val, zb_new, m);
+                    lane_regressor(wk, nets[m], wk->val, zb_new, m, 0);
                 }
             }
         }
