@@ -1273,6 +1273,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         const uint8_t *v = valid != NULL ? valid + k * n : NULL;
         const size_t zb_new = wk->zb ^ 1u;
         int all_valid = 1, any_alive = 0, all_fresh = 1, all_started = 1, shared;
+        uint8_t moved[RHONN_MAX_STATES]; /* some member updated neuron i */
         size_t lead = NPOP;
 
         for (m = 0; m < N; ++m) {
@@ -1303,6 +1304,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         /* 1. Learn, neuron by neuron (rhonn.c step 1). */
         for (i = 0; i < n; ++i) {
             const int ud = is_ud(nets[0], i);
+            int any_learn = 0;
             L = CFG(nets[0])->neurons[i].n_terms;
             for (m = 0; m < NPOP; ++m) {
                 const rhonn_t *net = nets[m < N ? m : 0u];
@@ -1313,11 +1315,17 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                 wk->recovered[i][m] = 0;
                 wk->innov[i][m] = x[i] - wk->xhat[i][m];
                 wk->e[m] = wk->innov[i][m];
+                any_learn |= wk->learn[i][m];
             }
-            if (!ud) {
-                full_kernel(wk, i, L);
-            } else {
-                ud_update(wk, nets, N, i, L);
+            /* Where no member learns this neuron (its measurement missing,
+             * learning off, the first sample), nothing of the kernel's would
+             * be used: it is not run. */
+            if (any_learn) {
+                if (!ud) {
+                    full_kernel(wk, i, L);
+                } else {
+                    ud_update(wk, nets, N, i, L);
+                }
             }
             for (m = 0; m < N; ++m) {
                 rhonn_t *net = nets[m];
@@ -1358,6 +1366,10 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                 }
                 wk->bounded[i][m] = 0;
                 wk->recovered[i][m] = 1;
+            }
+            moved[i] = 0;
+            for (m = 0; m < N; ++m) {
+                moved[i] |= wk->updated[i][m];
             }
         }
 
@@ -1424,8 +1436,9 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                 if (wk->updated[i][m]) {
                     wk->cert[i][m] = (uint8_t)(wk->recovered[i][m] ? 0u : wk->cert_new[i][m]);
                 }
-                if (!wk->updated[i][m]) {
-                    /* P(k+1) = P(k): into the bank that becomes committed */
+                if (!wk->updated[i][m] && moved[i]) {
+                    /* P(k+1) = P(k): into the bank that becomes committed
+                     * (where no member moved, the banks do not flip) */
                     const size_t pb = wk->pb[i];
                     for (t = 0; t < Li * (Li + 1u) / 2u; ++t) {
                         wk->p[pb ^ 1u][i][t][m] = wk->p[pb][i][t][m];
@@ -1445,7 +1458,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         wk->zb = (uint8_t)zb_new;
         wk->wb = (uint8_t)(wk->wb ^ 1u);
         for (i = 0; i < n; ++i) {
-            wk->pb[i] = (uint8_t)(wk->pb[i] ^ 1u);
+            wk->pb[i] = (uint8_t)(wk->pb[i] ^ moved[i]);
         }
         /* The newest slot agrees when every member read the same sample;
          * members that had not started filled every slot with it. */
