@@ -40,7 +40,8 @@
  * Without them GCC's guessed profile splits a block's frequency at every
  * test; in a core unrolled over the neurons the later neurons' kernels fell
  * below its hot threshold and were compiled for size (on the Cortex-M4, the
- * 3-cycle chained VMLA instead of a VMUL and a VADD: 140 cycles a step). */
+ * 3-cycle chained VMLA instead of a VMUL and a VADD: about 160 cycles a
+ * step). */
 #if defined(__GNUC__) || defined(__clang__)
 #define RHONN_LIKELY(c) __builtin_expect(!!(c), 1)
 #define RHONN_UNLIKELY(c) __builtin_expect(!!(c), 0)
