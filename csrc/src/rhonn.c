@@ -1692,18 +1692,32 @@ static void features(const rhonn_t *net, const rhonn_real *x, const rhonn_real *
     }
 }
 
-/* Where factor f of term t of neuron i is read among the step's values
- * (compile_terms). With RHONN_FIXED_CONFIG the configuration's constants
- * give it where it is this sample's own value, so the step reads it at a
- * constant offset instead of loading its index; else (and for delayed or
- * powered factors) the compiled index. */
+/* How many factors of term t of neuron i the prediction multiplies: under
+ * RHONN_FIXED_CONFIG the term's own count, known where the step is compiled
+ * (a factor past them reads the constant 1, and x * 1 is x); else
+ * RHONN_MAX_FACTORS, those past the term's own reading the 1 that
+ * compile_terms pads them with, so the loop has no per-term count to load. */
+RHONN_INLINE size_t factors_read(const rhonn_t *net, size_t i, size_t t)
+{
+#ifdef RHONN_FIXED_CONFIG
+    return CFG(net)->neurons[i].terms[t].n_factors;
+#else
+    (void)net;
+    (void)i;
+    (void)t;
+    return (size_t)RHONN_MAX_FACTORS;
+#endif
+}
+
+/* Where factor f (below factors_read) of term t of neuron i is read among
+ * the step's values (compile_terms). With RHONN_FIXED_CONFIG the
+ * configuration's constants give it where it is this sample's own value, so
+ * the step reads it at a constant offset instead of loading its index; else
+ * (and for delayed or powered factors) the compiled index. */
 RHONN_INLINE size_t value_index(const rhonn_t *net, size_t i, size_t t, size_t f)
 {
 #ifdef RHONN_FIXED_CONFIG
     const rhonn_term *tm = &CFG(net)->neurons[i].terms[t];
-    if (f >= tm->n_factors) {
-        return OFF_ONE;
-    }
     if (in_sample(&tm->factors[f])) {
         return sample_offset(&tm->factors[f], net->group_of[i]);
     }
@@ -1845,13 +1859,8 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
             rhonn_real prod = val[value_index(net, i, t, 0)];
             size_t f;
             RHONN_UNROLL_LOOP
-            for (f = 1; f < (size_t)RHONN_MAX_FACTORS; ++f) {
-#ifdef RHONN_FIXED_CONFIG
-                if (f >= CFG(net)->neurons[i].terms[t].n_factors) {
-                    break; /* known here: x * 1 is x, so the multiply is left out */
-                }
-#endif
-                prod *= val[value_index(net, i, t, f)]; /* 1 past the term's own factors */
+            for (f = 1; f < factors_read(net, i, t); ++f) {
+                prod *= val[value_index(net, i, t, f)];
             }
             z[t] = prod;
             acc += w[t] * prod;

@@ -519,18 +519,14 @@ static void trace_scale(rhonn_population_work *wk, size_t i, const rhonn_real *t
 
 /* Whether some member of neuron i has the trace ceiling on. Where none
  * has, the ceiling's work (a trace, a scaling by exactly 1) changes nothing
- * and is skipped, and no member is bounded. */
-static int any_ceiling(rhonn_population_work *wk, size_t i)
+ * and is skipped; no member is bounded (the step clears bounded before the
+ * kernels). */
+static int any_ceiling(const rhonn_population_work *wk, size_t i)
 {
     int any = 0;
     size_t m;
     for (m = 0; m < NPOP; ++m) {
         any |= wk->p_trace_max[i][m] > R(0.0);
-    }
-    if (!any) {
-        for (m = 0; m < NPOP; ++m) {
-            wk->bounded[i][m] = 0;
-        }
     }
     return any;
 }
