@@ -1764,20 +1764,30 @@ typedef struct {
     rhonn_real nis[RHONN_MAX_STATES];
 } learned;
 
+/* A refusal of neuron i's update counted (rejected, the run of refusals);
+ * 1 when that run reaches reset_after: the neuron is recovered. */
+RHONN_COLD static int count_refusal(rhonn_t *net, size_t i);
+
 /* A neuron's update was refused (st): counted; with reset_after reached,
  * recovered instead (RHONN_OK): the update skipped, the weights kept and
  * the covariance restarted from P_i(0). Off the hot path. */
-static rhonn_status refused(rhonn_t *net, size_t i, rhonn_status st, learned *out)
+static int count_refusal(rhonn_t *net, size_t i)
 {
     const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
     rhonn_health *h = &net->health[i];
-    const uint8_t nb = (uint8_t)(net->bank[i] ^ 1u);
-    size_t t;
     h->rejected += 1u;
     if (h->fail_run < 0xFFFFu) {
         h->fail_run = (uint16_t)(h->fail_run + 1u);
     }
-    if (nc->reset_after == 0u || h->fail_run < nc->reset_after) {
+    return nc->reset_after != 0u && h->fail_run >= nc->reset_after;
+}
+
+static rhonn_status refused(rhonn_t *net, size_t i, rhonn_status st, learned *out)
+{
+    const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
+    const uint8_t nb = (uint8_t)(net->bank[i] ^ 1u);
+    size_t t;
+    if (!count_refusal(net, i)) {
         return st;
     }
     for (t = 0; t < nc->n_terms; ++t) {
@@ -1946,6 +1956,16 @@ rhonn_status rhonn_internal_ekf_update(rhonn_t *net, size_t i, rhonn_real e, con
 void rhonn_internal_load_p0(const rhonn_t *net, size_t i, rhonn_real *dst)
 {
     load_p0(net, i, dst);
+}
+
+int rhonn_internal_count_refusal(rhonn_t *net, size_t i)
+{
+    return count_refusal(net, i);
+}
+
+uint8_t rhonn_internal_p0_proven(const rhonn_t *net, size_t i)
+{
+    return p0_proven(&CFG(net)->neurons[i]);
 }
 
 rhonn_status rhonn_step(rhonn_t *net, const rhonn_real *x, const rhonn_real *u,

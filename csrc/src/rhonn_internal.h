@@ -162,4 +162,19 @@ rhonn_status rhonn_internal_ekf_update(rhonn_t *net, size_t i, rhonn_real e, con
 /* P_i(0) in neuron i's storage form (a copy, or its U D U^T factors). */
 void rhonn_internal_load_p0(const rhonn_t *net, size_t i, rhonn_real *dst);
 
+/* A refused update of neuron i counted as rhonn_step counts it (health
+ * rejected and fail_run); 1 when the run of refusals reached reset_after:
+ * the neuron is to be recovered (weights kept, P from P_i(0)). */
+int rhonn_internal_count_refusal(rhonn_t *net, size_t i);
+
+/* Whether P_i(0) starts with its proof of definiteness (rhonn_t.cert):
+ * what a recovery gives the restarted covariance. */
+uint8_t rhonn_internal_p0_proven(const rhonn_t *net, size_t i);
+
+/* rhonn_population.c's proof for every lane at once (for the tests, which
+ * hold it to rhonn_proof_holds lane by lane): in[k * RHONN_MAX_POPULATION
+ * + m] for k = tr, pzz, vv, zv, pmax, qmin, r_i, inv_s; out[m] 1 where the
+ * proof holds for lane m. */
+void rhonn_internal_proof_lanes(const rhonn_real *in, size_t L, uint8_t *out);
+
 #endif /* RHONN_INTERNAL_H */

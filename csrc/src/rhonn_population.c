@@ -38,6 +38,12 @@ typedef uint64_t pop_bits;
 
 #define NPOP ((size_t)RHONN_MAX_POPULATION)
 
+#if defined(__GNUC__) && !defined(__clang__) && !defined(POP_NO_UNROLL)
+#define POP_UNROLL _Pragma("GCC unroll 16")
+#else
+#define POP_UNROLL
+#endif
+
 /* RHONN_POP_VECTOR=1 (the default with GCC and clang, for a population
  * of 2, 4, 8, ... members): the kernels are written with the
  * compilers' generic vector types, one vector holding a value of every
@@ -189,6 +195,18 @@ static int plain_needed(const rhonn_population_work *wk, size_t i, const uint8_t
 }
 
 #if !RHONN_POP_VECTOR
+/* For the tests (rhonn_internal.h): this build proves lane by lane with
+ * rhonn_proof_holds itself. */
+void rhonn_internal_proof_lanes(const rhonn_real *in, size_t L, uint8_t *out)
+{
+    size_t m;
+    for (m = 0; m < NPOP; ++m) {
+        out[m] = (uint8_t)rhonn_proof_holds(in[m], in[NPOP + m], in[2u * NPOP + m], in[3u * NPOP + m],
+                                            in[4u * NPOP + m], in[5u * NPOP + m], in[6u * NPOP + m],
+                                            in[7u * NPOP + m], L);
+    }
+}
+
 /* rhonn.c's half_exponent_scale (2^-floor(e/2) for v = m 2^e) in unsigned
  * arithmetic on the biased exponent b: 1023 - floor((b - 1023) / 2) =
  * 2047 - floor((b + 1025) / 2), the same value for every b (0..2047; float:
@@ -571,6 +589,46 @@ POP_ALWAYS_INLINE void weights_update(rhonn_population_work *wk, size_t i, size_
  * ceiling, and the U D U^T factorisation of the scaled P(k+1), whose
  * pivots must be positive. No branch on a member's numbers: the verdicts
  * are gathered as masks and read at the end. */
+/* rhonn_proof_holds (rhonn_internal.h) for every member at once: the same
+ * operations on each lane's numbers, in the same order, so each lane's
+ * verdict is the scalar one (the tests compare the proofs' flags with
+ * rhonn_run's); its early exits become a mask. holds[m] is all ones where
+ * the proof holds, else 0. */
+POP_ALWAYS_INLINE void vec_proof_holds(const lanev *tr_, const lanev *pzz, const lanev *vv, const lanev *zv,
+                                       const lanev *pmax_, const lanev *qmin_, const lanev *r_, const lanev *inv_s,
+                                       size_t L, pop_ubits *holds)
+{
+    const lanev tr = *tr_, pmax = *pmax_, qmin = *qmin_, r_i = *r_;
+    const rhonn_real unit = RHONN_EPSILON * R(0.5);
+    const rhonn_real gl = R(1.01) * (rhonn_real)L * unit, g1 = R(1.01) * (rhonn_real)(L + 1u) * unit;
+    const lanev ww = (rhonn_real)L * *pzz;
+    const lanev r_low = r_i - gl * ww;
+    const lanev rho = g1 * (r_i + *zv) * *inv_s;
+    const lanev vs = *vv * *inv_s;
+    const lanev eta_r = R(2.0) * (gl * gl) * (tr * ww);
+    const lanev err = (R(3.0) * rho + R(8.0) * unit) * vs + R(2.0) * unit * (tr + pmax);
+    const lanei ok = (lanei)(qmin >= R(16.0) * RHONN_MIN_NORMAL) & (lanei)(r_low > R(0.0)) &
+                     (lanei)(rho <= R(0.25)) & (lanei)(tr + vs <= RHONN_MAX_REAL * R(0.25)) &
+                     (lanei)(pmax <= RHONN_MAX_REAL);
+    const lanei all = ok & (lanei)(R(1.125) * eta_r <=
+                                   (qmin - R(1.125) * (err + R(1.01) * (rhonn_real)L * g1 * pmax)) * r_low);
+    *(lanei *)holds = all;
+}
+
+/* For the tests (rhonn_internal.h): vec_proof_holds on lanes given as
+ * arrays, in[k * RHONN_MAX_POPULATION + m] for k = tr, pzz, vv, zv, pmax,
+ * qmin, r_i, inv_s; out[m] 1 where the proof holds. */
+void rhonn_internal_proof_lanes(const rhonn_real *in, size_t L, uint8_t *out)
+{
+    pop_ubits holds[RHONN_MAX_POPULATION];
+    size_t m;
+    vec_proof_holds(&VC(in, 0), &VC(in, 1), &VC(in, 2), &VC(in, 3), &VC(in, 4), &VC(in, 5), &VC(in, 6),
+                    &VC(in, 7), L, holds);
+    for (m = 0; m < NPOP; ++m) {
+        out[m] = (uint8_t)(holds[m] != 0u);
+    }
+}
+
 /* lane_proofs of the loop kernel with the sums over the terms done for
  * every member at once (the largest diagonal by a mask: no NaN reaches it,
  * as P and the gain's products are finite here), then each member's tail
@@ -582,8 +640,7 @@ POP_ALWAYS_INLINE int vec_proofs(rhonn_population_work *wk, size_t i, size_t L, 
     const rhonn_real *z = &wk->z[wk->zb][i][0][0], *pz = &wk->pz[0][0];
     const lanev zero = VC(wk->zeros, 0);
     lanev tr = zero, pzz = zero, vv = zero, zv = zero, pmax = zero;
-    rhonn_real a_tr[RHONN_MAX_POPULATION], a_pzz[RHONN_MAX_POPULATION], a_vv[RHONN_MAX_POPULATION];
-    rhonn_real a_zv[RHONN_MAX_POPULATION], a_pmax[RHONN_MAX_POPULATION];
+    pop_ubits a_holds[RHONN_MAX_POPULATION];
     size_t r, m;
     int all = 1;
     for (r = 0; r < L; ++r) {
@@ -597,16 +654,10 @@ POP_ALWAYS_INLINE int vec_proofs(rhonn_population_work *wk, size_t i, size_t L, 
         zv += az * av;
         pmax = (lanev)(((lanei)dn & gt) | ((lanei)pmax & ~gt));
     }
-    V(a_tr, 0) = tr;
-    V(a_pzz, 0) = pzz;
-    V(a_vv, 0) = vv;
-    V(a_zv, 0) = zv;
-    V(a_pmax, 0) = pmax;
+    vec_proof_holds(&tr, &pzz, &vv, &zv, &pmax, &VC(wk->q_min[i], 0), &VC(wk->r[i], 0), &VC(inv_s, 0), L, a_holds);
     for (m = 0; m < NPOP; ++m) {
         fast[m] = (uint8_t)(wk->learn[i][m] && wk->cert[i][m] && wk->inv_lambda[i][m] == R(1.0) &&
-                            !wk->bounded[i][m] &&
-                            rhonn_proof_holds(a_tr[m], a_pzz[m], a_vv[m], a_zv[m], a_pmax[m], wk->q_min[i][m],
-                                              wk->r[i][m], inv_s[m], L));
+                            !wk->bounded[i][m] && a_holds[m] != 0u);
         all &= fast[m] || !wk->learn[i][m];
     }
     return all;
@@ -614,8 +665,10 @@ POP_ALWAYS_INLINE int vec_proofs(rhonn_population_work *wk, size_t i, size_t L, 
 
 /* The check of full_kernel (rhonn.c scaled_udu + udu_factor) with shift[m]
  * subtracted from each scaled diagonal entry (0: the plain check, x - 0
- * being x bit for bit): out_ok[m] 1 when member m passed. */
-POP_ALWAYS_INLINE void vec_check(rhonn_population_work *wk, const rhonn_real *Pn, size_t L, const size_t *rs,
+ * being x bit for bit): out_ok[m] 1 when member m passed. Off the hot path
+ * (the proofs cover most updates): compiled once, not into every size of
+ * the kernel. */
+POP_CLONES static void vec_check(rhonn_population_work *wk, const rhonn_real *Pn, size_t L, const size_t *rs,
                                  const rhonn_real *shift, rhonn_real *out_ok)
 {
     rhonn_real *F = &wk->f[0][0], *sc = &wk->sc[0][0];
@@ -668,7 +721,7 @@ POP_ALWAYS_INLINE void vec_check(rhonn_population_work *wk, const rhonn_real *Pn
     }
 }
 
-POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L)
+POP_ALWAYS_INLINE void full_kernel_body(rhonn_population_work *wk, size_t i, size_t L)
 {
     const rhonn_real *P = &wk->p[wk->pb[i]][i][0][0];
     rhonn_real *Pn = &wk->p[wk->pb[i] ^ 1u][i][0][0];
@@ -689,15 +742,18 @@ POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L
     int forgets;
 
     rs[0] = 0;
+    POP_UNROLL
     for (r = 0; r + 1u < L; ++r) {
         rs[r + 1u] = rs[r] + (L - r);
     }
     /* pz = P z from the packed triangle: row r scatters z_r P(r, c > r)
      * into pz[c], then adds its own dot product (two accumulators, even
      * and odd entries: rhonn.c's dot) */
+    POP_UNROLL
     for (r = 0; r < L; ++r) {
         V(pz, r) = zero;
     }
+    POP_UNROLL
     for (r = 0; r < L; ++r) {
         const lanev zr = VC(z, r);
         len = L - r;
@@ -718,6 +774,7 @@ POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L
     /* eq. 8: s = R + z^T P z, M = 1 / s; eq. 7's gain eta e M */
     s0 = zero;
     s1 = zero;
+    POP_UNROLL
     for (c = 0; c + 1u < L; c += 2u) {
         s0 += VC(z, c) * V(pz, c);
         s1 += VC(z, c + 1u) * V(pz, c + 1u);
@@ -734,6 +791,7 @@ POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L
      * skips the division; a member without it among members with it
      * multiplies by 1, which is exact. */
     forgets = any_forgetting(wk, i);
+    POP_UNROLL
     for (r = 0; r < L; ++r) {
         const lanev kr = V(pz, r) * inv_s;
         len = L - r;
@@ -752,6 +810,7 @@ POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L
      * it; by exactly 1 elsewhere, which changes nothing. */
     if (any_ceiling(wk, i)) {
         acc = zero;
+        POP_UNROLL
         for (r = 0; r < L; ++r) {
             acc += V(Pn, rs[r]);
         }
@@ -788,6 +847,19 @@ POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L
     }
     verdicts(wk, Pn, packed, out_s, tmp, out_wsum, out_ok, NULL);
 }
+
+POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L)
+{
+    switch (L) {
+#define POP_FULL_CASE(n) case n: full_kernel_body(wk, i, n); return;
+    POP_FULL_CASE(1) POP_FULL_CASE(2) POP_FULL_CASE(3) POP_FULL_CASE(4)
+    POP_FULL_CASE(5) POP_FULL_CASE(6) POP_FULL_CASE(7) POP_FULL_CASE(8)
+#undef POP_FULL_CASE
+    default:
+        full_kernel_body(wk, i, L);
+    }
+}
+
 /* The U D U^T form (rhonn.c ekf_ud), every member at once, operation for
  * operation. Measurement (Bierman): f = U^T z, v = D f, a_0 = R,
  * a_j = a_{j-1} + f_j v_j, d_j a_{j-1} / a_j, U(k,j) + (-f_j / a_{j-1}) b_k,
@@ -1167,22 +1239,30 @@ static void keep_sample(rhonn_population_work *wk, size_t m)
     }
 }
 
-/* z(k) of one member from the step's values (rhonn.c step 4's products,
- * factor by factor in the same order), into lane m of bank zb, or into
- * every lane when it is the regressor all members share. */
+/* Term t of neuron i from the step's values: rhonn.c step 4's product,
+ * factor by factor in the same order. */
+POP_ALWAYS_INLINE rhonn_real term_value(const rhonn_t *net, const rhonn_real *val, size_t i, size_t t)
+{
+    const uint16_t *te = net->term_entry[i][t];
+    const size_t nf = CFG(net)->neurons[i].terms[t].n_factors;
+    rhonn_real prod = val[te[0]];
+    size_t f;
+    for (f = 1; f < nf; ++f) {
+        prod *= val[te[f]];
+    }
+    return prod;
+}
+
+/* z(k) of one member from the step's values into lane m of bank zb, or
+ * into every lane when it is the regressor all members share. */
 static void lane_regressor(rhonn_population_work *wk, const rhonn_t *net, const rhonn_real *val, size_t zb, size_t m,
                            int every_lane)
 {
     const rhonn_config *cfg = CFG(net);
-    size_t i, t, f, k;
+    size_t i, t, k;
     for (i = 0; i < cfg->n_states; ++i) {
         for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
-            const uint16_t *te = net->term_entry[i][t];
-            const size_t nf = cfg->neurons[i].terms[t].n_factors;
-            rhonn_real prod = val[te[0]];
-            for (f = 1; f < nf; ++f) {
-                prod *= val[te[f]];
-            }
+            const rhonn_real prod = term_value(net, val, i, t);
             if (every_lane) { /* the shared regressor, stored once into every lane */
                 for (k = 0; k < NPOP; ++k) {
                     wk->z[zb][i][t][k] = prod;
@@ -1325,8 +1405,6 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
             }
             for (m = 0; m < N; ++m) {
                 rhonn_t *net = nets[m];
-                const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
-                rhonn_health *h = &net->health[i];
                 if (!wk->learn[i][m]) {
                     for (t = 0; t < L; ++t) {
                         wk->w[wk->wb ^ 1u][i][t][m] = wk->w[wk->wb][i][t][m]; /* w(k+1) = w(k) */
@@ -1339,11 +1417,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                 }
                 /* a refused update: rhonn.c's bookkeeping and recovery */
                 net->fault_neuron = (uint8_t)i;
-                h->rejected += 1u;
-                if (h->fail_run < 0xFFFFu) {
-                    h->fail_run = (uint16_t)(h->fail_run + 1u);
-                }
-                if (nc->reset_after == 0u || h->fail_run < nc->reset_after) {
+                if (!rhonn_internal_count_refusal(net, i)) {
                     fail[m] = 1;
                     st[m] = (rhonn_status)wk->kstatus[m];
                     wk->updated[i][m] = 0;
@@ -1430,7 +1504,8 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                 }
                 net->bank[i] = (uint8_t)(net->bank[i] ^ wk->updated[i][m]);
                 if (wk->updated[i][m]) {
-                    wk->cert[i][m] = (uint8_t)(wk->recovered[i][m] ? 0u : wk->cert_new[i][m]);
+                    wk->cert[i][m] = (uint8_t)(wk->recovered[i][m] ? rhonn_internal_p0_proven(net, i)
+                                                                    : wk->cert_new[i][m]);
                 }
                 if (!wk->updated[i][m] && moved[i]) {
                     /* P(k+1) = P(k): into the bank that becomes committed
@@ -1485,4 +1560,298 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         }
     }
     return ret;
+}
+
+/* ------------------------------------------------------------------------ */
+/* One identifier, its neurons side by side (rhonn_run_wide): the member
+ * kernels above on "neuron slot" 0 of the workspace, lane i holding neuron
+ * i. The bookkeeping around them is rhonn.c's step_checked, neuron by
+ * neuron in index order, so that a refusal, a recovery or a diverging
+ * prediction ends the step exactly where rhonn_step ends it. */
+
+/* Does net's structure fit the lanes: every neuron the same size and
+ * covariance form, one lane each? */
+static int wide_fits(const rhonn_t *net)
+{
+    const rhonn_config *cfg = CFG(net);
+    size_t i;
+    if (cfg->n_states > NPOP) {
+        return 0;
+    }
+#if !RHONN_POP_VECTOR
+    if (is_ud(net, 0)) {
+        return 0; /* the portable U D U^T update runs rhonn.c's kernel member by member */
+    }
+#endif
+    for (i = 1; i < cfg->n_states; ++i) {
+        if (cfg->neurons[i].n_terms != cfg->neurons[0].n_terms ||
+            cfg->neurons[i].covariance != cfg->neurons[0].covariance) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* Neuron i's committed state and tuning into lane i (lanes past the last
+ * neuron: copies of neuron 0, finite numbers to compute on, thrown away). */
+static void wide_load(rhonn_population_work *wk, const rhonn_t *net)
+{
+    const rhonn_config *cfg = CFG(net);
+    const size_t n = cfg->n_states, L = cfg->neurons[0].n_terms;
+    size_t m, t;
+    wk->zb = 0;
+    wk->wb = 0;
+    wk->pb[0] = 0;
+    for (m = 0; m < NPOP; ++m) {
+        const size_t i = m < n ? m : 0u, b = net->bank[i];
+        const rhonn_neuron_config *nc = &cfg->neurons[i];
+        wk->zeros[m] = R(0.0);
+        for (t = 0; t < L; ++t) {
+            wk->w[0][0][t][m] = net->w[i][b][t];
+            wk->z[0][0][t][m] = net->z[net->zbank][i][t];
+            wk->q[0][t][m] = nc->q[t];
+        }
+        for (t = 0; t < L * (L + 1u) / 2u; ++t) {
+            wk->p[0][0][t][m] = net->p[i][b][t];
+        }
+        wk->cert[0][m] = nc->covariance == (uint8_t)RHONN_COV_UD ? 0u : net->cert[i][b];
+        wk->q_min[0][m] = net->q_min[i];
+        wk->xhat[0][m] = net->xhat[i];
+        wk->r[0][m] = nc->r;
+        wk->eta[0][m] = nc->eta;
+        wk->inv_lambda[0][m] = (nc->forgetting > R(0.0) && nc->forgetting < R(1.0)) ? R(1.0) / nc->forgetting
+                                                                                     : R(1.0);
+        wk->p_trace_max[0][m] = nc->p_trace_max;
+    }
+}
+
+/* The lanes' committed state back into net's committed banks (the rest of
+ * net is kept up to date as the run goes). */
+static void wide_store(const rhonn_population_work *wk, rhonn_t *net)
+{
+    const rhonn_config *cfg = CFG(net);
+    const size_t L = cfg->neurons[0].n_terms;
+    size_t i, t;
+    for (i = 0; i < cfg->n_states; ++i) {
+        const size_t b = net->bank[i];
+        for (t = 0; t < L; ++t) {
+            net->w[i][b][t] = wk->w[wk->wb][0][t][i];
+            net->z[net->zbank][i][t] = wk->z[wk->zb][0][t][i];
+        }
+        for (t = 0; t < L * (L + 1u) / 2u; ++t) {
+            net->p[i][b][t] = wk->p[wk->pb[0]][0][t][i];
+        }
+        net->cert[i][b] = wk->cert[0][i];
+    }
+}
+
+/* xhat(k+1) = w(k+1)^T z(k) (eq. 3) of every neuron at once: rhonn.c's
+ * running sum, term by term from 0. */
+POP_CLONES static void wide_predict(rhonn_population_work *wk, size_t L, size_t zb)
+{
+    const rhonn_real *w = &wk->w[wk->wb ^ 1u][0][0][0], *z = &wk->z[zb][0][0][0];
+    size_t t;
+#if RHONN_POP_VECTOR
+    lanev acc = VC(wk->zeros, 0);
+    for (t = 0; t < L; ++t) {
+        acc += VC(w, t) * VC(z, t);
+    }
+    V(wk->xnew[0], 0) = acc;
+#else
+    size_t m;
+    for (m = 0; m < NPOP; ++m) {
+        wk->xnew[0][m] = R(0.0);
+    }
+    for (t = 0; t < L; ++t) {
+        for (m = 0; m < NPOP; ++m) {
+            wk->xnew[0][m] += w[t * NPOP + m] * z[t * NPOP + m];
+        }
+    }
+#endif
+}
+
+/* Step 1 of rhonn.c's step_checked for every neuron at once: the learning
+ * flags and innovations, the kernel, then the verdicts in neuron order (a
+ * refusal counted; recovered with reset_after, else the step stops there
+ * with its status). Returns RHONN_OK or the refused neuron's status. */
+static rhonn_status wide_learn(rhonn_population_work *wk, rhonn_t *net, const rhonn_real *x, const uint8_t *v,
+                               uint8_t *moved)
+{
+    const rhonn_config *cfg = CFG(net);
+    const size_t n = cfg->n_states, L = cfg->neurons[0].n_terms;
+    const int on = net->started && net->learning;
+    int any_learn = 0;
+    size_t i, t;
+    for (i = 0; i < NPOP; ++i) {
+        const int learns = i < n && on && (v == NULL || v[i] != 0u) && net->valid_run[i] >= net->own_need[i];
+        wk->learn[0][i] = (uint8_t)learns;
+        wk->updated[0][i] = 0;
+        wk->bounded[0][i] = 0;
+        wk->recovered[0][i] = 0;
+        /* a state not measured may be NaN: its lane's results are not used */
+        wk->e[i] = i < n ? x[i] - wk->xhat[0][i] : R(0.0);
+        any_learn |= learns;
+    }
+    *moved = 0;
+    if (!any_learn) {
+        return RHONN_OK;
+    }
+#if RHONN_POP_VECTOR
+    if (is_ud(net, 0)) {
+        ud_kernel(wk, 0u, L);
+    } else {
+        full_kernel(wk, 0u, L);
+    }
+#else
+    full_kernel(wk, 0u, L); /* wide_fits: not the U D U^T form in this build */
+#endif
+    for (i = 0; i < n; ++i) {
+        if (!wk->learn[0][i]) {
+            continue;
+        }
+        wk->updated[0][i] = 1;
+        *moved = 1;
+        if (wk->kstatus[i] == (uint8_t)RHONN_OK) {
+            continue;
+        }
+        /* a refused update: rhonn.c's refused() */
+        net->fault_neuron = (uint8_t)i;
+        if (!rhonn_internal_count_refusal(net, i)) {
+            return (rhonn_status)wk->kstatus[i];
+        }
+        /* recovery: the weights kept, the covariance from P_i(0) */
+        for (t = 0; t < L; ++t) {
+            wk->w[wk->wb ^ 1u][0][t][i] = wk->w[wk->wb][0][t][i];
+        }
+        {
+            rhonn_real p0[RHONN_MAX_PACKED];
+            rhonn_internal_load_p0(net, i, p0);
+            for (t = 0; t < L * (L + 1u) / 2u; ++t) {
+                wk->p[wk->pb[0] ^ 1u][0][t][i] = p0[t];
+            }
+        }
+        wk->cert_new[0][i] = rhonn_internal_p0_proven(net, i);
+        wk->bounded[0][i] = 0;
+        wk->recovered[0][i] = 1;
+    }
+    return RHONN_OK;
+}
+
+/* One step (rhonn.c step_checked after the argument checks). */
+static rhonn_status wide_step(rhonn_population_work *wk, rhonn_t *net, const rhonn_real *x, const rhonn_real *u,
+                              const uint8_t *v, rhonn_real *xhat_next)
+{
+    const rhonn_config *cfg = CFG(net);
+    const size_t n = cfg->n_states, L = cfg->neurons[0].n_terms, packed = L * (L + 1u) / 2u;
+    const size_t zb_new = wk->zb ^ 1u;
+    const int ud = is_ud(net, 0);
+    rhonn_status st;
+    size_t i, t;
+    uint8_t moved;
+
+    st = rhonn_internal_check_inputs(net, x, u, v);
+    if (st != RHONN_OK) {
+        return st;
+    }
+    st = wide_learn(wk, net, x, v, &moved);
+    if (st != RHONN_OK) {
+        return st;
+    }
+    /* a neuron that did not learn keeps w (the prediction reads the
+     * candidate bank) */
+    for (i = 0; i < n; ++i) {
+        if (!wk->updated[0][i]) {
+            for (t = 0; t < L; ++t) {
+                wk->w[wk->wb ^ 1u][0][t][i] = wk->w[wk->wb][0][t][i];
+            }
+        }
+    }
+
+    /* 2-4. The sample, z(k) and xhat(k+1), the first neuron whose
+     * prediction is not finite stopping the step. */
+    rhonn_internal_features(net, x, u, v, wk->val);
+    for (i = 0; i < n; ++i) {
+        for (t = 0; t < L; ++t) {
+            wk->z[zb_new][0][t][i] = term_value(net, wk->val, i, t);
+        }
+    }
+    wide_predict(wk, L, zb_new);
+    for (i = 0; i < n; ++i) {
+        if (!LANE_FINITE(wk->xnew[0][i])) {
+            net->fault_neuron = (uint8_t)i;
+            return RHONN_E_DIVERGED;
+        }
+    }
+
+    /* Commit. */
+    rhonn_internal_commit_sample(net, wk->val, v);
+    for (i = 0; i < n; ++i) {
+        if (wk->updated[0][i]) {
+            rhonn_health *h = &net->health[i];
+            if (wk->recovered[0][i]) {
+                h->resets += 1u;
+            } else {
+                h->innovation = wk->e[i];
+                h->nis = wk->nis[0][i];
+                h->updates += 1u;
+                h->bounded += wk->bounded[0][i];
+            }
+            h->fail_run = 0;
+            net->bank[i] = (uint8_t)(net->bank[i] ^ 1u);
+            wk->cert[0][i] = (uint8_t)(ud ? 0u : wk->cert_new[0][i]); /* the U D U^T form has no proof */
+        } else if (moved) {
+            /* P(k+1) = P(k): into the bank that becomes committed */
+            for (t = 0; t < packed; ++t) {
+                wk->p[wk->pb[0] ^ 1u][0][t][i] = wk->p[wk->pb[0]][0][t][i];
+            }
+        }
+        net->xhat[i] = wk->xnew[0][i];
+        wk->xhat[0][i] = wk->xnew[0][i];
+        xhat_next[i] = wk->xnew[0][i];
+    }
+    wk->zb = (uint8_t)zb_new;
+    wk->wb = (uint8_t)(wk->wb ^ 1u);
+    wk->pb[0] = (uint8_t)(wk->pb[0] ^ moved);
+    net->zbank = (uint8_t)(net->zbank ^ 1u);
+    net->started = 1;
+    net->steps += 1u;
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_run_wide(rhonn_t *net, rhonn_population_work *work, size_t T, const rhonn_real *X,
+                            const rhonn_real *U, const uint8_t *valid, rhonn_real *Xhat, size_t *done)
+{
+    rhonn_status st;
+    size_t n, mi, k;
+    if (work == NULL) {
+        if (done != NULL) {
+            *done = 0;
+        }
+        return RHONN_E_NULL;
+    }
+    st = rhonn_internal_check_net(net);
+    if (st != RHONN_OK || T == 0u || !wide_fits(net)) {
+        return rhonn_run(net, T, X, U, valid, Xhat, done); /* its checks, or the scalar run */
+    }
+    n = CFG(net)->n_states;
+    mi = CFG(net)->n_inputs;
+    if (done != NULL) {
+        *done = 0;
+    }
+    if (X == NULL || Xhat == NULL || (U == NULL && mi > 0u)) {
+        return RHONN_E_NULL;
+    }
+    wide_load(work, net);
+    for (k = 0; k < T; ++k) {
+        st = wide_step(work, net, X + k * n, mi > 0u ? U + k * mi : U, valid != NULL ? valid + k * n : NULL,
+                       Xhat + k * n);
+        if (st != RHONN_OK) {
+            break;
+        }
+        if (done != NULL) {
+            *done = k + 1u;
+        }
+    }
+    wide_store(work, net);
+    return st;
 }

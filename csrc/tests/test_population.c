@@ -17,6 +17,7 @@
 #include "check.h"
 #include "rhonn.h"
 #include "rhonn_population.h"
+#include "rhonn_internal.h"
 
 #define POP_T 400
 #ifdef RHONN_SINGLE
@@ -25,6 +26,10 @@
 #define BIG DBL_MAX
 #endif
 #define MAXN RHONN_MAX_POPULATION
+/* rhonn_run_wide runs U D U^T neurons in the lanes in the vector build */
+#ifndef RHONN_WIDE_UD
+#define RHONN_WIDE_UD 1
+#endif
 
 static rhonn_term term1(uint8_t kind, uint8_t index, uint8_t delay)
 {
@@ -170,6 +175,18 @@ static int same_state(rhonn_t *a, rhonn_t *b, const rhonn_real *x, const rhonn_r
     return same;
 }
 
+/* The committed covariances carry the same proofs of definiteness (which
+ * the lanes' vector proof and rhonn.c's scalar one must agree on). */
+static int same_proofs(const rhonn_t *a, const rhonn_t *b)
+{
+    size_t i;
+    int same = 1;
+    for (i = 0; i < a->cfg.n_states; ++i) {
+        same &= a->cert[i][a->bank[i]] == b->cert[i][b->bank[i]];
+    }
+    return same;
+}
+
 static rhonn_t alone[MAXN], members[MAXN];
 static rhonn_population_work work;
 static rhonn_real X[POP_T * 6], U[POP_T * 2], Xhat_alone[MAXN][POP_T * 6], Xhat_pop[MAXN * POP_T * 6];
@@ -202,6 +219,7 @@ static size_t compare(const rhonn_config *cfg, size_t N, const size_t *pre, int 
         CHECK(st_pop[m] == st_alone[m]);
         CHECK(done_pop[m] == done_alone[m]);
         CHECK(memcmp(Xhat_pop + m * POP_T * 6u, Xhat_alone[m], done_alone[m] * 6u * sizeof(rhonn_real)) == 0);
+        CHECK(same_proofs(&members[m], &alone[m]));
         CHECK(same_state(&members[m], &alone[m], X, U));
         stopped += st_alone[m] != RHONN_OK;
     }
@@ -377,6 +395,310 @@ static void arguments_and_structures_are_checked(void)
     CHECK(members[0].steps == 2u && members[1].steps == 2u);
 }
 
+/* ------------------------------------------------------------------------ */
+/* rhonn_run_wide: one identifier's neurons in the lanes, as rhonn_run. */
+
+/* An identifier of n states (2..8) and 2 inputs whose neurons share their
+ * size (8 terms, 6 for n = 2): neuron i reads the S(x_j) from its own state
+ * round, S(x_i) S(x_i+1), an input and the x_j, so every lane's regressor
+ * differs; variant k tunes it apart. delayed puts taps x0(k-2) and u1(k-1)
+ * into neurons 0 and 1; ud makes every neuron U D U^T. */
+static rhonn_config uniform_config(unsigned k, size_t n, int delayed, int ud)
+{
+    static const uint8_t S = RHONN_FACTOR_S, Xk = RHONN_FACTOR_X, Uk = RHONN_FACTOR_U;
+    rhonn_config c;
+    const rhonn_real f = (rhonn_real)(1.0 + 0.25 * (double)k);
+    const size_t L = n == 2u ? 6u : 8u;
+    size_t i, j, t;
+    memset(&c, 0, sizeof c);
+    c.n_states = (uint8_t)n;
+    c.n_inputs = 2;
+    for (i = 0; i < n; ++i) {
+        rhonn_neuron_config *nc = &c.neurons[i];
+        size_t pi = 0, e;
+        t = 0;
+        for (j = 0; j < n && j < 6u; ++j) {
+            nc->terms[t++] = term1(S, (uint8_t)((i + j) % n), 0);
+        }
+        nc->terms[t++] = term2(S, (uint8_t)i, (uint8_t)((i + 1u) % n), 1);
+        nc->terms[t++] = term1(Uk, (uint8_t)(i % 2u), 0);
+        for (j = 0; t < L; ++j) {
+            nc->terms[t++] = term1(Xk, (uint8_t)((i + j) % n), 0);
+        }
+        nc->n_terms = (uint8_t)L;
+        nc->activation = RHONN_LOGISTIC;
+        nc->beta = (rhonn_real)1.0;
+        nc->eta = (rhonn_real)(1.0 / (1.0 + 0.1 * (double)(k + i)));
+        nc->r = (rhonn_real)(0.05 * (double)f * (1.0 + 0.1 * (double)i));
+        nc->covariance = (uint8_t)(ud ? RHONN_COV_UD : RHONN_COV_FULL);
+        for (t = 0; t < L; ++t) {
+            nc->q[t] = (rhonn_real)(1e-3 * (double)f * (double)f);
+            nc->w0[t] = (rhonn_real)(0.01 * (double)(t + 1u + i));
+            for (e = t; e < L; ++e, ++pi) {
+                nc->p0[pi] = e == t ? (rhonn_real)(10.0 * (double)f) : (rhonn_real)0.0;
+            }
+        }
+    }
+    if (delayed) {
+        c.neurons[0].terms[L - 1u] = term1(Xk, 0, 2);
+        c.neurons[1].terms[L - 1u] = term1(Uk, 1, 1);
+    }
+    c.x0[1] = (rhonn_real)(0.1 * (double)k);
+    return c;
+}
+
+/* A trajectory for n states (the first 6 as trajectory(), the others their
+ * own waves), with dropouts as there. */
+static void wide_trajectory(rhonn_real *x, rhonn_real *u, uint8_t *v, size_t n, size_t T, int dropouts)
+{
+    size_t k, j;
+    trajectory(X, U, V, T, dropouts);
+    for (k = 0; k < T; ++k) {
+        u[2 * k] = U[2 * k];
+        u[2 * k + 1] = U[2 * k + 1];
+        for (j = 0; j < n; ++j) {
+            const double t = 0.01 * (double)k;
+            x[n * k + j] = j < 6u ? X[6 * k + j] : (rhonn_real)(0.4 * sin((0.5 + 0.2 * (double)j) * t));
+            v[n * k + j] = j < 6u ? V[6 * k + j] : 1u;
+        }
+    }
+}
+
+static rhonn_real WX[POP_T * 8], WU[POP_T * 2], Wout_alone[POP_T * 8], Wout_wide[POP_T * 8];
+static uint8_t WV[POP_T * 8];
+
+/* cfg run by rhonn_run and by rhonn_run_wide, from pre samples in:
+ * the same status, steps, predictions and state. Returns the status. */
+static rhonn_status wide_compare(const rhonn_config *cfg, size_t pre, int dropouts)
+{
+    const size_t n = cfg->n_states;
+    rhonn_status sa, sw;
+    size_t da = 99, dw = 77, k;
+    wide_trajectory(WX, WU, WV, n, POP_T, dropouts);
+    CHECK_STATUS(rhonn_init(&alone[0], cfg, NULL), RHONN_OK);
+    for (k = 0; k < pre; ++k) {
+        CHECK_STATUS(rhonn_step(&alone[0], WX + n * (POP_T - 1u - k), WU + 2u * (POP_T - 1u - k), NULL, NULL),
+                     RHONN_OK);
+    }
+    members[0] = alone[0];
+    memset(Wout_alone, 0, sizeof Wout_alone);
+    memset(Wout_wide, 0, sizeof Wout_wide);
+    sa = rhonn_run(&alone[0], POP_T, WX, WU, dropouts ? WV : NULL, Wout_alone, &da);
+    sw = rhonn_run_wide(&members[0], &work, POP_T, WX, WU, dropouts ? WV : NULL, Wout_wide, &dw);
+    CHECK(sa == sw);
+    CHECK(da == dw);
+    CHECK(memcmp(Wout_alone, Wout_wide, sizeof Wout_alone) == 0);
+    CHECK(same_proofs(&members[0], &alone[0]));
+    CHECK(same_state(&members[0], &alone[0], WX, WU));
+    return sa;
+}
+
+/* Did the last rhonn_run_wide run cfg in the lanes (each neuron's R in
+ * its lane of the workspace, which a scalar run leaves alone)? */
+static int ran_in_lanes(const rhonn_config *cfg)
+{
+    size_t i;
+    int lanes = 1;
+    for (i = 0; i < cfg->n_states; ++i) {
+        lanes &= memcmp(&work.r[0][i], &cfg->neurons[i].r, sizeof work.r[0][i]) == 0;
+    }
+    return lanes;
+}
+
+static void wide_runs_equal_single_runs_full_and_factored(void)
+{
+    rhonn_config cfg;
+    size_t n;
+    int ud;
+    for (ud = 0; ud < 2; ++ud) {
+        for (n = 2; n <= MAXN && n <= (size_t)RHONN_MAX_STATES; n += 2u) {
+            cfg = uniform_config((unsigned)n, n, 0, ud);
+            memset(&work, 0, sizeof work);
+            CHECK_STATUS(wide_compare(&cfg, 0, 0), RHONN_OK);
+            /* the lanes ran it (the U D U^T form needs the vector build) */
+            CHECK(ran_in_lanes(&cfg) == (!ud || RHONN_WIDE_UD));
+            cfg = uniform_config((unsigned)n + 1u, n, 1, ud); /* delayed taps, dropouts */
+            CHECK_STATUS(wide_compare(&cfg, 0, 1), RHONN_OK);
+            CHECK_STATUS(wide_compare(&cfg, 5, 1), RHONN_OK); /* from a running state */
+        }
+    }
+}
+
+static void wide_runs_forget_bound_and_reset_neuron_by_neuron(void)
+{
+    rhonn_config cfg;
+    rhonn_health h;
+    size_t i, resets = 0;
+    int ud;
+    for (ud = 0; ud < 2; ++ud) {
+        /* neurons apart: some forget, some have the ceiling, some both */
+        cfg = uniform_config(2, 6, 1, ud);
+        for (i = 0; i < 6; ++i) {
+            cfg.neurons[i].forgetting = i % 2u ? (rhonn_real)0.98 : (rhonn_real)0.0;
+            /* above trace P(0) = 8 x 10 x 1.5 */
+            cfg.neurons[i].p_trace_max = i >= 2u ? (rhonn_real)(130.0 * (1.0 + 0.1 * (double)i)) : (rhonn_real)0.0;
+        }
+        CHECK_STATUS(wide_compare(&cfg, 0, 1), RHONN_OK);
+        /* forgetting 0.1 takes the full form's P out of definiteness:
+         * neuron 2 resets (reset_after 1) and goes on, then neuron 4
+         * (reset_after 0) stops the run; the U D U^T form keeps going */
+        cfg = uniform_config(0, 6, 0, ud);
+        for (i = 0; i < 6; ++i) {
+            cfg.neurons[i].forgetting = (i == 2u || i == 4u) ? (rhonn_real)0.1 : (rhonn_real)0.0;
+            cfg.neurons[i].reset_after = (uint16_t)(i == 2u ? 1u : 0u);
+        }
+        if (ud) {
+            CHECK_STATUS(wide_compare(&cfg, 0, 0), RHONN_OK);
+        } else {
+            CHECK(wide_compare(&cfg, 0, 0) != RHONN_OK);
+            CHECK(alone[0].fault_neuron == 4u && members[0].fault_neuron == 4u);
+        }
+        CHECK_STATUS(rhonn_get_health(&alone[0], 2, &h), RHONN_OK);
+        resets += h.resets;
+        cfg.neurons[4].forgetting = (rhonn_real)0.0; /* then only the resets */
+        CHECK_STATUS(wide_compare(&cfg, 0, 1), RHONN_OK);
+        CHECK_STATUS(rhonn_get_health(&alone[0], 2, &h), RHONN_OK);
+        resets += h.resets;
+    }
+    CHECK(resets > 0u); /* the scenario does reach the recovery it is about */
+}
+
+static void wide_run_stops_where_a_single_run_stops(void)
+{
+    rhonn_config cfg = uniform_config(1, 6, 0, 0);
+    size_t t;
+    /* neuron 3's prediction overflows at once */
+    for (t = 0; t < 5; ++t) {
+        cfg.neurons[3].w0[t] = (rhonn_real)0.9 * BIG;
+    }
+    CHECK_STATUS(wide_compare(&cfg, 0, 0), RHONN_E_DIVERGED);
+    CHECK(members[0].fault_neuron == 3u);
+    /* a non-finite input at sample 7: 7 steps run, the state after them */
+    cfg = uniform_config(1, 6, 0, 0);
+    CHECK_STATUS(rhonn_init(&alone[0], &cfg, NULL), RHONN_OK);
+    members[0] = alone[0];
+    wide_trajectory(WX, WU, WV, 6, POP_T, 0);
+    WU[2 * 7] = (rhonn_real)NAN;
+    {
+        size_t da = 0, dw = 0;
+        CHECK_STATUS(rhonn_run(&alone[0], POP_T, WX, WU, NULL, Wout_alone, &da), RHONN_E_INPUT_NONFINITE);
+        CHECK_STATUS(rhonn_run_wide(&members[0], &work, POP_T, WX, WU, NULL, Wout_wide, &dw),
+                     RHONN_E_INPUT_NONFINITE);
+        CHECK(da == 7u && dw == 7u);
+        WU[2 * 7] = (rhonn_real)0.0;
+        CHECK(same_state(&members[0], &alone[0], WX, WU));
+    }
+}
+
+static void wide_run_of_other_structures_is_the_scalar_run(void)
+{
+    /* sizes that differ (the firmware's LIM), and a U D U^T neuron among full ones */
+    rhonn_config cfg = lim_config(3, 1, 0);
+    size_t i;
+    memset(&work, 0, sizeof work);
+    CHECK_STATUS(wide_compare(&cfg, 0, 1), RHONN_OK);
+    CHECK(!ran_in_lanes(&cfg));
+    cfg = uniform_config(3, 6, 1, 0);
+    cfg.neurons[5].covariance = RHONN_COV_UD;
+    CHECK_STATUS(wide_compare(&cfg, 2, 1), RHONN_OK);
+    for (i = 0; i < 6; ++i) {
+        cfg.neurons[i].covariance = RHONN_COV_FULL;
+    }
+    CHECK_STATUS(wide_compare(&cfg, 2, 1), RHONN_OK);
+}
+
+static void wide_run_arguments_are_checked(void)
+{
+    rhonn_config cfg = uniform_config(0, 6, 0, 0);
+    size_t done = 5;
+    wide_trajectory(WX, WU, WV, 6, 4, 0);
+    CHECK_STATUS(rhonn_init(&members[0], &cfg, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_run_wide(&members[0], NULL, 4, WX, WU, NULL, Wout_wide, &done), RHONN_E_NULL);
+    CHECK(done == 0u);
+    CHECK_STATUS(rhonn_run_wide(NULL, &work, 4, WX, WU, NULL, Wout_wide, NULL), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_run_wide(&members[0], &work, 4, NULL, WU, NULL, Wout_wide, NULL), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_run_wide(&members[0], &work, 4, WX, NULL, NULL, Wout_wide, NULL), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_run_wide(&members[0], &work, 4, WX, WU, NULL, NULL, NULL), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_run_wide(&members[0], &work, 0, NULL, NULL, NULL, NULL, &done), RHONN_OK);
+    CHECK(done == 0u && members[0].steps == 0u);
+    memset(&members[1], 0, sizeof members[1]);
+    CHECK_STATUS(rhonn_run_wide(&members[1], &work, 4, WX, WU, NULL, Wout_wide, NULL), RHONN_E_NOT_INIT);
+}
+
+/* The lanes' proof of definiteness (every lane at once) gives each lane
+ * rhonn_proof_holds' verdict: on random inputs, with qmin put within a few
+ * ulps either side of where the final inequality turns, and with the
+ * non-finite, zero and subnormal inputs each early exit is about. */
+static rhonn_real lcg_unit(unsigned long *state)
+{
+    *state = *state * 6364136223846793005ul + 1442695040888963407ul;
+    return (rhonn_real)((double)(*state >> 11) / 9007199254740992.0);
+}
+
+static void lanes_prove_as_the_scalar_proof(void)
+{
+    static const rhonn_real specials[] = {(rhonn_real)0.0, (rhonn_real)-0.0, (rhonn_real)NAN, (rhonn_real)INFINITY,
+                                          (rhonn_real)-1.0, BIG, (rhonn_real)1e-40};
+    const size_t nspec = sizeof specials / sizeof specials[0];
+    rhonn_real in[8 * MAXN];
+    uint8_t out[MAXN];
+    unsigned long state = 12345u;
+    size_t round, m, agree = 0, held = 0, total = 0;
+    for (round = 0; round < 4000u; ++round) {
+        const size_t L = 1u + round % 16u;
+        for (m = 0; m < MAXN; ++m) {
+            const rhonn_real unit = RHONN_EPSILON * (rhonn_real)0.5;
+            const rhonn_real gl = (rhonn_real)1.01 * (rhonn_real)L * unit;
+            const rhonn_real g1 = (rhonn_real)1.01 * (rhonn_real)(L + 1u) * unit;
+            rhonn_real tr = (rhonn_real)pow(10.0, 6.0 * (double)lcg_unit(&state) - 2.0);
+            rhonn_real pzz = tr * lcg_unit(&state), vv = tr * tr * lcg_unit(&state);
+            rhonn_real zv = tr * lcg_unit(&state), pmax = tr * lcg_unit(&state);
+            rhonn_real r_i = (rhonn_real)pow(10.0, 4.0 * (double)lcg_unit(&state) - 3.0);
+            rhonn_real inv_s = (rhonn_real)1.0 / (r_i + pzz);
+            /* the qmin at which the last inequality turns, nudged by a few ulps */
+            const rhonn_real ww = (rhonn_real)L * pzz, r_low = r_i - gl * ww, rho = g1 * (r_i + zv) * inv_s;
+            const rhonn_real vs = vv * inv_s, eta_r = (rhonn_real)2.0 * (gl * gl) * (tr * ww);
+            const rhonn_real err = ((rhonn_real)3.0 * rho + (rhonn_real)8.0 * unit) * vs +
+                                   (rhonn_real)2.0 * unit * (tr + pmax);
+            rhonn_real qmin = (rhonn_real)1.125 * eta_r / r_low +
+                              (rhonn_real)1.125 * (err + (rhonn_real)1.01 * (rhonn_real)L * g1 * pmax);
+            qmin *= (rhonn_real)1.0 + (rhonn_real)((int)(round % 7u) - 3) * RHONN_EPSILON;
+            if (round % 5u == 4u) { /* one input special */
+                const rhonn_real sp = specials[(size_t)(lcg_unit(&state) * (rhonn_real)nspec) % nspec];
+                switch ((size_t)(lcg_unit(&state) * (rhonn_real)8.0) % 8u) {
+                case 0: tr = sp; break;
+                case 1: pzz = sp; break;
+                case 2: vv = sp; break;
+                case 3: zv = sp; break;
+                case 4: pmax = sp; break;
+                case 5: qmin = sp; break;
+                case 6: r_i = sp; break;
+                default: inv_s = sp; break;
+                }
+            }
+            in[0 * MAXN + m] = tr;
+            in[1 * MAXN + m] = pzz;
+            in[2 * MAXN + m] = vv;
+            in[3 * MAXN + m] = zv;
+            in[4 * MAXN + m] = pmax;
+            in[5 * MAXN + m] = qmin;
+            in[6 * MAXN + m] = r_i;
+            in[7 * MAXN + m] = inv_s;
+        }
+        rhonn_internal_proof_lanes(in, L, out);
+        for (m = 0; m < MAXN; ++m) {
+            const int scalar = rhonn_proof_holds(in[m], in[MAXN + m], in[2 * MAXN + m], in[3 * MAXN + m],
+                                                 in[4 * MAXN + m], in[5 * MAXN + m], in[6 * MAXN + m],
+                                                 in[7 * MAXN + m], L);
+            agree += (size_t)(out[m] == (uint8_t)scalar);
+            held += (size_t)scalar;
+            ++total;
+        }
+    }
+    CHECK(agree == total);
+    CHECK(held > total / 5u && held < total - total / 5u); /* both verdicts well represented */
+}
+
 static double seconds(void)
 {
     return (double)clock() / (double)CLOCKS_PER_SEC;
@@ -425,6 +747,12 @@ int main(void)
     RUN(refused_updates_stop_or_reset_a_member_as_alone);
     RUN(a_diverging_member_stops_and_the_others_go_on);
     RUN(arguments_and_structures_are_checked);
+    RUN(lanes_prove_as_the_scalar_proof);
+    RUN(wide_runs_equal_single_runs_full_and_factored);
+    RUN(wide_runs_forget_bound_and_reset_neuron_by_neuron);
+    RUN(wide_run_stops_where_a_single_run_stops);
+    RUN(wide_run_of_other_structures_is_the_scalar_run);
+    RUN(wide_run_arguments_are_checked);
     if (b != NULL) {
         bench((size_t)strtoul(b, NULL, 10));
     }
