@@ -117,6 +117,29 @@ def _build_for(config: IdentifierConfig) -> ModuleType:
     return builds[-1]
 
 
+_work = threading.local()  # one scratch per thread and build of the core (it holds nothing between calls)
+
+
+_LANE_ALIGNMENT = 64  # an AVX-512 vector of the lanes: one cache line
+
+
+def _workspace(build: ModuleType) -> Any:
+    """This thread's ``rhonn_population_work`` for one build of the core (an
+    extension module): the lanes of ``rhonn_run_population`` and of
+    ``rhonn_run_wide``, which hold nothing between calls. Aligned to a cache
+    line, so that no vector of 8 lanes straddles two (malloc gives 16 bytes;
+    measured: a misaligned workspace costs the vector kernels 10-15 %)."""
+    cache = getattr(_work, "by_build", None)
+    if cache is None:
+        cache = _work.by_build = {}
+    if build.__name__ not in cache:
+        ffi = build.ffi
+        raw = ffi.new("char[]", ffi.sizeof("rhonn_population_work") + _LANE_ALIGNMENT)
+        skip = -int(ffi.cast("uintptr_t", raw)) % _LANE_ALIGNMENT
+        cache[build.__name__] = (raw, ffi.cast("rhonn_population_work *", raw + skip))  # raw keeps it alive
+    return cache[build.__name__][1]
+
+
 @functools.lru_cache(maxsize=None)
 def _raw_allocator(build: ModuleType) -> Callable[..., Any]:
     """``ffi.new`` of one build without the zeroing, for buffers written whole at once."""
@@ -598,6 +621,9 @@ class Identifier:
         C-contiguous arrays of the identifier's dtype are passed without
         copies; ``out`` (T, n), if given, receives the predictions. On any
         error nothing is applied: the identifier is as it was before the call.
+        Where every neuron has the same number of terms and covariance form
+        (at most 8 neurons), the neurons' updates run side by side in the
+        CPU's vector unit (``rhonn_run_wide``): the same bits as stepping.
         """
         Xc, Uc, Vc = self._checked_trajectory(X, U, valid)
         T = Xc.shape[0]
@@ -662,9 +688,12 @@ class Identifier:
         vp = self._null if V is None else ffi.from_buffer("uint8_t[]", V)
         op = ffi.from_buffer(self._real_array, out)
         if ahead < 2:
+            # rhonn_run_wide is rhonn_run bit for bit; where every neuron has
+            # the same size and covariance form it runs them side by side
             done = ffi.new("size_t *")
-            status = lib.rhonn_run(net, stop - first, xp + first * n, up + first * m if m else up,
-                                   self._null if V is None else vp + first * n, op + first * n, done)
+            status = lib.rhonn_run_wide(net, _workspace(self._build), stop - first, xp + first * n,
+                                        up + first * m if m else up, self._null if V is None else vp + first * n,
+                                        op + first * n, done)
             return int(done[0]), int(status)
         assert ahead_out is not None
         tail_at = ffi.offsetof("rhonn_t", "zbank")

@@ -16,34 +16,22 @@ identifiers, which continue from their current state.
 """
 from __future__ import annotations
 
-import threading
 from contextlib import ExitStack
 from typing import Any, Sequence
 
 import numpy as np
 
 from .config import IdentifierConfig
-from .identifier import _BUILDS, Identifier, IdentifierError, _backend
+from .identifier import _BUILDS, Identifier, IdentifierError, _backend, _workspace
 
 __all__ = ["max_population", "run_identifiers", "run_identifiers_outcomes", "run_population"]
 
-_work = threading.local()  # one scratch per thread and build of the core (it holds nothing between calls)
 
 
 def max_population(dtype: str = "float64") -> int:
     """How many members one call runs (the builds' ``RHONN_MAX_POPULATION``)."""
     _backend(dtype)  # ValueError naming an unknown dtype
     return min(int(build.lib.RHONN_MAX_POPULATION) for build in _BUILDS[dtype])
-
-
-def _workspace(build: Any) -> Any:
-    """This thread's scratch for one build of the core (an extension module)."""
-    cache = getattr(_work, "by_build", None)
-    if cache is None:
-        cache = _work.by_build = {}
-    if build.__name__ not in cache:
-        cache[build.__name__] = build.ffi.new("rhonn_population_work *")
-    return cache[build.__name__]
 
 
 def _structure_difference(a: IdentifierConfig, b: IdentifierConfig) -> str | None:

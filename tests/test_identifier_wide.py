@@ -1,0 +1,89 @@
+"""Identifier.run steps an identifier whose neurons share their size and
+covariance form with the neurons side by side in the vector lanes
+(``rhonn_run_wide``; the extension's AVX-512 or AVX2 copy where the CPU has
+one). Each lane does a neuron's scalar operations, so the result is bit for
+bit that of stepping the same identifier sample by sample (``rhonn_step``):
+predictions, weights, covariances, proofs, health, history, and where a run
+stops."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from pyrhonn import CovarianceForm, Factor, Identifier, IdentifierConfig, IdentifierError, NeuronConfig
+
+from strategies import trajectory
+from test_identifier_builds import state_of
+
+
+def uniform_config(n: int, dtype: str, form: CovarianceForm, forgetting: list[float],
+                   ceiling: list[bool], reset_after: list[int], seed: int) -> IdentifierConfig:
+    """n states, 2 inputs, every neuron 6 terms (its own S(x) round the
+    states, a bilinear term, an input, x_i), tuned apart per neuron."""
+    rng = np.random.default_rng(seed)
+    neurons = []
+    for i in range(n):
+        terms = [(Factor.s((i + j) % n),) for j in range(min(n, 3))]
+        terms.append((Factor.s(i), Factor.s((i + 1) % n)))
+        terms.append((Factor.u(i % 2),))
+        terms.append((Factor.x(i),))
+        while len(terms) < 6:
+            terms.append((Factor.u((i + 1) % 2, delay=len(terms) - 5),))
+        p0 = float(rng.uniform(1.0, 20.0))
+        neurons.append(NeuronConfig(
+            terms=tuple(terms), covariance=form, p0=p0, q=float(rng.uniform(1e-4, 1e-2)),
+            r=float(rng.uniform(1e-3, 1e-1)), eta=float(rng.uniform(0.3, 1.0)),
+            forgetting=forgetting[i], p_trace_max=6 * p0 * 1.5 if ceiling[i] else None,
+            reset_after=reset_after[i]))
+    return IdentifierConfig(n_states=n, n_inputs=2, neurons=tuple(neurons), dtype=dtype)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.integers(2, 8), dtype=st.sampled_from(["float64", "float32"]),
+       form=st.sampled_from([CovarianceForm.FULL, CovarianceForm.UD]), seed=st.integers(0, 2**16),
+       data=st.data())
+def test_a_run_in_lanes_equals_the_same_steps_bit_for_bit(n: int, dtype: str, form: CovarianceForm, seed: int,
+                                                          data: st.DataObject) -> None:
+    forgetting = data.draw(st.lists(st.sampled_from([1.0, 1.0, 0.97, 0.2]), min_size=n, max_size=n))
+    ceiling = data.draw(st.lists(st.booleans(), min_size=n, max_size=n))
+    reset_after = data.draw(st.lists(st.sampled_from([0, 0, 1, 3]), min_size=n, max_size=n))
+    cfg = uniform_config(n, dtype, form, forgetting, ceiling, reset_after, seed)
+    X, U, valid = trajectory(seed, 160, n, 2, dropout=data.draw(st.sampled_from([0.0, 0.1])), dtype=dtype)
+    lanes, steps = Identifier(cfg), Identifier(cfg)
+    try:
+        out = lanes.run(X, U, valid)
+        error = None
+    except IdentifierError as exc:
+        out, error = None, exc
+    stepped = []
+    for k in range(X.shape[0]):
+        try:
+            stepped.append(steps.step(X[k], U[k], valid[k]))
+        except IdentifierError as exc:
+            # the run stops at the same sample for the same reason, and puts
+            # everything back as it was before the run
+            assert error is not None and (error.status, error.sample) == (exc.status, k)
+            steps = Identifier(cfg)
+            break
+    else:
+        assert error is None
+        assert out is not None and out.tobytes() == np.array(stepped).tobytes()
+    assert state_of(lanes) == state_of(steps)
+    proofs = [bool(lanes._net.cert[i][lanes._net.bank[i]]) for i in range(n)]
+    assert proofs == [bool(steps._net.cert[i][steps._net.bank[i]]) for i in range(n)]
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_a_run_in_lanes_continues_from_steps_and_from_another_run(dtype: str) -> None:
+    cfg = uniform_config(6, dtype, CovarianceForm.FULL, [1.0] * 6, [False] * 6, [0] * 6, 7)
+    X, U, valid = trajectory(3, 300, 6, 2, dropout=0.05, dtype=dtype)
+    a, b = Identifier(cfg), Identifier(cfg)
+    for k in range(10):
+        a.step(X[k], U[k], valid[k])
+        b.step(X[k], U[k], valid[k])
+    first = a.run(X[10:150], U[10:150], valid[10:150])
+    second = a.run(X[150:], U[150:], valid[150:])
+    expected = [b.step(X[k], U[k], valid[k]) for k in range(10, 300)]
+    assert np.concatenate([first, second]).tobytes() == np.array(expected).tobytes()
+    assert state_of(a) == state_of(b)
