@@ -36,60 +36,9 @@
 #include <string.h>
 
 #include "rhonn.h"
+#include "fuzz_input.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
-
-typedef struct {
-    const uint8_t *p;
-    size_t n;
-} reader;
-
-static uint8_t byte(reader *r)
-{
-    uint8_t b = 0;
-    if (r->n > 0u) {
-        b = *r->p++;
-        r->n--;
-    }
-    return b;
-}
-
-static rhonn_real pow10i(int e)
-{
-    rhonn_real v = 1;
-    rhonn_real f = e < 0 ? (rhonn_real)0.1 : (rhonn_real)10;
-    int k = e < 0 ? -e : e;
-    while (k-- > 0) {
-        v *= f;
-    }
-    return v;
-}
-
-/* A real from two bytes: hostile codes first, else sign, mantissa, exponent. */
-static rhonn_real real(reader *r, int lo, int hi)
-{
-    const uint8_t a = byte(r), b = byte(r);
-    const rhonn_real big = (rhonn_real)(sizeof(rhonn_real) == 4 ? 3.0e38 : 1.0e308);
-    switch (a) {
-    case 0xFF: return (rhonn_real)0;
-    case 0xFE: return big;
-    case 0xFD: return -big;
-    case 0xFC: return big * (rhonn_real)10; /* +Inf */
-    case 0xFB: return (big * (rhonn_real)10) - (big * (rhonn_real)10); /* NaN */
-    default: break;
-    }
-    {
-        const int e = lo + (int)(b % (uint8_t)(hi - lo + 1));
-        const rhonn_real m = (rhonn_real)1 + (rhonn_real)(a & 0x7Fu) / (rhonn_real)128;
-        return (a & 0x80u ? -m : m) * pow10i(e);
-    }
-}
-
-static rhonn_real positive(reader *r, int lo, int hi)
-{
-    rhonn_real v = real(r, lo, hi);
-    return v < 0 ? -v : v;
-}
 
 static void make_config(reader *r, rhonn_config *c)
 {

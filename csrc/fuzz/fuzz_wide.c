@@ -1,0 +1,163 @@
+/*
+ * Coverage-guided fuzz target (libFuzzer) for rhonn_run_wide
+ * (rhonn_population.h): one identifier's neurons run side by side in the
+ * vector lanes must be rhonn_run, bit for bit, whatever the data.
+ *
+ * Input: a configuration header whose neurons share their size and
+ * covariance form (1..8 neurons of 1..8 terms, so that the lanes do run it;
+ * every neuron tuned apart: R, eta, Q, P(0), w(0), forgetting, the trace
+ * ceiling, reset_after), a number of samples stepped first with rhonn_step,
+ * then the trajectory: per sample a dropout mask, the states and the inputs
+ * (reals as fuzz_input.h reads them: hostile values included).
+ *
+ * The target aborts when rhonn_run_wide and rhonn_run on copies of the same
+ * identifier differ in: the status, the samples done, any prediction
+ * written, the committed weights and covariances (factors) with their
+ * proofs of definiteness (rhonn_t.cert), the regressor z(k-1), the
+ * prediction, the history, the health records, the steps, the fault
+ * diagnostic; or when the next step after the run differs.
+ */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "rhonn.h"
+#include "rhonn_population.h"
+#include "fuzz_input.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+#define WIDE_T 64
+#define WIDE_N (RHONN_MAX_STATES < RHONN_MAX_POPULATION ? RHONN_MAX_STATES : RHONN_MAX_POPULATION)
+
+static void make_uniform_config(reader *r, rhonn_config *c)
+{
+    const uint8_t head = byte(r);
+    const size_t n = 1u + head % WIDE_N;
+    const size_t L = 1u + (size_t)byte(r) % (RHONN_MAX_TERMS < 8 ? RHONN_MAX_TERMS : 8u);
+    size_t i, t, f, k;
+    memset(c, 0, sizeof *c);
+    c->n_states = (uint8_t)n;
+    c->n_inputs = (uint8_t)(byte(r) % 3u);
+    for (i = 0; i < n; ++i) {
+        rhonn_neuron_config *nc = &c->neurons[i];
+        const uint8_t flags = byte(r);
+        nc->n_terms = (uint8_t)L;
+        nc->activation = (uint8_t)(flags & 1u);
+        nc->covariance = (uint8_t)((head >> 7) & 1u); /* one form for all */
+        nc->beta = positive(r, -3, 2);
+        nc->eta = positive(r, -2, 0);
+        nc->r = positive(r, -12, 6);
+        if (flags & 0x04u) {
+            nc->forgetting = (rhonn_real)0.5 + (rhonn_real)(byte(r) % 100u) / (rhonn_real)200;
+        }
+        if (flags & 0x08u) {
+            nc->reset_after = (uint16_t)(1u + byte(r) % 4u);
+        }
+        for (t = 0, k = 0; t < L; k += L - t, ++t) {
+            nc->q[t] = (flags & 0x10u) ? (rhonn_real)0 : positive(r, -14, 3);
+            nc->w0[t] = real(r, -3, 1);
+            nc->p0[k] = positive(r, -3, 9);
+        }
+        if (flags & 0x20u) {
+            rhonn_real tr = 0;
+            for (t = 0, k = 0; t < L; k += L - t, ++t) {
+                tr += nc->p0[k];
+            }
+            nc->p_trace_max = tr * (rhonn_real)(1u + byte(r) % 8u);
+        }
+        for (t = 0; t < L; ++t) {
+            rhonn_term *term = &nc->terms[t];
+            const uint8_t nf = (uint8_t)(1u + byte(r) % 2u);
+            term->n_factors = nf;
+            for (f = 0; f < nf; ++f) {
+                rhonn_factor *fa = &term->factors[f];
+                const uint8_t code = byte(r);
+                fa->kind = (uint8_t)(code % 4u);
+                fa->power = (uint8_t)(1u + (code >> 2) % 3u);
+                if (fa->kind == RHONN_FACTOR_U && c->n_inputs > 0u) {
+                    fa->index = (uint8_t)((code >> 4) % c->n_inputs);
+                    fa->delay = (uint8_t)((code >> 6) % 3u);
+                } else if (fa->kind == RHONN_FACTOR_U) {
+                    fa->kind = RHONN_FACTOR_ONE;
+                } else if (fa->kind != RHONN_FACTOR_ONE) {
+                    fa->index = (uint8_t)((code >> 4) % n);
+                    fa->delay = (uint8_t)((code >> 6) % 3u);
+                }
+            }
+        }
+    }
+}
+
+/* Everything of a that rhonn_run promises, against b (the inactive banks
+ * and the z bank not holding z(k-1) are the step's scratch). */
+static int same_committed(const rhonn_t *a, const rhonn_t *b)
+{
+    const size_t n = a->cfg.n_states;
+    size_t i;
+    int same = memcmp(a->xhat, b->xhat, sizeof a->xhat) == 0 && memcmp(a->hist, b->hist, sizeof a->hist) == 0 &&
+               memcmp(a->valid_run, b->valid_run, sizeof a->valid_run) == 0 &&
+               memcmp(a->bank, b->bank, sizeof a->bank) == 0 && memcmp(a->health, b->health, sizeof a->health) == 0 &&
+               a->head == b->head && a->started == b->started && a->steps == b->steps &&
+               a->zbank == b->zbank && a->fault_neuron == b->fault_neuron;
+    for (i = 0; same && i < n; ++i) {
+        const size_t L = a->cfg.neurons[i].n_terms, ba = a->bank[i];
+        same = memcmp(a->w[i][ba], b->w[i][ba], L * sizeof(rhonn_real)) == 0 &&
+               memcmp(a->p[i][ba], b->p[i][ba], L * (L + 1u) / 2u * sizeof(rhonn_real)) == 0 &&
+               memcmp(a->z[a->zbank][i], b->z[b->zbank][i], L * sizeof(rhonn_real)) == 0 &&
+               a->cert[i][ba] == b->cert[i][ba];
+    }
+    return same;
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    static rhonn_t alone, lanes;
+    static rhonn_population_work work;
+    static rhonn_real X[WIDE_T * RHONN_MAX_STATES], U[WIDE_T * (RHONN_MAX_INPUTS + 1)];
+    static rhonn_real ya[WIDE_T * RHONN_MAX_STATES], yw[WIDE_T * RHONN_MAX_STATES];
+    static uint8_t V[WIDE_T * RHONN_MAX_STATES];
+    rhonn_config cfg;
+    rhonn_status sa, sw;
+    size_t n, m, T, pre, k, j, da = 0, dw = 0;
+    reader r;
+
+    r.p = data;
+    r.n = size;
+    make_uniform_config(&r, &cfg);
+    if (rhonn_init(&alone, &cfg, NULL) != RHONN_OK) {
+        return 0;
+    }
+    n = cfg.n_states;
+    m = cfg.n_inputs;
+    pre = byte(&r) % 4u;
+    T = 1u + byte(&r) % WIDE_T;
+    for (k = 0; k < T; ++k) {
+        const uint8_t mask = byte(&r);
+        for (j = 0; j < n; ++j) {
+            X[k * n + j] = real(&r, -4, 3);
+            V[k * n + j] = (uint8_t)(((mask >> j) & 1u) ? 0u : 1u);
+        }
+        for (j = 0; j < m; ++j) {
+            U[k * m + j] = real(&r, -3, 3);
+        }
+    }
+    for (k = 0; k < pre; ++k) { /* from a running state, its outcome whatever it is */
+        (void)rhonn_step(&alone, X + (T - 1u - k % T) * n, U + (T - 1u - k % T) * m, V + (T - 1u - k % T) * n, ya);
+    }
+    lanes = alone;
+    memset(ya, 0, sizeof ya);
+    memset(yw, 0, sizeof yw);
+    sa = rhonn_run(&alone, T, X, U, V, ya, &da);
+    sw = rhonn_run_wide(&lanes, &work, T, X, U, V, yw, &dw);
+    if (sa != sw || da != dw || memcmp(ya, yw, sizeof ya) != 0 || !same_committed(&alone, &lanes)) {
+        abort(); /* the lanes are not rhonn_run */
+    }
+    /* and the next step agrees */
+    sa = rhonn_step(&alone, X, U, NULL, ya);
+    sw = rhonn_step(&lanes, X, U, NULL, yw);
+    if (sa != sw || (sa == RHONN_OK && memcmp(ya, yw, n * sizeof ya[0]) != 0)) {
+        abort();
+    }
+    return 0;
+}
