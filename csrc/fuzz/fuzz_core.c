@@ -42,7 +42,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
 static void make_config(reader *r, rhonn_config *c)
 {
-    size_t i, t, f;
+    size_t i, t;
     memset(c, 0, sizeof *c);
     c->n_states = (uint8_t)(1u + byte(r) % 4u);
     c->n_inputs = (uint8_t)(byte(r) % 3u);
@@ -77,28 +77,7 @@ static void make_config(reader *r, rhonn_config *c)
             }
             nc->p_trace_max = tr * (rhonn_real)(1u + byte(r) % 8u);
         }
-        for (t = 0; t < L; ++t) {
-            rhonn_term *term = &nc->terms[t];
-            const uint8_t nf = (uint8_t)(1u + byte(r) % 2u);
-            term->n_factors = nf;
-            for (f = 0; f < nf; ++f) {
-                rhonn_factor *fa = &term->factors[f];
-                const uint8_t code = byte(r);
-                fa->kind = (uint8_t)(code % 4u);
-                fa->power = (uint8_t)(1u + (code >> 2) % 3u);
-                if (fa->kind == RHONN_FACTOR_U) {
-                    fa->index = (uint8_t)(c->n_inputs ? (code >> 4) % c->n_inputs : 0u);
-                    fa->delay = (uint8_t)((code >> 6) % 3u); /* input dead time */
-                    if (c->n_inputs == 0u) {
-                        fa->delay = 0;
-                        fa->kind = RHONN_FACTOR_ONE;
-                    }
-                } else if (fa->kind != RHONN_FACTOR_ONE) {
-                    fa->index = (uint8_t)((code >> 4) % c->n_states);
-                    fa->delay = (uint8_t)((code >> 6) % 3u);
-                }
-            }
-        }
+        read_terms(r, nc, c->n_states, c->n_inputs);
     }
 }
 

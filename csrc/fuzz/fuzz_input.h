@@ -65,4 +65,34 @@ static inline rhonn_real positive(reader *r, int lo, int hi)
     return v < 0 ? -v : v;
 }
 
+/* The terms of a neuron of nc->n_terms terms: 1 or 2 factors each, of any
+ * kind, power 1-3, delays 0-2 (an input's dead time too); with no inputs an
+ * input factor reads the constant 1. */
+static inline void read_terms(reader *r, rhonn_neuron_config *nc, size_t n_states, size_t n_inputs)
+{
+    size_t t, f;
+    for (t = 0; t < nc->n_terms; ++t) {
+        rhonn_term *term = &nc->terms[t];
+        const uint8_t nf = (uint8_t)(1u + byte(r) % 2u);
+        term->n_factors = nf;
+        for (f = 0; f < nf; ++f) {
+            rhonn_factor *fa = &term->factors[f];
+            const uint8_t code = byte(r);
+            fa->kind = (uint8_t)(code % 4u);
+            fa->power = (uint8_t)(1u + (code >> 2) % 3u);
+            if (fa->kind == RHONN_FACTOR_U) {
+                fa->index = (uint8_t)(n_inputs ? (code >> 4) % n_inputs : 0u);
+                fa->delay = (uint8_t)((code >> 6) % 3u);
+                if (n_inputs == 0u) {
+                    fa->delay = 0;
+                    fa->kind = RHONN_FACTOR_ONE;
+                }
+            } else if (fa->kind != RHONN_FACTOR_ONE) {
+                fa->index = (uint8_t)((code >> 4) % n_states);
+                fa->delay = (uint8_t)((code >> 6) % 3u);
+            }
+        }
+    }
+}
+
 #endif /* RHONN_FUZZ_INPUT_H */

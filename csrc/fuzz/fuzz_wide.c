@@ -35,7 +35,7 @@ static void make_uniform_config(reader *r, rhonn_config *c)
     const uint8_t head = byte(r);
     const size_t n = 1u + head % WIDE_N;
     const size_t L = 1u + (size_t)byte(r) % (RHONN_MAX_TERMS < 8 ? RHONN_MAX_TERMS : 8u);
-    size_t i, t, f, k;
+    size_t i, t, k;
     memset(c, 0, sizeof *c);
     c->n_states = (uint8_t)n;
     c->n_inputs = (uint8_t)(byte(r) % 3u);
@@ -66,26 +66,7 @@ static void make_uniform_config(reader *r, rhonn_config *c)
             }
             nc->p_trace_max = tr * (rhonn_real)(1u + byte(r) % 8u);
         }
-        for (t = 0; t < L; ++t) {
-            rhonn_term *term = &nc->terms[t];
-            const uint8_t nf = (uint8_t)(1u + byte(r) % 2u);
-            term->n_factors = nf;
-            for (f = 0; f < nf; ++f) {
-                rhonn_factor *fa = &term->factors[f];
-                const uint8_t code = byte(r);
-                fa->kind = (uint8_t)(code % 4u);
-                fa->power = (uint8_t)(1u + (code >> 2) % 3u);
-                if (fa->kind == RHONN_FACTOR_U && c->n_inputs > 0u) {
-                    fa->index = (uint8_t)((code >> 4) % c->n_inputs);
-                    fa->delay = (uint8_t)((code >> 6) % 3u);
-                } else if (fa->kind == RHONN_FACTOR_U) {
-                    fa->kind = RHONN_FACTOR_ONE;
-                } else if (fa->kind != RHONN_FACTOR_ONE) {
-                    fa->index = (uint8_t)((code >> 4) % n);
-                    fa->delay = (uint8_t)((code >> 6) % 3u);
-                }
-            }
-        }
+        read_terms(r, nc, n, c->n_inputs);
     }
 }
 
