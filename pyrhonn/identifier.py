@@ -277,6 +277,9 @@ class Identifier:
                                                                                 int(where.neuron)))
         at = self._ffi.offsetof("rhonn_t", "n_groups")
         self._mutable = (at, self._ffi.sizeof("rhonn_t") - at)
+        # run() puts the neurons side by side in the vector lanes where the
+        # core expects that to be faster on this CPU (the same bits either way)
+        self._wide = bool(self._lib.rhonn_wide_pays(self._net))
         self._out = np.empty(self._n, dtype=self._dtype)
         self._out_ptr = self._ffi.from_buffer(self._real_array, self._out)
         self._null = self._ffi.NULL
@@ -622,8 +625,9 @@ class Identifier:
         copies; ``out`` (T, n), if given, receives the predictions. On any
         error nothing is applied: the identifier is as it was before the call.
         Where every neuron has the same number of terms and covariance form
-        (at most 8 neurons), the neurons' updates run side by side in the
-        CPU's vector unit (``rhonn_run_wide``): the same bits as stepping.
+        and there are enough neurons to fill the CPU's vector unit (3-8,
+        ``rhonn_wide_pays``), the neurons' updates run side by side in it
+        (``rhonn_run_wide``): the same bits as stepping.
         """
         Xc, Uc, Vc = self._checked_trajectory(X, U, valid)
         T = Xc.shape[0]
@@ -688,12 +692,13 @@ class Identifier:
         vp = self._null if V is None else ffi.from_buffer("uint8_t[]", V)
         op = ffi.from_buffer(self._real_array, out)
         if ahead < 2:
-            # rhonn_run_wide is rhonn_run bit for bit; where every neuron has
-            # the same size and covariance form it runs them side by side
             done = ffi.new("size_t *")
-            status = lib.rhonn_run_wide(net, _workspace(self._build), stop - first, xp + first * n,
-                                        up + first * m if m else up, self._null if V is None else vp + first * n,
-                                        op + first * n, done)
+            args = (stop - first, xp + first * n, up + first * m if m else up,
+                    self._null if V is None else vp + first * n, op + first * n, done)
+            if self._wide:  # rhonn_run bit for bit, the neurons side by side
+                status = lib.rhonn_run_wide(net, _workspace(self._build), *args)
+            else:
+                status = lib.rhonn_run(net, *args)
             return int(done[0]), int(status)
         assert ahead_out is not None
         tail_at = ffi.offsetof("rhonn_t", "zbank")

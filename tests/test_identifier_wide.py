@@ -4,8 +4,11 @@ covariance form with the neurons side by side in the vector lanes
 one). Each lane does a neuron's scalar operations, so the result is bit for
 bit that of stepping the same identifier sample by sample (``rhonn_step``):
 predictions, weights, covariances, proofs, health, history, and where a run
-stops."""
+stops. Identifier decides by rhonn_wide_pays whether the lanes would be
+faster; these tests put every identifier into them."""
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -51,6 +54,7 @@ def test_a_run_in_lanes_equals_the_same_steps_bit_for_bit(n: int, dtype: str, fo
     cfg = uniform_config(n, dtype, form, forgetting, ceiling, reset_after, seed)
     X, U, valid = trajectory(seed, 160, n, 2, dropout=data.draw(st.sampled_from([0.0, 0.1])), dtype=dtype)
     lanes, steps = Identifier(cfg), Identifier(cfg)
+    lanes._wide = True  # in the lanes even where the scalar run would be faster
     try:
         out = lanes.run(X, U, valid)
         error = None
@@ -79,6 +83,7 @@ def test_a_run_in_lanes_continues_from_steps_and_from_another_run(dtype: str) ->
     cfg = uniform_config(6, dtype, CovarianceForm.FULL, [1.0] * 6, [False] * 6, [0] * 6, 7)
     X, U, valid = trajectory(3, 300, 6, 2, dropout=0.05, dtype=dtype)
     a, b = Identifier(cfg), Identifier(cfg)
+    a._wide = True
     for k in range(10):
         a.step(X[k], U[k], valid[k])
         b.step(X[k], U[k], valid[k])
@@ -87,3 +92,25 @@ def test_a_run_in_lanes_continues_from_steps_and_from_another_run(dtype: str) ->
     expected = [b.step(X[k], U[k], valid[k]) for k in range(10, 300)]
     assert np.concatenate([first, second]).tobytes() == np.array(expected).tobytes()
     assert state_of(a) == state_of(b)
+
+
+def test_run_goes_into_the_lanes_where_the_core_says_they_pay() -> None:
+    six = uniform_config(6, "float64", CovarianceForm.FULL, [1.0] * 6, [False] * 6, [0] * 6, 1)
+    assert Identifier(six)._wide is bool(Identifier(six)._lib.rhonn_wide_pays(Identifier(six)._net))
+    mixed = six.replace(neurons=six.neurons[:5] + (dataclasses.replace(six.neurons[5], terms=six.neurons[5].terms[:4],
+                                                                       p0=1.0, q=1e-3),))
+    assert Identifier(mixed)._wide is False  # sizes differ: never
+
+
+def test_the_side_by_side_bench_runs_and_its_identifiers_are_valid(capsys: pytest.CaptureFixture[str]) -> None:
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "bench" / "bench_wide.py"
+    spec = importlib.util.spec_from_file_location("bench_wide", path)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    assert bench.main(["--quick"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len([line for line in lines if line.startswith(("float64", "float32"))]) == 4  # no timing asserted

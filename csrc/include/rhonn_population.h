@@ -149,7 +149,8 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
  * number of terms and the same covariance form, at most
  * RHONN_MAX_POPULATION neurons (and, for the U D U^T form, the vector
  * build, RHONN_POP_VECTOR); for any other structure it is rhonn_run. For a
- * host with a vector unit (on a scalar FPU the lanes only add work).
+ * host with a vector unit (on a scalar FPU the lanes only add work), and
+ * for identifiers with enough neurons to fill it: see rhonn_wide_pays.
  *
  * As rhonn_run: RHONN_E_NOT_INIT for a net not set up, RHONN_E_NULL for a
  * NULL net, X or Xhat (or U with inputs) when T > 0, and RHONN_E_NULL for
@@ -157,6 +158,16 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
  * last good step (work holds nothing after the call). */
 rhonn_status rhonn_run_wide(rhonn_t *net, rhonn_population_work *work, size_t T, const rhonn_real *X,
                             const rhonn_real *U, const uint8_t *valid, rhonn_real *Xhat, size_t *done);
+
+/* Whether rhonn_run_wide runs net in the lanes and that is expected to be
+ * faster than rhonn_run on this CPU: the structure fits (above) and net has
+ * enough neurons for the vector unit the kernels run on (the lanes cost
+ * about the same for 1 neuron as for RHONN_MAX_POPULATION; measured, with
+ * 8 lanes: from 3-4 neurons with AVX-512, 2-3 with AVX2 in float, 3-7 with
+ * 128-bit vectors, by form and precision; see rhonn_population.c). 0 for a
+ * NULL net or one not set up. Both runs give the same results: this is
+ * only about speed. */
+int rhonn_wide_pays(const rhonn_t *net);
 
 #ifdef __cplusplus
 }

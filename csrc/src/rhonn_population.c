@@ -1592,6 +1592,48 @@ static int wide_fits(const rhonn_t *net)
     return 1;
 }
 
+/* The fewest neurons for which the lanes beat rhonn_run, by the vector
+ * unit the kernels run on. The lanes cost about the same whatever number of
+ * neurons they hold (RHONN_MAX_POPULATION lanes are computed), rhonn_run
+ * costs in proportion: measured on an x86-64 (same-run ratios of the two
+ * over 2-8 neurons of 8 terms, each form and precision), the lanes pay from
+ * 4 full-form neurons (3 U D U^T) in double with AVX-512, 3 (2) in float
+ * with AVX-512 or AVX2, and from 7 (5) in double, 5 (3) in float with
+ * 128-bit vectors (SSE2: the default clone, the CMake build; NEON alike).
+ * Scaled for another RHONN_MAX_POPULATION. */
+static size_t wide_min_neurons(int ud)
+{
+    size_t at8;
+#ifdef RHONN_SINGLE
+    at8 = ud ? 3u : 5u;
+#else
+    at8 = ud ? 5u : 7u;
+#endif
+#if RHONN_TARGET_CLONES && defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+    if (__builtin_cpu_supports("avx512f")) {
+#ifdef RHONN_SINGLE
+        at8 = ud ? 2u : 3u;
+#else
+        at8 = ud ? 3u : 4u;
+#endif
+    }
+#ifdef RHONN_SINGLE
+    else if (__builtin_cpu_supports("avx2")) {
+        at8 = ud ? 2u : 3u;
+    }
+#endif
+#endif
+    return (at8 * NPOP + 7u) / 8u;
+}
+
+int rhonn_wide_pays(const rhonn_t *net)
+{
+    if (rhonn_internal_check_net(net) != RHONN_OK || !wide_fits(net)) {
+        return 0;
+    }
+    return CFG(net)->n_states >= wide_min_neurons(is_ud(net, 0));
+}
+
 /* Neuron i's committed state and tuning into lane i (lanes past the last
  * neuron: copies of neuron 0, finite numbers to compute on, thrown away). */
 static void wide_load(rhonn_population_work *wk, const rhonn_t *net)

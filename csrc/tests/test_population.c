@@ -607,6 +607,24 @@ static void wide_run_of_other_structures_is_the_scalar_run(void)
     CHECK_STATUS(wide_compare(&cfg, 2, 1), RHONN_OK);
 }
 
+/* The lanes are advised where the structure fits and the neurons fill the
+ * vector unit enough (this build's: no target clones, 128-bit vectors). */
+static void wide_runs_are_advised_where_they_pay(void)
+{
+    rhonn_config cfg = uniform_config(0, 8, 0, 0);
+    CHECK(rhonn_wide_pays(NULL) == 0);
+    memset(&members[1], 0, sizeof members[1]);
+    CHECK(rhonn_wide_pays(&members[1]) == 0); /* not set up */
+    CHECK_STATUS(rhonn_init(&members[0], &cfg, NULL), RHONN_OK);
+    CHECK(rhonn_wide_pays(&members[0]) == 1); /* 8 neurons fill 8 lanes */
+    cfg = uniform_config(0, 2, 0, 0);
+    CHECK_STATUS(rhonn_init(&members[0], &cfg, NULL), RHONN_OK);
+    CHECK(rhonn_wide_pays(&members[0]) == 0); /* 2 of 8 lanes: the scalar run is faster */
+    cfg = lim_config(0, 0, 0);
+    CHECK_STATUS(rhonn_init(&members[0], &cfg, NULL), RHONN_OK);
+    CHECK(rhonn_wide_pays(&members[0]) == 0); /* sizes differ: no lanes at all */
+}
+
 static void wide_run_arguments_are_checked(void)
 {
     rhonn_config cfg = uniform_config(0, 6, 0, 0);
@@ -752,6 +770,7 @@ int main(void)
     RUN(wide_runs_forget_bound_and_reset_neuron_by_neuron);
     RUN(wide_run_stops_where_a_single_run_stops);
     RUN(wide_run_of_other_structures_is_the_scalar_run);
+    RUN(wide_runs_are_advised_where_they_pay);
     RUN(wide_run_arguments_are_checked);
     if (b != NULL) {
         bench((size_t)strtoul(b, NULL, 10));

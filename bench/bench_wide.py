@@ -1,0 +1,90 @@
+"""Neurons side by side (``rhonn_run_wide``) against neuron by neuron
+(``rhonn_run``) on this CPU: for identifiers of 2-8 neurons of 8 terms, each
+covariance form and precision, the ratio of the two batched runs' times
+(above 1: the lanes are faster), and whether ``rhonn_wide_pays`` -- which
+``Identifier.run`` follows -- sends that identifier into the lanes. A row
+where the advice and the measurement disagree by more than the noise is
+marked; the thresholds are in csrc/src/rhonn_population.c.
+
+Both runs give the same bits (tests/test_identifier_wide.py); this is only
+about speed. Best of several interleaved repeats, ratios from one run.
+
+    python bench/bench_wide.py            # full run (about a minute)
+    python bench/bench_wide.py --quick    # smoke run (CI)
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+
+from pyrhonn import CovarianceForm, Factor, Identifier, IdentifierConfig, NeuronConfig
+
+
+def uniform_config(n: int, dtype: str, form: CovarianceForm) -> IdentifierConfig:
+    """n states, 2 inputs, every neuron 8 terms: S(x) of its own state round,
+    a bilinear term, an input, raw states to fill up."""
+    neurons = []
+    for i in range(n):
+        terms = [(Factor.s((i + j) % n),) for j in range(min(n, 5))]
+        terms.append((Factor.s(i), Factor.s((i + 1) % n)))
+        terms.append((Factor.u(i % 2),))
+        j = 0
+        while len(terms) < 8:
+            terms.append((Factor.x((i + j) % n),) if j < n else (Factor.u((i + 1) % 2, delay=j - n + 1),))
+            j += 1
+        neurons.append(NeuronConfig(terms=tuple(terms), covariance=form, p0=10.0, q=1e-3, r=1e-2, eta=1.0))
+    return IdentifierConfig(n_states=n, n_inputs=2, neurons=tuple(neurons), dtype=dtype)
+
+
+def trajectory(n: int, T: int, dtype: str) -> tuple[np.ndarray, np.ndarray]:
+    t = np.arange(T)[:, None] * 1e-3
+    X = np.sin(t * (1.0 + np.arange(n))) + 0.1 * np.cos(7.3 * t * (1 + np.arange(n)))
+    U = np.sin(t * (0.7 + np.arange(2)))
+    return np.ascontiguousarray(X.astype(dtype)), np.ascontiguousarray(U.astype(dtype))
+
+
+def ratio(cfg: IdentifierConfig, T: int, repeats: int) -> tuple[float, bool]:
+    """(neuron-by-neuron time / lanes time, what rhonn_wide_pays advises)."""
+    X, U = trajectory(cfg.n_states, T, cfg.dtype)
+    out = np.empty_like(X)
+    best = {False: float("inf"), True: float("inf")}
+    advised = Identifier(cfg)._wide
+    for _ in range(repeats):
+        for wide in (False, True):  # interleaved: a load spike hits both alike
+            ident = Identifier(cfg)
+            ident._wide = wide
+            t0 = time.perf_counter()
+            ident.run(X, U, out=out)
+            best[wide] = min(best[wide], time.perf_counter() - t0)
+    return best[False] / best[True], advised
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="small smoke run")
+    args = ap.parse_args(argv)
+    T, repeats = (500, 2) if args.quick else (20000, 5)
+    sizes = range(2, 9)
+    print(f"load average {os.getloadavg()[0]:.2f} (1 min); {T} samples, best of {repeats}; "
+          "ratio = neuron by neuron / side by side (* = rhonn_wide_pays sends it into the lanes)")
+    print(f"{'dtype':<9}{'form':<6}" + "".join(f"{n:>9}" for n in sizes))
+    disagree = 0
+    for dtype in ("float64", "float32"):
+        for form in (CovarianceForm.FULL, CovarianceForm.UD):
+            cells = []
+            for n in sizes:
+                r, advised = ratio(uniform_config(n, dtype, form), T, repeats)
+                # noise margin: a 10 % loss or gain either way is not a wrong call
+                wrong = (advised and r < 0.9) or (not advised and r > 1.1)
+                disagree += wrong
+                cells.append(f"{r:>7.2f}{'*' if advised else ' '}{'!' if wrong else ' '}")
+            print(f"{dtype:<9}{form.value:<6}" + "".join(cells))
+    print(f"{disagree} advice(s) off by more than 10 % (!)" if disagree else "the advice agrees with the times")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
