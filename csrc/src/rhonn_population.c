@@ -38,7 +38,7 @@ typedef uint64_t pop_bits;
 
 #define NPOP ((size_t)RHONN_MAX_POPULATION)
 
-#if defined(__GNUC__) && !defined(__clang__) && !defined(POP_NO_UNROLL)
+#if defined(__GNUC__) && !defined(__clang__)
 #define POP_UNROLL _Pragma("GCC unroll 16")
 #else
 #define POP_UNROLL
@@ -1068,30 +1068,55 @@ static void ud_update(rhonn_population_work *wk, rhonn_t *const *nets, size_t N,
 
 /* xhat(k+1) = w(k+1)^T z(k) (eq. 3) of every neuron, every member at once:
  * rhonn.c's running sum, term by term from 0. */
+POP_ALWAYS_INLINE void predict_slot(rhonn_population_work *wk, size_t i, size_t L, size_t zb)
+{
+    const rhonn_real *w = &wk->w[wk->wb ^ 1u][i][0][0], *z = &wk->z[zb][i][0][0];
+    size_t t;
+#if RHONN_POP_VECTOR
+    lanev acc = VC(wk->zeros, 0);
+    for (t = 0; t < L; ++t) {
+        acc += VC(w, t) * VC(z, t);
+    }
+    V(wk->xnew[i], 0) = acc;
+#else
+    size_t m;
+    for (m = 0; m < NPOP; ++m) {
+        wk->xnew[i][m] = R(0.0);
+    }
+    for (t = 0; t < L; ++t) {
+        for (m = 0; m < NPOP; ++m) {
+            wk->xnew[i][m] += w[t * NPOP + m] * z[t * NPOP + m];
+        }
+    }
+#endif
+}
+
 POP_CLONES static void predict(rhonn_population_work *wk, const rhonn_t *net, size_t zb)
 {
     const rhonn_config *cfg = CFG(net);
-    size_t i, t;
+    size_t i;
     for (i = 0; i < cfg->n_states; ++i) {
-        const rhonn_real *w = &wk->w[wk->wb ^ 1u][i][0][0], *z = &wk->z[zb][i][0][0];
-#if RHONN_POP_VECTOR
-        lanev acc = VC(wk->zeros, 0);
-        for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
-            acc += VC(w, t) * VC(z, t);
-        }
-        V(wk->xnew[i], 0) = acc;
-#else
-        size_t m;
-        for (m = 0; m < NPOP; ++m) {
-            wk->xnew[i][m] = R(0.0);
-        }
-        for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
-            for (m = 0; m < NPOP; ++m) {
-                wk->xnew[i][m] += w[t * NPOP + m] * z[t * NPOP + m];
-            }
-        }
-#endif
+        predict_slot(wk, i, cfg->neurons[i].n_terms, zb);
     }
+}
+
+/* A refused update recovered (reset_after): the weights kept, the
+ * covariance restarted from neuron's P(0), into the candidates of slot i,
+ * lane m (rhonn.c refused()). */
+static void recover_lane(rhonn_population_work *wk, const rhonn_t *net, size_t neuron, size_t i, size_t m)
+{
+    const size_t L = CFG(net)->neurons[neuron].n_terms;
+    rhonn_real p0[RHONN_MAX_PACKED];
+    size_t t;
+    for (t = 0; t < L; ++t) {
+        wk->w[wk->wb ^ 1u][i][t][m] = wk->w[wk->wb][i][t][m];
+    }
+    rhonn_internal_load_p0(net, neuron, p0); /* P(0) or its factors */
+    for (t = 0; t < L * (L + 1u) / 2u; ++t) {
+        wk->p[wk->pb[i] ^ 1u][i][t][m] = p0[t];
+    }
+    wk->bounded[i][m] = 0;
+    wk->recovered[i][m] = 1;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -1423,19 +1448,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                     wk->updated[i][m] = 0;
                     continue;
                 }
-                /* recovery (reset_after): w kept, P from P_i(0) */
-                for (t = 0; t < L; ++t) {
-                    wk->w[wk->wb ^ 1u][i][t][m] = wk->w[wk->wb][i][t][m];
-                }
-                {
-                    rhonn_real p0[RHONN_MAX_PACKED];
-                    rhonn_internal_load_p0(net, i, p0); /* P_i(0) or its factors */
-                    for (t = 0; t < L * (L + 1u) / 2u; ++t) {
-                        wk->p[wk->pb[i] ^ 1u][i][t][m] = p0[t];
-                    }
-                }
-                wk->bounded[i][m] = 0;
-                wk->recovered[i][m] = 1;
+                recover_lane(wk, net, i, i, m);
             }
             moved[i] = 0;
             for (m = 0; m < N; ++m) {
@@ -1687,29 +1700,10 @@ static void wide_store(const rhonn_population_work *wk, rhonn_t *net)
     }
 }
 
-/* xhat(k+1) = w(k+1)^T z(k) (eq. 3) of every neuron at once: rhonn.c's
- * running sum, term by term from 0. */
+/* xhat(k+1) = w(k+1)^T z(k) (eq. 3) of every neuron at once. */
 POP_CLONES static void wide_predict(rhonn_population_work *wk, size_t L, size_t zb)
 {
-    const rhonn_real *w = &wk->w[wk->wb ^ 1u][0][0][0], *z = &wk->z[zb][0][0][0];
-    size_t t;
-#if RHONN_POP_VECTOR
-    lanev acc = VC(wk->zeros, 0);
-    for (t = 0; t < L; ++t) {
-        acc += VC(w, t) * VC(z, t);
-    }
-    V(wk->xnew[0], 0) = acc;
-#else
-    size_t m;
-    for (m = 0; m < NPOP; ++m) {
-        wk->xnew[0][m] = R(0.0);
-    }
-    for (t = 0; t < L; ++t) {
-        for (m = 0; m < NPOP; ++m) {
-            wk->xnew[0][m] += w[t * NPOP + m] * z[t * NPOP + m];
-        }
-    }
-#endif
+    predict_slot(wk, 0u, L, zb);
 }
 
 /* Step 1 of rhonn.c's step_checked for every neuron at once: the learning
@@ -1723,7 +1717,7 @@ static rhonn_status wide_learn(rhonn_population_work *wk, rhonn_t *net, const rh
     const size_t n = cfg->n_states, L = cfg->neurons[0].n_terms;
     const int on = net->started && net->learning;
     int any_learn = 0;
-    size_t i, t;
+    size_t i;
     for (i = 0; i < NPOP; ++i) {
         const int learns = i < n && on && (v == NULL || v[i] != 0u) && net->valid_run[i] >= net->own_need[i];
         wk->learn[0][i] = (uint8_t)learns;
@@ -1761,20 +1755,8 @@ static rhonn_status wide_learn(rhonn_population_work *wk, rhonn_t *net, const rh
         if (!rhonn_internal_count_refusal(net, i)) {
             return (rhonn_status)wk->kstatus[i];
         }
-        /* recovery: the weights kept, the covariance from P_i(0) */
-        for (t = 0; t < L; ++t) {
-            wk->w[wk->wb ^ 1u][0][t][i] = wk->w[wk->wb][0][t][i];
-        }
-        {
-            rhonn_real p0[RHONN_MAX_PACKED];
-            rhonn_internal_load_p0(net, i, p0);
-            for (t = 0; t < L * (L + 1u) / 2u; ++t) {
-                wk->p[wk->pb[0] ^ 1u][0][t][i] = p0[t];
-            }
-        }
+        recover_lane(wk, net, i, 0u, i);
         wk->cert_new[0][i] = rhonn_internal_p0_proven(net, i);
-        wk->bounded[0][i] = 0;
-        wk->recovered[0][i] = 1;
     }
     return RHONN_OK;
 }
