@@ -16,7 +16,10 @@ disturbed by other load), both ways interleaved so load drifts hit both:
 
 Then `pyrhonn tune`'s search itself: the same number of trials with
 ``batch`` = 8 (8 trials per core call) against ``batch`` = 1, on example3
-and the LIM trajectory, the wall time of the whole search (TPE included).
+and the LIM trajectory, the wall time of the whole search (TPE included);
+and the structure search's (``tune --structure``): 8 tunings of one
+selection scored in population calls against one by one, at three
+selection sizes, and a whole search batch 8 against batch 1.
 
 The members differ in P0, Q, R and eta (a tuning search's candidates). Every
 member's predictions are checked bit for bit against its single run first.
@@ -92,6 +95,7 @@ def main() -> None:
                   f"{seq_core / pop_core:>5.2f}x  {seq_all * 1e3:>16.1f} ms {pop_all * 1e3:>8.1f} ms "
                   f"{seq_all / pop_all:>5.2f}x")
     tune_ratio(tr, T, repeats)
+    structure_ratio(tr, T, repeats)
     print(f"load average {os.getloadavg()[0]:.2f} (1 min) at the end")
 
 
@@ -111,6 +115,47 @@ def tune_ratio(tr, T: int, repeats: int) -> None:
             one = min(one, best(lambda: tuning.tune(base, X, U, V, n_trials=trials, batch=1), 1))
             eight = min(eight, best(lambda: tuning.tune(base, X, U, V, n_trials=trials, batch=8), 1))
         print(f"tune example3 {dtype}, {trials} trials over {T} samples: batch 1 {one:.2f} s, batch 8 "
+              f"{eight:.2f} s: {one / eight:.2f}x")
+
+
+def structure_ratio(tr, T: int, repeats: int) -> None:
+    """The structure search's trials: 8 tunings of one selection (the terms
+    pyrhonn select picks on the training part, at three max_terms settings),
+    scored as a batch of ``tune --structure --batch 8`` scores them (one
+    population call per fold) against one by one as ``--batch 1`` does (each
+    an Identifier.run, neurons side by side where their sizes allow); then a
+    whole 32-trial structure search, batch 8 against batch 1 (different
+    trials: a batch shares its settings, so it also runs fewer selections)."""
+    import optuna
+
+    from pyrhonn import tuning
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    X, U, V = tr.X_meas[:T], tr.U[:T], tr.valid[:T]
+    search = tuning.StructureSearch()
+    for dtype in ("float64", "float32"):
+        base = load_shipped("example3").config.replace(dtype=dtype)
+        problem = tuning._Problem(base, X, U, V, None, tuning.DEFAULT_TRAIN_FRACTION, 1)
+        selector = tuning._Selector(problem, search)
+        space = tuning.search_space(base, relative=True)
+        for max_terms in (4, 8, 16):
+            selected = selector.configs({"max_delay": 2, "degree": 2, "max_terms": max_terms})
+            trials = [[tuning.apply_factors(c, space, {d.name: 1.0 + 0.1 * k for d in space}) for c in selected]
+                      for k in range(max_population(dtype))]
+            alone = batched = float("inf")
+            for _ in range(repeats):
+                alone = min(alone, best(lambda: [problem.score_folds(t) for t in trials], 1))
+                batched = min(batched, best(lambda: problem.score_folds_many(trials), 1))
+            if [s.value for s in problem.score_folds_many(trials)] != [problem.score_folds(t).value for t in trials]:
+                raise SystemExit(f"structure trials {dtype}: a batched score differs from its trial alone")
+            sizes = sorted({nr.n_terms for nr in selected[0].neurons})
+            print(f"structure trials {dtype}, 8 tunings of a selection with {sizes[0]}-{sizes[-1]} terms per neuron: "
+                  f"one by one {alone * 1e3:.1f} ms, batched {batched * 1e3:.1f} ms: {alone / batched:.2f}x")
+        one = eight = float("inf")
+        for _ in range(max(1, repeats // 2)):
+            one = min(one, best(lambda: tuning.tune(base, X, U, V, n_trials=32, batch=1, structure=search), 1))
+            eight = min(eight, best(lambda: tuning.tune(base, X, U, V, n_trials=32, batch=8, structure=search), 1))
+        print(f"tune --structure example3 {dtype}, 32 trials over {T} samples: batch 1 {one:.2f} s, batch 8 "
               f"{eight:.2f} s: {one / eight:.2f}x")
 
 

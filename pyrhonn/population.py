@@ -24,14 +24,24 @@ import numpy as np
 from .config import IdentifierConfig
 from .identifier import _BUILDS, Identifier, IdentifierError, _backend, _workspace
 
-__all__ = ["max_population", "run_identifiers", "run_identifiers_outcomes", "run_population"]
-
+__all__ = ["max_population", "run_identifiers", "run_identifiers_outcomes", "run_population", "structure_key"]
 
 
 def max_population(dtype: str = "float64") -> int:
     """How many members one call runs (the builds' ``RHONN_MAX_POPULATION``)."""
     _backend(dtype)  # ValueError naming an unknown dtype
     return min(int(build.lib.RHONN_MAX_POPULATION) for build in _BUILDS[dtype])
+
+
+def structure_key(config: IdentifierConfig) -> tuple[Any, ...]:
+    """A hashable key, equal for two configs exactly when they can run in one
+    population: the same dtype, states, inputs, and every neuron's terms,
+    activation and covariance form (what :func:`run_population` checks). For
+    callers that sort many configs into populations (the structure search)."""
+    if not isinstance(config, IdentifierConfig):
+        raise ValueError(f"config: expected an IdentifierConfig, got {type(config).__name__}")
+    return (config.dtype, config.n_states, config.n_inputs,
+            tuple((tuple(tuple(t) for t in nr.terms), nr.activation, nr.covariance) for nr in config.neurons))
 
 
 def _structure_difference(a: IdentifierConfig, b: IdentifierConfig) -> str | None:

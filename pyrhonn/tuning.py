@@ -180,8 +180,19 @@ bit for bit its own ``Identifier.run``), then report the B scores. Every
 trial's score is exactly what it would be alone; the search differs from B
 = 1 as with ``n_jobs`` = B (TPE proposes B trials before seeing their
 scores, with ``constant_liar``), and a seed still reproduces it with
-``n_jobs = 1``. Structure search runs its trials one by one (each trial's
-terms are its own).
+``n_jobs = 1``.
+
+In a structure search, a trial's terms are those its settings select, and
+only configs of one structure share a population. So the batch's first
+trial draws the selection settings and its tuning factors as usual, and the
+other B - 1 are enqueued with those settings fixed (optuna's
+``enqueue_trial``; TPE draws their factors): every fold's B configs share
+the fold's selected structure and run in one call (the batch's configs
+are grouped by structure, fold by fold, so trials of other settings that
+select the same terms would share a call too). The search then spends its trials as B tunings of each drawn
+setting: fewer settings for the same number of trials than with B = 1. A
+first trial whose settings the selection refuses fails alone, and the batch
+starts again from a new draw.
 """
 from __future__ import annotations
 
@@ -488,13 +499,15 @@ class _Problem:
         rows = self._run(config, self.folds[-1][1])
         return self._combine([self._fold_error(f, rows) for f in range(len(self.folds))])
 
-    def score_many(self, configs: Sequence[IdentifierConfig]) -> list[Score | TrialFailure]:
-        """:meth:`score` of several tunings of one structure, run in one population call;
-        each entry the config's Score or the TrialFailure ``score`` would raise for it."""
+    def _run_many(self, configs: Sequence[IdentifierConfig], end: int) -> list[np.ndarray | TrialFailure]:
+        """Each config's run over samples 0..end-1 (as :meth:`_run`), or the
+        TrialFailure :meth:`_run` would raise for it. The configs must share
+        their structure; they run in one population call, unless only one of
+        them can run (then :meth:`_run`, which takes the identifier's own
+        fastest path)."""
         from .population import run_identifiers_outcomes
 
-        end = self.folds[-1][1]
-        outcomes: list[Score | TrialFailure | None] = [None] * len(configs)
+        outcomes: list[np.ndarray | TrialFailure | None] = [None] * len(configs)
         runnable: dict[int, Identifier] = {}
         for k, config in enumerate(configs):
             if config.dtype != self.dtype:
@@ -503,19 +516,33 @@ class _Problem:
                 runnable[k] = Identifier(config)
             except ValueError as exc:
                 outcomes[k] = TrialFailure(f"config rejected: {exc}")
-        if runnable:
-            valid = None if self.valid is None else self.valid[:end]
+        valid = None if self.valid is None else self.valid[:end]
+        if len(runnable) == 1:
+            [(k, ident)] = runnable.items()
+            try:
+                outcomes[k] = ident.run(self.X[:end], self.U[:end], valid)
+            except IdentifierError as exc:
+                outcomes[k] = TrialFailure(f"identifier stopped: {exc}")
+        elif runnable:
             runs = run_identifiers_outcomes(list(runnable.values()), self.X[:end], self.U[:end], valid)
             for k, rows in zip(runnable, runs):
-                if isinstance(rows, IdentifierError):
-                    outcomes[k] = TrialFailure(f"identifier stopped: {rows}")
-                    continue
-                try:
-                    outcomes[k] = self._combine([self._fold_error(f, rows) for f in range(len(self.folds))])
-                except TrialFailure as exc:
-                    outcomes[k] = exc
+                outcomes[k] = TrialFailure(f"identifier stopped: {rows}") if isinstance(rows, IdentifierError) else rows
         assert all(o is not None for o in outcomes)
         return outcomes  # type: ignore[return-value]
+
+    def score_many(self, configs: Sequence[IdentifierConfig]) -> list[Score | TrialFailure]:
+        """:meth:`score` of several tunings of one structure, run in one population call;
+        each entry the config's Score or the TrialFailure ``score`` would raise for it."""
+        outcomes: list[Score | TrialFailure] = []
+        for rows in self._run_many(configs, self.folds[-1][1]):
+            if isinstance(rows, TrialFailure):
+                outcomes.append(rows)
+                continue
+            try:
+                outcomes.append(self._combine([self._fold_error(f, rows) for f in range(len(self.folds))]))
+            except TrialFailure as exc:
+                outcomes.append(exc)
+        return outcomes
 
     def score_folds(self, configs: Sequence[IdentifierConfig]) -> Score:
         """The objective when fold f runs ``configs[f]`` (structure search: each fold's own selection)."""
@@ -523,6 +550,43 @@ class _Problem:
         for f, cfg in enumerate(configs):
             errors.append(self._fold_error(f, self._run(cfg, self.folds[f][1])))
         return self._combine(errors)
+
+    def score_folds_many(self, trials: Sequence[Sequence[IdentifierConfig]]) -> list[Score | TrialFailure]:
+        """:meth:`score_folds` of several trials (``trials[t][f]``: trial t's
+        config for fold f), each entry the Score or the TrialFailure
+        ``score_folds`` would raise (its first failing fold's). Per fold, the
+        trials' configs that share a structure run as populations of up to
+        RHONN_MAX_POPULATION members; the others alone."""
+        from .population import max_population, structure_key
+
+        n_folds = len(self.folds)
+        for t, configs in enumerate(trials):
+            if len(configs) != n_folds:
+                raise fail(f"trials[{t}]", f"expected one config per fold ({n_folds}), got {len(configs)}")
+        size = max_population(self.dtype)
+        errors: list[list[tuple[np.ndarray, np.ndarray] | TrialFailure | None]] = [
+            [None] * n_folds for _ in trials]
+        for f in range(n_folds):
+            groups: dict[tuple[Any, ...], list[int]] = {}
+            for t, configs in enumerate(trials):
+                groups.setdefault(structure_key(configs[f]), []).append(t)
+            for members in groups.values():
+                for start in range(0, len(members), size):
+                    chunk = members[start:start + size]
+                    runs = self._run_many([trials[t][f] for t in chunk], self.folds[f][1])
+                    for t, rows in zip(chunk, runs):
+                        if isinstance(rows, TrialFailure):
+                            errors[t][f] = rows
+                            continue
+                        try:
+                            errors[t][f] = self._fold_error(f, rows)
+                        except TrialFailure as exc:
+                            errors[t][f] = exc
+        outcomes: list[Score | TrialFailure] = []
+        for per_fold in errors:
+            failure = next((e for e in per_fold if isinstance(e, TrialFailure)), None)
+            outcomes.append(failure if failure is not None else self._combine(per_fold))  # type: ignore[arg-type]
+        return outcomes
 
 
 def held_out_score(config: IdentifierConfig, X: np.ndarray, U: np.ndarray, valid: np.ndarray | None = None,
@@ -1248,8 +1312,8 @@ def tune(
             study.sampler = optuna.samplers.TPESampler(seed=(seed + runs) % 2**32, multivariate=True,
                                                        n_startup_trials=n_startup_trials,
                                                        constant_liar=n_jobs > 1 or batch > 1 or loc is not None)
-        ran = _run_trials(study, claim, problem, config, space, selector, structure, n_trials, n_jobs,
-                          1 if selector is not None else batch, progress)
+        ran = _run_trials(study, claim, problem, config, space, selector, structure, n_trials, n_jobs, batch,
+                          progress)
     except (json.JSONDecodeError, _storage_errors()) as exc:  # a journal cut short, a database gone mid-run
         raise _unusable(loc, exc) from None
     finally:
@@ -1331,23 +1395,30 @@ def _run_trials(study: Any, claim: _Claim, problem: _Problem, config: Identifier
             trial.set_user_attr("folds", list(score.folds))
         return score.value
 
+    def selected(trial: Any) -> list[IdentifierConfig]:
+        """A structure trial's configs, one per fold (TrialFailure: the selection refused its settings)."""
+        trial.set_user_attr("worker", worker_name)
+        assert structure is not None and selector is not None
+        settings = {name: trial.suggest_int(name, lo, hi) for name, lo, hi in structure.dimensions()}
+        values = {d.name: trial.suggest_float(d.name, d.low, d.high, log=True) for d in space}
+        configs = [apply_factors(c, space, values) for c in selector.configs(settings)]
+        trial.set_user_attr("terms", [sum(len(nr.terms) for nr in c.neurons) for c in configs])
+        return configs
+
     def objective(trial: Any) -> float:
         if selector is None:
             score = problem.score(suggested(trial))
         else:
-            trial.set_user_attr("worker", worker_name)
-            assert structure is not None
-            settings = {name: trial.suggest_int(name, lo, hi) for name, lo, hi in structure.dimensions()}
-            values = {d.name: trial.suggest_float(d.name, d.low, d.high, log=True) for d in space}
-            configs = [apply_factors(c, space, values) for c in selector.configs(settings)]
-            trial.set_user_attr("terms", [sum(len(nr.terms) for nr in c.neurons) for c in configs])
-            score = problem.score_folds(configs)
+            score = problem.score_folds(selected(trial))
         return scored(trial, score)
 
-    def claim_trial() -> Any:
+    def claim_trial(fixed: Mapping[str, int] | None = None) -> Any:
+        """A new trial, or None when the study is full; ``fixed``: parameters it takes as given."""
         with claim:
             if stop.is_set() or len(study.get_trials(deepcopy=False)) >= n_trials:
                 return None
+            if fixed is not None:  # enqueued and asked under one claim: no other worker takes it
+                study.enqueue_trial(dict(fixed))
             return study.ask()
 
     def report(frozen: Any) -> None:
@@ -1368,20 +1439,53 @@ def _run_trials(study: Any, claim: _Claim, problem: _Problem, config: Identifier
         progress(f"trial {frozen.number} [{frozen.number + 1}/{n_trials}]: {what}; {best}")
 
     def batch_worker() -> None:
-        """Ask up to ``batch`` trials, score their configs in one population call, tell each."""
+        """Ask up to ``batch`` trials, score their configs in population calls, tell each.
+
+        In a structure search the trials after the first take the first's
+        selection settings (so each fold's configs share a structure); a first
+        trial whose selection is refused fails alone."""
         while not stop.is_set():
-            trials = []
-            for _ in range(batch):
-                trial = claim_trial()
-                if trial is None:
-                    break
-                trials.append(trial)
+            trials: list[Any] = []
+            prepared: list[Any] = []
+            failed: dict[int, TrialFailure] = {}
+            fixed: dict[str, int] | None = None
+            try:
+                while len(trials) < batch:
+                    trial = claim_trial(fixed)
+                    if trial is None:
+                        break
+                    trials.append(trial)
+                    if selector is None:
+                        prepared.append(suggested(trial))
+                        continue
+                    try:
+                        prepared.append(selected(trial))
+                    except TrialFailure as exc:
+                        failed[len(trials) - 1] = exc
+                        prepared.append(None)
+                        if fixed is None:
+                            break  # the drawn settings cannot be selected: not for the rest of a batch
+                        continue
+                    if fixed is None:
+                        assert structure is not None
+                        fixed = {name: int(trial.params[name]) for name, _, _ in structure.dimensions()}
+            except BaseException:
+                stop.set()
+                for trial in trials:
+                    study.tell(trial, state=TrialState.FAIL)
+                raise
             if not trials:
                 return
             told: list[Any] = []  # the trials told so far, in order: on an error the rest fail
             try:
-                outcomes = problem.score_many([suggested(trial) for trial in trials])
-                for trial, outcome in zip(trials, outcomes):
+                runnable = [k for k in range(len(trials)) if k not in failed]
+                if selector is None:
+                    scores = problem.score_many([prepared[k] for k in runnable])
+                else:
+                    scores = problem.score_folds_many([prepared[k] for k in runnable])
+                outcomes: dict[int, Score | TrialFailure] = {**failed, **dict(zip(runnable, scores))}
+                for k, trial in enumerate(trials):
+                    outcome = outcomes[k]
                     if isinstance(outcome, TrialFailure):
                         trial.set_user_attr("failure", str(outcome))
                         told.append(study.tell(trial, state=TrialState.PRUNED))

@@ -65,3 +65,20 @@ def cli_error(capsys):
         return err
 
     return run
+
+
+@pytest.fixture
+def population_calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The member count of every ``run_identifiers_outcomes`` call made
+    during the test (the calls the tuning searches make into the core)."""
+    import pyrhonn.population as population
+
+    calls: list[int] = []
+    real = population.run_identifiers_outcomes
+
+    def counted(identifiers, *args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(len(identifiers))
+        return real(identifiers, *args, **kwargs)
+
+    monkeypatch.setattr(population, "run_identifiers_outcomes", counted)
+    return calls

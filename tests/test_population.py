@@ -12,7 +12,7 @@ import pytest
 from pyrhonn import Activation, Identifier, IdentifierConfig, IdentifierError
 from pyrhonn.config import CovarianceForm
 from pyrhonn.configfile import load_shipped
-from pyrhonn.population import max_population, run_identifiers, run_population
+from pyrhonn.population import max_population, run_identifiers, run_population, structure_key
 
 DTYPES = ("float64", "float32")
 
@@ -163,6 +163,31 @@ def test_structures_that_differ_are_refused_naming_the_config_and_field() -> Non
         run_population([base, ex1], X, U, valid)
     with pytest.raises(ValueError, match=r"^configs\[1\]\.dtype: 'float64' differs from configs\[0\]\.dtype 'float32'"):
         run_population([base, base.replace(dtype="float64")], X, U, valid)
+
+
+def test_structure_key_is_equal_exactly_for_configs_one_population_runs() -> None:
+    base = load_shipped("firmware-lim").config
+    X, U, valid = trajectory(base, T=20)
+    tuned = base.replace(neurons=tuple(replace(nr, eta=0.5, r=nr.r * 3.0, beta=2.0) for nr in base.neurons))
+    variants = [
+        tuned,
+        base.replace(neurons=base.neurons[:3] + (replace(base.neurons[3], terms=base.neurons[2].terms),)
+                     + base.neurons[4:]),
+        base.replace(neurons=(replace(base.neurons[0], covariance=CovarianceForm.FULL),) + base.neurons[1:]),
+        base.replace(neurons=base.neurons[:1] + (replace(base.neurons[1], activation=Activation.BIPOLAR),)
+                     + base.neurons[2:]),
+        base.replace(dtype="float64"),
+    ]
+    for other in variants:
+        try:
+            run_population([base, other], X, U, valid)
+            runs = True
+        except ValueError:
+            runs = False
+        assert (structure_key(other) == structure_key(base)) == runs
+    assert structure_key(tuned) == structure_key(base) and hash(structure_key(base)) == hash(structure_key(tuned))
+    with pytest.raises(ValueError, match=r"^config: expected an IdentifierConfig, got dict"):
+        structure_key({})  # type: ignore[arg-type]
 
 
 def test_bad_arguments_are_refused_naming_them() -> None:

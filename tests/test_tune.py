@@ -352,17 +352,8 @@ def test_the_tuned_config_is_written_with_the_usual_file_mode(tmp_path: Path,
 
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
 def test_batched_trials_score_exactly_as_each_alone_and_count_the_failing_ones(
-        traj: Trajectory, base: IdentifierConfig, dtype: str, monkeypatch: pytest.MonkeyPatch) -> None:
-    import pyrhonn.population as population
-
-    calls: list[int] = []
-    real = population.run_identifiers_outcomes
-
-    def counted(identifiers, *args, **kwargs):  # type: ignore[no-untyped-def]
-        calls.append(len(identifiers))
-        return real(identifiers, *args, **kwargs)
-
-    monkeypatch.setattr(population, "run_identifiers_outcomes", counted)
+        traj: Trajectory, base: IdentifierConfig, dtype: str, population_calls: list[int]) -> None:
+    calls = population_calls
     noisy = traj.remeasure(corruption=Corruption(dropout=0.1, seed=5))
     cfg = base.replace(dtype=dtype)
     # wide ranges: some trials diverge (eta >> 1, P0 beyond ~1e30) or, in float32, are refused (P0
@@ -372,7 +363,9 @@ def test_batched_trials_score_exactly_as_each_alone_and_count_the_failing_ones(
                          n_startup_trials=16)
     assert result.counts.total == 16 and result.new_trials == 16
     assert result.counts.failed > 0 and result.counts.complete > 0
-    assert len(calls) == 4 and max(calls) >= 2  # one core call per batch of 4 (a refused config is not run)
+    # one population call per batch of 4 whose configs the core accepts, two or more of them (a refused config
+    # is not run, and a lone runnable one runs as Identifier.run)
+    assert 1 <= len(calls) <= 4 and min(calls) >= 2
     space = tuning.search_space(cfg, ranges=ranges)
     for entry in result.top:
         alone = tuning.held_out_score(tuning.apply_values(cfg, space, entry["values"]), noisy.X_meas, noisy.U,
@@ -380,14 +373,13 @@ def test_batched_trials_score_exactly_as_each_alone_and_count_the_failing_ones(
         assert entry["objective"] == alone.value  # bit for bit: the population runs each member as alone
 
 
-def test_batch_is_refused_beyond_the_population_size_and_with_structure_search(
+def test_batch_is_refused_beyond_the_population_size(
         traj: Trajectory, base: IdentifierConfig, capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     from pyrhonn.population import max_population
 
     with pytest.raises(ValueError, match=r"batch: .* out of range 1\.\.8"):
         tuning.tune(base, traj.X_meas, traj.U, n_trials=1, batch=max_population() + 1)
-    for args, message in ((["--batch", "9"], "--batch: at most 8"), (["--batch", "0"], "--batch"),
-                          (["--batch", "2", "--structure"], "--batch: not with --structure")):
+    for args, message in ((["--batch", "9"], "--batch: at most 8"), (["--batch", "0"], "--batch")):
         code, _, err = run_cli(["--example", "example1", "--config", "example1", "--out",
                                 str(tmp_path / "t.toml"), "--trials", "2", *args], capsys)
         assert code == 2 and message in err and "Traceback" not in err, err

@@ -7,6 +7,7 @@ import os
 import re
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -136,11 +137,13 @@ def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, s
     return code, out, err
 
 
-def test_cli_structure_search_writes_a_loadable_config(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.mark.parametrize("batch", ["1", "3"])
+def test_cli_structure_search_writes_a_loadable_config(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                       batch: str) -> None:
     out = tmp_path / "s.toml"
     code, stdout, stderr = run_cli(["--example", "example1", "--horizon", "60", "--config", "example1", "--out",
                                     str(out), "--trials", "6", "--structure", "--max-delay", "0:4", "--degree", "1",
-                                    "--folds", "2"], capsys)
+                                    "--folds", "2", "--batch", batch], capsys)
     assert code == 0, stderr
     assert "score per fold: " in stdout and "2 folds, fold f learning from sample 0" in stdout
     cf = load_config(out)
@@ -181,3 +184,74 @@ def test_cli_bad_options_exit_2_naming_the_option(tmp_path: Path, monkeypatch: p
     lines = stderr.strip().splitlines()
     assert lines[-1].startswith("pyrhonn tune: error: ") and message in lines[-1], stderr
     assert not Path("t.toml").exists()
+
+
+# -- batched structure trials ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_batched_structure_trials_share_their_settings_and_score_exactly_as_alone(
+        traj: Trajectory, base: IdentifierConfig, dtype: str, population_calls: list[int]) -> None:
+    calls = population_calls
+    cfg = base.replace(dtype=dtype)
+    search = tuning.StructureSearch(max_delay=(0, 6), degree=(1, 2), max_terms=(2, 10))
+    # wide factor ranges: some tunings of a structure diverge and must fail alone, not take their batch along
+    ranges = {"p0": (1e-3, 1e12), "eta": (0.5, 40.0)}
+    r = tuning.tune(cfg, traj.X_meas, traj.U, traj.valid, truth=traj.X, structure=search, folds=2, n_trials=12,
+                    batch=4, seed=3, ranges=ranges, n_startup_trials=12)
+    assert r.counts.total == 12 and r.new_trials == 12 and r.counts.complete > 0 and r.top
+    problem = tuning._Problem(cfg, traj.X_meas, traj.U, traj.valid, traj.X, tuning.DEFAULT_TRAIN_FRACTION, 2)
+    selector = tuning._Selector(problem, search)
+    for entry in r.top:
+        settings = {name: int(entry["values"][name]) for name in tuning.STRUCTURE_SETTINGS}
+        configs = [tuning.apply_factors(c, r.space, entry["values"]) for c in selector.configs(settings)]
+        assert problem.score_folds(configs).value == entry["objective"]  # bit for bit what the trial ran alone
+    assert calls and max(calls) >= 2 and all(c <= 4 for c in calls)
+    assert len(calls) <= 2 * 3  # at most one population call per fold and batch
+
+
+def test_a_batch_of_structure_trials_keeps_the_first_trials_settings(
+        traj: Trajectory, base: IdentifierConfig, tmp_path: Path) -> None:
+    import optuna
+
+    search = tuning.StructureSearch(max_delay=(0, 6), degree=(1, 2), max_terms=(2, 10))
+    study = tmp_path / "s.log"
+    r = tuning.tune(base, traj.X_meas, traj.U, traj.valid, truth=traj.X, structure=search, n_trials=9, batch=3,
+                    seed=0, study_path=study)
+    assert r.counts.total == 9
+    storage = tuning._open_storage(tuning.check_study(study))
+    trials = optuna.load_study(study_name=tuning.STUDY_NAME, storage=storage).get_trials()
+    assert len(trials) == 9
+    batches = [trials[b:b + 3] for b in range(0, 9, 3)]
+    for batch in batches:
+        first = {name: batch[0].params.get(name) for name in tuning.STRUCTURE_SETTINGS}
+        for t in batch[1:]:
+            assert {name: t.params.get(name) for name in tuning.STRUCTURE_SETTINGS} == first
+        assert len({tuple(sorted((k, v) for k, v in t.params.items() if k not in first)) for t in batch}) == 3
+    assert len({tuple(b[0].params[name] for name in tuning.STRUCTURE_SETTINGS) for b in batches}) > 1
+
+
+def test_score_folds_many_groups_trials_by_structure_and_matches_each_alone(
+        traj: Trajectory, base: IdentifierConfig) -> None:
+    problem = tuning._Problem(base, traj.X_meas, traj.U, traj.valid, traj.X, 0.6, 2)
+    a = IdentifierConfig.uniform(terms.first_order(4, 1), n_states=4, n_inputs=1, p0=1e4, q=1e2, r=1e4)
+    b = base
+    tunings = [a, a.replace(neurons=tuple(replace(nr, eta=0.5) for nr in a.neurons)), b,
+               b.replace(neurons=tuple(replace(nr, p0=nr.p0_matrix() * 10.0) for nr in b.neurons)),
+               a.replace(neurons=tuple(replace(nr, eta=60.0, p0=1e12) for nr in a.neurons))]  # diverges
+    trials = [[tunings[0], tunings[2]], [tunings[1], tunings[3]], [tunings[2], tunings[0]], [tunings[4], tunings[4]],
+              [tunings[3], tunings[1]]]
+    got = problem.score_folds_many(trials)
+    for configs, outcome in zip(trials, got):
+        try:
+            alone: object = problem.score_folds(configs)
+        except tuning.TrialFailure as exc:
+            alone = exc
+        if isinstance(alone, tuning.TrialFailure):
+            assert isinstance(outcome, tuning.TrialFailure) and str(outcome) == str(alone)
+        else:
+            assert isinstance(outcome, tuning.Score) and outcome.value == alone.value  # type: ignore[attr-defined]
+            np.testing.assert_array_equal(outcome.rmse, alone.rmse)  # type: ignore[attr-defined]
+    assert any(isinstance(o, tuning.TrialFailure) for o in got)
+    with pytest.raises(ValueError, match=r"^trials\[1\]: expected one config per fold \(2\), got 1"):
+        problem.score_folds_many([[a, a], [a]])

@@ -38,7 +38,8 @@ same command again with a larger N resumes. ``--batch B`` runs B trials per call
 C core, laid out across B identifiers of the same structure
 (:func:`pyrhonn.population.run_identifiers_outcomes`): each score is exactly
 the trial's own, the throughput higher (TPE then proposes B trials at a
-time, as with ``--n-jobs B``). ``--per-neuron`` searches one value per
+time, as with ``--n-jobs B``; with ``--structure`` the B trials of a call
+share the selection settings the first of them drew, and tune them B ways). ``--per-neuron`` searches one value per
 neuron instead of one shared value; ``--params`` limits the searched
 parameters; ``--range NAME=LOW:HIGH`` (repeatable) replaces a default range.
 
@@ -100,7 +101,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--n-jobs", metavar="J", default="1", help="trials run in parallel threads (default 1)")
     p.add_argument("--batch", metavar="B", default="1",
                    help="trials per call of the C core, run across B identifiers at once (1..8, default 1; "
-                        "not with --structure)")
+                        "with --structure the B trials share the selection settings the first drew)")
     p.add_argument("--study", metavar="FILE|URL",
                    help="optuna study to create, resume or share: a .log (optuna journal file, fast) or .db "
                         "(SQLite) file, or a database URL that workers on several machines share: "
@@ -300,8 +301,6 @@ def _parse(args: argparse.Namespace) -> Options:
     batch = _int("--batch", args.batch, 1)
     if batch > max_population():
         raise ValueError(f"--batch: at most {max_population()} (RHONN_MAX_POPULATION), got {batch}")
-    if batch > 1 and args.structure:
-        raise ValueError("--batch: not with --structure (each trial selects its own terms, so its own structure)")
     seed = _int("--seed", args.seed, 0)
     if seed >= 2**32:
         raise ValueError(f"--seed: must be < 2**32, got {seed}")
