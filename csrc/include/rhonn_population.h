@@ -113,6 +113,12 @@ typedef struct {
     uint8_t zb;                                   /* which z bank holds z(k-1) */
     uint8_t wb;                                   /* which w bank is committed */
     uint8_t pb[RHONN_MAX_STATES];                 /* which P bank of neuron i is committed */
+    /* The samples of the last steps in which every member read the same
+     * one: a member other than the step's lead gets them into its history
+     * ring only before the ring is read or the member handed back. */
+    rhonn_real ring[RHONN_HISTORY_LEN][RHONN_SAMPLE_LEN];
+    uint8_t ring_last;                            /* the row of ring holding the newest */
+    uint8_t owed[RHONN_MAX_POPULATION];           /* newest of them member m's ring lacks */
 } rhonn_population_work;
 
 /* Run the N members nets[0..N) (each set up by rhonn_init, all of the same

@@ -1725,13 +1725,32 @@ RHONN_INLINE size_t value_index(const rhonn_t *net, size_t i, size_t t, size_t f
     return net->term_entry[i][t][f];
 }
 
-/* The history part of the commit. The ring is only kept when a tap reads
- * it; valid_run counts the samples in a row in which x_j was measured. */
+/* The commit's count of the sample: the head advanced, valid_run (the
+ * samples in a row in which x_j was measured) counted. All of the commit
+ * for a population member whose ring is owed the sample
+ * (rhonn_internal_commit_runs). */
+static void commit_runs(rhonn_t *net, const uint8_t *valid)
+{
+    const size_t n = CFG(net)->n_states;
+    /* the first sample starts every run full: there is nothing older */
+    const uint8_t first = net->started ? 0u : 0xFFu;
+    size_t j;
+    RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
+    net->head = (uint8_t)((net->head + 1u) % (unsigned)RHONN_HISTORY_LEN);
+    RHONN_NEURON_LOOP
+    for (j = 0; j < n; ++j) {
+        const uint8_t run = net->valid_run[j];
+        const uint8_t next = (uint8_t)((uint8_t)(run + (run < 0xFFu)) | first);
+        net->valid_run[j] = (valid == NULL || valid[j] != 0u) ? next : 0u;
+    }
+}
+
+/* The history part of the commit: cur into the ring, which is only kept
+ * when a tap reads it, then the count. */
 static void commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *valid)
 {
     const size_t n = CFG(net)->n_states, m = CFG(net)->n_inputs, groups = net->n_groups;
     const uint8_t next_head = (uint8_t)((net->head + 1u) % (unsigned)RHONN_HISTORY_LEN);
-    size_t j;
     RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
     if (net->max_delay > 0u) {
         size_t h;
@@ -1742,17 +1761,7 @@ static void commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *va
             store_sample(net->hist[h], cur, n, groups, m);
         }
     }
-    net->head = next_head;
-    {
-        /* the first sample starts every run full: there is nothing older */
-        const uint8_t first = net->started ? 0u : 0xFFu;
-        RHONN_NEURON_LOOP
-        for (j = 0; j < n; ++j) {
-            const uint8_t run = net->valid_run[j];
-            const uint8_t next = (uint8_t)((uint8_t)(run + (run < 0xFFu)) | first);
-            net->valid_run[j] = (valid == NULL || valid[j] != 0u) ? next : 0u;
-        }
-    }
+    commit_runs(net, valid);
 }
 
 /* What step 1 did per neuron, for the commit. */
@@ -1931,6 +1940,16 @@ void rhonn_internal_features(const rhonn_t *net, const rhonn_real *x, const rhon
 void rhonn_internal_commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *valid)
 {
     commit_sample(net, cur, valid);
+}
+
+void rhonn_internal_commit_runs(rhonn_t *net, const uint8_t *valid)
+{
+    commit_runs(net, valid);
+}
+
+void rhonn_internal_store_sample(rhonn_t *net, size_t slot, const rhonn_real *cur)
+{
+    store_sample(net->hist[slot], cur, CFG(net)->n_states, net->n_groups, CFG(net)->n_inputs);
 }
 
 rhonn_status rhonn_internal_ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,

@@ -154,6 +154,15 @@ void rhonn_internal_features(const rhonn_t *net, const rhonn_real *x, const rhon
  * runs before started is set. */
 void rhonn_internal_commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *valid);
 
+/* rhonn_internal_commit_sample without storing the sample: the head
+ * advanced and the valid runs counted, for a started net. The caller owes
+ * the ring that sample at slot net->head (rhonn_internal_store_sample)
+ * before anything reads the history. */
+void rhonn_internal_commit_runs(rhonn_t *net, const uint8_t *valid);
+
+/* The sample part of cur (RHONN_SAMPLE_LEN layout) into ring slot slot. */
+void rhonn_internal_store_sample(rhonn_t *net, size_t slot, const rhonn_real *cur);
+
 /* One neuron's learning update into its inactive bank (eq. 7-9), as step 1
  * runs it: sets net->fault_neuron on failure, touches no health counter. */
 rhonn_status rhonn_internal_ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,

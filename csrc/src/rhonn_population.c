@@ -848,16 +848,25 @@ POP_ALWAYS_INLINE void full_kernel_body(rhonn_population_work *wk, size_t i, siz
     verdicts(wk, Pn, packed, out_s, tmp, out_wsum, out_ok, NULL);
 }
 
+/* body(wk, i, L) compiled once per size up to 8 terms (a constant L, its
+ * loops unrolled), the same operations in the same order as the runtime-L
+ * copy that runs larger neurons. */
+#define POP_BY_SIZE(body, wk, i, L)                                                                                  \
+    switch (L) {                                                                                                     \
+    case 1: body(wk, i, 1); return;                                                                                  \
+    case 2: body(wk, i, 2); return;                                                                                  \
+    case 3: body(wk, i, 3); return;                                                                                  \
+    case 4: body(wk, i, 4); return;                                                                                  \
+    case 5: body(wk, i, 5); return;                                                                                  \
+    case 6: body(wk, i, 6); return;                                                                                  \
+    case 7: body(wk, i, 7); return;                                                                                  \
+    case 8: body(wk, i, 8); return;                                                                                  \
+    default: body(wk, i, L);                                                                                         \
+    }
+
 POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L)
 {
-    switch (L) {
-#define POP_FULL_CASE(n) case n: full_kernel_body(wk, i, n); return;
-    POP_FULL_CASE(1) POP_FULL_CASE(2) POP_FULL_CASE(3) POP_FULL_CASE(4)
-    POP_FULL_CASE(5) POP_FULL_CASE(6) POP_FULL_CASE(7) POP_FULL_CASE(8)
-#undef POP_FULL_CASE
-    default:
-        full_kernel_body(wk, i, L);
-    }
+    POP_BY_SIZE(full_kernel_body, wk, i, L)
 }
 
 /* The U D U^T form (rhonn.c ekf_ud), every member at once, operation for
@@ -865,7 +874,7 @@ POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L
  * a_j = a_{j-1} + f_j v_j, d_j a_{j-1} / a_j, U(k,j) + (-f_j / a_{j-1}) b_k,
  * the gain b / s; then D / lambda and + Q by Agee and Turner's rank-one
  * updates P + q_J e_J e_J^T. */
-POP_CLONES static void ud_kernel(rhonn_population_work *wk, size_t i, size_t L)
+POP_ALWAYS_INLINE void ud_kernel_body(rhonn_population_work *wk, size_t i, size_t L)
 {
     const rhonn_real *F = &wk->p[wk->pb[i]][i][0][0];
     rhonn_real *Fn = &wk->p[wk->pb[i] ^ 1u][i][0][0];
@@ -887,24 +896,29 @@ POP_CLONES static void ud_kernel(rhonn_population_work *wk, size_t i, size_t L)
     const size_t packed = L * (L + 1u) / 2u;
 
     rs[0] = 0;
+    POP_UNROLL
     for (j = 0; j + 1u < L; ++j) {
         rs[j + 1u] = rs[j] + (L - j);
     }
     /* f = U^T z (U unit upper triangular), v = D f */
+    POP_UNROLL
     for (j = 0; j < L; ++j) {
         V(f, j) = VC(z, j);
     }
+    POP_UNROLL
     for (k = 0; k < L; ++k) {
         for (j = k + 1u; j < L; ++j) {
             V(f, j) += VC(F, rs[k] + (j - k)) * VC(z, k);
         }
     }
+    POP_UNROLL
     for (j = 0; j < L; ++j) {
         V(v, j) = VC(F, rs[j]) * V(f, j);
     }
     /* Bierman's update, column by column; wu receives U~ with a unit diagonal */
     alpha = rr;
     inv_prev = zero;
+    POP_UNROLL
     for (j = 0; j < L; ++j) {
         const lanev lam = -V(f, j) * inv_prev;
         const lanev alpha_new = alpha + V(f, j) * V(v, j);
@@ -934,6 +948,7 @@ POP_CLONES static void ud_kernel(rhonn_population_work *wk, size_t i, size_t L)
      * skips them for a neuron whose Q is all zero: here they run unless
      * every member's Q is zero, and a member with a zero Q gets the
      * measurement's factors back afterwards. */
+    POP_UNROLL
     for (j = 0; j < L; ++j) {
         V(Fn, rs[j]) = V(dt, j);
         for (k = 0; k < j; ++k) {
@@ -950,6 +965,7 @@ POP_CLONES static void ud_kernel(rhonn_population_work *wk, size_t i, size_t L)
     }
     if (any_q) {
         size_t J;
+        POP_UNROLL
         for (J = 0; J < L; ++J) {
             lanev cw = VC(q, J), dj = V(Fn, rs[J]), dn = dj + cw, inv_dn = one / dn, bj, ratio = dj * inv_dn;
             cw = cw * ratio;
@@ -1017,12 +1033,18 @@ POP_CLONES static void ud_kernel(rhonn_population_work *wk, size_t i, size_t L)
         }
     }
     fsum = zero;
+    POP_UNROLL
     for (c = 0; c < packed; ++c) {
         fsum += V(Fn, c) - V(Fn, c);
     }
     V(out_s, 0) = alpha;
     V(out_fsum, 0) = fsum;
     verdicts(wk, Fn, packed, out_s, wk->r[i], out_wsum, out_ok, out_fsum);
+}
+
+POP_CLONES static void ud_kernel(rhonn_population_work *wk, size_t i, size_t L)
+{
+    POP_BY_SIZE(ud_kernel_body, wk, i, L)
 }
 
 #endif
@@ -1155,11 +1177,13 @@ static void load_lane(rhonn_population_work *wk, const rhonn_t *net, size_t m)
     }
 }
 
+static void pay_ring(rhonn_population_work *wk, rhonn_t *net, size_t m);
+
 /* Lane m's committed state back into its member: the weights and the
  * stored covariance (P or its factors) into the committed banks, z(k-1)
- * into net's z bank. The members' health, history, prediction and banks
- * are kept in net as the run goes. */
-static void store_lane(const rhonn_population_work *wk, rhonn_t *net, size_t m)
+ * into net's z bank, the samples its history ring is owed. The members'
+ * health, prediction and banks are kept in net as the run goes. */
+static void store_lane(rhonn_population_work *wk, rhonn_t *net, size_t m)
 {
     const rhonn_config *cfg = CFG(net);
     size_t i, t;
@@ -1176,6 +1200,7 @@ static void store_lane(const rhonn_population_work *wk, rhonn_t *net, size_t m)
         net->cert[i][b] = cfg->neurons[i].covariance == (uint8_t)RHONN_COV_UD ? 0u : wk->cert[i][m];
         net->cert[i][b ^ 1u] = 0;
     }
+    pay_ring(wk, net, m);
 }
 
 /* Does member b's structure equal member a's? RHONN_E_CONFIG with *where
@@ -1262,6 +1287,19 @@ static void keep_sample(rhonn_population_work *wk, size_t m)
     for (j = 0; j < (size_t)RHONN_SAMPLE_LEN; ++j) {
         wk->cur[m][j] = wk->val[j];
     }
+}
+
+/* Member m's history ring brought up to date: the shared samples it was
+ * owed, oldest first, into the slots its head passed (when more than the
+ * ring holds were owed, the older ones would have been overwritten). */
+static void pay_ring(rhonn_population_work *wk, rhonn_t *net, size_t m)
+{
+    const size_t len = (size_t)RHONN_HISTORY_LEN;
+    size_t s;
+    for (s = wk->owed[m]; s-- > 0u;) {
+        rhonn_internal_store_sample(net, ((size_t)net->head + len - s) % len, wk->ring[((size_t)wk->ring_last + len - s) % len]);
+    }
+    wk->owed[m] = 0;
 }
 
 /* Term t of neuron i from the step's values: rhonn.c step 4's product,
@@ -1358,8 +1396,10 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
     for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
         wk->pb[i] = 0;
     }
+    wk->ring_last = 0;
     for (m = 0; m < NPOP; ++m) {
         load_lane(wk, nets[m < N ? m : 0u], m);
+        wk->owed[m] = 0;
         alive[m] = (uint8_t)(m < N);
         st[m] = RHONN_OK;
         ran[m] = 0;
@@ -1375,7 +1415,9 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         const size_t zb_new = wk->zb ^ 1u;
         int all_valid = 1, any_alive = 0, all_fresh = 1, all_started = 1, shared;
         uint8_t moved[RHONN_MAX_STATES]; /* some member updated neuron i */
+        uint8_t ready[RHONN_MAX_POPULATION];
         size_t lead = NPOP;
+        int owing = 0; /* some member is owed this step's sample (see pay_ring) */
 
         for (m = 0; m < N; ++m) {
             fail[m] = 0;
@@ -1402,15 +1444,21 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
             }
         }
 
+        /* Which members learn at all this step (a member that fails at a
+         * neuron drops out of the later ones: ready is cleared with fail). */
+        for (m = 0; m < NPOP; ++m) {
+            ready[m] = (uint8_t)(m < N && alive[m] && nets[m]->started && nets[m]->learning);
+        }
+
         /* 1. Learn, neuron by neuron (rhonn.c step 1). */
         for (i = 0; i < n; ++i) {
             const int ud = is_ud(nets[0], i);
+            const int measured = v == NULL || v[i] != 0u;
             int any_learn = 0;
+            uint8_t moved_i = 0;
             L = CFG(nets[0])->neurons[i].n_terms;
             for (m = 0; m < NPOP; ++m) {
-                const rhonn_t *net = nets[m < N ? m : 0u];
-                wk->learn[i][m] = (uint8_t)(m < N && alive[m] && !fail[m] && net->started && net->learning &&
-                                            (v == NULL || v[i] != 0u) && net->valid_run[i] >= net->own_need[i]);
+                wk->learn[i][m] = (uint8_t)(ready[m] && measured && nets[m]->valid_run[i] >= nets[m]->own_need[i]);
                 wk->updated[i][m] = 0;
                 wk->bounded[i][m] = 0;
                 wk->recovered[i][m] = 0;
@@ -1438,22 +1486,22 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                 }
                 wk->updated[i][m] = 1;
                 if (wk->kstatus[m] == (uint8_t)RHONN_OK) {
+                    moved_i = 1;
                     continue;
                 }
                 /* a refused update: rhonn.c's bookkeeping and recovery */
                 net->fault_neuron = (uint8_t)i;
                 if (!rhonn_internal_count_refusal(net, i)) {
                     fail[m] = 1;
+                    ready[m] = 0;
                     st[m] = (rhonn_status)wk->kstatus[m];
                     wk->updated[i][m] = 0;
                     continue;
                 }
                 recover_lane(wk, net, i, i, m);
+                moved_i = 1;
             }
-            moved[i] = 0;
-            for (m = 0; m < N; ++m) {
-                moved[i] |= wk->updated[i][m];
-            }
+            moved[i] = moved_i;
         }
 
         /* 2-4. The regressor z(k): once for all when it must be the same
@@ -1467,12 +1515,14 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         }
         shared = shareable && all_valid && lead < NPOP && (all_fresh || (all_started && agree >= maxd));
         if (shared) {
+            pay_ring(wk, nets[lead], lead); /* a new lead (the one before stopped) */
             rhonn_internal_features(nets[lead], x, u, v, wk->val);
             keep_sample(wk, 0);
             lane_regressor(wk, nets[lead], wk->val, zb_new, 0, 1);
         } else {
             for (m = 0; m < N; ++m) {
                 if (alive[m] && !fail[m]) {
+                    pay_ring(wk, nets[m], m);
                     rhonn_internal_features(nets[m], x, u, v, wk->val);
                     keep_sample(wk, m);
                     lane_regressor(wk, nets[m], wk->val, zb_new, m, 0);
@@ -1501,7 +1551,15 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                 store_lane(wk, net, m);
                 continue;
             }
-            rhonn_internal_commit_sample(net, wk->cur[shared ? 0u : m], v);
+            if (shared && m != lead && net->started && maxd > 0u) {
+                /* the lead's ring holds this sample; the others are owed it */
+                rhonn_internal_commit_runs(net, v);
+                wk->owed[m] = (uint8_t)(wk->owed[m] < (uint8_t)RHONN_HISTORY_LEN ? wk->owed[m] + 1u
+                                                                               : (uint8_t)RHONN_HISTORY_LEN);
+                owing = 1;
+            } else {
+                rhonn_internal_commit_sample(net, wk->cur[shared ? 0u : m], v);
+            }
             for (i = 0; i < n; ++i) {
                 const size_t Li = CFG(net)->neurons[i].n_terms;
                 if (wk->recovered[i][m]) {
@@ -1536,6 +1594,12 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
             net->started = 1;
             net->steps += 1u;
             ran[m] = k + 1u;
+        }
+        if (owing) {
+            wk->ring_last = (uint8_t)((wk->ring_last + 1u) % (unsigned)RHONN_HISTORY_LEN);
+            for (t = 0; t < (size_t)RHONN_SAMPLE_LEN; ++t) {
+                wk->ring[wk->ring_last][t] = wk->cur[0][t];
+            }
         }
         /* every member's candidates are now its committed values (a member
          * that stopped was stored above, from the banks before the flip) */

@@ -153,7 +153,8 @@ static int same_state(rhonn_t *a, rhonn_t *b, const rhonn_real *x, const rhonn_r
     const size_t n = a->cfg.n_states;
     int same = memcmp(a->xhat, b->xhat, sizeof a->xhat) == 0 && a->steps == b->steps &&
                a->fault_neuron == b->fault_neuron && a->started == b->started && a->head == b->head &&
-               memcmp(a->valid_run, b->valid_run, sizeof a->valid_run) == 0;
+               memcmp(a->valid_run, b->valid_run, sizeof a->valid_run) == 0 &&
+               memcmp(a->hist, b->hist, sizeof a->hist) == 0;
     for (i = 0; i < n; ++i) {
         const size_t L = a->cfg.neurons[i].n_terms, P = L * (L + 1u) / 2u;
         same &= rhonn_get_weights(a, i, va, L) == RHONN_OK && rhonn_get_weights(b, i, vb, L) == RHONN_OK &&
@@ -325,6 +326,24 @@ static void refused_updates_stop_or_reset_a_member_as_alone(void)
         resets += h.resets;
     }
     CHECK(resets > 0u); /* the scenario does reach the refusals it is about */
+}
+
+/* The member whose sample the shared regressor reads (the lowest-indexed
+ * running one) stops mid-run: the next takes over, its history ring whole
+ * though the run kept only the first member's up to date (delayed taps
+ * read it from then on). */
+static void a_stopping_first_member_hands_the_shared_regressor_on(void)
+{
+    rhonn_config cfg[MAXN];
+    size_t m, i;
+    for (m = 0; m < 4; ++m) {
+        cfg[m] = lim_config((unsigned)m, 1, 0);
+    }
+    for (i = 0; i < 6; ++i) { /* P grows a step until an update is refused, which stops it */
+        cfg[0].neurons[i].forgetting = (rhonn_real)0.5; /* stops after 47 (float: 18) samples */
+    }
+    CHECK(compare(cfg, 4, NULL, 0) == 1u);
+    CHECK(alone[0].steps > 3u && alone[0].steps < POP_T / 2u); /* past the deepest tap (2), long before the end */
 }
 
 /* A member whose prediction overflows stops there (E_DIVERGED); the others
@@ -763,6 +782,7 @@ int main(void)
     RUN(members_continue_from_their_own_state);
     RUN(forgetting_ceiling_and_resets_equal_single_runs);
     RUN(refused_updates_stop_or_reset_a_member_as_alone);
+    RUN(a_stopping_first_member_hands_the_shared_regressor_on);
     RUN(a_diverging_member_stops_and_the_others_go_on);
     RUN(arguments_and_structures_are_checked);
     RUN(lanes_prove_as_the_scalar_proof);
