@@ -75,7 +75,9 @@ test-c-sanitize:
 # (csrc/fuzz/fuzz_core.c), float and double: a committed covariance that is not
 # positive definite, an update with s < R or a refused call that changed the
 # filter fails the run. Then rhonn_run_wide against rhonn_run
-# (csrc/fuzz/fuzz_wide.c), float and double: any difference fails the run.
+# (csrc/fuzz/fuzz_wide.c), and each member of rhonn_run_population against
+# its own rhonn_run (csrc/fuzz/fuzz_population.c), float and double: any
+# difference fails the run.
 CLANG ?= clang-14
 FUZZ_SECONDS ?= 45
 FUZZ_UDP_SECONDS ?= 20
@@ -83,6 +85,7 @@ FUZZ_UDP_SECONDS ?= 20
 FUZZ_CORE_SECONDS ?= 30
 # one identifier's neurons side by side against rhonn_run, per precision
 FUZZ_WIDE_SECONDS ?= 20
+FUZZ_POP_SECONDS ?= 20
 FW_FLAGS = -std=c99 -ffp-contract=off -DRHONN_SINGLE -Icsrc/include -Ifirmware_sim/app \
 	-Ifirmware_sim/generated -Ifirmware_sim/config
 FW_SOURCES = firmware_sim/app/fw_app.c firmware_sim/app/fw_protocol.c firmware_sim/app/fw_hal_mem.c \
@@ -125,6 +128,15 @@ test-fuzz:
 	  $(BUILD)/fuzz/fuzz_wide_$$prec -max_total_time=$(FUZZ_WIDE_SECONDS) -print_final_stats=1 \
 	    -artifact_prefix=$(BUILD)/fuzz/wide-$$prec- $(BUILD)/fuzz/wide-$$prec-corpus > $(BUILD)/fuzz/wide-$$prec-log 2>&1; \
 	  rc=$$?; tail -n 4 $(BUILD)/fuzz/wide-$$prec-log; [ $$rc -eq 0 ] || exit $$rc; \
+	done
+	for prec in f32 f64; do \
+	  mkdir -p $(BUILD)/fuzz/pop-$$prec-corpus && \
+	  $(CLANG) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -std=c99 -ffp-contract=off \
+	    $$( [ $$prec = f32 ] && echo -DRHONN_SINGLE ) -Icsrc/include csrc/fuzz/fuzz_population.c csrc/src/rhonn.c \
+	    csrc/src/rhonn_population.c -o $(BUILD)/fuzz/fuzz_population_$$prec && \
+	  $(BUILD)/fuzz/fuzz_population_$$prec -max_total_time=$(FUZZ_POP_SECONDS) -print_final_stats=1 \
+	    -artifact_prefix=$(BUILD)/fuzz/pop-$$prec- $(BUILD)/fuzz/pop-$$prec-corpus > $(BUILD)/fuzz/pop-$$prec-log 2>&1; \
+	  rc=$$?; tail -n 4 $(BUILD)/fuzz/pop-$$prec-log; [ $$rc -eq 0 ] || exit $$rc; \
 	done
 
 # This kernel may have no CAN: the vcan-marked tests run in a QEMU VM with

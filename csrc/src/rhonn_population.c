@@ -1561,39 +1561,42 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                 rhonn_internal_commit_sample(net, wk->cur[shared ? 0u : m], v);
             }
             for (i = 0; i < n; ++i) {
-                const size_t Li = CFG(net)->neurons[i].n_terms;
-                if (wk->recovered[i][m]) {
-                    net->health[i].resets += 1u;
-                    net->health[i].fail_run = 0;
-                } else if (wk->updated[i][m]) {
+                if (wk->updated[i][m]) { /* a recovered neuron counts as updated */
                     rhonn_health *h = &net->health[i];
-                    h->innovation = wk->innov[i][m];
-                    h->nis = wk->nis[i][m];
-                    h->updates += 1u;
-                    h->bounded += wk->bounded[i][m];
                     h->fail_run = 0;
-                }
-                net->bank[i] = (uint8_t)(net->bank[i] ^ wk->updated[i][m]);
-                if (wk->updated[i][m]) {
-                    wk->cert[i][m] = (uint8_t)(wk->recovered[i][m] ? rhonn_internal_p0_proven(net, i)
-                                                                    : wk->cert_new[i][m]);
-                }
-                if (!wk->updated[i][m] && moved[i]) {
+                    if (wk->recovered[i][m]) {
+                        h->resets += 1u;
+                        wk->cert_new[i][m] = rhonn_internal_p0_proven(net, i);
+                    } else {
+                        h->innovation = wk->innov[i][m];
+                        h->nis = wk->nis[i][m];
+                        h->updates += 1u;
+                        h->bounded += wk->bounded[i][m];
+                    }
+                    net->bank[i] = (uint8_t)(net->bank[i] ^ 1u);
+                } else if (moved[i]) {
                     /* P(k+1) = P(k): into the bank that becomes committed
                      * (where no member moved, the banks do not flip) */
-                    const size_t pb = wk->pb[i];
+                    const size_t Li = CFG(net)->neurons[i].n_terms, pb = wk->pb[i];
                     for (t = 0; t < Li * (Li + 1u) / 2u; ++t) {
                         wk->p[pb ^ 1u][i][t][m] = wk->p[pb][i][t][m];
                     }
                 }
                 net->xhat[i] = wk->xnew[i][m];
-                wk->xhat[i][m] = wk->xnew[i][m];
                 Xhat[(m * T + k) * n + i] = wk->xnew[i][m];
             }
             net->zbank = (uint8_t)(net->zbank ^ 1u);
             net->started = 1;
             net->steps += 1u;
             ran[m] = k + 1u;
+        }
+        /* The lanes' proofs and predictions, every lane at once (those of
+         * members that stopped are never read again). */
+        for (i = 0; i < n; ++i) {
+            for (m = 0; m < NPOP; ++m) {
+                wk->cert[i][m] = wk->updated[i][m] ? wk->cert_new[i][m] : wk->cert[i][m];
+                wk->xhat[i][m] = wk->xnew[i][m];
+            }
         }
         if (owing) {
             wk->ring_last = (uint8_t)((wk->ring_last + 1u) % (unsigned)RHONN_HISTORY_LEN);
