@@ -451,17 +451,10 @@ class _Problem:
         self.data_hash = digest.hexdigest()
 
     def _run(self, config: IdentifierConfig, end: int) -> np.ndarray:
-        if config.dtype != self.dtype:
-            raise fail("config.dtype", f"{config.dtype!r} differs from the problem's {self.dtype!r}")
-        try:
-            ident = Identifier(config)
-        except ValueError as exc:
-            raise TrialFailure(f"config rejected: {exc}") from None
-        valid = None if self.valid is None else self.valid[:end]
-        try:
-            return ident.run(self.X[:end], self.U[:end], valid)
-        except IdentifierError as exc:
-            raise TrialFailure(f"identifier stopped: {exc}") from None
+        rows = self._run_many([config], end)[0]
+        if isinstance(rows, TrialFailure):
+            raise rows
+        return rows
 
     def _fold_error(self, f: int, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(RMSE_j, RMSE_j / s_j) of fold f from a run's rows (row k is x̂(k+1))."""
@@ -500,11 +493,11 @@ class _Problem:
         return self._combine([self._fold_error(f, rows) for f in range(len(self.folds))])
 
     def _run_many(self, configs: Sequence[IdentifierConfig], end: int) -> list[np.ndarray | TrialFailure]:
-        """Each config's run over samples 0..end-1 (as :meth:`_run`), or the
-        TrialFailure :meth:`_run` would raise for it. The configs must share
-        their structure; they run in one population call, unless only one of
-        them can run (then :meth:`_run`, which takes the identifier's own
-        fastest path)."""
+        """Each config's run over samples 0..end-1, or the TrialFailure
+        that fails it (the core refused the config, or the run stopped). The
+        configs must share their structure; they run in one population call,
+        unless only one of them can run (then ``Identifier.run``, which takes
+        the identifier's own fastest path)."""
         from .population import run_identifiers_outcomes
 
         outcomes: list[np.ndarray | TrialFailure | None] = [None] * len(configs)
@@ -517,16 +510,16 @@ class _Problem:
             except ValueError as exc:
                 outcomes[k] = TrialFailure(f"config rejected: {exc}")
         valid = None if self.valid is None else self.valid[:end]
+        runs: list[np.ndarray | IdentifierError] = []
         if len(runnable) == 1:
-            [(k, ident)] = runnable.items()
             try:
-                outcomes[k] = ident.run(self.X[:end], self.U[:end], valid)
+                runs = [next(iter(runnable.values())).run(self.X[:end], self.U[:end], valid)]
             except IdentifierError as exc:
-                outcomes[k] = TrialFailure(f"identifier stopped: {exc}")
+                runs = [exc]
         elif runnable:
             runs = run_identifiers_outcomes(list(runnable.values()), self.X[:end], self.U[:end], valid)
-            for k, rows in zip(runnable, runs):
-                outcomes[k] = TrialFailure(f"identifier stopped: {rows}") if isinstance(rows, IdentifierError) else rows
+        for k, rows in zip(runnable, runs):
+            outcomes[k] = TrialFailure(f"identifier stopped: {rows}") if isinstance(rows, IdentifierError) else rows
         assert all(o is not None for o in outcomes)
         return outcomes  # type: ignore[return-value]
 

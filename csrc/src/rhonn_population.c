@@ -1123,8 +1123,8 @@ POP_CLONES static void predict(rhonn_population_work *wk, const rhonn_t *net, si
 }
 
 /* A refused update recovered (reset_after): the weights kept, the
- * covariance restarted from neuron's P(0), into the candidates of slot i,
- * lane m (rhonn.c refused()). */
+ * covariance restarted from neuron's P(0) with P(0)'s proof, into the
+ * candidates of slot i, lane m (rhonn.c refused()). */
 static void recover_lane(rhonn_population_work *wk, const rhonn_t *net, size_t neuron, size_t i, size_t m)
 {
     const size_t L = CFG(net)->neurons[neuron].n_terms;
@@ -1137,6 +1137,7 @@ static void recover_lane(rhonn_population_work *wk, const rhonn_t *net, size_t n
     for (t = 0; t < L * (L + 1u) / 2u; ++t) {
         wk->p[wk->pb[i] ^ 1u][i][t][m] = p0[t];
     }
+    wk->cert_new[i][m] = rhonn_internal_p0_proven(net, neuron);
     wk->bounded[i][m] = 0;
     wk->recovered[i][m] = 1;
 }
@@ -1177,7 +1178,19 @@ static void load_lane(rhonn_population_work *wk, const rhonn_t *net, size_t m)
     }
 }
 
-static void pay_ring(rhonn_population_work *wk, rhonn_t *net, size_t m);
+/* Member m's history ring brought up to date: the shared samples it was
+ * owed, oldest first, into the slots its head passed (when more than the
+ * ring holds were owed, the older ones would have been overwritten). */
+static void pay_ring(rhonn_population_work *wk, rhonn_t *net, size_t m)
+{
+    const size_t len = (size_t)RHONN_HISTORY_LEN;
+    size_t s;
+    for (s = wk->owed[m]; s-- > 0u;) {
+        rhonn_internal_store_sample(net, ((size_t)net->head + len - s) % len,
+                                    wk->ring[((size_t)wk->ring_last + len - s) % len]);
+    }
+    wk->owed[m] = 0;
+}
 
 /* Lane m's committed state back into its member: the weights and the
  * stored covariance (P or its factors) into the committed banks, z(k-1)
@@ -1287,19 +1300,6 @@ static void keep_sample(rhonn_population_work *wk, size_t m)
     for (j = 0; j < (size_t)RHONN_SAMPLE_LEN; ++j) {
         wk->cur[m][j] = wk->val[j];
     }
-}
-
-/* Member m's history ring brought up to date: the shared samples it was
- * owed, oldest first, into the slots its head passed (when more than the
- * ring holds were owed, the older ones would have been overwritten). */
-static void pay_ring(rhonn_population_work *wk, rhonn_t *net, size_t m)
-{
-    const size_t len = (size_t)RHONN_HISTORY_LEN;
-    size_t s;
-    for (s = wk->owed[m]; s-- > 0u;) {
-        rhonn_internal_store_sample(net, ((size_t)net->head + len - s) % len, wk->ring[((size_t)wk->ring_last + len - s) % len]);
-    }
-    wk->owed[m] = 0;
 }
 
 /* Term t of neuron i from the step's values: rhonn.c step 4's product,
@@ -1566,7 +1566,6 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                     h->fail_run = 0;
                     if (wk->recovered[i][m]) {
                         h->resets += 1u;
-                        wk->cert_new[i][m] = rhonn_internal_p0_proven(net, i);
                     } else {
                         h->innovation = wk->innov[i][m];
                         h->nis = wk->nis[i][m];
@@ -1823,7 +1822,6 @@ static rhonn_status wide_learn(rhonn_population_work *wk, rhonn_t *net, const rh
             return (rhonn_status)wk->kstatus[i];
         }
         recover_lane(wk, net, i, 0u, i);
-        wk->cert_new[0][i] = rhonn_internal_p0_proven(net, i);
     }
     return RHONN_OK;
 }
