@@ -119,6 +119,25 @@ typedef struct {
     rhonn_real ring[RHONN_HISTORY_LEN][RHONN_SAMPLE_LEN];
     uint8_t ring_last;                            /* the row of ring holding the newest */
     uint8_t owed[RHONN_MAX_POPULATION];           /* newest of them member m's ring lacks */
+    /* Each member's bookkeeping, kept in its lane for the call and written
+     * into its rhonn_t when the member is handed back (at a stop or at the
+     * end): its flags and valid runs, its banks' flips, its health since
+     * the call began. */
+    uint8_t started[RHONN_MAX_POPULATION];                     /* rhonn_t.started */
+    uint8_t learning[RHONN_MAX_POPULATION];                    /* rhonn_t.learning */
+    uint8_t need[RHONN_MAX_STATES][RHONN_MAX_POPULATION];      /* rhonn_t.own_need */
+    uint8_t vrun[RHONN_MAX_STATES][RHONN_MAX_POPULATION];      /* rhonn_t.valid_run */
+    uint8_t flips[RHONN_MAX_STATES][RHONN_MAX_POPULATION];     /* 1: rhonn_t.bank[i] flips */
+    uint8_t run_ended[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* 1: health fail_run is 0 */
+    uint8_t has_last[RHONN_MAX_STATES][RHONN_MAX_POPULATION];  /* 1: health innovation, nis */
+    uint32_t n_updates[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* health counters to add */
+    uint32_t n_bounded[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    uint32_t n_resets[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    rhonn_real last_innov[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    rhonn_real last_nis[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    /* updates of neuron i that every member made alike, not yet counted
+     * into the lanes above */
+    uint32_t n_alike[RHONN_MAX_STATES];
 } rhonn_population_work;
 
 /* Run the N members nets[0..N) (each set up by rhonn_init, all of the same

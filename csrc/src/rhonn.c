@@ -1725,34 +1725,15 @@ RHONN_INLINE size_t value_index(const rhonn_t *net, size_t i, size_t t, size_t f
     return net->term_entry[i][t][f];
 }
 
-/* The commit's count of the sample: the head advanced, valid_run (the
- * samples in a row in which x_j was measured) counted. All of the commit
- * for a population member whose ring is owed the sample
- * (rhonn_internal_commit_runs). */
-static void commit_runs(rhonn_t *net, const uint8_t *valid)
-{
-    const size_t n = CFG(net)->n_states;
-    /* the first sample starts every run full: there is nothing older */
-    const uint8_t first = net->started ? 0u : 0xFFu;
-    size_t j;
-    RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
-    net->head = (uint8_t)((net->head + 1u) % (unsigned)RHONN_HISTORY_LEN);
-    RHONN_NEURON_LOOP
-    for (j = 0; j < n; ++j) {
-        const uint8_t run = net->valid_run[j];
-        const uint8_t next = (uint8_t)((uint8_t)(run + (run < 0xFFu)) | first);
-        net->valid_run[j] = (valid == NULL || valid[j] != 0u) ? next : 0u;
-    }
-}
-
-/* The history part of the commit: cur into the ring, which is only kept
- * when a tap reads it, then the count. */
-static void commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *valid)
+/* The ring part of the commit: cur into the history ring, which is only
+ * kept when a tap reads it (cur NULL: a population member that is owed the
+ * sample instead, see rhonn_population.c), then the head advanced. */
+static void commit_ring(rhonn_t *net, const rhonn_real *cur)
 {
     const size_t n = CFG(net)->n_states, m = CFG(net)->n_inputs, groups = net->n_groups;
     const uint8_t next_head = (uint8_t)((net->head + 1u) % (unsigned)RHONN_HISTORY_LEN);
     RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
-    if (net->max_delay > 0u) {
+    if (net->max_delay > 0u && cur != NULL) {
         size_t h;
         for (h = 0; h < (size_t)RHONN_HISTORY_LEN; ++h) {
             if (net->started && h != (size_t)next_head) {
@@ -1761,7 +1742,32 @@ static void commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *va
             store_sample(net->hist[h], cur, n, groups, m);
         }
     }
-    commit_runs(net, valid);
+    net->head = next_head;
+}
+
+/* The commit's count of the sample: valid_run[j], the samples in a row in
+ * which x_j was measured (the population keeps its members' counts in its
+ * lanes and writes them back). */
+static void count_runs(rhonn_t *net, const uint8_t *valid)
+{
+    const size_t n = CFG(net)->n_states;
+    /* the first sample starts every run full: there is nothing older */
+    const uint8_t first = net->started ? 0u : 0xFFu;
+    size_t j;
+    RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
+    RHONN_NEURON_LOOP
+    for (j = 0; j < n; ++j) {
+        const uint8_t run = net->valid_run[j];
+        const uint8_t next = (uint8_t)((uint8_t)(run + (run < 0xFFu)) | first);
+        net->valid_run[j] = (valid == NULL || valid[j] != 0u) ? next : 0u;
+    }
+}
+
+/* The history part of the commit. */
+static void commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *valid)
+{
+    commit_ring(net, cur);
+    count_runs(net, valid);
 }
 
 /* What step 1 did per neuron, for the commit. */
@@ -1942,9 +1948,9 @@ void rhonn_internal_commit_sample(rhonn_t *net, const rhonn_real *cur, const uin
     commit_sample(net, cur, valid);
 }
 
-void rhonn_internal_commit_runs(rhonn_t *net, const uint8_t *valid)
+void rhonn_internal_commit_ring(rhonn_t *net, const rhonn_real *cur)
 {
-    commit_runs(net, valid);
+    commit_ring(net, cur);
 }
 
 void rhonn_internal_store_sample(rhonn_t *net, size_t slot, const rhonn_real *cur)

@@ -154,11 +154,13 @@ void rhonn_internal_features(const rhonn_t *net, const rhonn_real *x, const rhon
  * runs before started is set. */
 void rhonn_internal_commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *valid);
 
-/* rhonn_internal_commit_sample without storing the sample: the head
- * advanced and the valid runs counted, for a started net. The caller owes
- * the ring that sample at slot net->head (rhonn_internal_store_sample)
- * before anything reads the history. */
-void rhonn_internal_commit_runs(rhonn_t *net, const uint8_t *valid);
+/* The ring part of rhonn_internal_commit_sample, without the valid runs:
+ * cur into the ring (when a tap reads it), the head advanced. With cur
+ * NULL only the head is advanced, for a started net: the caller owes the
+ * ring that sample at slot net->head (rhonn_internal_store_sample) before
+ * anything reads the history. Reads net->started, so it runs before
+ * started is set. */
+void rhonn_internal_commit_ring(rhonn_t *net, const rhonn_real *cur);
 
 /* The sample part of cur (RHONN_SAMPLE_LEN layout) into ring slot slot. */
 void rhonn_internal_store_sample(rhonn_t *net, size_t slot, const rhonn_real *cur);

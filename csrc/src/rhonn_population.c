@@ -13,8 +13,11 @@
  * the results are the same bits. Members that do not take part (not
  * learning this step, stopped, or beyond N) compute on their stale lanes
  * and their results are thrown away, which keeps the arithmetic free of
- * branches. The bookkeeping (health counters, refusals, resets, the
- * history ring, the commit) is rhonn.c's, member by member.
+ * branches. The bookkeeping is rhonn.c's: a refusal and a recovery member
+ * by member (off the hot path); the valid runs, health counters and bank
+ * flips of each member held in its lane for the call, step by step for
+ * every lane at once (an update every member made alike counted once, in
+ * n_alike), and written into its rhonn_t when the member is handed back.
  *
  * Build with -std=c99 -ffp-contract=off, as rhonn.c.
  */
@@ -1175,7 +1178,19 @@ static void load_lane(rhonn_population_work *wk, const rhonn_t *net, size_t m)
         wk->inv_lambda[i][m] = (nc->forgetting > R(0.0) && nc->forgetting < R(1.0)) ? R(1.0) / nc->forgetting
                                                                                      : R(1.0);
         wk->p_trace_max[i][m] = nc->p_trace_max;
+        wk->need[i][m] = net->own_need[i];
+        wk->vrun[i][m] = net->valid_run[i];
+        wk->flips[i][m] = 0;
+        wk->run_ended[i][m] = 0;
+        wk->has_last[i][m] = 0;
+        wk->n_updates[i][m] = 0;
+        wk->n_bounded[i][m] = 0;
+        wk->n_resets[i][m] = 0;
+        wk->last_innov[i][m] = R(0.0);
+        wk->last_nis[i][m] = R(0.0);
     }
+    wk->started[m] = (uint8_t)(net->started != 0u); /* 0 or 1: the lanes' flags are combined with & */
+    wk->learning[m] = (uint8_t)(net->learning != 0u);
 }
 
 /* Member m's history ring brought up to date: the shared samples it was
@@ -1192,16 +1207,45 @@ static void pay_ring(rhonn_population_work *wk, rhonn_t *net, size_t m)
     wk->owed[m] = 0;
 }
 
-/* Lane m's committed state back into its member: the weights and the
- * stored covariance (P or its factors) into the committed banks, z(k-1)
- * into net's z bank, the samples its history ring is owed. The members'
- * health, prediction and banks are kept in net as the run goes. */
-static void store_lane(rhonn_population_work *wk, rhonn_t *net, size_t m)
+/* The updates of neuron i every member made alike (n_alike), counted into
+ * every lane's own bookkeeping: before the members' counts part (a
+ * refusal, a step in which they differ) and before a member is handed
+ * back. A lane that stopped earlier is never handed back again. */
+static void count_alike(rhonn_population_work *wk, size_t i)
+{
+    const uint32_t u = wk->n_alike[i];
+    size_t m;
+    if (u == 0u) {
+        return;
+    }
+    for (m = 0; m < NPOP; ++m) {
+        wk->n_updates[i][m] += u;
+        wk->flips[i][m] = (uint8_t)(wk->flips[i][m] ^ (u & 1u));
+        wk->run_ended[i][m] = 1;
+        wk->has_last[i][m] = 1;
+    }
+    wk->n_alike[i] = 0;
+}
+
+/* Lane m's committed state back into its member, which committed ran
+ * steps in the call: the banks flipped as its updates flipped them, the
+ * weights and the stored covariance (P or its factors) into the committed
+ * banks, z(k-1) into its z bank, its prediction, valid runs and health, and
+ * the samples its history ring is owed. (Its started flag and history head
+ * are kept in net as the run goes.) */
+static void store_lane(rhonn_population_work *wk, rhonn_t *net, size_t m, size_t ran)
 {
     const rhonn_config *cfg = CFG(net);
     size_t i, t;
+    net->steps += (uint32_t)ran; /* wraps, as step by step */
+    net->zbank = (uint8_t)(net->zbank ^ (ran & 1u));
     for (i = 0; i < cfg->n_states; ++i) {
-        const size_t L = cfg->neurons[i].n_terms, b = net->bank[i];
+        const size_t L = cfg->neurons[i].n_terms;
+        rhonn_health *h = &net->health[i];
+        size_t b;
+        count_alike(wk, i);
+        net->bank[i] = (uint8_t)(net->bank[i] ^ wk->flips[i][m]);
+        b = net->bank[i];
         for (t = 0; t < L; ++t) {
             net->w[i][b][t] = wk->w[wk->wb][i][t][m];
             net->z[net->zbank][i][t] = wk->z[wk->zb][i][t][m];
@@ -1212,6 +1256,18 @@ static void store_lane(rhonn_population_work *wk, rhonn_t *net, size_t m)
         /* the lane's proof of definiteness goes with its P (rhonn_t.cert) */
         net->cert[i][b] = cfg->neurons[i].covariance == (uint8_t)RHONN_COV_UD ? 0u : wk->cert[i][m];
         net->cert[i][b ^ 1u] = 0;
+        net->xhat[i] = wk->xhat[i][m];
+        net->valid_run[i] = wk->vrun[i][m];
+        h->updates += wk->n_updates[i][m];
+        h->bounded += wk->n_bounded[i][m];
+        h->resets += wk->n_resets[i][m];
+        if (wk->has_last[i][m]) {
+            h->innovation = wk->last_innov[i][m];
+            h->nis = wk->last_nis[i][m];
+        }
+        if (wk->run_ended[i][m]) {
+            h->fail_run = 0;
+        }
     }
     pay_ring(wk, net, m);
 }
@@ -1395,6 +1451,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
     }
     for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
         wk->pb[i] = 0;
+        wk->n_alike[i] = 0;
     }
     wk->ring_last = 0;
     for (m = 0; m < NPOP; ++m) {
@@ -1415,7 +1472,11 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         const size_t zb_new = wk->zb ^ 1u;
         int all_valid = 1, any_alive = 0, all_fresh = 1, all_started = 1, shared;
         uint8_t moved[RHONN_MAX_STATES]; /* some member updated neuron i */
-        uint8_t ready[RHONN_MAX_POPULATION];
+        uint8_t ready[RHONN_MAX_POPULATION], first[RHONN_MAX_POPULATION];
+        uint8_t keep[RHONN_MAX_POPULATION]; /* committed this step */
+        uint8_t alike[RHONN_MAX_STATES];     /* no refusal, and every member learned neuron i or none */
+        uint8_t stopped = 0;                 /* a member stopped in this step */
+        rhonn_real finite[RHONN_MAX_POPULATION];
         size_t lead = NPOP;
         int owing = 0; /* some member is owed this step's sample (see pay_ring) */
 
@@ -1433,7 +1494,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                 if (alive[m]) {
                     st[m] = ret;
                     alive[m] = 0;
-                    store_lane(wk, nets[m], m);
+                    store_lane(wk, nets[m], m, ran[m]);
                 }
             }
             break;
@@ -1447,24 +1508,24 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         /* Which members learn at all this step (a member that fails at a
          * neuron drops out of the later ones: ready is cleared with fail). */
         for (m = 0; m < NPOP; ++m) {
-            ready[m] = (uint8_t)(m < N && alive[m] && nets[m]->started && nets[m]->learning);
+            ready[m] = (uint8_t)(alive[m] & wk->started[m] & wk->learning[m]);
         }
 
         /* 1. Learn, neuron by neuron (rhonn.c step 1). */
         for (i = 0; i < n; ++i) {
             const int ud = is_ud(nets[0], i);
-            const int measured = v == NULL || v[i] != 0u;
-            int any_learn = 0;
-            uint8_t moved_i = 0;
+            const uint8_t measured = (uint8_t)(v == NULL || v[i] != 0u);
+            uint8_t any_learn = 0, all_learn = 1, refused = 0, moved_i = 0;
             L = CFG(nets[0])->neurons[i].n_terms;
             for (m = 0; m < NPOP; ++m) {
-                wk->learn[i][m] = (uint8_t)(ready[m] && measured && nets[m]->valid_run[i] >= nets[m]->own_need[i]);
-                wk->updated[i][m] = 0;
+                const uint8_t learn = (uint8_t)(ready[m] & measured & (wk->vrun[i][m] >= wk->need[i][m]));
+                wk->learn[i][m] = learn;
                 wk->bounded[i][m] = 0;
                 wk->recovered[i][m] = 0;
                 wk->innov[i][m] = x[i] - wk->xhat[i][m];
                 wk->e[m] = wk->innov[i][m];
-                any_learn |= wk->learn[i][m];
+                any_learn |= learn;
+                all_learn &= (uint8_t)(learn | (alive[m] ^ 1u));
             }
             /* Where no member learns this neuron (its measurement missing,
              * learning off, the first sample), nothing of the kernel's would
@@ -1476,29 +1537,42 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                     ud_update(wk, nets, N, i, L);
                 }
             }
-            for (m = 0; m < N; ++m) {
-                rhonn_t *net = nets[m];
-                if (!wk->learn[i][m]) {
-                    for (t = 0; t < L; ++t) {
-                        wk->w[wk->wb ^ 1u][i][t][m] = wk->w[wk->wb][i][t][m]; /* w(k+1) = w(k) */
-                    }
-                    continue;
+            for (m = 0; m < NPOP; ++m) {
+                const uint8_t ok = (uint8_t)(wk->learn[i][m] & (wk->kstatus[m] == (uint8_t)RHONN_OK));
+                wk->updated[i][m] = ok;
+                moved_i |= ok;
+                refused |= (uint8_t)(wk->learn[i][m] & (ok ^ 1u));
+            }
+            for (t = 0; t < L && !all_learn; ++t) { /* w(k+1) = w(k) where a member does not learn */
+                rhonn_real *wn = wk->w[wk->wb ^ 1u][i][t];
+                const rhonn_real *wo = wk->w[wk->wb][i][t];
+                for (m = 0; m < NPOP; ++m) {
+                    wn[m] = wk->learn[i][m] ? wn[m] : wo[m];
                 }
-                wk->updated[i][m] = 1;
-                if (wk->kstatus[m] == (uint8_t)RHONN_OK) {
-                    moved_i = 1;
+            }
+            alike[i] = (uint8_t)(!refused && (all_learn || !any_learn));
+            if (refused) {
+                count_alike(wk, i); /* the refusals below read the members' health */
+            }
+            for (m = 0; refused && m < N; ++m) {
+                rhonn_t *net = nets[m];
+                if (!wk->learn[i][m] || wk->updated[i][m]) {
                     continue;
                 }
                 /* a refused update: rhonn.c's bookkeeping and recovery */
                 net->fault_neuron = (uint8_t)i;
+                if (wk->run_ended[i][m]) { /* an update since the call began ended the run */
+                    net->health[i].fail_run = 0;
+                    wk->run_ended[i][m] = 0;
+                }
                 if (!rhonn_internal_count_refusal(net, i)) {
                     fail[m] = 1;
                     ready[m] = 0;
                     st[m] = (rhonn_status)wk->kstatus[m];
-                    wk->updated[i][m] = 0;
                     continue;
                 }
                 recover_lane(wk, net, i, i, m);
+                wk->updated[i][m] = 1;
                 moved_i = 1;
             }
             moved[i] = moved_i;
@@ -1509,8 +1583,8 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         for (m = 0; m < N; ++m) {
             if (alive[m] && !fail[m]) {
                 lead = lead < NPOP ? lead : m;
-                all_fresh &= !nets[m]->started;
-                all_started &= nets[m]->started != 0u;
+                all_fresh &= !wk->started[m];
+                all_started &= wk->started[m] != 0u;
             }
         }
         shared = shareable && all_valid && lead < NPOP && (all_fresh || (all_started && agree >= maxd));
@@ -1522,10 +1596,14 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         } else {
             for (m = 0; m < N; ++m) {
                 if (alive[m] && !fail[m]) {
-                    pay_ring(wk, nets[m], m);
-                    rhonn_internal_features(nets[m], x, u, v, wk->val);
+                    rhonn_t *net = nets[m];
+                    for (i = 0; i < n; ++i) { /* a missing x_i reads the member's prediction */
+                        net->xhat[i] = wk->xhat[i][m];
+                    }
+                    pay_ring(wk, net, m);
+                    rhonn_internal_features(net, x, u, v, wk->val);
                     keep_sample(wk, m);
-                    lane_regressor(wk, nets[m], wk->val, zb_new, m, 0);
+                    lane_regressor(wk, net, wk->val, zb_new, m, 0);
                 }
             }
         }
@@ -1534,12 +1612,22 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
 
         /* Commit, member by member; a member that failed stops here with
          * its state as before this step. */
+        for (m = 0; m < NPOP; ++m) {
+            finite[m] = R(0.0);
+            first[m] = (uint8_t)(wk->started[m] ? 0u : 0xFFu); /* rhonn.c count_runs */
+            keep[m] = 0;
+        }
+        for (i = 0; i < n; ++i) {
+            for (m = 0; m < NPOP; ++m) {
+                finite[m] += wk->xnew[i][m] - wk->xnew[i][m]; /* 0 while finite */
+            }
+        }
         for (m = 0; m < N; ++m) {
             rhonn_t *net = nets[m];
             if (!alive[m]) {
                 continue;
             }
-            for (i = 0; i < n && !fail[m]; ++i) {
+            for (i = 0; i < n && finite[m] != R(0.0) && !fail[m]; ++i) {
                 if (!LANE_FINITE(wk->xnew[i][m])) {
                     net->fault_neuron = (uint8_t)i;
                     st[m] = RHONN_E_DIVERGED;
@@ -1548,53 +1636,85 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
             }
             if (fail[m]) {
                 alive[m] = 0;
-                store_lane(wk, net, m);
+                stopped = 1;
+                store_lane(wk, net, m, ran[m]);
                 continue;
             }
-            if (shared && m != lead && net->started && maxd > 0u) {
+            if (shared && m != lead && wk->started[m] && maxd > 0u) {
                 /* the lead's ring holds this sample; the others are owed it */
-                rhonn_internal_commit_runs(net, v);
+                rhonn_internal_commit_ring(net, NULL);
                 wk->owed[m] = (uint8_t)(wk->owed[m] < (uint8_t)RHONN_HISTORY_LEN ? wk->owed[m] + 1u
                                                                                : (uint8_t)RHONN_HISTORY_LEN);
                 owing = 1;
             } else {
-                rhonn_internal_commit_sample(net, wk->cur[shared ? 0u : m], v);
+                rhonn_internal_commit_ring(net, wk->cur[shared ? 0u : m]);
+            }
+            if (!wk->started[m]) {
+                wk->started[m] = 1;
+                net->started = 1;
             }
             for (i = 0; i < n; ++i) {
-                if (wk->updated[i][m]) { /* a recovered neuron counts as updated */
-                    rhonn_health *h = &net->health[i];
-                    h->fail_run = 0;
-                    if (wk->recovered[i][m]) {
-                        h->resets += 1u;
-                    } else {
-                        h->innovation = wk->innov[i][m];
-                        h->nis = wk->nis[i][m];
-                        h->updates += 1u;
-                        h->bounded += wk->bounded[i][m];
-                    }
-                    net->bank[i] = (uint8_t)(net->bank[i] ^ 1u);
-                } else if (moved[i]) {
-                    /* P(k+1) = P(k): into the bank that becomes committed
-                     * (where no member moved, the banks do not flip) */
-                    const size_t Li = CFG(net)->neurons[i].n_terms, pb = wk->pb[i];
-                    for (t = 0; t < Li * (Li + 1u) / 2u; ++t) {
-                        wk->p[pb ^ 1u][i][t][m] = wk->p[pb][i][t][m];
-                    }
-                }
-                net->xhat[i] = wk->xnew[i][m];
                 Xhat[(m * T + k) * n + i] = wk->xnew[i][m];
             }
-            net->zbank = (uint8_t)(net->zbank ^ 1u);
-            net->started = 1;
-            net->steps += 1u;
+            keep[m] = 1;
             ran[m] = k + 1u;
         }
-        /* The lanes' proofs and predictions, every lane at once (those of
-         * members that stopped are never read again). */
+        /* The committed members' valid runs and health (rhonn.c's commit),
+         * then every lane's proofs and predictions at once (those of members
+         * that stopped are never read again). */
         for (i = 0; i < n; ++i) {
+            const uint8_t measured = (uint8_t)(v == NULL || v[i] != 0u);
+            uint8_t kept = 0;
+            if (alike[i] && !stopped) {
+                /* every member committed, each updated neuron i or none did
+                 * (no refusal): counted once for all, in n_alike */
+                for (m = 0; m < NPOP; ++m) {
+                    const uint8_t run = wk->vrun[i][m];
+                    wk->vrun[i][m] = measured ? (uint8_t)((uint8_t)(run + (run < 0xFFu)) | first[m]) : 0u;
+                    wk->xhat[i][m] = wk->xnew[i][m];
+                }
+                if (moved[i]) {
+                    wk->n_alike[i] += 1u;
+                    for (m = 0; m < NPOP; ++m) {
+                        wk->n_bounded[i][m] += wk->bounded[i][m];
+                        wk->last_innov[i][m] = wk->innov[i][m];
+                        wk->last_nis[i][m] = wk->nis[i][m];
+                        wk->cert[i][m] = wk->cert_new[i][m];
+                    }
+                }
+                continue;
+            }
+            count_alike(wk, i);
             for (m = 0; m < NPOP; ++m) {
+                const uint8_t run = wk->vrun[i][m];
+                const uint8_t next = (uint8_t)((uint8_t)(run + (run < 0xFFu)) | first[m]);
+                const uint8_t up = (uint8_t)(wk->updated[i][m] & keep[m]);
+                const uint8_t fresh = (uint8_t)(up & (wk->recovered[i][m] ^ 1u)); /* not a recovery */
+                wk->vrun[i][m] = keep[m] ? (measured ? next : 0u) : run;
+                wk->flips[i][m] ^= up;
+                wk->run_ended[i][m] |= up;
+                wk->n_resets[i][m] += (uint32_t)(up & wk->recovered[i][m]);
+                wk->n_updates[i][m] += fresh;
+                wk->n_bounded[i][m] += (uint32_t)(fresh & wk->bounded[i][m]);
+                wk->has_last[i][m] |= fresh;
+                wk->last_innov[i][m] = fresh ? wk->innov[i][m] : wk->last_innov[i][m];
+                wk->last_nis[i][m] = fresh ? wk->nis[i][m] : wk->last_nis[i][m];
                 wk->cert[i][m] = wk->updated[i][m] ? wk->cert_new[i][m] : wk->cert[i][m];
                 wk->xhat[i][m] = wk->xnew[i][m];
+                kept |= (uint8_t)(keep[m] & (wk->updated[i][m] ^ 1u));
+            }
+            if (moved[i] && kept) {
+                /* P(k+1) = P(k) for a member that did not update, into the
+                 * bank that becomes committed (where no member moved, the
+                 * banks do not flip) */
+                const size_t Li = CFG(nets[0])->neurons[i].n_terms, pb = wk->pb[i];
+                for (t = 0; t < Li * (Li + 1u) / 2u; ++t) {
+                    rhonn_real *pn = wk->p[pb ^ 1u][i][t];
+                    const rhonn_real *po = wk->p[pb][i][t];
+                    for (m = 0; m < NPOP; ++m) {
+                        pn[m] = wk->updated[i][m] ? pn[m] : po[m];
+                    }
+                }
             }
         }
         if (owing) {
@@ -1623,7 +1743,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
 
     for (m = 0; m < N; ++m) {
         if (alive[m]) {
-            store_lane(wk, nets[m], m);
+            store_lane(wk, nets[m], m, ran[m]);
         }
     }
     ret = RHONN_OK;
