@@ -110,6 +110,7 @@ typedef struct {
     uint8_t bounded[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint8_t recovered[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint8_t kstatus[RHONN_MAX_POPULATION];        /* the kernel's status per member */
+    uint8_t k_moved, k_refused;                   /* some learning lane passed, was refused */
     uint8_t zb;                                   /* which z bank holds z(k-1) */
     uint8_t wb;                                   /* which w bank is committed */
     uint8_t pb[RHONN_MAX_STATES];                 /* which P bank of neuron i is committed */

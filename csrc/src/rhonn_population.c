@@ -41,6 +41,15 @@ typedef uint64_t pop_bits;
 
 #define NPOP ((size_t)RHONN_MAX_POPULATION)
 
+/* The step's bookkeeping loops over lanes, kept out of line: inlined into
+ * the step's loop nest, GCC 12 leaves them scalar; alone, it vectorises
+ * them (measured with -fopt-info-vec). */
+#if defined(__GNUC__) || defined(__clang__)
+#define POP_LANES static __attribute__((noinline))
+#else
+#define POP_LANES static
+#endif
+
 #if defined(__GNUC__) && !defined(__clang__)
 #define POP_UNROLL _Pragma("GCC unroll 16")
 #else
@@ -98,11 +107,16 @@ typedef uint64_t pop_bits;
  * positive definite (pd_ok 1) and then, for the full form, which way a
  * refused P failed (a non-finite entry, or not definite); for the U D U^T
  * form (fsum not NULL: the sum of f - f over its factors), definite factors
- * that are not finite. */
-POP_ALWAYS_INLINE void verdicts(rhonn_population_work *wk, const rhonn_real *Pn, size_t packed, const rhonn_real *s,
-                                const rhonn_real *rr, const rhonn_real *wsum, const rhonn_real *pd_ok,
-                                const rhonn_real *fsum)
+ * that are not finite. With them, which lanes of neuron i learned and
+ * passed (updated) and whether any did (k_moved) or any learning lane was
+ * refused (k_refused): summed here, lane by lane, as the statuses are
+ * written (read back as one vector, bytes just stored one by one cost a
+ * stalled load). */
+POP_ALWAYS_INLINE void verdicts(rhonn_population_work *wk, size_t i, const rhonn_real *Pn, size_t packed,
+                                const rhonn_real *s, const rhonn_real *rr, const rhonn_real *wsum,
+                                const rhonn_real *pd_ok, const rhonn_real *fsum)
 {
+    uint8_t moved = 0, refused = 0;
     size_t m, c;
     for (m = 0; m < NPOP; ++m) {
         rhonn_status st = RHONN_OK;
@@ -121,7 +135,15 @@ POP_ALWAYS_INLINE void verdicts(rhonn_population_work *wk, const rhonn_real *Pn,
             }
         }
         wk->kstatus[m] = (uint8_t)st;
+        {
+            const uint8_t learn = wk->learn[i][m], up = (uint8_t)(learn & (uint8_t)(st == RHONN_OK));
+            wk->updated[i][m] = up;
+            moved |= up;
+            refused |= (uint8_t)(learn & (up ^ 1u));
+        }
     }
+    wk->k_moved = moved;
+    wk->k_refused = refused;
 }
 
 #if !RHONN_POP_VECTOR
@@ -491,7 +513,7 @@ static void full_kernel_loops(rhonn_population_work *wk, size_t i, size_t L)
             wsum[m] += wr[m] - wr[m];
         }
     }
-    verdicts(wk, Pn, packed, s, rr, wsum, pd_ok, NULL);
+    verdicts(wk, i, Pn, packed, s, rr, wsum, pd_ok, NULL);
 }
 
 POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L)
@@ -848,7 +870,7 @@ POP_ALWAYS_INLINE void full_kernel_body(rhonn_population_work *wk, size_t i, siz
         out_s[m] = s[m];
         tmp[m] = rr[m];
     }
-    verdicts(wk, Pn, packed, out_s, tmp, out_wsum, out_ok, NULL);
+    verdicts(wk, i, Pn, packed, out_s, tmp, out_wsum, out_ok, NULL);
 }
 
 /* body(wk, i, L) compiled once per size up to 8 terms (a constant L, its
@@ -1042,7 +1064,7 @@ POP_ALWAYS_INLINE void ud_kernel_body(rhonn_population_work *wk, size_t i, size_
     }
     V(out_s, 0) = alpha;
     V(out_fsum, 0) = fsum;
-    verdicts(wk, Fn, packed, out_s, wk->r[i], out_wsum, out_ok, out_fsum);
+    verdicts(wk, i, Fn, packed, out_s, wk->r[i], out_wsum, out_ok, out_fsum);
 }
 
 POP_CLONES static void ud_kernel(rhonn_population_work *wk, size_t i, size_t L)
@@ -1063,6 +1085,11 @@ static void ud_update(rhonn_population_work *wk, rhonn_t *const *nets, size_t N,
     ud_kernel(wk, i, L);
 #else
     size_t m, t;
+    wk->k_moved = 0;
+    wk->k_refused = 0;
+    for (m = 0; m < NPOP; ++m) {
+        wk->updated[i][m] = 0;
+    }
     for (m = 0; m < N; ++m) {
         rhonn_t *net = nets[m];
         const size_t b = net->bank[i];
@@ -1079,6 +1106,9 @@ static void ud_update(rhonn_population_work *wk, rhonn_t *const *nets, size_t N,
             net->p[i][b][t] = wk->p[wk->pb[i]][i][t][m];
         }
         wk->kstatus[m] = (uint8_t)rhonn_internal_ekf_update(net, i, wk->e[m], zk, &nis, &bnd);
+        wk->updated[i][m] = (uint8_t)(wk->kstatus[m] == (uint8_t)RHONN_OK);
+        wk->k_moved |= wk->updated[i][m];
+        wk->k_refused |= (uint8_t)(wk->updated[i][m] ^ 1u);
         wk->nis[i][m] = nis;
         wk->bounded[i][m] = bnd;
         for (t = 0; t < L; ++t) {
@@ -1393,6 +1423,62 @@ static void lane_regressor(rhonn_population_work *wk, const rhonn_t *net, const 
     }
 }
 
+/* Which lanes learn neuron i this step (ready, x_i measured, their valid
+ * run long enough: rhonn.c step 1), the innovation x_i - xhat_i of every
+ * lane; *any: some lane learns, *all: every alive lane does. */
+POP_LANES void learn_lanes(rhonn_population_work *wk, size_t i, const uint8_t *ready, const uint8_t *alive,
+                           uint8_t measured, rhonn_real xi, uint8_t *any, uint8_t *all)
+{
+    uint8_t a = 0, l = 1;
+    size_t m;
+    for (m = 0; m < NPOP; ++m) {
+        wk->learn[i][m] = (uint8_t)(ready[m] & measured & (uint8_t)(wk->vrun[i][m] >= wk->need[i][m]));
+        wk->updated[i][m] = 0; /* where no lane learns, the kernel does not run */
+        wk->bounded[i][m] = 0;
+        wk->recovered[i][m] = 0;
+    }
+    for (m = 0; m < NPOP; ++m) {
+        wk->innov[i][m] = xi - wk->xhat[i][m];
+        wk->e[m] = wk->innov[i][m];
+    }
+    for (m = 0; m < NPOP; ++m) {
+        a |= wk->learn[i][m];
+        l &= (uint8_t)(wk->learn[i][m] | (alive[m] ^ 1u));
+    }
+    *any = a;
+    *all = l;
+}
+
+/* The commit of neuron i in a step in which every member committed and
+ * updated it, or none did, with no refusal (rhonn.c's commit): the valid
+ * run of x_i counted (first: 0xFF for a lane's first sample), the
+ * prediction kept, and where they updated, the update counted once for all
+ * (n_alike) and its health and proof kept in every lane. */
+POP_LANES void commit_alike(rhonn_population_work *wk, size_t i, uint8_t measured, const uint8_t *first,
+                            uint8_t moved)
+{
+    size_t m;
+    for (m = 0; m < NPOP; ++m) {
+        const uint8_t run = wk->vrun[i][m];
+        wk->vrun[i][m] = (uint8_t)(((uint8_t)(run + (uint8_t)(run < 0xFFu)) | first[m]) & (uint8_t)-measured);
+    }
+    for (m = 0; m < NPOP; ++m) {
+        wk->xhat[i][m] = wk->xnew[i][m];
+    }
+    if (!moved) {
+        return;
+    }
+    wk->n_alike[i] += 1u;
+    for (m = 0; m < NPOP; ++m) {
+        wk->n_bounded[i][m] += wk->bounded[i][m];
+        wk->cert[i][m] = wk->cert_new[i][m];
+    }
+    for (m = 0; m < NPOP; ++m) {
+        wk->last_innov[i][m] = wk->innov[i][m];
+        wk->last_nis[i][m] = wk->nis[i][m];
+    }
+}
+
 /* ------------------------------------------------------------------------ */
 
 rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_population_work *work, size_t T,
@@ -1517,16 +1603,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
             const uint8_t measured = (uint8_t)(v == NULL || v[i] != 0u);
             uint8_t any_learn = 0, all_learn = 1, refused = 0, moved_i = 0;
             L = CFG(nets[0])->neurons[i].n_terms;
-            for (m = 0; m < NPOP; ++m) {
-                const uint8_t learn = (uint8_t)(ready[m] & measured & (wk->vrun[i][m] >= wk->need[i][m]));
-                wk->learn[i][m] = learn;
-                wk->bounded[i][m] = 0;
-                wk->recovered[i][m] = 0;
-                wk->innov[i][m] = x[i] - wk->xhat[i][m];
-                wk->e[m] = wk->innov[i][m];
-                any_learn |= learn;
-                all_learn &= (uint8_t)(learn | (alive[m] ^ 1u));
-            }
+            learn_lanes(wk, i, ready, alive, measured, x[i], &any_learn, &all_learn);
             /* Where no member learns this neuron (its measurement missing,
              * learning off, the first sample), nothing of the kernel's would
              * be used: it is not run. */
@@ -1537,11 +1614,9 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                     ud_update(wk, nets, N, i, L);
                 }
             }
-            for (m = 0; m < NPOP; ++m) {
-                const uint8_t ok = (uint8_t)(wk->learn[i][m] & (wk->kstatus[m] == (uint8_t)RHONN_OK));
-                wk->updated[i][m] = ok;
-                moved_i |= ok;
-                refused |= (uint8_t)(wk->learn[i][m] & (ok ^ 1u));
+            if (any_learn) { /* the kernel's verdicts (see verdicts()) */
+                moved_i = wk->k_moved;
+                refused = wk->k_refused;
             }
             for (t = 0; t < L && !all_learn; ++t) { /* w(k+1) = w(k) where a member does not learn */
                 rhonn_real *wn = wk->w[wk->wb ^ 1u][i][t];
@@ -1668,20 +1743,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
             if (alike[i] && !stopped) {
                 /* every member committed, each updated neuron i or none did
                  * (no refusal): counted once for all, in n_alike */
-                for (m = 0; m < NPOP; ++m) {
-                    const uint8_t run = wk->vrun[i][m];
-                    wk->vrun[i][m] = measured ? (uint8_t)((uint8_t)(run + (run < 0xFFu)) | first[m]) : 0u;
-                    wk->xhat[i][m] = wk->xnew[i][m];
-                }
-                if (moved[i]) {
-                    wk->n_alike[i] += 1u;
-                    for (m = 0; m < NPOP; ++m) {
-                        wk->n_bounded[i][m] += wk->bounded[i][m];
-                        wk->last_innov[i][m] = wk->innov[i][m];
-                        wk->last_nis[i][m] = wk->nis[i][m];
-                        wk->cert[i][m] = wk->cert_new[i][m];
-                    }
-                }
+                commit_alike(wk, i, measured, first, moved[i]);
                 continue;
             }
             count_alike(wk, i);
