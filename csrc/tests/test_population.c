@@ -154,7 +154,8 @@ static int same_state(rhonn_t *a, rhonn_t *b, const rhonn_real *x, const rhonn_r
     int same = memcmp(a->xhat, b->xhat, sizeof a->xhat) == 0 && a->steps == b->steps &&
                a->fault_neuron == b->fault_neuron && a->started == b->started && a->head == b->head &&
                memcmp(a->valid_run, b->valid_run, sizeof a->valid_run) == 0 &&
-               memcmp(a->hist, b->hist, sizeof a->hist) == 0;
+               memcmp(a->hist, b->hist, sizeof a->hist) == 0 &&
+               memcmp(a->bank, b->bank, sizeof a->bank) == 0 && a->zbank == b->zbank;
     for (i = 0; i < n; ++i) {
         const size_t L = a->cfg.neurons[i].n_terms, P = L * (L + 1u) / 2u;
         same &= rhonn_get_weights(a, i, va, L) == RHONN_OK && rhonn_get_weights(b, i, vb, L) == RHONN_OK &&
