@@ -1757,9 +1757,7 @@ static void count_runs(rhonn_t *net, const uint8_t *valid)
     RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
     RHONN_NEURON_LOOP
     for (j = 0; j < n; ++j) {
-        const uint8_t run = net->valid_run[j];
-        const uint8_t next = (uint8_t)((uint8_t)(run + (run < 0xFFu)) | first);
-        net->valid_run[j] = (valid == NULL || valid[j] != 0u) ? next : 0u;
+        net->valid_run[j] = rhonn_run_next(net->valid_run[j], first, (uint8_t)(valid == NULL || valid[j] != 0u));
     }
 }
 

@@ -52,6 +52,17 @@
 #define RHONN_COLD
 #endif
 
+/* A state's valid run after a commit (neuron j learns only when the run
+ * covers the history its regressor reads, own_need[j]): one more sample in
+ * a row, saturating at 0xFF; first = 0xFF on an identifier's first sample, which starts every run
+ * full (there is nothing older); 0 when the sample did not measure x_j.
+ * rhonn.c's commit and the population's lanes both count with it. */
+RHONN_INTERNAL_INLINE uint8_t rhonn_run_next(uint8_t run, uint8_t first, uint8_t measured)
+{
+    const uint8_t next = (uint8_t)((uint8_t)(run + (uint8_t)(run < 0xFFu)) | first);
+    return (uint8_t)(next & (uint8_t)-measured);
+}
+
 /* The shift alpha = 17 L gamma_{L+1} of the factorisation that proves a P
  * definite (rhonn.c shifted_check has the derivation). */
 RHONN_INTERNAL_INLINE rhonn_real rhonn_proof_shift(size_t L)

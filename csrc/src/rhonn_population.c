@@ -1459,8 +1459,7 @@ POP_LANES void commit_alike(rhonn_population_work *wk, size_t i, uint8_t measure
 {
     size_t m;
     for (m = 0; m < NPOP; ++m) {
-        const uint8_t run = wk->vrun[i][m];
-        wk->vrun[i][m] = (uint8_t)(((uint8_t)(run + (uint8_t)(run < 0xFFu)) | first[m]) & (uint8_t)-measured);
+        wk->vrun[i][m] = rhonn_run_next(wk->vrun[i][m], first[m], measured);
     }
     for (m = 0; m < NPOP; ++m) {
         wk->xhat[i][m] = wk->xnew[i][m];
@@ -1749,10 +1748,9 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
             count_alike(wk, i);
             for (m = 0; m < NPOP; ++m) {
                 const uint8_t run = wk->vrun[i][m];
-                const uint8_t next = (uint8_t)((uint8_t)(run + (run < 0xFFu)) | first[m]);
                 const uint8_t up = (uint8_t)(wk->updated[i][m] & keep[m]);
                 const uint8_t fresh = (uint8_t)(up & (wk->recovered[i][m] ^ 1u)); /* not a recovery */
-                wk->vrun[i][m] = keep[m] ? (measured ? next : 0u) : run;
+                wk->vrun[i][m] = keep[m] ? rhonn_run_next(run, first[m], measured) : run;
                 wk->flips[i][m] ^= up;
                 wk->run_ended[i][m] |= up;
                 wk->n_resets[i][m] += (uint32_t)(up & wk->recovered[i][m]);
