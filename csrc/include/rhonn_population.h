@@ -28,7 +28,10 @@
  * same for every member: the members' activations and betas agree (so do
  * S(x) and the compiled terms), the sample is fully measured (no member's
  * own prediction stands in for a state) and the history the taps read
- * agrees. Otherwise each member forms its own, as rhonn_step does.
+ * agrees. When a state is missing (a hold) and the history the taps read
+ * still agrees, it is computed once and each member rewrites only the
+ * missing states' values with its own prediction, and the terms that read
+ * them. Otherwise each member forms its own, as rhonn_step does.
  *
  * A MEMBER THAT FAILS stops there, exactly as rhonn_run stops: its rhonn_t
  * holds the state after its last good step, status[m] says why and done[m]
@@ -104,6 +107,8 @@ typedef struct {
     /* the regressor */
     rhonn_real cur[RHONN_MAX_POPULATION][RHONN_SAMPLE_LEN];   /* each member's sample, to commit */
     rhonn_real val[RHONN_VALUES_LEN];                        /* one member's values (rhonn.h) */
+    uint8_t rewritten[RHONN_VALUES_LEN];                     /* a hold's member values (rhonn_run_population) */
+    uint8_t held_term[RHONN_MAX_STATES][RHONN_MAX_TERMS];    /* a hold's member terms */
     /* per member and neuron: 1 = learning this step, updated, bounded, recovered */
     uint8_t learn[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint8_t updated[RHONN_MAX_STATES][RHONN_MAX_POPULATION];

@@ -1941,6 +1941,60 @@ void rhonn_internal_features(const rhonn_t *net, const rhonn_real *x, const rhon
     features(net, x, u, valid, val);
 }
 
+void rhonn_internal_held_values(const rhonn_t *net, const rhonn_real *xhat, const uint8_t *valid, rhonn_real *val,
+                                uint8_t *rewritten)
+{
+    const size_t n = CFG(net)->n_states, groups = net->n_groups;
+    rhonn_real *ent = val + RHONN_SAMPLE_LEN;
+    size_t j, g, e;
+    if (rewritten != NULL) {
+        for (j = 0; j < (size_t)RHONN_SAMPLE_LEN + net->n_entries; ++j) {
+            rewritten[j] = 0;
+        }
+    }
+    /* step 2 for the missing x_j: the member's own prediction and its S */
+    for (j = 0; j < n; ++j) {
+        if (valid[j] != 0u) {
+            continue;
+        }
+        val[j] = xhat[j];
+        for (g = 0; g < groups; ++g) {
+            val[OFF_S(g) + j] = activate(net->group_activation[g], net->group_beta[g], val[j]);
+        }
+        if (rewritten != NULL) {
+            for (g = 0; g <= groups; ++g) {
+                rewritten[(size_t)RHONN_MAX_STATES * g + j] = 1;
+            }
+        }
+    }
+    /* step 3 for the entries of this sample that read them (powers) */
+    for (e = 0; e < net->n_entries; ++e) {
+        const size_t off = net->entry_off[e];
+        if (net->entry_delay[e] != 0u || off >= OFF_U || valid[off % (size_t)RHONN_MAX_STATES] != 0u) {
+            continue;
+        }
+        ent[e] = net->entry_power[e] == 1u ? val[off] : ipow(val[off], net->entry_power[e]);
+        if (rewritten != NULL) {
+            rewritten[RHONN_SAMPLE_LEN + e] = 1;
+        }
+    }
+}
+
+uint8_t rhonn_internal_delayed_reads(const rhonn_t *net, uint8_t *deepest)
+{
+    uint8_t inputs = 0;
+    size_t j, e;
+    for (j = 0; j < (size_t)RHONN_MAX_STATES; ++j) {
+        deepest[j] = 0;
+    }
+    for (e = 0; e < net->n_entries; ++e) {
+        const size_t off = net->entry_off[e];
+        uint8_t *d = off < OFF_U ? &deepest[off % (size_t)RHONN_MAX_STATES] : &inputs;
+        *d = net->entry_delay[e] > *d ? net->entry_delay[e] : *d;
+    }
+    return inputs;
+}
+
 void rhonn_internal_commit_sample(rhonn_t *net, const rhonn_real *cur, const uint8_t *valid)
 {
     commit_sample(net, cur, valid);

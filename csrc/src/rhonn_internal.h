@@ -160,6 +160,23 @@ rhonn_status rhonn_internal_check_inputs(const rhonn_t *net, const rhonn_real *x
 void rhonn_internal_features(const rhonn_t *net, const rhonn_real *x, const rhonn_real *u, const uint8_t *valid,
                              rhonn_real *val);
 
+/* rhonn_internal_features for another member of a population, from val
+ * holding a member's values that differ from its own only where this
+ * sample misses a state (valid[j] == 0; the caller guarantees that every
+ * delayed value the two read is the same): x_j rewritten with the member's
+ * prediction xhat[j], its S(x_j) and the entries of this sample that read
+ * them, with features()' own operations, so val then holds exactly what
+ * rhonn_internal_features would for the member. rewritten (NULL: not
+ * wanted) gets 1 at the value indices rewritten, 0 at the others of the
+ * first RHONN_SAMPLE_LEN + net->n_entries; they depend on valid only. */
+void rhonn_internal_held_values(const rhonn_t *net, const rhonn_real *xhat, const uint8_t *valid, rhonn_real *val,
+                                uint8_t *rewritten);
+
+/* deepest[j] (RHONN_MAX_STATES of them): the deepest delay at which the
+ * regressor reads x_j or S(x_j) from the history (0: only this sample's);
+ * returns the deepest at which it reads an input u_j (or the constant). */
+uint8_t rhonn_internal_delayed_reads(const rhonn_t *net, uint8_t *deepest);
+
 /* The history part of a step's commit: cur into the ring (when a tap reads
  * it), the head advanced, the valid runs counted. Reads net->started, so it
  * runs before started is set. */

@@ -1423,6 +1423,74 @@ static void lane_regressor(rhonn_population_work *wk, const rhonn_t *net, const 
     }
 }
 
+/* How many of the newest history slots every member holds a value alike
+ * in, after a step whose sample held it alike for all (agreed: before). */
+static uint8_t slots_agreeing(uint8_t agreed, int shareable, int all_fresh, int all_started, size_t maxd)
+{
+    if (!shareable) {
+        return 0u;
+    }
+    if (all_fresh) {
+        return (uint8_t)maxd; /* members that had not started filled every slot with it */
+    }
+    return (uint8_t)(!all_started ? 1u : agreed < maxd ? agreed + 1u : maxd);
+}
+
+/* z(k) of every member in a hold (see rhonn_population.h): the lead's
+ * values into every lane, then for each other member its own prediction of
+ * the missing states rewritten into them (rhonn_internal_held_values), and
+ * the terms that read one of those values recomputed into its lane; each
+ * member's sample kept for its own ring, which is paid what it is owed
+ * first (its commit stores this sample). */
+static void held_regressors(rhonn_population_work *wk, rhonn_t *const *nets, size_t N, size_t lead,
+                            const uint8_t *alive, const uint8_t *fail, const rhonn_real *x, const rhonn_real *u,
+                            const uint8_t *v, size_t zb)
+{
+    const rhonn_t *ln = nets[lead];
+    const rhonn_config *cfg = CFG(ln);
+    rhonn_real xm[RHONN_MAX_STATES];
+    size_t i, t, f, m;
+    int first = 1;
+    for (i = 0; i < cfg->n_states; ++i) { /* a missing x_i reads the lead's prediction */
+        nets[lead]->xhat[i] = wk->xhat[i][lead];
+    }
+    pay_ring(wk, nets[lead], lead);
+    rhonn_internal_features(ln, x, u, v, wk->val);
+    keep_sample(wk, lead);
+    lane_regressor(wk, ln, wk->val, zb, 0, 1);
+    for (m = 0; m < N; ++m) {
+        if (!alive[m] || fail[m] || m == lead) {
+            continue;
+        }
+        for (i = 0; i < cfg->n_states; ++i) {
+            xm[i] = wk->xhat[i][m];
+        }
+        pay_ring(wk, nets[m], m);
+        rhonn_internal_held_values(ln, xm, v, wk->val, first ? wk->rewritten : NULL);
+        if (first) { /* the terms that read a rewritten value: the same for every member */
+            for (i = 0; i < cfg->n_states; ++i) {
+                for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
+                    const uint16_t *te = ln->term_entry[i][t];
+                    uint8_t r = 0;
+                    for (f = 0; f < cfg->neurons[i].terms[t].n_factors; ++f) {
+                        r |= wk->rewritten[te[f]];
+                    }
+                    wk->held_term[i][t] = r;
+                }
+            }
+            first = 0;
+        }
+        for (i = 0; i < cfg->n_states; ++i) {
+            for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
+                if (wk->held_term[i][t]) {
+                    wk->z[zb][i][t][m] = term_value(ln, wk->val, i, t);
+                }
+            }
+        }
+        keep_sample(wk, m);
+    }
+}
+
 /* Which lanes learn neuron i this step (ready, x_i measured, their valid
  * run long enough: rhonn.c step 1), the innovation x_i - xhat_i of every
  * lane; *any: some lane learns, *all: every alive lane does. */
@@ -1489,7 +1557,12 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
     rhonn_status st[RHONN_MAX_POPULATION];
     uint8_t alive[RHONN_MAX_POPULATION], fail[RHONN_MAX_POPULATION];
     size_t ran[RHONN_MAX_POPULATION];
-    size_t n, mi, L, m, m2, i, t, k, agree, maxd;
+    size_t n, mi, L, m, m2, i, t, k, maxd;
+    /* deepest[j]: the deepest history slot the taps read x_j (or S(x_j))
+     * from, deepest_u the inputs'; agree[j], agree_u: how many of the
+     * newest slots every member holds the same x_j, the same inputs in
+     * (none known at first: members stepped apart before the call) */
+    uint8_t deepest[RHONN_MAX_STATES], agree[RHONN_MAX_STATES], deepest_u, agree_u = 0;
     int shareable = 1;
     rhonn_status ret;
 
@@ -1546,16 +1619,17 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         st[m] = RHONN_OK;
         ran[m] = 0;
     }
-    /* How many of the newest history slots every member holds alike: none
-     * known at first (a member that has not started fills them all). */
-    agree = 0;
+    deepest_u = rhonn_internal_delayed_reads(nets[0], deepest);
+    for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
+        agree[i] = 0;
+    }
 
     for (k = 0; k < T; ++k) {
         const rhonn_real *x = X + k * n;
         const rhonn_real *u = mi > 0u ? U + k * mi : U;
         const uint8_t *v = valid != NULL ? valid + k * n : NULL;
         const size_t zb_new = wk->zb ^ 1u;
-        int all_valid = 1, any_alive = 0, all_fresh = 1, all_started = 1, shared;
+        int all_valid = 1, any_alive = 0, all_fresh = 1, all_started = 1, taps_agree, shared, held;
         uint8_t moved[RHONN_MAX_STATES]; /* some member updated neuron i */
         uint8_t ready[RHONN_MAX_POPULATION], first[RHONN_MAX_POPULATION];
         uint8_t keep[RHONN_MAX_POPULATION]; /* committed this step */
@@ -1661,12 +1735,20 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                 all_started &= wk->started[m] != 0u;
             }
         }
-        shared = shareable && all_valid && lead < NPOP && (all_fresh || (all_started && agree >= maxd));
+        taps_agree = agree_u >= deepest_u;
+        for (i = 0; i < n; ++i) {
+            taps_agree &= agree[i] >= deepest[i];
+        }
+        shared = shareable && all_valid && lead < NPOP && (all_fresh || (all_started && taps_agree));
+        /* a hold: the members' values differ only in the missing states' */
+        held = shareable && !all_valid && lead < NPOP && all_started && taps_agree;
         if (shared) {
             pay_ring(wk, nets[lead], lead); /* a new lead (the one before stopped) */
             rhonn_internal_features(nets[lead], x, u, v, wk->val);
             keep_sample(wk, 0);
             lane_regressor(wk, nets[lead], wk->val, zb_new, 0, 1);
+        } else if (held) {
+            held_regressors(wk, nets, N, lead, alive, fail, x, u, v, zb_new);
         } else {
             for (m = 0; m < N; ++m) {
                 if (alive[m] && !fail[m]) {
@@ -1790,14 +1872,14 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         for (i = 0; i < n; ++i) {
             wk->pb[i] = (uint8_t)(wk->pb[i] ^ moved[i]);
         }
-        /* The newest slot agrees when every member read the same sample;
-         * members that had not started filled every slot with it. */
-        if (!(shareable && all_valid)) {
-            agree = 0;
-        } else if (all_fresh) {
-            agree = maxd;
-        } else {
-            agree = !all_started ? 1u : agree < maxd ? agree + 1u : maxd;
+        /* The newest slot holds the same inputs in every member, and the
+         * same x_i when x_i was measured (the same structure reading the
+         * same sample); members that had not started filled every slot
+         * with it. */
+        agree_u = slots_agreeing(agree_u, shareable, all_fresh, all_started, maxd);
+        for (i = 0; i < n; ++i) {
+            agree[i] = (v != NULL && v[i] == 0u) ? 0u
+                                                  : slots_agreeing(agree[i], shareable, all_fresh, all_started, maxd);
         }
     }
 

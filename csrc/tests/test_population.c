@@ -55,7 +55,8 @@ static rhonn_term term2(uint8_t kind, uint8_t i1, uint8_t i2, uint8_t power2)
 
 /* The LIM identifier's structure (firmware-lim: 6 states, 2 inputs, a
  * 2-term U D U^T position neuron, 5-7 terms elsewhere); variant k tunes it
- * differently. delayed adds taps x1(k-2) and u1(k-1). */
+ * differently. delayed adds taps x1(k-2) and u1(k-1) and a power of this
+ * sample's x4 (which the dropouts miss: each member's own x4^2 in a hold). */
 static rhonn_config lim_config(unsigned k, int delayed, int ud_all)
 {
     static const uint8_t S = RHONN_FACTOR_S, X = RHONN_FACTOR_X, U = RHONN_FACTOR_U;
@@ -97,6 +98,8 @@ static rhonn_config lim_config(unsigned k, int delayed, int ud_all)
     if (delayed) {
         c.neurons[2].terms[4] = term1(X, 0, 2);
         c.neurons[4].terms[4] = term1(U, 0, 1);
+        c.neurons[3].terms[4] = term1(X, 3, 0);
+        c.neurons[3].terms[4].factors[0].power = 2;
     }
     for (i = 0; i < 6; ++i) {
         rhonn_neuron_config *nc = &c.neurons[i];
@@ -274,6 +277,22 @@ static void members_continue_from_their_own_state(void)
     for (m = 0; m < 4; ++m) {
         cfg[m] = lim_config((unsigned)m, 1, 0);
     }
+    CHECK(compare(cfg, 4, pre, 1) == 0);
+}
+
+/* Members stepped apart before the call hold different inputs in their
+ * history rings: a tap on u(k-2) is not shared (nor is a hold's regressor
+ * formed from another member's) before two samples of the call are in. */
+static void an_input_tap_reads_each_member_s_own_history_at_first(void)
+{
+    rhonn_config cfg[MAXN];
+    const size_t pre[4] = {1, 3, 2, 5};
+    size_t m;
+    for (m = 0; m < 4; ++m) {
+        cfg[m] = lim_config((unsigned)m, 0, 0);
+        cfg[m].neurons[4].terms[4] = term1(RHONN_FACTOR_U, 0, 2);
+    }
+    CHECK(compare(cfg, 4, pre, 0) == 0);
     CHECK(compare(cfg, 4, pre, 1) == 0);
 }
 
@@ -781,6 +800,7 @@ int main(void)
     RUN(dropouts_delays_and_differing_betas_equal_single_runs);
     RUN(factored_covariances_equal_single_runs);
     RUN(members_continue_from_their_own_state);
+    RUN(an_input_tap_reads_each_member_s_own_history_at_first);
     RUN(forgetting_ceiling_and_resets_equal_single_runs);
     RUN(refused_updates_stop_or_reset_a_member_as_alone);
     RUN(a_stopping_first_member_hands_the_shared_regressor_on);
