@@ -145,7 +145,9 @@ def c_encode(codec, msg: can.Message) -> bytes:
 
 
 def fields(msg: can.Message) -> dict:
-    return {"timestamp": msg.timestamp, "arbitration_id": msg.arbitration_id, "is_extended_id": msg.is_extended_id,
+    # A datagram may carry the timestamp as an integer: python-can keeps the int, the codec holds the
+    # double it converts it to (rounded to nearest, as float() rounds; udp_can.h), the same seconds.
+    return {"timestamp": float(msg.timestamp), "arbitration_id": msg.arbitration_id, "is_extended_id": msg.is_extended_id,
             "is_remote_frame": msg.is_remote_frame, "is_error_frame": msg.is_error_frame, "is_fd": msg.is_fd,
             "bitrate_switch": msg.bitrate_switch, "error_state_indicator": msg.error_state_indicator,
             "dlc": msg.dlc, "data": bytes(msg.data)}
@@ -257,6 +259,16 @@ def test_every_message_python_can_packs_decodes_in_c_to_the_same_fields(codec, m
     status, got = c_decode(codec, pack_message(msg))
     assert status == "ok"
     assert got == fields(msg)
+
+
+def test_an_integer_timestamp_past_2_53_decodes_to_the_seconds_python_can_reads(codec) -> None:
+    d = as_dict(can.Message(timestamp=0.0, arbitration_id=0x101, data=b"\x01"))
+    d["timestamp"] = 4800837202776949248  # not a double: python-can keeps the int
+    blob = msgpack.packb(d)
+    status, got = c_decode(codec, blob)
+    assert status == "ok"
+    assert got == fields(unpack_message(blob, check=True))
+    assert got["timestamp"] == float(d["timestamp"]) and float(d["timestamp"]) != d["timestamp"]
 
 
 @settings(max_examples=300, deadline=None)
