@@ -65,17 +65,32 @@ CORE_CONSTANTS = CONSTANTS + ("RHONN_MAX_POPULATION",)
 STEP_GLUE_DECLARATIONS = """
 typedef struct {
     rhonn_t *net;
-    const rhonn_real *x;
-    const rhonn_real *u;
-    const uint8_t *valid;
+    rhonn_real *x;
+    rhonn_real *u;
+    uint8_t *valid;
     rhonn_real *xhat_next;
+    size_t x_bytes, u_bytes, valid_bytes;
 } pyrhonn_step_call;
-rhonn_status pyrhonn_step(const pyrhonn_step_call *call);
+rhonn_status pyrhonn_step_from(const pyrhonn_step_call *call, const char *x, const char *u, const char *valid);
 """
+#: ``pyrhonn_step_from`` takes the arguments' bytes (``ndarray.tobytes()``,
+#: whose length the caller has checked: the array's dtype and shape): cffi
+#: passes a bytes object to a ``char *`` without a copy or the buffer
+#: protocol, which made a ``memmove`` from an array cost about 4x a
+#: ``tobytes``. The bytes are copied into the call's own buffers, where
+#: ``rhonn_step`` reads them aligned.
 STEP_GLUE = STEP_GLUE_DECLARATIONS + """
-rhonn_status pyrhonn_step(const pyrhonn_step_call *call)
+#include <string.h>
+rhonn_status pyrhonn_step_from(const pyrhonn_step_call *call, const char *x, const char *u, const char *valid)
 {
-    return rhonn_step(call->net, call->x, call->u, call->valid, call->xhat_next);
+    memcpy(call->x, x, call->x_bytes);
+    if (u != NULL) {
+        memcpy(call->u, u, call->u_bytes);
+    }
+    if (valid != NULL) {
+        memcpy(call->valid, valid, call->valid_bytes);
+    }
+    return rhonn_step(call->net, call->x, call->u, valid != NULL ? call->valid : NULL, call->xhat_next);
 }
 """
 

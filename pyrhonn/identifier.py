@@ -494,34 +494,32 @@ class Identifier:
 
         Arguments that are already exactly right -- numpy arrays of the
         identifier's dtype (the very dtype object numpy uses for it) and
-        shape, C-contiguous, ``valid`` None or bool -- are copied into
-        preallocated C buffers and stepped, with everything the call needs
-        held in the closure: no attribute lookups, no ``from_buffer``, and
-        one C call with a single argument (``pyrhonn_step``, host glue of
-        :mod:`pyrhonn._build` around ``rhonn_step``). Anything else, right or wrong, goes to
-        :meth:`_step_checked`, which accepts, copies and refuses exactly as
-        before (a non-contiguous array is refused by ``memmove`` and falls
-        through to it too). The copies happen under the identifier's lock,
+        shape, ``valid`` None or bool -- are passed as their bytes
+        (``tobytes``, a C-order copy of exactly the checked size) to one C
+        call (``pyrhonn_step_from``, host glue of :mod:`pyrhonn._build`
+        around ``rhonn_step``), which copies them into preallocated buffers
+        and steps; everything the call needs is held in the closure: no
+        attribute lookups, no ``from_buffer``. Anything else, right or wrong,
+        goes to :meth:`_step_checked`, which accepts, copies and refuses
+        exactly as before. The copies happen under the identifier's lock,
         since the buffers are shared by every thread using it. The closure
         holds the identifier only weakly: no reference cycle keeps a dropped
         identifier's (large) C state alive until the garbage collector runs.
         """
         ffi = self._ffi
         dt, xshape, ushape, m = self._dtype, self._xshape, self._ushape, self._m
-        memmove, c_step, out = ffi.memmove, self._lib.pyrhonn_step, self._out
+        c_step, out = self._lib.pyrhonn_step_from, self._out
         x_buf = ffi.new(self._real_array, self._n)
         u_buf = ffi.new(self._real_array, max(m, 1))
         v_buf = ffi.new("uint8_t[]", self._n)
-        x_bytes, u_bytes, v_bytes = self._n * dt.itemsize, m * dt.itemsize, self._n
-        # The two calls (all measured, or with valid flags) with their
-        # buffers: one argument for cffi to convert (pyrhonn._build.STEP_GLUE).
-        # The struct holds raw pointers; the closure keeps what they point to.
-        all_measured, flagged = ffi.new("pyrhonn_step_call *"), ffi.new("pyrhonn_step_call *")
-        for call, flags in ((all_measured, self._null), (flagged, v_buf)):
-            call.net, call.x, call.u, call.valid, call.xhat_next = self._net, x_buf, u_buf, flags, self._out_ptr
-        keep = (self._net, self._out_ptr)
+        # The call's buffers and sizes (pyrhonn._build.STEP_GLUE). The struct
+        # holds raw pointers; the closure keeps what they point to.
+        call = ffi.new("pyrhonn_step_call *")
+        call.net, call.x, call.u, call.valid, call.xhat_next = self._net, x_buf, u_buf, v_buf, self._out_ptr
+        call.x_bytes, call.u_bytes, call.valid_bytes = self._n * dt.itemsize, m * dt.itemsize, self._n
+        keep = (self._net, self._out_ptr, x_buf, u_buf, v_buf)
         acquire, release = self._lock.acquire, self._lock.release
-        copy = np.ndarray.copy
+        copy, tobytes, null = np.ndarray.copy, np.ndarray.tobytes, self._null
         me = weakref.ref(self)
 
         def owner() -> "Identifier":
@@ -540,30 +538,27 @@ class Identifier:
             if u is None:
                 if m:
                     return checked(x, u, valid)
+                ub = null
             elif type(u) is not _ndarray or u.dtype is not dt or u.shape != ushape or not m:
                 return checked(x, u, valid)
-            if valid is not None and (type(valid) is not _ndarray or valid.dtype is not _BOOL
-                                      or valid.shape != xshape):
+            else:
+                ub = tobytes(u)
+            if valid is None:
+                vb = null
+            elif type(valid) is not _ndarray or valid.dtype is not _BOOL or valid.shape != xshape:
                 return checked(x, u, valid)
+            else:
+                vb = tobytes(valid)
+            xb = tobytes(x)
             acquire()  # one step at a time on this identifier (see the class docs)
             try:
-                try:
-                    memmove(x_buf, x, x_bytes)
-                    if u is not None:
-                        memmove(u_buf, u, u_bytes)
-                    if valid is not None:
-                        memmove(v_buf, valid, v_bytes)
-                except ValueError:  # not C-contiguous: the checked path copies it
-                    pass
-                else:
-                    status = c_step(all_measured if valid is None else flagged)
-                    if status:
-                        owner()._raise_step_error(status, x[None, :], None if u is None else u[None, :],
-                                                None if valid is None else valid[None, :], 0, single=True)
-                    return copy(out)
+                status = c_step(call, xb, ub, vb)
+                if status:
+                    owner()._raise_step_error(status, x[None, :], None if u is None else u[None, :],
+                                              None if valid is None else valid[None, :], 0, single=True)
+                return copy(out)
             finally:
                 release()
-            return checked(x, u, valid)
 
         functools.update_wrapper(step, Identifier.step)
         step._keep = keep  # type: ignore[attr-defined]  # the state and output the calls point to
