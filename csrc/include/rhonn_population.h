@@ -119,6 +119,8 @@ typedef struct {
     uint8_t zb;                                   /* which z bank holds z(k-1) */
     uint8_t wb;                                   /* which w bank is committed */
     uint8_t pb[RHONN_MAX_STATES];                 /* which P bank of neuron i is committed */
+    uint8_t ceiling[RHONN_MAX_STATES];            /* some lane of neuron i has the trace ceiling on */
+    uint8_t forgets[RHONN_MAX_STATES];            /* some lane of neuron i forgets */
     /* The samples of the last steps in which every member read the same
      * one: a member other than the step's lead gets them into its history
      * ring only before the ring is read or the member handed back. */

@@ -101,6 +101,32 @@ typedef uint64_t pop_bits;
 /* Lane vectors: entry idx of an array [...][member] starts at idx * NPOP. */
 #define LANE(a, idx) ((a) + (size_t)(idx) * NPOP)
 
+#if RHONN_POP_VECTOR
+#ifdef RHONN_SINGLE
+typedef uint32_t pop_ubits;
+#define POP_EXP_SHIFT 23
+#define POP_EXP_FIELD 0xFF
+#define POP_SCALE_TOP 255  /* 2^-floor(e/2) = bits (255 - floor((b + 129) / 2)) << 23 */
+#define POP_SCALE_ADD 129
+#define POP_ABS_MASK 0x7FFFFFFFu
+#else
+typedef uint64_t pop_ubits;
+#define POP_EXP_SHIFT 52
+#define POP_EXP_FIELD 0x7FF
+#define POP_SCALE_TOP 2047 /* 2^-floor(e/2) = bits (2047 - floor((b + 1025) / 2)) << 52 */
+#define POP_SCALE_ADD 1025
+#define POP_ABS_MASK 0x7FFFFFFFFFFFFFFFull
+#endif
+/* A value of every member; aligned as rhonn_real, so a vector is read and
+ * written in place in the workspace's [...][member] arrays. */
+typedef rhonn_real lanev __attribute__((vector_size(sizeof(rhonn_real) * RHONN_MAX_POPULATION),
+                                        aligned(sizeof(rhonn_real))));
+typedef pop_ubits lanei __attribute__((vector_size(sizeof(rhonn_real) * RHONN_MAX_POPULATION),
+                                       aligned(sizeof(rhonn_real))));
+#define V(a, idx) (*(lanev *)LANE(a, idx))
+#define VC(a, idx) (*(const lanev *)LANE(a, idx))
+#endif
+
 /* Each member's status from the kernel's verdicts, in rhonn.c's order: the
  * innovation (s finite and s >= R; for the U D U^T form, s finite), the
  * weights finite (wsum, the sum of w - w over the new weights, is 0), P(k+1)
@@ -118,6 +144,34 @@ POP_ALWAYS_INLINE void verdicts(rhonn_population_work *wk, size_t i, const rhonn
 {
     uint8_t moved = 0, refused = 0;
     size_t m, c;
+#if RHONN_POP_VECTOR
+    {
+        /* Nearly every call: every lane passed, whose statuses follow from
+         * the masks at once (the same tests; else the lane by lane below) */
+        const lanev sv = VC(s, 0), wv = VC(wsum, 0), pv = VC(pd_ok, 0);
+        lanei ok = (lanei)((sv - sv) == R(0.0)) & (lanei)((wv - wv) == R(0.0)) & (lanei)(pv == R(1.0));
+        pop_ubits every = ~(pop_ubits)0;
+        if (fsum != NULL) {
+            const lanev fv = VC(fsum, 0);
+            ok &= (lanei)((fv - fv) == R(0.0));
+        } else {
+            ok &= (lanei)(sv >= VC(rr, 0));
+        }
+        for (m = 0; m < NPOP; ++m) {
+            every &= ok[m];
+        }
+        if (every != 0u) {
+            for (m = 0; m < NPOP; ++m) {
+                wk->kstatus[m] = (uint8_t)RHONN_OK;
+                wk->updated[i][m] = wk->learn[i][m];
+                moved |= wk->learn[i][m];
+            }
+            wk->k_moved = moved;
+            wk->k_refused = 0;
+            return;
+        }
+    }
+#endif
     for (m = 0; m < NPOP; ++m) {
         rhonn_status st = RHONN_OK;
         if (!(LANE_FINITE(s[m]) && (fsum != NULL || s[m] >= rr[m]))) {
@@ -521,29 +575,6 @@ POP_CLONES static void full_kernel(rhonn_population_work *wk, size_t i, size_t L
     full_kernel_loops(wk, i, L);
 }
 #else
-#ifdef RHONN_SINGLE
-typedef uint32_t pop_ubits;
-#define POP_EXP_SHIFT 23
-#define POP_EXP_FIELD 0xFF
-#define POP_SCALE_TOP 255  /* 2^-floor(e/2) = bits (255 - floor((b + 129) / 2)) << 23 */
-#define POP_SCALE_ADD 129
-#define POP_ABS_MASK 0x7FFFFFFFu
-#else
-typedef uint64_t pop_ubits;
-#define POP_EXP_SHIFT 52
-#define POP_EXP_FIELD 0x7FF
-#define POP_SCALE_TOP 2047 /* 2^-floor(e/2) = bits (2047 - floor((b + 1025) / 2)) << 52 */
-#define POP_SCALE_ADD 1025
-#define POP_ABS_MASK 0x7FFFFFFFFFFFFFFFull
-#endif
-/* A value of every member; aligned as rhonn_real, so a vector is read and
- * written in place in the workspace's [...][member] arrays. */
-typedef rhonn_real lanev __attribute__((vector_size(sizeof(rhonn_real) * RHONN_MAX_POPULATION),
-                                        aligned(sizeof(rhonn_real))));
-typedef pop_ubits lanei __attribute__((vector_size(sizeof(rhonn_real) * RHONN_MAX_POPULATION),
-                                       aligned(sizeof(rhonn_real))));
-#define V(a, idx) (*(lanev *)LANE(a, idx))
-#define VC(a, idx) (*(const lanev *)LANE(a, idx))
 
 /* The trace ceiling's factor: p_trace_max / trace where the trace is above
  * a ceiling, exactly 1 elsewhere (scaling by it changes nothing), member by
@@ -563,28 +594,18 @@ static void trace_scale(rhonn_population_work *wk, size_t i, const rhonn_real *t
 /* Whether some member of neuron i has the trace ceiling on. Where none
  * has, the ceiling's work (a trace, a scaling by exactly 1) changes nothing
  * and is skipped; no member is bounded (the step clears bounded before the
- * kernels). */
+ * kernels). Constant for a call: see lane_flags. */
 static int any_ceiling(const rhonn_population_work *wk, size_t i)
 {
-    int any = 0;
-    size_t m;
-    for (m = 0; m < NPOP; ++m) {
-        any |= wk->p_trace_max[i][m] > R(0.0);
-    }
-    return any;
+    return wk->ceiling[i];
 }
 
 /* Whether some member of neuron i forgets (1 / lambda is exactly 1 for the
  * others): where none does, the multiplication by 1 is skipped, as rhonn.c
- * skips it. */
+ * skips it. Constant for a call: see lane_flags. */
 static int any_forgetting(const rhonn_population_work *wk, size_t i)
 {
-    int any = 0;
-    size_t m;
-    for (m = 0; m < NPOP; ++m) {
-        any |= wk->inv_lambda[i][m] != R(1.0);
-    }
-    return any;
+    return wk->forgets[i];
 }
 
 /* e^2 / s into nis and eq. 7's w + (eta e / s) k, k = P z, into the
@@ -667,7 +688,7 @@ POP_ALWAYS_INLINE int vec_proofs(rhonn_population_work *wk, size_t i, size_t L, 
     lanev tr = zero, pzz = zero, vv = zero, zv = zero, pmax = zero;
     pop_ubits a_holds[RHONN_MAX_POPULATION];
     size_t r, m;
-    int all = 1;
+    uint8_t all = 1;
     for (r = 0; r < L; ++r) {
         const lanev d = VC(P, rs[r]), zr = VC(z, r), vr = VC(pz, r), dn = VC(Pn, rs[r]);
         const lanev az = (lanev)((lanei)zr & (pop_ubits)POP_ABS_MASK);
@@ -680,10 +701,19 @@ POP_ALWAYS_INLINE int vec_proofs(rhonn_population_work *wk, size_t i, size_t L, 
         pmax = (lanev)(((lanei)dn & gt) | ((lanei)pmax & ~gt));
     }
     vec_proof_holds(&tr, &pzz, &vv, &zv, &pmax, &VC(wk->q_min[i], 0), &VC(wk->r[i], 0), &VC(inv_s, 0), L, a_holds);
-    for (m = 0; m < NPOP; ++m) {
-        fast[m] = (uint8_t)(wk->learn[i][m] && wk->cert[i][m] && wk->inv_lambda[i][m] == R(1.0) &&
-                            !wk->bounded[i][m] && a_holds[m] != 0u);
-        all &= fast[m] || !wk->learn[i][m];
+    {
+        /* fast = learn & cert & (1 / lambda == 1) & !bounded & the proof, as
+         * masks of every lane at once (the flags are 0 or 1) */
+        lanei learn, flags, keep;
+        for (m = 0; m < NPOP; ++m) {
+            learn[m] = wk->learn[i][m];
+            flags[m] = (pop_ubits)(wk->cert[i][m] != 0u) & (pop_ubits)(wk->bounded[i][m] ^ 1u);
+        }
+        keep = learn & flags & (lanei)(VC(wk->inv_lambda[i], 0) == R(1.0)) & *(const lanei *)a_holds;
+        for (m = 0; m < NPOP; ++m) {
+            fast[m] = (uint8_t)keep[m];
+            all &= (uint8_t)(keep[m] | (learn[m] ^ 1u));
+        }
     }
     return all;
 }
@@ -1026,14 +1056,14 @@ POP_ALWAYS_INLINE void ud_kernel_body(rhonn_population_work *wk, size_t i, size_
             }
         }
     }
-    for (m = 0; m < NPOP; ++m) {
-        out_ok[m] = R(1.0);
-    }
-    for (j = 0; j < L; ++j) {
-        for (m = 0; m < NPOP; ++m) {
-            /* rhonn.c: a d~_j that underflowed */
-            out_ok[m] = Fn[rs[j] * NPOP + m] > R(0.0) ? out_ok[m] : R(0.0);
+    {
+        /* rhonn.c: a d~_j that underflowed (or is NaN) refuses; 1 or 0 by
+         * a mask on 1's bits */
+        lanei pos = (lanei)(one > zero);
+        for (j = 0; j < L; ++j) {
+            pos &= (lanei)(V(Fn, rs[j]) > zero);
         }
+        V(out_ok, 0) = (lanev)((lanei)one & pos);
     }
     /* The trace ceiling: trace(U D U^T) = sum_j d_j (1 + sum_{i<j} U(i,j)^2);
      * above p_trace_max, D scaled by p_trace_max / trace (by 1 elsewhere). */
@@ -1184,6 +1214,23 @@ static int is_ud(const rhonn_t *net, size_t i)
 }
 
 /* Member net's committed state and tuning into lane m. */
+/* Which neurons (of the first n) have the trace ceiling on in some lane,
+ * and which forget in some lane, once the lanes are loaded: any_ceiling and
+ * any_forgetting read them in every kernel call. */
+static void lane_flags(rhonn_population_work *wk, size_t n)
+{
+    size_t i, m;
+    for (i = 0; i < n; ++i) {
+        uint8_t ceiling = 0, forgets = 0;
+        for (m = 0; m < NPOP; ++m) {
+            ceiling |= (uint8_t)(wk->p_trace_max[i][m] > R(0.0));
+            forgets |= (uint8_t)(wk->inv_lambda[i][m] != R(1.0));
+        }
+        wk->ceiling[i] = ceiling;
+        wk->forgets[i] = forgets;
+    }
+}
+
 static void load_lane(rhonn_population_work *wk, const rhonn_t *net, size_t m)
 {
     const rhonn_config *cfg = CFG(net);
@@ -1536,8 +1583,12 @@ POP_LANES void commit_alike(rhonn_population_work *wk, size_t i, uint8_t measure
         return;
     }
     wk->n_alike[i] += 1u;
+    if (wk->ceiling[i]) { /* only the trace ceiling bounds an update */
+        for (m = 0; m < NPOP; ++m) {
+            wk->n_bounded[i][m] += wk->bounded[i][m];
+        }
+    }
     for (m = 0; m < NPOP; ++m) {
-        wk->n_bounded[i][m] += wk->bounded[i][m];
         wk->cert[i][m] = wk->cert_new[i][m];
     }
     for (m = 0; m < NPOP; ++m) {
@@ -1619,6 +1670,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         st[m] = RHONN_OK;
         ran[m] = 0;
     }
+    lane_flags(wk, n);
     deepest_u = rhonn_internal_delayed_reads(nets[0], deepest);
     for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
         agree[i] = 0;
@@ -2006,6 +2058,7 @@ static void wide_load(rhonn_population_work *wk, const rhonn_t *net)
                                                                                      : R(1.0);
         wk->p_trace_max[0][m] = nc->p_trace_max;
     }
+    lane_flags(wk, 1);
 }
 
 /* The lanes' committed state back into net's committed banks (the rest of
