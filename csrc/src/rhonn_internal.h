@@ -60,7 +60,7 @@
 RHONN_INTERNAL_INLINE uint8_t rhonn_run_next(uint8_t run, uint8_t first, uint8_t measured)
 {
     const uint8_t next = (uint8_t)((uint8_t)(run + (uint8_t)(run < 0xFFu)) | first);
-    return (uint8_t)(next & (uint8_t)-measured);
+    return measured ? next : 0u;
 }
 
 /* The shift alpha = 17 L gamma_{L+1} of the factorisation that proves a P
