@@ -1483,6 +1483,19 @@ static uint8_t slots_agreeing(uint8_t agreed, int shareable, int all_fresh, int 
     return (uint8_t)(!all_started ? 1u : agreed < maxd ? agreed + 1u : maxd);
 }
 
+/* Member m's values formed from its own net (its ring paid what it is owed
+ * first; a missing x_i reads net->xhat, which the caller has set where it
+ * matters), kept as the sample in row keep of wk->cur, and the regressor
+ * from them into lane m of bank zb, or into every lane. */
+static void own_regressor(rhonn_population_work *wk, rhonn_t *net, size_t m, const rhonn_real *x,
+                          const rhonn_real *u, const uint8_t *v, size_t zb, size_t keep, int every_lane)
+{
+    pay_ring(wk, net, m);
+    rhonn_internal_features(net, x, u, v, wk->val);
+    keep_sample(wk, keep);
+    lane_regressor(wk, net, wk->val, zb, m, every_lane);
+}
+
 /* z(k) of every member in a hold (see rhonn_population.h): the lead's
  * values into every lane, then for each other member its own prediction of
  * the missing states rewritten into them (rhonn_internal_held_values), and
@@ -1501,10 +1514,7 @@ static void held_regressors(rhonn_population_work *wk, rhonn_t *const *nets, siz
     for (i = 0; i < cfg->n_states; ++i) { /* a missing x_i reads the lead's prediction */
         nets[lead]->xhat[i] = wk->xhat[i][lead];
     }
-    pay_ring(wk, nets[lead], lead);
-    rhonn_internal_features(ln, x, u, v, wk->val);
-    keep_sample(wk, lead);
-    lane_regressor(wk, ln, wk->val, zb, 0, 1);
+    own_regressor(wk, nets[lead], lead, x, u, v, zb, lead, 1);
     for (m = 0; m < N; ++m) {
         if (!alive[m] || fail[m] || m == lead) {
             continue;
@@ -1795,10 +1805,8 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         /* a hold: the members' values differ only in the missing states' */
         held = shareable && !all_valid && lead < NPOP && all_started && taps_agree;
         if (shared) {
-            pay_ring(wk, nets[lead], lead); /* a new lead (the one before stopped) */
-            rhonn_internal_features(nets[lead], x, u, v, wk->val);
-            keep_sample(wk, 0);
-            lane_regressor(wk, nets[lead], wk->val, zb_new, 0, 1);
+            /* the lead's ring paid first (a new lead: the one before stopped) */
+            own_regressor(wk, nets[lead], lead, x, u, v, zb_new, 0, 1);
         } else if (held) {
             held_regressors(wk, nets, N, lead, alive, fail, x, u, v, zb_new);
         } else {
@@ -1808,10 +1816,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                     for (i = 0; i < n; ++i) { /* a missing x_i reads the member's prediction */
                         net->xhat[i] = wk->xhat[i][m];
                     }
-                    pay_ring(wk, net, m);
-                    rhonn_internal_features(net, x, u, v, wk->val);
-                    keep_sample(wk, m);
-                    lane_regressor(wk, net, wk->val, zb_new, m, 0);
+                    own_regressor(wk, net, m, x, u, v, zb_new, m, 0);
                 }
             }
         }
