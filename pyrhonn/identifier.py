@@ -120,6 +120,9 @@ def _build_for(config: IdentifierConfig) -> ModuleType:
 _work = threading.local()  # one scratch per thread and build of the core (it holds nothing between calls)
 
 
+#: Rows of the blocks step() returns its predictions in (Identifier._fast_step).
+_STEP_ROWS = 64
+
 _LANE_ALIGNMENT = 64  # an AVX-512 vector of the lanes: one cache line
 
 
@@ -485,6 +488,9 @@ class Identifier:
 
         ``ident.step`` is the identifier's own fast version of this method
         (:meth:`_fast_step`); it accepts, refuses and returns exactly the same.
+        Its arrays are rows of a small block (their ``base``) that the next
+        steps' predictions fill, one row each, never shared and never written
+        again: a kept prediction keeps its block (a few kB at most) alive.
         """
         return self._step_checked(x, u, valid)
 
@@ -505,21 +511,31 @@ class Identifier:
         since the buffers are shared by every thread using it. The closure
         holds the identifier only weakly: no reference cycle keeps a dropped
         identifier's (large) C state alive until the garbage collector runs.
+
+        The C call writes the prediction into the next row of a block of
+        :data:`_STEP_ROWS` rows, and the array returned is that row (a view
+        the block's iterator makes): a new array each step, never handed out
+        twice, never written again. A block lives as long as one of its rows
+        is referenced (at most :data:`_STEP_ROWS` predictions' memory).
         """
         ffi = self._ffi
-        dt, xshape, ushape, m = self._dtype, self._xshape, self._ushape, self._m
-        c_step, out = self._lib.pyrhonn_step_from, self._out
-        x_buf = ffi.new(self._real_array, self._n)
-        u_buf = ffi.new(self._real_array, max(m, 1))
-        v_buf = ffi.new("uint8_t[]", self._n)
+        dt, xshape, ushape, m, n = self._dtype, self._xshape, self._ushape, self._m, self._n
+        c_step, no_row = self._lib.pyrhonn_step_from, int(self._lib.PYRHONN_STEP_NO_ROW)
+        real_array, empty = self._real_array, np.empty
+        x_buf = ffi.new(real_array, n)
+        u_buf = ffi.new(real_array, max(m, 1))
+        v_buf = ffi.new("uint8_t[]", n)
         # The call's buffers and sizes (pyrhonn._build.STEP_GLUE). The struct
-        # holds raw pointers; the closure keeps what they point to.
+        # holds raw pointers; the closure keeps what they point to. No rows
+        # yet: the first call asks for a block.
         call = ffi.new("pyrhonn_step_call *")
-        call.net, call.x, call.u, call.valid, call.xhat_next = self._net, x_buf, u_buf, v_buf, self._out_ptr
-        call.x_bytes, call.u_bytes, call.valid_bytes = self._n * dt.itemsize, m * dt.itemsize, self._n
-        keep = (self._net, self._out_ptr, x_buf, u_buf, v_buf)
+        call.net, call.x, call.u, call.valid = self._net, x_buf, u_buf, v_buf
+        call.rows, call.rows_left, call.n = self._null, 0, n
+        call.x_bytes, call.u_bytes, call.valid_bytes = n * dt.itemsize, m * dt.itemsize, n
+        keep = (self._net, x_buf, u_buf, v_buf)
         acquire, release = self._lock.acquire, self._lock.release
-        copy, tobytes, null = np.ndarray.copy, np.ndarray.tobytes, self._null
+        tobytes, nxt, null = np.ndarray.tobytes, next, self._null
+        rows = iter(())  # the block's rows not yet handed out, in the order the C call fills them
         me = weakref.ref(self)
 
         def owner() -> "Identifier":
@@ -531,6 +547,16 @@ class Identifier:
 
         def checked(x: Any, u: Any, valid: Any) -> np.ndarray:
             return owner()._step_checked(x, u, valid)
+
+        def new_block() -> None:
+            # Under the lock, when the C call found no row left: its pointer
+            # moves to a new block, and the iterator (which keeps the block
+            # alive until its last row is handed out) starts on it.
+            nonlocal rows
+            block = empty((_STEP_ROWS, n), dtype=dt)
+            call.rows = ffi.from_buffer(real_array, block)
+            call.rows_left = _STEP_ROWS
+            rows = iter(block)
 
         def step(x: np.ndarray, u: np.ndarray | None = None, valid: np.ndarray | None = None) -> np.ndarray:
             if type(x) is not _ndarray or x.dtype is not dt or x.shape != xshape:
@@ -554,14 +580,18 @@ class Identifier:
             try:
                 status = c_step(call, xb, ub, vb)
                 if status:
-                    owner()._raise_step_error(status, x[None, :], None if u is None else u[None, :],
-                                              None if valid is None else valid[None, :], 0, single=True)
-                return copy(out)
+                    if status == no_row:
+                        new_block()
+                        status = c_step(call, xb, ub, vb)
+                    if status:
+                        owner()._raise_step_error(status, x[None, :], None if u is None else u[None, :],
+                                                  None if valid is None else valid[None, :], 0, single=True)
+                return nxt(rows)
             finally:
                 release()
 
         functools.update_wrapper(step, Identifier.step)
-        step._keep = keep  # type: ignore[attr-defined]  # the state and output the calls point to
+        step._keep = keep  # type: ignore[attr-defined]  # the state and buffers the calls point to
         return step
 
     def _step_checked(self, x: np.ndarray, u: np.ndarray | None, valid: np.ndarray | None) -> np.ndarray:

@@ -232,3 +232,40 @@ def test_a_step_kept_beyond_its_identifier_says_so_when_it_needs_it() -> None:
     assert step(X[40], U[40], valid[40]).shape == (6,)  # the state it steps is its own
     with pytest.raises(ReferenceError, match="^step: its Identifier no longer exists"):
         step(X[40].astype(np.float32), U[40], valid[40])  # the checked path needs the identifier
+
+
+def test_each_prediction_step_returns_is_its_own_array_and_keeps_its_values() -> None:
+    ident, X, U, valid = _warm()
+    twin, _, _, _ = _warm()
+    rows = identifier_module._STEP_ROWS
+    T = 3 * rows + 5  # past the end of several blocks of rows
+    Xl, Ul, Vl = (np.resize(a, (T,) + a.shape[1:]) for a in (X, U, valid))
+    got = [ident.step(Xl[k], Ul[k], Vl[k]) for k in range(T)]
+    want = twin.run(Xl, Ul, Vl)
+    np.testing.assert_array_equal(np.stack(got), want)
+    assert all(g.flags.writeable and g.flags.c_contiguous and g.shape == (6,) for g in got)
+    assert not any(np.shares_memory(a, b) for a, b in zip(got, got[1:]))
+    for g in got[::2]:  # a caller writing into one prediction touches no other
+        g[:] = np.nan
+    np.testing.assert_array_equal(np.stack(got[1::2]), want[1::2])
+    np.testing.assert_array_equal(ident.step(X[0], U[0], valid[0]), twin.step(X[0], U[0], valid[0]))
+
+
+def test_a_refused_step_takes_no_row_from_the_steps_after_it() -> None:
+    ident, X, U, valid = _warm()
+    twin, _, _, _ = _warm()
+    rows = identifier_module._STEP_ROWS
+    bad = X[0].copy()
+    bad[0] = np.nan
+    got, want = [], []
+    # refused before the first block exists, at a block's end, and mid-block
+    refuse_before = {0, rows, rows + 3}
+    for k in range(2 * rows + 2):
+        if k in refuse_before:
+            with pytest.raises(IdentifierError):
+                ident.step(bad, U[0], np.ones(6, dtype=bool))
+        x, u, v = X[k % 60], U[k % 60], valid[k % 60]
+        got.append(ident.step(x, u, v))
+        want.append(twin.step(x, u, v))
+    np.testing.assert_array_equal(np.stack(got), np.stack(want))
+    assert state_of(ident) == state_of(twin)

@@ -2,6 +2,7 @@
 separate identifiers run in parallel and stay bit-identical to a serial run."""
 from __future__ import annotations
 
+import sys
 import threading
 
 import numpy as np
@@ -55,3 +56,51 @@ def test_separate_identifiers_in_threads_equal_a_serial_run_bit_for_bit() -> Non
         t.join()
     for r in results:
         np.testing.assert_array_equal(r, serial)
+
+
+
+def test_threads_stepping_one_identifier_each_get_their_own_steps_predictions() -> None:
+    # Each thread steps its own samples. Afterwards one serial replay must
+    # explain both threads' predictions: at each step, the next prediction
+    # of one of the threads, bit for bit, in each thread's own order.
+    config = load_shipped("example1").config
+    per_thread = 2000
+    X, U, _ = trajectory(3, 2 * per_thread, 4, 1)
+    samples = [(X[k::2], U[k::2]) for k in (0, 1)]  # every sample differs: no thread's predictions settle
+    ident = Identifier(config)
+    results: list[list[np.ndarray]] = [[], []]
+    errors: list[BaseException] = []
+
+    def worker(k: int) -> None:
+        step, (Xk, Uk) = ident.step, samples[k]
+        try:
+            results[k] = [step(Xk[i], Uk[i]) for i in range(per_thread)]
+        except BaseException as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)  # the threads take turns as often as they can
+    try:
+        threads = [threading.Thread(target=worker, args=(k,)) for k in range(2)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    finally:
+        sys.setswitchinterval(interval)
+    assert errors == []
+
+    replay = Identifier(config)
+    state = replay._ffi.buffer(replay._net)
+    taken = [0, 0]
+    for _ in range(2 * per_thread):
+        before = bytes(state)
+        for k in (0, 1):
+            i = taken[k]
+            if i < per_thread and replay.step(samples[k][0][i], samples[k][1][i]).tobytes() == results[k][i].tobytes():
+                taken[k] += 1
+                break
+            replay._ffi.memmove(replay._net, before, len(before))
+        else:
+            raise AssertionError(f"no thread's next prediction follows step {sum(taken)}")
+    assert taken == [per_thread, per_thread]
