@@ -54,9 +54,10 @@
 
 /* A state's valid run after a commit (neuron j learns only when the run
  * covers the history its regressor reads, own_need[j]): one more sample in
- * a row, saturating at 0xFF; first = 0xFF on an identifier's first sample, which starts every run
- * full (there is nothing older); 0 when the sample did not measure x_j.
- * rhonn.c's commit and the population's lanes both count with it. */
+ * a row, saturating at 0xFF; first = 0xFF on an identifier's first sample,
+ * which starts every run full (there is nothing older); 0 when the sample
+ * did not measure x_j. rhonn.c's commit and the population's lanes both
+ * count with it. */
 RHONN_INTERNAL_INLINE uint8_t rhonn_run_next(uint8_t run, uint8_t first, uint8_t measured)
 {
     const uint8_t next = (uint8_t)((uint8_t)(run + (uint8_t)(run < 0xFFu)) | first);
