@@ -513,10 +513,12 @@ class Identifier:
         identifier's (large) C state alive until the garbage collector runs.
 
         The C call writes the prediction into the next row of a block of
-        :data:`_STEP_ROWS` rows, and the array returned is that row (a view
-        the block's iterator makes): a new array each step, never handed out
-        twice, never written again. A block lives as long as one of its rows
-        is referenced (at most :data:`_STEP_ROWS` predictions' memory).
+        :data:`_STEP_ROWS` rows and returns the row's index, and the array
+        returned is that row (a view): a new array each step, never handed
+        out twice, never written again. A block lives as long as one of its
+        rows is referenced (at most :data:`_STEP_ROWS` predictions' memory).
+        An exception between the call and the hand-out (a KeyboardInterrupt)
+        leaves one row unused, nothing out of step.
         """
         ffi = self._ffi
         dt, xshape, ushape, m, n = self._dtype, self._xshape, self._ushape, self._m, self._n
@@ -530,12 +532,12 @@ class Identifier:
         # yet: the first call asks for a block.
         call = ffi.new("pyrhonn_step_call *")
         call.net, call.x, call.u, call.valid = self._net, x_buf, u_buf, v_buf
-        call.rows, call.rows_left, call.n = self._null, 0, n
+        call.rows, call.n_rows, call.next_row, call.n = self._null, 0, 0, n
         call.x_bytes, call.u_bytes, call.valid_bytes = n * dt.itemsize, m * dt.itemsize, n
         keep = (self._net, x_buf, u_buf, v_buf)
         acquire, release = self._lock.acquire, self._lock.release
-        tobytes, nxt, null = np.ndarray.tobytes, next, self._null
-        rows = iter(())  # the block's rows not yet handed out, in the order the C call fills them
+        tobytes, null = np.ndarray.tobytes, self._null
+        block = empty((0, n), dtype=dt)  # the rows the C call writes (call.rows)
         me = weakref.ref(self)
 
         def owner() -> "Identifier":
@@ -549,14 +551,15 @@ class Identifier:
             return owner()._step_checked(x, u, valid)
 
         def new_block() -> None:
-            # Under the lock, when the C call found no row left: its pointer
-            # moves to a new block, and the iterator (which keeps the block
-            # alive until its last row is handed out) starts on it.
-            nonlocal rows
+            # Under the lock, when the C call found no row left. The block is
+            # held here before the C call points at it, and its rows become
+            # free only by the last assignment: interrupted anywhere before
+            # it, the next call finds no row left and asks again.
+            nonlocal block
             block = empty((_STEP_ROWS, n), dtype=dt)
             call.rows = ffi.from_buffer(real_array, block)
-            call.rows_left = _STEP_ROWS
-            rows = iter(block)
+            call.n_rows = _STEP_ROWS
+            call.next_row = 0
 
         def step(x: np.ndarray, u: np.ndarray | None = None, valid: np.ndarray | None = None) -> np.ndarray:
             if type(x) is not _ndarray or x.dtype is not dt or x.shape != xshape:
@@ -578,15 +581,15 @@ class Identifier:
             xb = tobytes(x)
             acquire()  # one step at a time on this identifier (see the class docs)
             try:
-                status = c_step(call, xb, ub, vb)
-                if status:
-                    if status == no_row:
+                row = c_step(call, xb, ub, vb)  # the row it wrote, or minus its status
+                if row < 0:
+                    if row == no_row:
                         new_block()
-                        status = c_step(call, xb, ub, vb)
-                    if status:
-                        owner()._raise_step_error(status, x[None, :], None if u is None else u[None, :],
+                        row = c_step(call, xb, ub, vb)
+                    if row < 0:
+                        owner()._raise_step_error(-row, x[None, :], None if u is None else u[None, :],
                                                   None if valid is None else valid[None, :], 0, single=True)
-                return nxt(rows)
+                return block[row]
             finally:
                 release()
 

@@ -269,3 +269,35 @@ def test_a_refused_step_takes_no_row_from_the_steps_after_it() -> None:
         want.append(twin.step(x, u, v))
     np.testing.assert_array_equal(np.stack(got), np.stack(want))
     assert state_of(ident) == state_of(twin)
+
+
+def test_a_step_interrupted_after_its_c_call_leaves_the_later_predictions_right() -> None:
+    # A KeyboardInterrupt can land right after the C call returns, before
+    # the prediction is handed out: that step happened (the twin makes it
+    # too), and every later step() returns its own prediction.
+    ident, X, U, valid = _warm()
+    twin, _, _, _ = _warm()
+    cells = dict(zip(ident.step.__code__.co_freevars, ident.step.__closure__))
+    c_step = cells["c_step"].cell_contents
+
+    def interrupted(*args: object) -> int:
+        row = c_step(*args)
+        if row >= 0:  # stepped (not the call that finds no block yet)
+            raise KeyboardInterrupt
+        return row
+
+    rows = identifier_module._STEP_ROWS
+    got, want = [], []
+    for k in range(2 * rows + 3):
+        x, u, v = X[k % 60], U[k % 60], valid[k % 60]
+        if k in (0, 5, rows - 1, rows + 7):
+            cells["c_step"].cell_contents = interrupted
+            with pytest.raises(KeyboardInterrupt):
+                ident.step(x, u, v)
+            cells["c_step"].cell_contents = c_step
+            twin.step(x, u, v)
+            continue
+        got.append(ident.step(x, u, v))
+        want.append(twin.step(x, u, v))
+    np.testing.assert_array_equal(np.stack(got), np.stack(want))
+    assert state_of(ident) == state_of(twin)
