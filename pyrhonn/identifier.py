@@ -514,8 +514,8 @@ class Identifier:
 
         The C call writes the prediction into the next row of a block of
         :data:`_STEP_ROWS` rows and returns the row's index, and the array
-        returned is that row (a view): a new array each step, never handed
-        out twice, never written again. A block lives as long as one of its
+        returned is that row (a view made with its block): a new array each
+        step, never handed out twice, never written again. A block lives as long as one of its
         rows is referenced (at most :data:`_STEP_ROWS` predictions' memory).
         An exception between the call and the hand-out (a KeyboardInterrupt)
         leaves one row unused, nothing out of step.
@@ -537,7 +537,7 @@ class Identifier:
         keep = (self._net, x_buf, u_buf, v_buf)
         acquire, release = self._lock.acquire, self._lock.release
         tobytes, null = np.ndarray.tobytes, self._null
-        block = empty((0, n), dtype=dt)  # the rows the C call writes (call.rows)
+        views: list[np.ndarray] = []  # the rows of the block the C call writes (call.rows), as arrays
         me = weakref.ref(self)
 
         def owner() -> "Identifier":
@@ -555,8 +555,9 @@ class Identifier:
             # held here before the C call points at it, and its rows become
             # free only by the last assignment: interrupted anywhere before
             # it, the next call finds no row left and asks again.
-            nonlocal block
+            nonlocal views
             block = empty((_STEP_ROWS, n), dtype=dt)
+            views = list(block)  # made here at once: after a C step, each would cost more
             call.rows = ffi.from_buffer(real_array, block)
             call.n_rows = _STEP_ROWS
             call.next_row = 0
@@ -589,7 +590,7 @@ class Identifier:
                     if row < 0:
                         owner()._raise_step_error(-row, x[None, :], None if u is None else u[None, :],
                                                   None if valid is None else valid[None, :], 0, single=True)
-                return block[row]
+                return views[row]
             finally:
                 release()
 
