@@ -84,7 +84,6 @@ typedef struct {
     size_t n_rows, next_row, n;
     size_t x_bytes, u_bytes, valid_bytes;
 } pyrhonn_step_call;
-#define PYRHONN_STEP_NO_ROW ...
 int pyrhonn_step_from(pyrhonn_step_call *call, const char *x, const char *u, const char *valid);
 """
 #: ``pyrhonn_step_from`` takes the arguments' bytes (``ndarray.tobytes()``,
@@ -97,7 +96,7 @@ STEP_GLUE = """
 #include <limits.h>
 #include <string.h>
 #define PYRHONN_STEP_NO_ROW INT_MIN
-""" + STEP_GLUE_DECLARATIONS.replace("#define PYRHONN_STEP_NO_ROW ...\n", "") + """
+""" + STEP_GLUE_DECLARATIONS + """
 int pyrhonn_step_from(pyrhonn_step_call *call, const char *x, const char *u, const char *valid)
 {
     rhonn_status st;
@@ -212,7 +211,8 @@ def make_ffi(dtype: str, caps: dict[str, int] | None = None, small: bool = False
     caps = (dict(SMALL_CAPACITIES) if small else capacities()) if caps is None else caps
     ffi = FFI()
     # RHONN_UNROLL is a build option of rhonn.c, not of the header: declared here so `pyrhonn info` can say.
-    ffi.cdef(header_declarations(dtype, caps) + "#define RHONN_UNROLL ...\n" + STEP_GLUE_DECLARATIONS)
+    ffi.cdef(header_declarations(dtype, caps) + "#define RHONN_UNROLL ...\n" + STEP_GLUE_DECLARATIONS
+             + "#define PYRHONN_STEP_NO_ROW ...\n")
     # Paths relative to the project root, where setup.py runs.
     ffi.set_source(
         module_name(dtype, small),

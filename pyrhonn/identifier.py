@@ -515,8 +515,9 @@ class Identifier:
         The C call writes the prediction into the next row of a block of
         :data:`_STEP_ROWS` rows and returns the row's index, and the array
         returned is that row (a view made with its block): a new array each
-        step, never handed out twice, never written again. A block lives as long as one of its
-        rows is referenced (at most :data:`_STEP_ROWS` predictions' memory).
+        step, never handed out twice, never written again. A block lives as
+        long as one of its rows is referenced (at most :data:`_STEP_ROWS`
+        predictions' memory).
         An exception between the call and the hand-out (a KeyboardInterrupt)
         leaves one row unused, nothing out of step.
         """

@@ -58,7 +58,6 @@ def test_separate_identifiers_in_threads_equal_a_serial_run_bit_for_bit() -> Non
         np.testing.assert_array_equal(r, serial)
 
 
-
 def test_threads_stepping_one_identifier_each_get_their_own_steps_predictions() -> None:
     # Each thread steps its own samples. Afterwards one serial replay must
     # explain both threads' predictions: at each step, the next prediction
