@@ -74,8 +74,8 @@ test-c-sanitize:
 # own datagrams: an accepted datagram must re-encode to itself. Then the core
 # (csrc/fuzz/fuzz_core.c), float and double: a committed covariance that is not
 # positive definite, an update with s < R or a refused call that changed the
-# filter fails the run. Then rhonn_run_wide against rhonn_run
-# (csrc/fuzz/fuzz_wide.c), and each member of rhonn_run_population against
+# filter fails the run. Then rhonn_run_wide against rhonn_run, and steps in
+# the lanes against rhonn_step (csrc/fuzz/fuzz_wide.c), and each member of rhonn_run_population against
 # its own rhonn_run (csrc/fuzz/fuzz_population.c), float and double: any
 # difference fails the run.
 CLANG ?= clang-14
@@ -83,7 +83,7 @@ FUZZ_SECONDS ?= 45
 FUZZ_UDP_SECONDS ?= 20
 # the core's public API (csrc/fuzz/fuzz_core.c), per precision; 600 for a real campaign
 FUZZ_CORE_SECONDS ?= 30
-# one identifier's neurons side by side against rhonn_run, per precision
+# one identifier's neurons side by side against rhonn_run and rhonn_step, per precision
 FUZZ_WIDE_SECONDS ?= 20
 FUZZ_POP_SECONDS ?= 20
 FW_FLAGS = -std=c99 -ffp-contract=off -DRHONN_SINGLE -Icsrc/include -Ifirmware_sim/app \

@@ -16,6 +16,13 @@
  * proofs of definiteness (rhonn_t.cert), the regressor z(k-1), the
  * prediction, the history, the health records, the steps, the fault
  * diagnostic; or when the next step after the run differs.
+ *
+ * It also steps a third copy through the same samples in the lanes, one
+ * by one (rhonn_wide_begin, rhonn_wide_step, rhonn_wide_end, the loan
+ * given back and taken again at a sample the input picks), against
+ * rhonn_step on a fourth, both going on after refused steps, and aborts
+ * when a status or prediction differs, when a lent net is not refused by
+ * rhonn_step, or when the committed state differs at the end.
  */
 #include <stdint.h>
 #include <stdlib.h>
@@ -73,14 +80,14 @@ static void make_uniform_config(reader *r, rhonn_config *c)
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    static rhonn_t alone, lanes;
-    static rhonn_population_work work;
+    static rhonn_t alone, lanes, single, stepped;
+    static rhonn_population_work work, lend;
     static rhonn_real X[WIDE_T * RHONN_MAX_STATES], U[WIDE_T * (RHONN_MAX_INPUTS + 1)];
     static rhonn_real ya[WIDE_T * RHONN_MAX_STATES], yw[WIDE_T * RHONN_MAX_STATES];
     static uint8_t V[WIDE_T * RHONN_MAX_STATES];
     rhonn_config cfg;
     rhonn_status sa, sw;
-    size_t n, m, T, pre, k, j, da = 0, dw = 0;
+    size_t n, m, T, pre, k, j, da = 0, dw = 0, regive;
     reader r;
 
     r.p = data;
@@ -106,7 +113,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     for (k = 0; k < pre; ++k) { /* from a running state, its outcome whatever it is */
         (void)rhonn_step(&alone, X + (T - 1u - k % T) * n, U + (T - 1u - k % T) * m, V + (T - 1u - k % T) * n, ya);
     }
+    regive = byte(&r) % WIDE_T;
     lanes = alone;
+    single = alone;
+    stepped = alone;
     memset(ya, 0, sizeof ya);
     memset(yw, 0, sizeof yw);
     sa = rhonn_run(&alone, T, X, U, V, ya, &da);
@@ -118,6 +128,30 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     sa = rhonn_step(&alone, X, U, NULL, ya);
     sw = rhonn_step(&lanes, X, U, NULL, yw);
     if (sa != sw || (sa == RHONN_OK && memcmp(ya, yw, n * sizeof ya[0]) != 0)) {
+        abort();
+    }
+
+    /* stepped in the lanes sample by sample, on past refusals */
+    sw = rhonn_wide_begin(&stepped, &lend);
+    if (sw == RHONN_E_CONFIG) {
+        return 0; /* the U D U^T form in the portable build: no lanes */
+    }
+    if (sw != RHONN_OK) {
+        abort();
+    }
+    for (k = 0; k < T; ++k) {
+        if (k == regive && (rhonn_wide_end(&stepped, &lend) != RHONN_OK ||
+                            rhonn_wide_begin(&stepped, &lend) != RHONN_OK)) {
+            abort();
+        }
+        sa = rhonn_step(&single, X + k * n, U + k * m, V + k * n, ya);
+        sw = rhonn_wide_step(&stepped, &lend, X + k * n, U + k * m, V + k * n, yw);
+        if (sa != sw || (sa == RHONN_OK && memcmp(ya, yw, n * sizeof ya[0]) != 0)) {
+            abort();
+        }
+    }
+    if (rhonn_step(&stepped, X, U, NULL, yw) != RHONN_E_NOT_INIT || rhonn_wide_end(&stepped, &lend) != RHONN_OK ||
+        !same_committed(&single, &stepped)) {
         abort();
     }
     return 0;

@@ -39,7 +39,7 @@
  *
  * The workspace is scratch, caller-owned (large: sizeof(rhonn_population_work)
  * grows with RHONN_MAX_POPULATION x the capacities), and holds nothing
- * between calls. Place it on a cache line (64 bytes): a vector of 8 lanes
+ * between calls, but for a loan (STEPPING IN THE LANES below). Place it on a cache line (64 bytes): a vector of 8 lanes
  * then never straddles two, which the kernels feel (10-15 % measured with
  * AVX-512). Nothing here allocates, prints or recurses.
  */
@@ -146,6 +146,9 @@ typedef struct {
     /* updates of neuron i that every member made alike, not yet counted
      * into the lanes above */
     uint32_t n_alike[RHONN_MAX_STATES];
+    /* The identifier whose learning state the lanes hold between
+     * rhonn_wide_begin and rhonn_wide_end; NULL after any other call. */
+    const rhonn_t *holder;
 } rhonn_population_work;
 
 /* Run the N members nets[0..N) (each set up by rhonn_init, all of the same
@@ -201,6 +204,44 @@ rhonn_status rhonn_run_wide(rhonn_t *net, rhonn_population_work *work, size_t T,
  * NULL net or one not set up. Both runs give the same results: this is
  * only about speed. */
 int rhonn_wide_pays(const rhonn_t *net);
+
+/* STEPPING IN THE LANES. rhonn_run_wide loads the lanes at the start of a
+ * call and stores them back at the end, which costs more than the lanes
+ * save when a call is one sample. To step sample by sample in the lanes,
+ * the lanes keep net's learning state from one step to the next:
+ *
+ *   rhonn_wide_begin(net, work)   lends net's committed weights, covariances
+ *       (with their proofs of definiteness) and z(k-1) to work's lanes;
+ *   rhonn_wide_step(net, work, x, u, valid, xhat_next)   one rhonn_step,
+ *       bit for bit, in the lanes (the same arguments and statuses; the rest
+ *       of net -- the prediction, history, health counters, steps, the
+ *       fault diagnostic -- is kept up to date in net at every step);
+ *   rhonn_wide_end(net, work)     gives the state back: net is then what
+ *       the same rhonn_step calls would have left (as rhonn_run_wide: only
+ *       the step's scratch, the inactive banks and the z bank not holding
+ *       z(k-1), may hold other values).
+ *
+ * While lent, every other function of the core given net refuses it as not
+ * set up (RHONN_E_NOT_INIT), so nothing reads the weights it no longer
+ * holds or steps it outside the lanes; and work must not be given to any
+ * other call (rhonn_run_wide and rhonn_run_population use it as scratch
+ * and forget the loan: net then stays refused until rhonn_init sets it up
+ * again, its learning state lost). A step that fails (any status but
+ * RHONN_OK) leaves the lanes holding the state after the last good step,
+ * as rhonn_step leaves net; stepping on or ending the loan are both fine.
+ *
+ * rhonn_wide_begin: RHONN_E_NULL for a NULL net or work; RHONN_E_NOT_INIT
+ * for a net not set up or already lent; RHONN_E_CONFIG when the lanes cannot
+ * hold net (its neurons differ in size or form, or are more than
+ * RHONN_MAX_POPULATION: rhonn_run_wide would run it as rhonn_run).
+ * rhonn_wide_step and rhonn_wide_end: RHONN_E_NULL for a NULL net or work
+ * (or x, xhat_next, or u with inputs); RHONN_E_NOT_INIT for a net not lent;
+ * RHONN_E_ARGUMENT when it is lent to another workspace. A refused call
+ * changes nothing. */
+rhonn_status rhonn_wide_begin(rhonn_t *net, rhonn_population_work *work);
+rhonn_status rhonn_wide_step(rhonn_t *net, rhonn_population_work *work, const rhonn_real *x, const rhonn_real *u,
+                             const uint8_t *valid, rhonn_real *xhat_next);
+rhonn_status rhonn_wide_end(rhonn_t *net, rhonn_population_work *work);
 
 #ifdef __cplusplus
 }

@@ -8,7 +8,6 @@
 #include "rhonn.h"
 #include "rhonn_internal.h"
 
-#define RHONN_MAGIC 0x52484E4EUL /* "RHNN" */
 
 /* Beyond this, exp(-a) is below the smallest normal float (double): return 0. */
 #ifdef RHONN_SINGLE

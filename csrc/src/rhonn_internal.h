@@ -14,6 +14,12 @@
 #error "the rhonn core must not be built with -ffast-math or -ffinite-math-only"
 #endif
 
+/* rhonn_t.magic: set up by rhonn_init ("RHNN"), or lent to a population
+ * workspace by rhonn_wide_begin ("RHNL"), which every public function then
+ * refuses as not set up until rhonn_wide_end gives it back. */
+#define RHONN_MAGIC 0x52484E4EUL
+#define RHONN_LENT_MAGIC 0x52484E4CUL
+
 /* The working precision's constants, one definition for every core source. */
 #ifdef RHONN_SINGLE
 #define R(c) c##f

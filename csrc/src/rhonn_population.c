@@ -1662,7 +1662,9 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
     }
 
     /* Each member's lane, and copies of member 0 in the unused ones (finite
-     * numbers to compute on, thrown away). */
+     * numbers to compute on, thrown away). A loan the lanes held is
+     * forgotten: its net stays refused rather than take these lanes. */
+    wk->holder = NULL;
     wk->zb = 0;
     wk->wb = 0;
     for (m = 0; m < NPOP; ++m) {
@@ -2250,6 +2252,7 @@ rhonn_status rhonn_run_wide(rhonn_t *net, rhonn_population_work *work, size_t T,
     if (X == NULL || Xhat == NULL || (U == NULL && mi > 0u)) {
         return RHONN_E_NULL;
     }
+    work->holder = NULL; /* a loan the lanes held is forgotten (rhonn_wide_begin) */
     wide_load(work, net);
     for (k = 0; k < T; ++k) {
         st = wide_step(work, net, X + k * n, mi > 0u ? U + k * mi : U, valid != NULL ? valid + k * n : NULL,
@@ -2263,4 +2266,65 @@ rhonn_status rhonn_run_wide(rhonn_t *net, rhonn_population_work *work, size_t T,
     }
     wide_store(work, net);
     return st;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Stepping in the lanes */
+
+/* RHONN_OK when work holds net's loan; the refusal otherwise. */
+static rhonn_status check_loan(const rhonn_t *net, const rhonn_population_work *work)
+{
+    if (net == NULL || work == NULL) {
+        return RHONN_E_NULL;
+    }
+    if (net->magic != (uint32_t)RHONN_LENT_MAGIC) {
+        return RHONN_E_NOT_INIT;
+    }
+    return work->holder == net ? RHONN_OK : RHONN_E_ARGUMENT;
+}
+
+rhonn_status rhonn_wide_begin(rhonn_t *net, rhonn_population_work *work)
+{
+    rhonn_status st;
+    if (net == NULL || work == NULL) {
+        return RHONN_E_NULL;
+    }
+    st = rhonn_internal_check_net(net); /* refuses a net already lent */
+    if (st != RHONN_OK) {
+        return st;
+    }
+    if (!wide_fits(net)) {
+        return RHONN_E_CONFIG;
+    }
+    wide_load(work, net);
+    work->holder = net;
+    net->magic = (uint32_t)RHONN_LENT_MAGIC;
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_wide_step(rhonn_t *net, rhonn_population_work *work, const rhonn_real *x, const rhonn_real *u,
+                             const uint8_t *valid, rhonn_real *xhat_next)
+{
+    const rhonn_status st = check_loan(net, work);
+    if (st != RHONN_OK) {
+        return st;
+    }
+    if (x == NULL || xhat_next == NULL || (u == NULL && CFG(net)->n_inputs > 0u)) {
+        return RHONN_E_NULL;
+    }
+    /* wide_step as rhonn_run_wide runs it: a failure leaves the committed
+     * lanes as they were, the state after the last good step */
+    return wide_step(work, net, x, u, valid, xhat_next);
+}
+
+rhonn_status rhonn_wide_end(rhonn_t *net, rhonn_population_work *work)
+{
+    const rhonn_status st = check_loan(net, work);
+    if (st != RHONN_OK) {
+        return st;
+    }
+    wide_store(work, net);
+    work->holder = NULL;
+    net->magic = (uint32_t)RHONN_MAGIC;
+    return RHONN_OK;
 }

@@ -506,13 +506,49 @@ static void wide_trajectory(rhonn_real *x, rhonn_real *u, uint8_t *v, size_t n, 
 static rhonn_real WX[POP_T * 8], WU[POP_T * 2], Wout_alone[POP_T * 8], Wout_wide[POP_T * 8];
 static uint8_t WV[POP_T * 8];
 
-/* cfg run by rhonn_run and by rhonn_run_wide, from pre samples in:
- * the same status, steps, predictions and state. Returns the status. */
+static rhonn_t stepped;
+static rhonn_population_work lend;
+static rhonn_real Wout_stepped[POP_T * 8];
+
+/* T samples stepped in the lanes one by one (rhonn_wide_step) from the
+ * state start, into stepped: the loan given back and taken again halfway,
+ * stopping where rhonn_run stops; *done the steps that ran. Returns the
+ * status (RHONN_E_CONFIG: the lanes cannot hold it). */
+static rhonn_status wide_steps(const rhonn_t *start, size_t T, const uint8_t *v, size_t *done)
+{
+    const size_t n = start->cfg.n_states;
+    rhonn_status st;
+    size_t k;
+    stepped = *start;
+    *done = 0;
+    st = rhonn_wide_begin(&stepped, &lend);
+    if (st != RHONN_OK) {
+        return st;
+    }
+    for (k = 0; k < T; ++k) {
+        if (k == T / 2u) { /* nothing changes */
+            CHECK_STATUS(rhonn_wide_end(&stepped, &lend), RHONN_OK);
+            CHECK_STATUS(rhonn_wide_begin(&stepped, &lend), RHONN_OK);
+        }
+        st = rhonn_wide_step(&stepped, &lend, WX + k * n, WU + 2u * k, v != NULL ? v + k * n : NULL,
+                             Wout_stepped + k * n);
+        if (st != RHONN_OK) {
+            break;
+        }
+        *done = k + 1u;
+    }
+    CHECK_STATUS(rhonn_wide_end(&stepped, &lend), RHONN_OK);
+    return st;
+}
+
+/* cfg run by rhonn_run, by rhonn_run_wide and stepped in the lanes
+ * (wide_steps), from pre samples in: the same status, steps, predictions
+ * and state. Returns the status. */
 static rhonn_status wide_compare(const rhonn_config *cfg, size_t pre, int dropouts)
 {
     const size_t n = cfg->n_states;
-    rhonn_status sa, sw;
-    size_t da = 99, dw = 77, k;
+    rhonn_status sa, sw, ss;
+    size_t da = 99, dw = 77, ds = 55, k;
     wide_trajectory(WX, WU, WV, n, POP_T, dropouts);
     CHECK_STATUS(rhonn_init(&alone[0], cfg, NULL), RHONN_OK);
     for (k = 0; k < pre; ++k) {
@@ -522,12 +558,22 @@ static rhonn_status wide_compare(const rhonn_config *cfg, size_t pre, int dropou
     members[0] = alone[0];
     memset(Wout_alone, 0, sizeof Wout_alone);
     memset(Wout_wide, 0, sizeof Wout_wide);
+    memset(Wout_stepped, 0, sizeof Wout_stepped);
+    ss = wide_steps(&alone[0], POP_T, dropouts ? WV : NULL, &ds);
     sa = rhonn_run(&alone[0], POP_T, WX, WU, dropouts ? WV : NULL, Wout_alone, &da);
     sw = rhonn_run_wide(&members[0], &work, POP_T, WX, WU, dropouts ? WV : NULL, Wout_wide, &dw);
     CHECK(sa == sw);
     CHECK(da == dw);
     CHECK(memcmp(Wout_alone, Wout_wide, sizeof Wout_alone) == 0);
     CHECK(same_proofs(&members[0], &alone[0]));
+    if (ss != RHONN_E_CONFIG) { /* the lanes can hold it: stepped there as run */
+        CHECK(ss == sa);
+        CHECK(ds == da);
+        CHECK(memcmp(Wout_alone, Wout_stepped, sizeof Wout_alone) == 0);
+        CHECK(same_proofs(&stepped, &alone[0]));
+        alone[1] = alone[0]; /* same_state steps both on */
+        CHECK(same_state(&stepped, &alone[1], WX, WU));
+    }
     CHECK(same_state(&members[0], &alone[0], WX, WU));
     return sa;
 }
@@ -662,6 +708,110 @@ static void wide_runs_are_advised_where_they_pay(void)
     cfg = lim_config(0, 0, 0);
     CHECK_STATUS(rhonn_init(&members[0], &cfg, NULL), RHONN_OK);
     CHECK(rhonn_wide_pays(&members[0]) == 0); /* sizes differ: no lanes at all */
+}
+
+/* A loan's calls are checked, a refused one changes nothing, and a lent
+ * net is refused by everything else until it is given back. */
+static void wide_loans_are_checked_and_guarded(void)
+{
+    rhonn_config cfg = uniform_config(0, 6, 0, 0);
+    rhonn_real w[8], y[8];
+    rhonn_t before;
+    wide_trajectory(WX, WU, WV, 6, 8, 0);
+    CHECK_STATUS(rhonn_init(&members[0], &cfg, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_wide_begin(NULL, &lend), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_wide_begin(&members[0], NULL), RHONN_E_NULL);
+    memset(&members[1], 0, sizeof members[1]);
+    CHECK_STATUS(rhonn_wide_begin(&members[1], &lend), RHONN_E_NOT_INIT);
+    cfg = lim_config(0, 0, 0); /* sizes differ: the lanes cannot hold it */
+    CHECK_STATUS(rhonn_init(&members[1], &cfg, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_wide_begin(&members[1], &lend), RHONN_E_CONFIG);
+    CHECK_STATUS(rhonn_step(&members[1], WX, WU, NULL, y), RHONN_OK); /* and it is still its own */
+    /* not lent: stepping or ending is refused */
+    CHECK_STATUS(rhonn_wide_step(&members[0], &lend, WX, WU, NULL, y), RHONN_E_NOT_INIT);
+    CHECK_STATUS(rhonn_wide_end(&members[0], &lend), RHONN_E_NOT_INIT);
+
+    CHECK_STATUS(rhonn_wide_begin(&members[0], &lend), RHONN_OK);
+    CHECK_STATUS(rhonn_wide_step(&members[0], &lend, WX, WU, NULL, y), RHONN_OK);
+    /* lent: everything else refuses it, a second loan too */
+    CHECK_STATUS(rhonn_wide_begin(&members[0], &work), RHONN_E_NOT_INIT);
+    CHECK_STATUS(rhonn_step(&members[0], WX, WU, NULL, y), RHONN_E_NOT_INIT);
+    CHECK_STATUS(rhonn_get_weights(&members[0], 0, w, 8), RHONN_E_NOT_INIT);
+    CHECK_STATUS(rhonn_reset(&members[0]), RHONN_E_NOT_INIT);
+    CHECK_STATUS(rhonn_run_wide(&members[0], &work, 2, WX, WU, NULL, Wout_wide, NULL), RHONN_E_NOT_INIT);
+    CHECK(rhonn_wide_pays(&members[0]) == 0);
+    /* the wrong workspace, NULL arguments: refused, nothing changed */
+    memcpy(&before, &members[0], sizeof before);
+    CHECK_STATUS(rhonn_wide_step(&members[0], &work, WX, WU, NULL, y), RHONN_E_ARGUMENT);
+    CHECK_STATUS(rhonn_wide_end(&members[0], &work), RHONN_E_ARGUMENT);
+    CHECK_STATUS(rhonn_wide_step(NULL, &lend, WX, WU, NULL, y), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_wide_step(&members[0], NULL, WX, WU, NULL, y), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_wide_step(&members[0], &lend, NULL, WU, NULL, y), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_wide_step(&members[0], &lend, WX, NULL, NULL, y), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_wide_step(&members[0], &lend, WX, WU, NULL, NULL), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_wide_end(NULL, &lend), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_wide_end(&members[0], NULL), RHONN_E_NULL);
+    CHECK(memcmp(&before, &members[0], sizeof before) == 0);
+    CHECK(lend.holder == &members[0]);
+    /* given back: its own again, and stepping on where the lanes left it */
+    CHECK_STATUS(rhonn_wide_end(&members[0], &lend), RHONN_OK);
+    CHECK_STATUS(rhonn_get_weights(&members[0], 0, w, 8), RHONN_OK);
+    CHECK_STATUS(rhonn_step(&members[0], WX + 6, WU + 2, NULL, y), RHONN_OK);
+    CHECK(members[0].steps == 2u);
+
+    /* a run on the lending workspace forgets the loan: the lent net stays
+     * refused (its learning state is gone) until rhonn_init */
+    CHECK_STATUS(rhonn_wide_begin(&members[0], &lend), RHONN_OK);
+    cfg = uniform_config(1, 6, 0, 0);
+    CHECK_STATUS(rhonn_init(&members[2], &cfg, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_run_wide(&members[2], &lend, 4, WX, WU, NULL, Wout_wide, NULL), RHONN_OK);
+    CHECK(lend.holder == NULL);
+    CHECK_STATUS(rhonn_wide_end(&members[0], &lend), RHONN_E_ARGUMENT);
+    CHECK_STATUS(rhonn_step(&members[0], WX, WU, NULL, y), RHONN_E_NOT_INIT);
+    cfg = uniform_config(0, 6, 0, 0);
+    CHECK_STATUS(rhonn_init(&members[0], &cfg, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_step(&members[0], WX, WU, NULL, y), RHONN_OK);
+}
+
+/* Steps in the lanes go on after a refused step as rhonn_step does: an
+ * input that is not finite; a neuron whose forgetting takes P out of
+ * definiteness, refused at step after step while the others learn on. */
+static void wide_steps_go_on_after_a_refusal_as_single_steps(void)
+{
+    rhonn_config cfg;
+    rhonn_real ya[8], yb[8];
+    size_t k, i, refused = 0, on_after = 0;
+    int scenario;
+    for (scenario = 0; scenario < 2; ++scenario) {
+        cfg = uniform_config(scenario ? 0u : 2u, 6, !scenario, 0);
+        for (i = 0; scenario && i < 6; ++i) {
+            cfg.neurons[i].forgetting = (i == 2u || i == 4u) ? (rhonn_real)0.1 : (rhonn_real)0.0;
+            cfg.neurons[i].reset_after = (uint16_t)(i == 2u ? 1u : 0u);
+        }
+        wide_trajectory(WX, WU, WV, 6, 60, !scenario);
+        if (!scenario) {
+            WX[6 * 11 + 2] = (rhonn_real)NAN;
+            WV[6 * 11 + 2] = 1u;
+        }
+        CHECK_STATUS(rhonn_init(&alone[0], &cfg, NULL), RHONN_OK);
+        stepped = alone[0];
+        CHECK_STATUS(rhonn_wide_begin(&stepped, &lend), RHONN_OK);
+        for (k = 0; k < 60; ++k) {
+            const uint8_t *v = scenario ? NULL : WV + 6 * k;
+            const rhonn_status sa = rhonn_step(&alone[0], WX + 6 * k, WU + 2 * k, v, ya);
+            const rhonn_status sb = rhonn_wide_step(&stepped, &lend, WX + 6 * k, WU + 2 * k, v, yb);
+            CHECK(sa == sb);
+            CHECK(sa != RHONN_OK || memcmp(ya, yb, sizeof ya[0] * 6) == 0);
+            on_after += sa == RHONN_OK && refused > 0u;
+            refused += sa != RHONN_OK;
+        }
+        CHECK_STATUS(rhonn_wide_end(&stepped, &lend), RHONN_OK);
+        CHECK(stepped.fault_neuron == alone[0].fault_neuron);
+        WX[6 * 11 + 2] = (rhonn_real)0.0;
+        CHECK(same_proofs(&stepped, &alone[0]));
+        CHECK(same_state(&stepped, &alone[0], WX, WU));
+    }
+    CHECK(refused > 1u && on_after > 0u); /* refusals, with steps going on after them */
 }
 
 static void wide_run_arguments_are_checked(void)
@@ -813,6 +963,8 @@ int main(void)
     RUN(wide_run_of_other_structures_is_the_scalar_run);
     RUN(wide_runs_are_advised_where_they_pay);
     RUN(wide_run_arguments_are_checked);
+    RUN(wide_loans_are_checked_and_guarded);
+    RUN(wide_steps_go_on_after_a_refusal_as_single_steps);
     if (b != NULL) {
         bench((size_t)strtoul(b, NULL, 10));
     }
