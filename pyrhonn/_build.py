@@ -83,15 +83,21 @@ typedef struct {
     rhonn_real *rows;
     size_t n_rows, next_row, n;
     size_t x_bytes, u_bytes, valid_bytes;
+    rhonn_population_work *work;
+    int lent;
 } pyrhonn_step_call;
 int pyrhonn_step_from(pyrhonn_step_call *call, const char *x, const char *u, const char *valid);
+int pyrhonn_step_settle(pyrhonn_step_call *call);
 """
 #: ``pyrhonn_step_from`` takes the arguments' bytes (``ndarray.tobytes()``,
 #: whose length the caller has checked: the array's dtype and shape): cffi
 #: passes a bytes object to a ``char *`` without a copy or the buffer
 #: protocol, which made a ``memmove`` from an array cost about 4x a
 #: ``tobytes``. The bytes are copied into the call's own buffers, where
-#: ``rhonn_step`` reads them aligned.
+#: ``rhonn_step`` reads them aligned. With a workspace (``work``), the step
+#: runs in the lanes (``rhonn_wide_step``), the identifier's learning state
+#: lent to them from the first such step until ``pyrhonn_step_settle``
+#: gives it back (``lent``: 1 while it is).
 STEP_GLUE = """
 #include <limits.h>
 #include <string.h>
@@ -110,12 +116,41 @@ int pyrhonn_step_from(pyrhonn_step_call *call, const char *x, const char *u, con
     if (valid != NULL) {
         memcpy(call->valid, valid, call->valid_bytes);
     }
-    st = rhonn_step(call->net, call->x, call->u, valid != NULL ? call->valid : NULL,
-                    call->rows + call->n * call->next_row);
+    if (call->work != NULL && !call->lent) {
+        st = rhonn_wide_begin(call->net, call->work);
+        if (st == RHONN_E_CONFIG) { /* the lanes cannot hold it: rhonn_step from now on */
+            call->work = NULL;
+        } else if (st != RHONN_OK) {
+            return -(int)st;
+        } else {
+            call->lent = 1;
+        }
+    }
+    if (call->work == NULL) {
+        st = rhonn_step(call->net, call->x, call->u, valid != NULL ? call->valid : NULL,
+                        call->rows + call->n * call->next_row);
+    } else {
+        st = rhonn_wide_step(call->net, call->work, call->x, call->u, valid != NULL ? call->valid : NULL,
+                             call->rows + call->n * call->next_row);
+    }
     if (st != RHONN_OK) {
         return -(int)st;
     }
     return (int)call->next_row++;
+}
+
+int pyrhonn_step_settle(pyrhonn_step_call *call)
+{
+    rhonn_status st;
+    if (!call->lent) {
+        return 0;
+    }
+    st = rhonn_wide_end(call->net, call->work);
+    if (st != RHONN_OK) {
+        return -(int)st;
+    }
+    call->lent = 0;
+    return 0;
 }
 """
 

@@ -136,11 +136,17 @@ def _workspace(build: ModuleType) -> Any:
     if cache is None:
         cache = _work.by_build = {}
     if build.__name__ not in cache:
-        ffi = build.ffi
-        raw = ffi.new("char[]", ffi.sizeof("rhonn_population_work") + _LANE_ALIGNMENT)
-        skip = -int(ffi.cast("uintptr_t", raw)) % _LANE_ALIGNMENT
-        cache[build.__name__] = (raw, ffi.cast("rhonn_population_work *", raw + skip))  # raw keeps it alive
+        cache[build.__name__] = _aligned_workspace(build)
     return cache[build.__name__][1]
+
+
+def _aligned_workspace(build: ModuleType) -> tuple[Any, Any]:
+    """A new ``rhonn_population_work`` of one build on a cache line: (the
+    allocation, which keeps it alive; the pointer to the workspace)."""
+    ffi = build.ffi
+    raw = ffi.new("char[]", ffi.sizeof("rhonn_population_work") + _LANE_ALIGNMENT)
+    skip = -int(ffi.cast("uintptr_t", raw)) % _LANE_ALIGNMENT
+    return raw, ffi.cast("rhonn_population_work *", raw + skip)
 
 
 @functools.lru_cache(maxsize=None)
@@ -228,12 +234,19 @@ _F = TypeVar("_F", bound=Callable[..., Any])
 def _serialised(method: _F) -> _F:
     """Run ``method`` holding the identifier's lock: the C core's state is
     one struct, and two threads stepping it at once would interleave halves
-    of two updates (cffi releases the GIL during the C call)."""
+    of two updates (cffi releases the GIL during the C call). The learning
+    state :meth:`Identifier.step` lent to the vector lanes is given back
+    first, so the method finds all of it in the struct."""
     @functools.wraps(method)
     def locked(self: "Identifier", *args: Any, **kwargs: Any) -> Any:
         with self._lock:
+            self._settle()
             return method(self, *args, **kwargs)
     return locked  # type: ignore[return-value]
+
+
+def _nothing_lent() -> None:
+    """:attr:`Identifier._settle` of an identifier whose steps do not use the lanes."""
 
 
 class Identifier:
@@ -287,6 +300,9 @@ class Identifier:
         self._out_ptr = self._ffi.from_buffer(self._real_array, self._out)
         self._null = self._ffi.NULL
         self._no_inputs = self._ffi.from_buffer(self._real_array, np.zeros(1, dtype=self._dtype))
+        # Gives back what step() lent to the lanes (see _fast_step); called
+        # under the lock before anything else reads or writes the C state.
+        self._settle: Callable[[], None] = _nothing_lent
         if type(self).step is Identifier.step:  # a subclass's own step() is left to it
             self.step = self._fast_step()  # type: ignore[method-assign]
 
@@ -491,6 +507,11 @@ class Identifier:
         Its arrays are rows of a small block (their ``base``) that the next
         steps' predictions fill, one row each, never shared and never written
         again: a kept prediction keeps its block (a few kB at most) alive.
+        Where :meth:`run` puts the neurons side by side in the vector lanes,
+        so does it, keeping them there from one step to the next (the same
+        bits as stepping neuron by neuron); any other method first brings
+        them back, a few hundred ns, so a loop that reads something after
+        every step is faster reading it every few steps.
         """
         return self._step_checked(x, u, valid)
 
@@ -511,6 +532,17 @@ class Identifier:
         since the buffers are shared by every thread using it. The closure
         holds the identifier only weakly: no reference cycle keeps a dropped
         identifier's (large) C state alive until the garbage collector runs.
+
+        Where ``run`` puts the neurons side by side in the vector lanes
+        (``_wide``, decided by the core for this CPU; read at the first
+        step), so does ``step``, which would otherwise pay for loading the
+        lanes and storing them back at every call: the first step lends the
+        neurons' weights, covariances and regressor to the identifier's own
+        workspace (``rhonn_wide_begin``, about 200 kB in float64, allocated
+        then) and the later ones step there (``rhonn_wide_step``, the same
+        bits as ``rhonn_step``). Every other method gives them back first
+        (:attr:`_settle`, under the lock), and the next step lends them
+        again; a failed step gives them back before it raises.
 
         The C call writes the prediction into the next row of a block of
         :data:`_STEP_ROWS` rows and returns the row's index, and the array
@@ -535,7 +567,9 @@ class Identifier:
         call.net, call.x, call.u, call.valid = self._net, x_buf, u_buf, v_buf
         call.rows, call.n_rows, call.next_row, call.n = self._null, 0, 0, n
         call.x_bytes, call.u_bytes, call.valid_bytes = n * dt.itemsize, m * dt.itemsize, n
-        keep = (self._net, x_buf, u_buf, v_buf)
+        call.work, call.lent = self._null, 0
+        c_settle = self._lib.pyrhonn_step_settle
+        keep = [self._net, x_buf, u_buf, v_buf]  # and the lanes' workspace once there is one
         acquire, release = self._lock.acquire, self._lock.release
         tobytes, null = np.ndarray.tobytes, self._null
         views: list[np.ndarray] = []  # the rows of the block the C call writes (call.rows), as arrays
@@ -551,12 +585,26 @@ class Identifier:
         def checked(x: Any, u: Any, valid: Any) -> np.ndarray:
             return owner()._step_checked(x, u, valid)
 
+        def settle() -> None:
+            # Under the lock. A refusal here would mean the loan was lost,
+            # which only a call outside this class can do.
+            if call.lent:
+                status = c_settle(call)
+                if status:
+                    owner()._check(-status, "step (giving back the lanes)")
+
         def new_block() -> None:
             # Under the lock, when the C call found no row left. The block is
             # held here before the C call points at it, and its rows become
             # free only by the last assignment: interrupted anywhere before
             # it, the next call finds no row left and asks again.
             nonlocal views
+            if not keep[4:]:  # the first block: the lanes or not, once
+                ident = me()  # (a step kept beyond its identifier steps on in rhonn_step)
+                # the identifier's own workspace: the loan lives in it between steps
+                keep.append(_aligned_workspace(ident._build) if ident is not None and ident._wide else None)
+                if keep[4] is not None:
+                    call.work = keep[4][1]
             block = empty((_STEP_ROWS, n), dtype=dt)
             views = list(block)  # made here at once: after a C step, each would cost more
             call.rows = ffi.from_buffer(real_array, block)
@@ -589,12 +637,14 @@ class Identifier:
                         new_block()
                         row = c_step(call, xb, ub, vb)
                     if row < 0:
+                        settle()
                         owner()._raise_step_error(-row, x[None, :], None if u is None else u[None, :],
                                                   None if valid is None else valid[None, :], 0, single=True)
                 return views[row]
             finally:
                 release()
 
+        self._settle = settle
         functools.update_wrapper(step, Identifier.step)
         step._keep = keep  # type: ignore[attr-defined]  # the state and buffers the calls point to
         return step
@@ -625,6 +675,7 @@ class Identifier:
             valid = np.ascontiguousarray(valid)
             v_ptr = ffi.from_buffer("uint8_t[]", valid)
         with self._lock:  # one step at a time on this identifier (see the class docs)
+            self._settle()
             status = self._lib.rhonn_step(self._net, ffi.from_buffer(self._real_array, x), u_ptr, v_ptr,
                                           self._out_ptr)
             if status:
@@ -683,10 +734,13 @@ class Identifier:
         """A copy of the core state that running can change, for :meth:`_rollback`:
         ``rhonn_t`` from ``n_groups`` to its end. What precedes it, ``magic``
         and ``cfg`` (the validated copy of the configuration, about 30% of
-        the struct in either build), only ``rhonn_init`` writes; a test holds
-        running to that. The copy is not zeroed first (it is overwritten
+        the struct in either build), only ``rhonn_init`` writes (and a loan
+        to the lanes, whose ``magic`` is given back before any checkpoint);
+        a test holds running to that. The copy is not zeroed first (it is overwritten
         whole at once): with the smaller copy, a checkpoint of the large
-        build costs about 20 us instead of 50."""
+        build costs about 20 us instead of 50. What :meth:`step` lent to
+        the lanes is given back first (the caller holds the lock)."""
+        self._settle()
         at, length = self._mutable
         saved = _raw_allocator(self._build)("char[]", length)
         self._ffi.memmove(saved, self._ffi.cast("char *", self._net) + at, length)

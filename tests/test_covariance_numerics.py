@@ -272,6 +272,7 @@ def exactly_definite(P: np.ndarray) -> bool:
 
 def proven(ident: Identifier, i: int) -> bool:
     """Does neuron i's committed full-form P carry the core's proof of exact definiteness?"""
+    ident._settle()  # the proofs back in the struct, if step() lent them to the vector lanes
     net = ident._net
     return bool(net.cert[i][net.bank[i]])
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from pyrhonn import CovarianceForm, Factor, Identifier, IdentifierConfig, IdentifierError
+from pyrhonn import CovarianceForm, Factor, Identifier, IdentifierConfig, IdentifierError, terms
 from pyrhonn import identifier as identifier_module
 from pyrhonn.cli import main
 from pyrhonn.configfile import load_shipped
@@ -164,16 +164,37 @@ def test_a_failing_run_puts_back_every_byte_of_the_state() -> None:
     assert bytes(ident._ffi.buffer(ident._net)) == before
 
 
-def _warm() -> tuple[Identifier, np.ndarray, np.ndarray, np.ndarray]:
+def _lanes_config() -> IdentifierConfig:
+    """6 states, 2 inputs, every neuron 8 terms in the full form: an
+    identifier whose steps can run in the vector lanes."""
+    per = [terms.first_order(6) + ((Factor.s(i), Factor.s((i + 1) % 6)),) + terms.inputs([i % 2])
+           for i in range(6)]
+    return IdentifierConfig.uniform(per, n_states=6, n_inputs=2, beta=1.0, p0=10.0, q=1e-3, r=1e-2)
+
+
+def _warm(lanes: bool = False, twin: bool = False) -> tuple[Identifier, np.ndarray, np.ndarray, np.ndarray]:
+    """An identifier after a run of 30 samples: the firmware's LIM (its
+    neurons differ in size: steps in rhonn_step), or with ``lanes`` one whose
+    steps run in the vector lanes (rhonn_wide_step) -- as ``twin``, the same
+    identifier stepping in rhonn_step."""
     X, U, valid = trajectory(5, 60, 6, 2, 0.2)
-    ident = Identifier(load_shipped("firmware-lim").config.replace(dtype="float64"))
+    if lanes:
+        ident = Identifier(_lanes_config())
+        ident._wide = not twin
+    else:
+        ident = Identifier(load_shipped("firmware-lim").config.replace(dtype="float64"))
     ident.run(X[:30], U[:30], valid[:30])
     return ident, X, U, valid
 
 
-def test_step_takes_strided_and_odd_dtype_arguments_as_the_contiguous_ones() -> None:
-    ident, X, U, valid = _warm()
-    twin, _, _, _ = _warm()
+#: Where the step-row tests run: rhonn_step, and steps lent to the vector lanes.
+STEPPING = pytest.mark.parametrize("lanes", [False, True], ids=["rhonn_step", "lanes"])
+
+
+@STEPPING
+def test_step_takes_strided_and_odd_dtype_arguments_as_the_contiguous_ones(lanes: bool) -> None:
+    ident, X, U, valid = _warm(lanes)
+    twin, _, _, _ = _warm(lanes, twin=True)
     f8 = np.dtype(np.float64, metadata={"unit": "V"})  # equal to float64, another dtype object
     assert f8 == np.float64 and f8 is not np.dtype(np.float64)
     for k in range(30, 60):
@@ -189,9 +210,10 @@ def test_step_takes_strided_and_odd_dtype_arguments_as_the_contiguous_ones() -> 
     assert state_of(ident) == state_of(twin)
 
 
-def test_the_class_step_method_steps_as_the_identifier_s_own_fast_step() -> None:
-    ident, X, U, valid = _warm()
-    twin, _, _, _ = _warm()
+@STEPPING
+def test_the_class_step_method_steps_as_the_identifier_s_own_fast_step(lanes: bool) -> None:
+    ident, X, U, valid = _warm(lanes)
+    twin, _, _, _ = _warm(lanes, twin=True)
     assert ident.step is not Identifier.step and ident.step.__doc__ == Identifier.step.__doc__
     for k in range(30, 60):
         np.testing.assert_array_equal(Identifier.step(ident, X[k], U[k], valid[k]), twin.step(X[k], U[k], valid[k]))
@@ -213,8 +235,9 @@ def test_a_subclass_that_overrides_step_keeps_its_own() -> None:
     assert Counting.calls == 3 and ident.steps == 3
 
 
-def test_a_dropped_identifier_is_freed_at_once_though_its_step_is_bound() -> None:
-    ident, X, U, valid = _warm()
+@STEPPING
+def test_a_dropped_identifier_is_freed_at_once_though_its_step_is_bound(lanes: bool) -> None:
+    ident, X, U, valid = _warm(lanes)
     ref = weakref.ref(ident)
     gc.disable()
     try:
@@ -224,19 +247,29 @@ def test_a_dropped_identifier_is_freed_at_once_though_its_step_is_bound() -> Non
         gc.enable()
 
 
-def test_a_step_kept_beyond_its_identifier_says_so_when_it_needs_it() -> None:
-    ident, X, U, valid = _warm()
+@STEPPING
+def test_a_step_kept_beyond_its_identifier_says_so_when_it_needs_it(lanes: bool) -> None:
+    ident, X, U, valid = _warm(lanes)
+    twin, _, _, _ = _warm(lanes, twin=True)
     step = ident.step
+    np.testing.assert_array_equal(step(X[30], U[30], valid[30]), twin.step(X[30], U[30], valid[30]))
     del ident
     gc.collect()
-    assert step(X[40], U[40], valid[40]).shape == (6,)  # the state it steps is its own
+    for k in range(31, 41):  # the state it steps (and its lanes) are its own
+        np.testing.assert_array_equal(step(X[k], U[k], valid[k]), twin.step(X[k], U[k], valid[k]))
     with pytest.raises(ReferenceError, match="^step: its Identifier no longer exists"):
         step(X[40].astype(np.float32), U[40], valid[40])  # the checked path needs the identifier
+    bad = X[41].copy()
+    bad[0] = np.nan
+    with pytest.raises(ReferenceError, match="^step: its Identifier no longer exists"):
+        step(bad, U[41])  # and so does the error of a refused step
+    np.testing.assert_array_equal(step(X[41], U[41], valid[41]), twin.step(X[41], U[41], valid[41]))
 
 
-def test_each_prediction_step_returns_is_its_own_array_and_keeps_its_values() -> None:
-    ident, X, U, valid = _warm()
-    twin, _, _, _ = _warm()
+@STEPPING
+def test_each_prediction_step_returns_is_its_own_array_and_keeps_its_values(lanes: bool) -> None:
+    ident, X, U, valid = _warm(lanes)
+    twin, _, _, _ = _warm(lanes, twin=True)
     rows = identifier_module._STEP_ROWS
     T = 3 * rows + 5  # past the end of several blocks of rows
     Xl, Ul, Vl = (np.resize(a, (T,) + a.shape[1:]) for a in (X, U, valid))
@@ -251,9 +284,10 @@ def test_each_prediction_step_returns_is_its_own_array_and_keeps_its_values() ->
     np.testing.assert_array_equal(ident.step(X[0], U[0], valid[0]), twin.step(X[0], U[0], valid[0]))
 
 
-def test_a_refused_step_takes_no_row_from_the_steps_after_it() -> None:
-    ident, X, U, valid = _warm()
-    twin, _, _, _ = _warm()
+@STEPPING
+def test_a_refused_step_takes_no_row_from_the_steps_after_it(lanes: bool) -> None:
+    ident, X, U, valid = _warm(lanes)
+    twin, _, _, _ = _warm(lanes, twin=True)
     rows = identifier_module._STEP_ROWS
     bad = X[0].copy()
     bad[0] = np.nan
@@ -271,12 +305,13 @@ def test_a_refused_step_takes_no_row_from_the_steps_after_it() -> None:
     assert state_of(ident) == state_of(twin)
 
 
-def test_a_step_interrupted_after_its_c_call_leaves_the_later_predictions_right() -> None:
+@STEPPING
+def test_a_step_interrupted_after_its_c_call_leaves_the_later_predictions_right(lanes: bool) -> None:
     # A KeyboardInterrupt can land right after the C call returns, before
     # the prediction is handed out: that step happened (the twin makes it
     # too), and every later step() returns its own prediction.
-    ident, X, U, valid = _warm()
-    twin, _, _, _ = _warm()
+    ident, X, U, valid = _warm(lanes)
+    twin, _, _, _ = _warm(lanes, twin=True)
     cells = dict(zip(ident.step.__code__.co_freevars, ident.step.__closure__))
     c_step = cells["c_step"].cell_contents
 

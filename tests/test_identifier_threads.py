@@ -6,6 +6,7 @@ import sys
 import threading
 
 import numpy as np
+import pytest
 
 from pyrhonn import Identifier
 from pyrhonn.configfile import load_shipped
@@ -58,7 +59,8 @@ def test_separate_identifiers_in_threads_equal_a_serial_run_bit_for_bit() -> Non
         np.testing.assert_array_equal(r, serial)
 
 
-def test_threads_stepping_one_identifier_each_get_their_own_steps_predictions() -> None:
+@pytest.mark.parametrize("lanes", [False, True], ids=["rhonn_step", "lanes"])
+def test_threads_stepping_one_identifier_each_get_their_own_steps_predictions(lanes: bool) -> None:
     # Each thread steps its own samples. Afterwards one serial replay must
     # explain both threads' predictions: at each step, the next prediction
     # of one of the threads, bit for bit, in each thread's own order.
@@ -67,6 +69,7 @@ def test_threads_stepping_one_identifier_each_get_their_own_steps_predictions() 
     X, U, _ = trajectory(3, 2 * per_thread, 4, 1)
     samples = [(X[k::2], U[k::2]) for k in (0, 1)]  # every sample differs: no thread's predictions settle
     ident = Identifier(config)
+    ident._wide = lanes  # steps lent to the vector lanes, or in rhonn_step
     results: list[list[np.ndarray]] = [[], []]
     errors: list[BaseException] = []
 
@@ -90,6 +93,7 @@ def test_threads_stepping_one_identifier_each_get_their_own_steps_predictions() 
     assert errors == []
 
     replay = Identifier(config)
+    replay._wide = False  # its whole state in the struct, which the replay puts back
     state = replay._ffi.buffer(replay._net)
     taken = [0, 0]
     for _ in range(2 * per_thread):

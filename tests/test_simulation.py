@@ -22,6 +22,7 @@ def _example1(dtype: str = "float64", T: int = 300) -> tuple[Identifier, np.ndar
 
 
 def _core_bytes(ident: Identifier) -> bytes:
+    ident._settle()  # the whole state in the struct, if step() lent some to the vector lanes
     return bytes(ident._ffi.buffer(ident._net))
 
 
@@ -30,6 +31,7 @@ def _core_bytes_but_scratch(ident: Identifier) -> bytes:
     bank (w, P or its factors, their proof: a step's candidates) and the z
     bank that does not hold z(k-1). A run whose neurons go side by side
     (``rhonn_run_wide``) leaves in them what rhonn_step would not."""
+    ident._settle()
     ffi, net = ident._ffi, ident._net
     copy = ffi.new("rhonn_t *")
     ffi.memmove(copy, net, ffi.sizeof("rhonn_t"))
