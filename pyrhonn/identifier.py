@@ -369,16 +369,16 @@ class Identifier:
         return self._m
 
     @property
-    @_serialised
     def steps(self) -> int:
         """Steps since construction or :meth:`reset` (wraps at 2**32)."""
-        return int(self._net.steps)
+        with self._lock:  # a field steps in the lanes keep up to date: no need to bring them back
+            return int(self._net.steps)
 
     @property
-    @_serialised
     def learning(self) -> bool:
         """Whether steps update the weights (predictions continue either way)."""
-        return bool(self._net.learning)
+        with self._lock:  # as steps
+            return bool(self._net.learning)
 
     @learning.setter
     @_serialised

@@ -188,7 +188,8 @@ def test_steps_in_lanes_between_any_other_calls_equal_single_steps_bit_for_bit(
                 value = getattr(ident, call)
                 results.append(repr([np.asarray(a).tobytes() for a in value]) if isinstance(value, list)
                                else np.asarray(value).tobytes())
-            assert not _lent(ident)  # every other call gives the lanes back first
+            if call != "steps":  # a field the lanes keep up to date: read as it is
+                assert not _lent(ident)  # every other call gives the lanes back first
         assert results[0] == results[1], call
         k += 5 if call == "run" else 0
     assert state_of(lanes) == state_of(single)
