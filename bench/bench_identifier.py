@@ -26,7 +26,7 @@ from typing import Callable
 
 import numpy as np
 
-from pyrhonn import Activation, Factor, FactorKind, Identifier, IdentifierConfig, presets, terms
+from pyrhonn import Activation, Factor, FactorKind, Identifier, IdentifierConfig, atomic, presets, terms
 from pyrhonn.reference import ReferenceIdentifier
 
 try:
@@ -183,6 +183,7 @@ class Row:
     per_call_ns: float
     reference_ns: float
     filterpy_ns: float | None
+    lanes: bool  # run() and step() put the neurons side by side in the vector lanes on this CPU
 
     def as_dict(self) -> dict[str, object]:
         d = dict(self.__dict__)
@@ -213,10 +214,10 @@ def main(argv: list[str] | None = None) -> int:
             cfg = make(dtype)
             rows.append(Row(size, dtype, flops_per_step(cfg), 1e9 * time_batched(cfg, T_batch, reps),
                             1e9 * time_per_call(cfg, T_call, reps), 1e9 * slow["reference"],
-                            None if slow["filterpy"] is None else 1e9 * slow["filterpy"]))
+                            None if slow["filterpy"] is None else 1e9 * slow["filterpy"], Identifier(cfg)._wide))
 
     head = (f"{'size':9} {'dtype':8} {'flops':>6} {'batched':>10} {'steps/s':>10} {'GFLOP/s':>8} "
-            f"{'step()':>9} {'overhead':>9} {'numpy ref':>10} {'x ref':>7} {'filterpy':>10} {'x fpy':>7}")
+            f"{'step()':>9} {'overhead':>9} {'numpy ref':>10} {'x ref':>7} {'filterpy':>10} {'x fpy':>7} {'lanes':>5}")
     print(head)
     print("-" * len(head))
     for r in rows:
@@ -225,12 +226,13 @@ def main(argv: list[str] | None = None) -> int:
         xfp = "-" if d["speedup_vs_filterpy"] is None else f"{d['speedup_vs_filterpy']:6.0f}x"
         print(f"{r.size:9} {r.dtype:8} {r.flops:6d} {r.batched_ns:8.0f}ns {d['steps_per_s'] / 1e6:8.2f}M "
               f"{d['gflops']:8.2f} {r.per_call_ns / 1e3:7.2f}us {d['overhead_ns'] / 1e3:7.2f}us "
-              f"{r.reference_ns / 1e3:8.1f}us {d['speedup_vs_reference']:6.0f}x {fp:>10} {xfp:>7}")
+              f"{r.reference_ns / 1e3:8.1f}us {d['speedup_vs_reference']:6.0f}x {fp:>10} {xfp:>7} "
+              f"{'yes' if r.lanes else 'no':>5}")
     print("batched = Identifier.run per step; step() = one Identifier.step call; overhead = step() - batched;"
-          " x ref / x fpy = how many times faster the batched C step is than that baseline.")
+          " x ref / x fpy = how many times faster the batched C step is than that baseline;"
+          " lanes = run() and step() put the neurons side by side in the vector lanes on this CPU.")
     if args.json:
-        with open(args.json, "w") as fh:
-            json.dump([r.as_dict() for r in rows], fh, indent=2)
+        atomic.write_text(args.json, json.dumps([r.as_dict() for r in rows], indent=2))
     return 0
 
 

@@ -55,7 +55,7 @@ from typing import Callable
 
 import numpy as np
 
-from pyrhonn import Activation, Identifier, metrics
+from pyrhonn import Activation, Identifier, atomic, metrics
 from pyrhonn.plants import lim, oscillator, robot
 from pyrhonn.simulation import simulate
 from pyrhonn.structure import CandidateSpace, select
@@ -265,8 +265,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.speed:
         results["speed_seconds"] = speed()
     if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(results, fh, indent=2)
+        atomic.write_text(args.json, json.dumps(results, indent=2))
     return 0
 
 

@@ -538,8 +538,8 @@ class Identifier:
         step), so does ``step``, which would otherwise pay for loading the
         lanes and storing them back at every call: the first step lends the
         neurons' weights, covariances and regressor to the identifier's own
-        workspace (``rhonn_wide_begin``, about 200 kB in float64, allocated
-        then) and the later ones step there (``rhonn_wide_step``, the same
+        workspace (``rhonn_wide_begin``; allocated then: 230 kB in float64
+        on the small build, 5.1 MB on the large one) and the later ones step there (``rhonn_wide_step``, the same
         bits as ``rhonn_step``). Every other method gives them back first
         (:attr:`_settle`, under the lock), and the next step lends them
         again; a failed step gives them back before it raises.
