@@ -4,7 +4,10 @@ covariance form and precision, the ratio of the two batched runs' times
 (above 1: the lanes are faster), and whether ``rhonn_wide_pays`` -- which
 ``Identifier.run`` follows -- sends that identifier into the lanes. A row
 where the advice and the measurement disagree by more than the noise is
-marked; the thresholds are in csrc/src/rhonn_population.c.
+marked; the thresholds are in csrc/src/rhonn_population.c. A second table
+does the same for ``Identifier.step`` one sample per call, which follows
+the same advice (in the lanes, the neurons stay lent to them between
+steps: ``rhonn_wide_step``).
 
 Both runs give the same bits (tests/test_identifier_wide.py); this is only
 about speed. Best of several interleaved repeats, ratios from one run.
@@ -46,18 +49,25 @@ def trajectory(n: int, T: int, dtype: str) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(X.astype(dtype)), np.ascontiguousarray(U.astype(dtype))
 
 
-def ratio(cfg: IdentifierConfig, T: int, repeats: int) -> tuple[float, bool]:
-    """(neuron-by-neuron time / lanes time, what rhonn_wide_pays advises)."""
+def ratio(cfg: IdentifierConfig, T: int, repeats: int, per_step: bool = False) -> tuple[float, bool]:
+    """(neuron-by-neuron time / lanes time, what rhonn_wide_pays advises),
+    of one ``run`` over T samples, or with ``per_step`` of T ``step`` calls."""
     X, U = trajectory(cfg.n_states, T, cfg.dtype)
     out = np.empty_like(X)
+    rows = list(zip(X, U))
     best = {False: float("inf"), True: float("inf")}
     advised = Identifier(cfg)._wide
     for _ in range(repeats):
         for wide in (False, True):  # interleaved: a load spike hits both alike
             ident = Identifier(cfg)
             ident._wide = wide
+            step = ident.step
             t0 = time.perf_counter()
-            ident.run(X, U, out=out)
+            if per_step:
+                for x, u in rows:
+                    step(x, u)
+            else:
+                ident.run(X, U, out=out)
             best[wide] = min(best[wide], time.perf_counter() - t0)
     return best[False] / best[True], advised
 
@@ -66,22 +76,23 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="small smoke run")
     args = ap.parse_args(argv)
-    T, repeats = (500, 2) if args.quick else (20000, 5)
+    T, T_step, repeats = (500, 200, 2) if args.quick else (20000, 5000, 5)
     sizes = range(2, 9)
-    print(f"load average {os.getloadavg()[0]:.2f} (1 min); {T} samples, best of {repeats}; "
-          "ratio = neuron by neuron / side by side (* = rhonn_wide_pays sends it into the lanes)")
-    print(f"{'dtype':<9}{'form':<6}" + "".join(f"{n:>9}" for n in sizes))
     disagree = 0
-    for dtype in ("float64", "float32"):
-        for form in (CovarianceForm.FULL, CovarianceForm.UD):
-            cells = []
-            for n in sizes:
-                r, advised = ratio(uniform_config(n, dtype, form), T, repeats)
-                # noise margin: a 10 % loss or gain either way is not a wrong call
-                wrong = (advised and r < 0.9) or (not advised and r > 1.1)
-                disagree += wrong
-                cells.append(f"{r:>7.2f}{'*' if advised else ' '}{'!' if wrong else ' '}")
-            print(f"{dtype:<9}{form.value:<6}" + "".join(cells))
+    for per_step, samples, what in ((False, T, "Identifier.run"), (True, T_step, "Identifier.step, one call a sample")):
+        print(f"{what}: load average {os.getloadavg()[0]:.2f} (1 min); {samples} samples, best of {repeats}; "
+              "ratio = neuron by neuron / side by side (* = rhonn_wide_pays sends it into the lanes)")
+        print(f"{'dtype':<9}{'form':<6}" + "".join(f"{n:>9}" for n in sizes))
+        for dtype in ("float64", "float32"):
+            for form in (CovarianceForm.FULL, CovarianceForm.UD):
+                cells = []
+                for n in sizes:
+                    r, advised = ratio(uniform_config(n, dtype, form), samples, repeats, per_step)
+                    # noise margin: a 10 % loss or gain either way is not a wrong call
+                    wrong = (advised and r < 0.9) or (not advised and r > 1.1)
+                    disagree += wrong
+                    cells.append(f"{r:>7.2f}{'*' if advised else ' '}{'!' if wrong else ' '}")
+                print(f"{dtype:<9}{form.value:<6}" + "".join(cells))
     print(f"{disagree} advice(s) off by more than 10 % (!)" if disagree else "the advice agrees with the times")
     return 0
 
