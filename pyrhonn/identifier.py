@@ -539,10 +539,11 @@ class Identifier:
         lanes and storing them back at every call: the first step lends the
         neurons' weights, covariances and regressor to the identifier's own
         workspace (``rhonn_wide_begin``; allocated then: 230 kB in float64
-        on the small build, 5.1 MB on the large one) and the later ones step there (``rhonn_wide_step``, the same
-        bits as ``rhonn_step``). Every other method gives them back first
-        (:attr:`_settle`, under the lock), and the next step lends them
-        again; a failed step gives them back before it raises.
+        on the small build, 5.1 MB on the large one) and the later ones step
+        there (``rhonn_wide_step``, the same bits as ``rhonn_step``). Every
+        other method gives them back first (:attr:`_settle`, under the
+        lock), and the next step lends them again; a failed step gives them
+        back before it raises.
 
         The C call writes the prediction into the next row of a block of
         :data:`_STEP_ROWS` rows and returns the row's index, and the array
@@ -736,10 +737,10 @@ class Identifier:
         and ``cfg`` (the validated copy of the configuration, about 30% of
         the struct in either build), only ``rhonn_init`` writes (and a loan
         to the lanes, whose ``magic`` is given back before any checkpoint);
-        a test holds running to that. The copy is not zeroed first (it is overwritten
-        whole at once): with the smaller copy, a checkpoint of the large
-        build costs about 20 us instead of 50. What :meth:`step` lent to
-        the lanes is given back first (the caller holds the lock)."""
+        a test holds running to that. The copy is not zeroed first (it is
+        overwritten whole at once): with the smaller copy, a checkpoint of
+        the large build costs about 20 us instead of 50. What :meth:`step`
+        lent to the lanes is given back first (the caller holds the lock)."""
         self._settle()
         at, length = self._mutable
         saved = _raw_allocator(self._build)("char[]", length)

@@ -39,9 +39,10 @@
  *
  * The workspace is scratch, caller-owned (large: sizeof(rhonn_population_work)
  * grows with RHONN_MAX_POPULATION x the capacities), and holds nothing
- * between calls, but for a loan (STEPPING IN THE LANES below). Place it on a cache line (64 bytes): a vector of 8 lanes
- * then never straddles two, which the kernels feel (10-15 % measured with
- * AVX-512). Nothing here allocates, prints or recurses.
+ * between calls but a loan (STEPPING IN THE LANES below). Place it on a
+ * cache line (64 bytes): a vector of 8 lanes then never straddles two,
+ * which the kernels feel (10-15 % measured with AVX-512). Nothing here
+ * allocates, prints or recurses.
  */
 #ifndef RHONN_POPULATION_H
 #define RHONN_POPULATION_H
