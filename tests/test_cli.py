@@ -18,6 +18,12 @@ def test_info_reports_the_compiled_capacities(capsys: pytest.CaptureFixture[str]
     from pyrhonn.population import max_population
 
     assert data["max_population"] == max_population() >= 1
+    # each build states the lanes' workspace step() allocates per identifier it keeps there
+    from pyrhonn import Identifier, presets
+
+    ident = Identifier(presets.example1("float64"))
+    sizes = {b["module"]: b["sizeof_population_work"] for b in data["builds"]}
+    assert sizes[ident._build.__name__] == ident._ffi.sizeof("rhonn_population_work")
 
 
 def test_missing_or_unknown_command_exits_2_with_usage() -> None:

@@ -6,7 +6,10 @@ firmware default capacities (``csrc/include/rhonn_capacity.h``), which runs
 every identifier that fits in it (faster, same results bit for bit). The
 top-level ``capacities``, ``unrolled_kernels`` and ``sizeof_rhonn_t`` are
 the large build's (what an identifier can hold at most); ``builds`` lists
-both. The README says how to build the extension with other capacities."""
+both, each with ``sizeof_population_work``: the vector lanes' workspace
+that ``run`` uses per thread, and that ``step`` allocates per identifier
+whose neurons it keeps in the lanes. The README says how to build the
+extension with other capacities."""
 from __future__ import annotations
 
 import argparse
@@ -35,7 +38,8 @@ def run(args: argparse.Namespace) -> int:
         "sizeof_rhonn_t": {"float64": _rhonn_f64.ffi.sizeof("rhonn_t"), "float32": _rhonn_f32.ffi.sizeof("rhonn_t")},
         "builds": [{"module": build.__name__, "dtype": dtype, "capacities": build_capacities(build),
                     "unrolled_kernels": bool(getattr(build.lib, "RHONN_UNROLL", 0)),
-                    "sizeof_rhonn_t": build.ffi.sizeof("rhonn_t")}
+                    "sizeof_rhonn_t": build.ffi.sizeof("rhonn_t"),
+                    "sizeof_population_work": build.ffi.sizeof("rhonn_population_work")}
                    for dtype, builds in _BUILDS.items() for build in builds],
     }
     if args.json:
@@ -52,5 +56,6 @@ def run(args: argparse.Namespace) -> int:
     for b in data["builds"]:
         caps = ", ".join(f"{k[len('RHONN_MAX_'):]}={v}" for k, v in b["capacities"].items())
         print(f"  {b['module']:26} {b['dtype']:8} sizeof(rhonn_t) {b['sizeof_rhonn_t']:8} bytes, "
-              f"unrolled {'yes' if b['unrolled_kernels'] else 'no '}; {caps}")
+              f"unrolled {'yes' if b['unrolled_kernels'] else 'no '}, lanes workspace "
+              f"{b['sizeof_population_work']:8} bytes; {caps}")
     return 0
