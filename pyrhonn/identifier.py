@@ -570,7 +570,8 @@ class Identifier:
         call.x_bytes, call.u_bytes, call.valid_bytes = n * dt.itemsize, m * dt.itemsize, n
         call.work, call.lent = self._null, 0
         c_settle = self._lib.pyrhonn_step_settle
-        keep = [self._net, x_buf, u_buf, v_buf]  # and the lanes' workspace once there is one
+        keep: list[Any] = [self._net, x_buf, u_buf, v_buf]  # and the lanes' workspace once there is one
+        lanes_decided = False
         acquire, release = self._lock.acquire, self._lock.release
         tobytes, null = np.ndarray.tobytes, self._null
         views: list[np.ndarray] = []  # the rows of the block the C call writes (call.rows), as arrays
@@ -599,13 +600,14 @@ class Identifier:
             # held here before the C call points at it, and its rows become
             # free only by the last assignment: interrupted anywhere before
             # it, the next call finds no row left and asks again.
-            nonlocal views
-            if not keep[4:]:  # the first block: the lanes or not, once
+            nonlocal views, lanes_decided
+            if not lanes_decided:  # the first block: the lanes or not, once
                 ident = me()  # (a step kept beyond its identifier steps on in rhonn_step)
-                # the identifier's own workspace: the loan lives in it between steps
-                keep.append(_aligned_workspace(ident._build) if ident is not None and ident._wide else None)
-                if keep[4] is not None:
-                    call.work = keep[4][1]
+                if ident is not None and ident._wide:
+                    raw, work = _aligned_workspace(ident._build)
+                    keep.append(raw)  # the identifier's own workspace: the loan lives in it between steps
+                    call.work = work
+                lanes_decided = True
             block = empty((_STEP_ROWS, n), dtype=dt)
             views = list(block)  # made here at once: after a C step, each would cost more
             call.rows = ffi.from_buffer(real_array, block)
