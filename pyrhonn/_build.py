@@ -84,7 +84,6 @@ typedef struct {
     size_t n_rows, next_row, n;
     size_t x_bytes, u_bytes, valid_bytes;
     rhonn_population_work *work;
-    int lent;
 } pyrhonn_step_call;
 int pyrhonn_step_from(pyrhonn_step_call *call, const char *x, const char *u, const char *valid);
 int pyrhonn_step_settle(pyrhonn_step_call *call);
@@ -97,7 +96,8 @@ int pyrhonn_step_settle(pyrhonn_step_call *call);
 #: ``rhonn_step`` reads them aligned. With a workspace (``work``), the step
 #: runs in the lanes (``rhonn_wide_step``), the identifier's learning state
 #: lent to them from the first such step until ``pyrhonn_step_settle``
-#: gives it back (``lent``: 1 while it is).
+#: gives it back (lent while ``work->holder`` is the net: the core's own
+#: record of the loan).
 STEP_GLUE = """
 #include <limits.h>
 #include <string.h>
@@ -116,14 +116,12 @@ int pyrhonn_step_from(pyrhonn_step_call *call, const char *x, const char *u, con
     if (valid != NULL) {
         memcpy(call->valid, valid, call->valid_bytes);
     }
-    if (call->work != NULL && !call->lent) {
+    if (call->work != NULL && call->work->holder != call->net) {
         st = rhonn_wide_begin(call->net, call->work);
         if (st == RHONN_E_CONFIG) { /* the lanes cannot hold it: rhonn_step from now on */
             call->work = NULL;
         } else if (st != RHONN_OK) {
             return -(int)st;
-        } else {
-            call->lent = 1;
         }
     }
     if (call->work == NULL) {
@@ -142,15 +140,11 @@ int pyrhonn_step_from(pyrhonn_step_call *call, const char *x, const char *u, con
 int pyrhonn_step_settle(pyrhonn_step_call *call)
 {
     rhonn_status st;
-    if (!call->lent) {
-        return 0;
+    if (call->work == NULL || call->work->holder != call->net) {
+        return 0; /* nothing lent */
     }
     st = rhonn_wide_end(call->net, call->work);
-    if (st != RHONN_OK) {
-        return -(int)st;
-    }
-    call->lent = 0;
-    return 0;
+    return st != RHONN_OK ? -(int)st : 0;
 }
 """
 

@@ -568,7 +568,7 @@ class Identifier:
         call.net, call.x, call.u, call.valid = self._net, x_buf, u_buf, v_buf
         call.rows, call.n_rows, call.next_row, call.n = self._null, 0, 0, n
         call.x_bytes, call.u_bytes, call.valid_bytes = n * dt.itemsize, m * dt.itemsize, n
-        call.work, call.lent = self._null, 0
+        call.work = self._null
         c_settle = self._lib.pyrhonn_step_settle
         keep: list[Any] = [self._net, x_buf, u_buf, v_buf]  # and the lanes' workspace once there is one
         lanes_decided = False
@@ -588,12 +588,12 @@ class Identifier:
             return owner()._step_checked(x, u, valid)
 
         def settle() -> None:
-            # Under the lock. A refusal here would mean the loan was lost,
-            # which only a call outside this class can do.
-            if call.lent:
-                status = c_settle(call)
-                if status:
-                    owner()._check(-status, "step (giving back the lanes)")
+            # Under the lock; a no-op when nothing is lent. A refusal here
+            # would mean the loan was lost, which only a call outside this
+            # class can do.
+            status = c_settle(call)
+            if status:
+                owner()._check(-status, "step (giving back the lanes)")
 
         def new_block() -> None:
             # Under the lock, when the C call found no row left. The block is

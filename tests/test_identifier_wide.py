@@ -134,7 +134,8 @@ def _pair(cfg: IdentifierConfig) -> tuple[Identifier, Identifier]:
 
 def _lent(ident: Identifier) -> bool:
     cells = dict(zip(ident.step.__code__.co_freevars, ident.step.__closure__ or ()))
-    return bool(cells["call"].cell_contents.lent)
+    call = cells["call"].cell_contents
+    return call.work != ident._ffi.NULL and call.work.holder == call.net
 
 
 _CALLS = ["weights", "covariances", "healths", "regressors", "prediction", "steps", "set_weights", "learning",

@@ -8,7 +8,6 @@
 #include "rhonn.h"
 #include "rhonn_internal.h"
 
-
 /* Beyond this, exp(-a) is below the smallest normal float (double): return 0. */
 #ifdef RHONN_SINGLE
 #define RHONN_EXP_CUTOFF 87.0f

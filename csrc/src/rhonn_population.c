@@ -2286,10 +2286,10 @@ static rhonn_status check_loan(const rhonn_t *net, const rhonn_population_work *
 rhonn_status rhonn_wide_begin(rhonn_t *net, rhonn_population_work *work)
 {
     rhonn_status st;
-    if (net == NULL || work == NULL) {
+    if (work == NULL) {
         return RHONN_E_NULL;
     }
-    st = rhonn_internal_check_net(net); /* refuses a net already lent */
+    st = rhonn_internal_check_net(net); /* refuses a NULL net, or one already lent */
     if (st != RHONN_OK) {
         return st;
     }
