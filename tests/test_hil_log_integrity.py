@@ -23,6 +23,7 @@ import hil.transport  # noqa: E402
 from hil.rig import read_log, write_log  # noqa: E402
 from hil.scenario import Scenario  # noqa: E402
 from hil.transport import run_replay  # noqa: E402
+from killing import kill_while_writing  # noqa: E402
 from pyrhonn.cli import main as pyrhonn_main  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -199,17 +200,8 @@ def test_a_log_write_killed_at_any_moment_leaves_a_whole_log_or_a_refused_one(tm
     rng = np.random.default_rng(5)
     seen = set()
     for _ in range(20):
-        pid = os.fork()
-        if pid == 0:
-            try:
-                while True:
-                    write_log(runs[1], path)
-                    write_log(runs[0], path)
-            finally:
-                os._exit(1)
-        time.sleep(float(rng.uniform(0.0, 0.3)))
-        os.kill(pid, signal.SIGKILL)
-        os.waitpid(pid, 0)
+        kill_while_writing([lambda: write_log(runs[1], path), lambda: write_log(runs[0], path)], rng,
+                           max_delay=0.3)
         reader = can.BLFReader(path)   # the log file itself is always one whole run (never a prefix) ...
         frames = sum(1 for _ in reader)
         reader.stop()

@@ -12,6 +12,7 @@ import pytest
 from pyrhonn import Factor, Identifier, IdentifierConfig, terms
 from pyrhonn.statefile import FORMAT, VERSION
 
+from killing import kill_while_writing
 from strategies import trajectory
 
 
@@ -161,10 +162,6 @@ def _filter_state(ident: Identifier) -> tuple[bytes, ...]:
 def test_a_save_killed_at_any_moment_leaves_the_old_or_the_new_state_file(tmp_path: Path) -> None:
     """100 times: a child process saves two states in turn over one file and is
     killed (SIGKILL) at a random moment; the file always loads, as one of them."""
-    import os
-    import signal
-    import time
-
     X, U, valid = trajectory(6, 200, 3, 1)
     old, new = Identifier(config("float64")), Identifier(config("float64"))
     old.run(X[:60], U[:60], valid[:60])
@@ -176,17 +173,7 @@ def test_a_save_killed_at_any_moment_leaves_the_old_or_the_new_state_file(tmp_pa
     rng = np.random.default_rng(2)
     seen = set()
     for _ in range(100):
-        pid = os.fork()
-        if pid == 0:  # the child: save, save, save ... until killed
-            try:
-                while True:
-                    new.save(path)
-                    old.save(path)
-            finally:
-                os._exit(1)
-        time.sleep(float(rng.uniform(0.0, 0.02)))
-        os.kill(pid, signal.SIGKILL)
-        os.waitpid(pid, 0)
+        kill_while_writing([lambda: new.save(path), lambda: old.save(path)], rng, max_delay=0.02)
         seen.add(states[_filter_state(Identifier.load(path))])  # KeyError: neither state
     assert seen == {"old", "new"}
     # what a kill can leave beside it is a hidden temporary file, never something that looks like an output
