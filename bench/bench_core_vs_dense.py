@@ -1,5 +1,6 @@
 """The LIM identifier step through pyrhonn's core against a textbook dense
-EKF (bench/c/dense_ekf.c), in one process and one run, on the same samples.
+EKF (bench/c/dense_ekf.c) and a generic-library EKF (bench/c/generic_ekf.c),
+in one process and one run, on the same samples.
 
 For each shipped LIM config (``firmware-lim``, ``example3``) and precision,
 the LIM trajectory of ``pyrhonn.plants.lim`` (from 2.0 s, when the inputs
@@ -22,13 +23,19 @@ the same samples through:
           no activation or regressor work): S = H P H^T + R,
           K = P H^T / S, w += eta K e, P = (I - K H) P + Q with full L x L
           matrices and general matrix products, then w^T z. F = I, so no
-          F P F^T is formed.
+          F P F^T is formed;
+  generic the same filter in the form of a generic embedded EKF library
+          (TinyEKF's sequence of update then predict, from general matrix
+          routines): P H^T and H P both formed, S inverted by Cholesky,
+          P <- (I - G H) P, then P <- F P F^T + Q with F = I multiplied out.
+          The same regressors are handed to it.
 
 It prints the predictions' agreement (largest over states of
-max_k |dense - core| / max_k |core|), the best ns per LIM step of each (core
-and dense timed alternately, best of the repeats), the ratio dense / core
-(how many times faster the core is), and, when valgrind is installed, the
-instructions per step from callgrind (load-independent). The machine load
+max_k |dense - core| / max_k |core|, and the same for generic), the best ns
+per LIM step of each (the three timed alternately, best of the repeats), the
+ratios dense / core and generic / core (how many times faster the core is),
+and, when valgrind is installed, the instructions per step from callgrind
+(load-independent). The machine load
 (os.getloadavg) is printed beside every row.
 
     python bench/bench_core_vs_dense.py               # -O2 (about half a minute)
@@ -127,22 +134,36 @@ def build(samples: Samples, folder: Path, opt: str, unroll: bool = True, fixed: 
     cmd = [*compiler(), "-std=c99", *OPT_LEVELS[opt], "-ffp-contract=off", *WARNINGS, *single, *pinned,
            f"-DRHONN_UNROLL={int(unroll or fixed)}", '-DRHONN_USER_CAPACITY="bench_config_capacity.h"',
            f"-I{folder}", f"-I{INCLUDE}", f"-I{C_DIR}",
-           str(CORE), str(C_DIR / "dense_ekf.c"), str(C_DIR / "core_vs_dense.c"), "-o", str(exe), "-lm"]
+           str(CORE), str(C_DIR / "dense_ekf.c"), str(C_DIR / "generic_ekf.c"),
+           str(C_DIR / "core_vs_dense.c"), "-o", str(exe), "-lm"]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode != 0 or proc.stderr.strip():
         raise RuntimeError(f"compiling the harness failed or warned:\n{' '.join(cmd)}\n{proc.stderr}")
     return exe, data
 
 
-def predictions(exe: Path, data: Path, samples: Samples) -> tuple[np.ndarray, np.ndarray, str]:
-    """The core's and the dense EKF's predictions (T, n) each, and the core's
-    status line."""
+@dataclass(frozen=True)
+class Predictions:
+    """One harness run's predictions (T, n) of each filter, and what it said."""
+    core: np.ndarray
+    dense: np.ndarray
+    generic: np.ndarray
+    status: str            # "core: <status> after <steps> steps"
+    generic_refused: int   # updates the generic EKF skipped (S not positive), over all neurons
+
+
+def predictions(exe: Path, data: Path, samples: Samples) -> Predictions:
+    """The three filters' predictions on ``samples``, from one run of ``exe``."""
     T, n = samples.X.shape
     proc = subprocess.run([str(exe), "predict", str(data), str(T)], capture_output=True)
     if proc.returncode != 0:
         raise RuntimeError(f"{exe.name} predict: {proc.stderr.decode(errors='replace')}")
-    out = np.frombuffer(proc.stdout, dtype=samples.config.dtype).reshape(2, T, n)
-    return out[0], out[1], proc.stderr.decode().strip()
+    out = np.frombuffer(proc.stdout, dtype=samples.config.dtype).reshape(3, T, n)
+    said = proc.stderr.decode().splitlines()
+    m = re.fullmatch(r"generic: (\d+) updates refused", said[1]) if len(said) == 2 else None
+    if m is None:
+        raise RuntimeError(f"{exe.name} predict said: {said}")
+    return Predictions(out[0], out[1], out[2], said[0], int(m.group(1)))
 
 
 def relative_difference(a: np.ndarray, b: np.ndarray) -> float:
@@ -188,14 +209,19 @@ class Row:
     kernel: str
     core_ns: float
     dense_ns: float
+    generic_ns: float
     core_ir: float | None
     dense_ir: float | None
+    generic_ir: float | None
     max_rel_diff: float
+    generic_max_rel_diff: float
+    generic_refused: int
     core_vs_identifier: float
     core_status: str
     load_1min: float
     core_vs_float64: float | None = None    # float32 rows: against the float64 Identifier
     dense_vs_float64: float | None = None
+    generic_vs_float64: float | None = None
 
     @property
     def ratio(self) -> float:
@@ -205,6 +231,14 @@ class Row:
     def ir_ratio(self) -> float | None:
         return None if self.core_ir is None or self.dense_ir is None else self.dense_ir / self.core_ir
 
+    @property
+    def generic_ratio(self) -> float:
+        return self.generic_ns / self.core_ns
+
+    @property
+    def generic_ir_ratio(self) -> float | None:
+        return None if self.core_ir is None or self.generic_ir is None else self.generic_ir / self.core_ir
+
 
 def measure(samples: Samples, name: str, folder: Path, opt: str, kernel: str, *, repeats: int,
             count_steps: int, float64_xhat: np.ndarray | None = None) -> Row:
@@ -213,37 +247,48 @@ def measure(samples: Samples, name: str, folder: Path, opt: str, kernel: str, *,
     float32 row's rounding against."""
     exe, data = build(samples, folder, opt, unroll=kernel != "generic", fixed=kernel == "fixed")
     T = samples.X.shape[0]
-    core, dense, status = predictions(exe, data, samples)
+    p = predictions(exe, data, samples)
+    core, dense, generic = p.core, p.dense, p.generic
     t = timed(exe, data, T, repeats)
     n_count = min(count_steps, T)
     return Row(config=name, dtype=samples.config.dtype, opt=opt, kernel=kernel,
                core_ns=float(t["core_ns_per_step"]), dense_ns=float(t["dense_ns_per_step"]),
+               generic_ns=float(t["generic_ns_per_step"]),
                core_ir=instructions_per_step(exe, data, n_count, "core"),
                dense_ir=instructions_per_step(exe, data, n_count, "dense"),
+               generic_ir=instructions_per_step(exe, data, n_count, "generic"),
                max_rel_diff=relative_difference(dense, core),
+               generic_max_rel_diff=relative_difference(generic, core),
+               generic_refused=p.generic_refused,
                core_vs_identifier=relative_difference(core, samples.Xhat),
                core_status=f"{t['core_status']} after {t['core_steps']} of {T} steps",
                load_1min=os.getloadavg()[0],
                core_vs_float64=None if float64_xhat is None else relative_difference(core, float64_xhat),
-               dense_vs_float64=None if float64_xhat is None else relative_difference(dense, float64_xhat))
+               dense_vs_float64=None if float64_xhat is None else relative_difference(dense, float64_xhat),
+               generic_vs_float64=None if float64_xhat is None else relative_difference(generic, float64_xhat))
 
 
 def print_rows(rows: list[Row]) -> None:
     head = (f"{'config':13} {'dtype':8} {'build':10} {'kernel':9} {'core':>9} {'dense':>9} {'x':>6} "
-            f"{'core Ir':>8} {'dense Ir':>9} {'x Ir':>6} {'max rel diff':>12} {'load':>5}")
+            f"{'generic':>9} {'x':>6} {'core Ir':>8} {'dense Ir':>9} {'x Ir':>6} {'generic Ir':>10} {'x Ir':>6} "
+            f"{'dense diff':>10} {'gen. diff':>10} {'load':>5}")
     print(head)
     print("-" * len(head))
     for r in rows:
         ir = lambda v: "-" if v is None else f"{v:.0f}"  # noqa: E731
-        xir = "-" if r.ir_ratio is None else f"{r.ir_ratio:.2f}"
+        times = lambda v: "-" if v is None else f"{v:.2f}"  # noqa: E731
         print(f"{r.config:13} {r.dtype:8} {r.opt:10} {r.kernel:9} {r.core_ns:7.0f}ns {r.dense_ns:7.0f}ns "
-              f"{r.ratio:6.2f} {ir(r.core_ir):>8} {ir(r.dense_ir):>9} {xir:>6} {r.max_rel_diff:12.2e} "
-              f"{r.load_1min:5.2f}")
+              f"{r.ratio:6.2f} {r.generic_ns:7.0f}ns {r.generic_ratio:6.2f} {ir(r.core_ir):>8} {ir(r.dense_ir):>9} "
+              f"{times(r.ir_ratio):>6} {ir(r.generic_ir):>10} {times(r.generic_ir_ratio):>6} "
+              f"{r.max_rel_diff:10.2e} {r.generic_max_rel_diff:10.2e} {r.load_1min:5.2f}")
+        if r.generic_refused:
+            print(f"  the generic EKF skipped {r.generic_refused} updates (S not positive: its P lost "
+                  "definiteness), so it ran fewer instructions than a full run")
         if not r.core_status.startswith("RHONN_OK"):
             print(f"  core stopped: {r.core_status} (its time is per sample asked, not per step run)")
         if r.core_vs_float64 is not None and r.dense_vs_float64 is not None:
             print(f"  against the float64 core on the same samples: core {r.core_vs_float64:.2e}, "
-                  f"dense {r.dense_vs_float64:.2e}")
+                  f"dense {r.dense_vs_float64:.2e}, generic {r.generic_vs_float64:.2e}")
         if r.core_vs_identifier != 0.0:
             print(f"  the harness's core differs from pyrhonn's Identifier by {r.core_vs_identifier:.2e}")
 
@@ -266,7 +311,7 @@ def main(argv: list[str] | None = None) -> int:
     opts = ["O2", "O3-native"] if args.native else ["O2"]
     cc = compiler()
     version = subprocess.run([*cc, "--version"], capture_output=True, text=True).stdout.splitlines()
-    print(f"pyrhonn core vs textbook dense EKF, LIM step; {platform.machine()}, {' '.join(cc)} "
+    print(f"pyrhonn core vs textbook dense EKF and generic-library EKF, LIM step; {platform.machine()}, {' '.join(cc)} "
           f"({version[0] if version else '?'}), {T} samples from t = {START_S} s, best of {repeats}; "
           f"load average {' '.join(f'{v:.2f}' for v in os.getloadavg())}; core covariance form: {args.covariance}")
     print("valgrind: " + ("instructions per step over the first "
@@ -291,11 +336,14 @@ def main(argv: list[str] | None = None) -> int:
     for opt in opts:
         print(f"\n{opt}:")
         print_rows([r for r in rows if r.opt == opt])
-    print("\ncore, dense: best ns per LIM step; x: dense / core (times faster the core is); Ir: instructions per "
-          "step (callgrind); max rel diff: max over states of max_k |dense - core| / max_k |core|.")
+    print("\ncore, dense, generic: best ns per LIM step; x: dense / core and generic / core (times faster the core "
+          "is); Ir: instructions per step (callgrind); dense diff, gen. diff: max over states of "
+          "max_k |dense - core| / max_k |core|, and the same for generic.")
     print(f"load average at the end {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     if args.json:
-        atomic.write_text(args.json, json.dumps([dict(asdict(r), ratio=r.ratio, ir_ratio=r.ir_ratio) for r in rows],
+        atomic.write_text(args.json, json.dumps([dict(asdict(r), ratio=r.ratio, ir_ratio=r.ir_ratio,
+                                                     generic_ratio=r.generic_ratio,
+                                                     generic_ir_ratio=r.generic_ir_ratio) for r in rows],
                                                 indent=2))
     return 0
 

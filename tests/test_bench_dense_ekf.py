@@ -1,7 +1,8 @@
 """The core-vs-dense benchmark's C harness (bench/bench_core_vs_dense.py,
-bench/c/) still compiles warning-free, and its textbook dense EKF still
-predicts what pyrhonn's core predicts on the LIM, so the benchmark cannot
-silently compare against a broken baseline. No timing is asserted."""
+bench/c/) still compiles warning-free, and its two baselines (the textbook
+dense EKF and the generic-library EKF) still predict what pyrhonn's core
+predicts on the LIM, so the benchmark cannot silently compare against a
+broken baseline. No timing is asserted."""
 from __future__ import annotations
 
 import importlib.util
@@ -36,32 +37,39 @@ def bench() -> ModuleType:
 
 
 @pytest.mark.parametrize("config", ["firmware-lim", "example3"])
-def test_the_dense_ekf_predicts_what_the_core_predicts_on_the_lim_in_float64(bench, config: str, tmp_path: Path) -> None:
+def test_both_baselines_predict_what_the_core_predicts_on_the_lim_in_float64(bench, config: str,
+                                                                             tmp_path: Path) -> None:
     samples = bench.record(bench.lim_config(config, "float64"), STEPS)
     exe, data = bench.build(samples, tmp_path, "O2", unroll=False)
-    core, dense, status = bench.predictions(exe, data, samples)
-    assert status == f"core: RHONN_OK after {STEPS} steps"
+    p = bench.predictions(exe, data, samples)
+    assert p.status == f"core: RHONN_OK after {STEPS} steps"
     # The harness runs the very core pyrhonn's Identifier runs ...
-    assert bench.relative_difference(core, samples.Xhat) < 1e-12
-    # ... and the dense filter, fed the regressors the Identifier formed, learns the same weights.
-    assert bench.relative_difference(dense, core) < 1e-9
+    assert bench.relative_difference(p.core, samples.Xhat) < 1e-12
+    # ... and both baselines, fed the regressors the Identifier formed, learn the same weights,
+    # the generic one without skipping an update.
+    assert bench.relative_difference(p.dense, p.core) < 1e-9
+    assert bench.relative_difference(p.generic, p.core) < 1e-9 and p.generic_refused == 0
     # The comparison is not vacuous: the predictions move with the plant.
-    assert np.ptp(core, axis=0).min() > 0
+    assert np.ptp(p.core, axis=0).min() > 0
 
 
-def test_the_harness_times_both_filters_and_callgrind_counts_their_instructions(bench, tmp_path: Path) -> None:
+def test_the_harness_times_all_three_filters_and_callgrind_counts_their_instructions(bench, tmp_path: Path) -> None:
     samples = bench.record(bench.lim_config("firmware-lim", "float32"), STEPS)
     exe, data = bench.build(samples, tmp_path, "O2", unroll=True)
     figures = bench.timed(exe, data, STEPS, 2)
     assert figures["core_status"] == "RHONN_OK" and int(figures["core_steps"]) == STEPS
-    assert float(figures["core_ns_per_step"]) > 0 and float(figures["dense_ns_per_step"]) > 0
+    assert all(float(figures[f"{which}_ns_per_step"]) > 0 for which in ("core", "dense", "generic"))
     if shutil.which("valgrind") is None:
         pytest.skip("valgrind not installed: instruction counts not checked")
-    for which in ("core", "dense"):
+    counts = {}
+    for which in ("core", "dense", "generic"):
         short, long = (bench.instructions_per_step(exe, data, n, which) for n in (100, 200))
         # The count covers the filter's own steps, not the process around them
         # (start-up, loading the data): per step, it does not depend on the run's length.
         assert short > 0 and 0.8 < short / long < 1.25, (which, short, long)
+        counts[which] = long
+    # The generic form does everything the dense one does and F P F^T on top.
+    assert counts["generic"] > counts["dense"] > counts["core"]
 
 
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
@@ -71,6 +79,6 @@ def test_the_core_compiled_for_the_config_predicts_the_identifiers_bits(bench, d
     for bit."""
     samples = bench.record(bench.lim_config("firmware-lim", dtype), STEPS)
     exe, data = bench.build(samples, tmp_path, "O2", fixed=True)
-    core, _, status = bench.predictions(exe, data, samples)
-    assert status == f"core: RHONN_OK after {STEPS} steps"
-    assert core.dtype == samples.Xhat.dtype and core.tobytes() == samples.Xhat.tobytes()
+    p = bench.predictions(exe, data, samples)
+    assert p.status == f"core: RHONN_OK after {STEPS} steps"
+    assert p.core.dtype == samples.Xhat.dtype and p.core.tobytes() == samples.Xhat.tobytes()

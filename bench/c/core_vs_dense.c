@@ -1,23 +1,25 @@
 /*
- * core_vs_dense.c - the LIM identifier step through the pyrhonn core and
- * through the textbook dense EKF (dense_ekf.h), in one process, on the same
- * samples. Built and driven by bench/bench_core_vs_dense.py, which generates
- * bench_config.h (the identifier, pyrhonn.export) and the data file.
+ * core_vs_dense.c - the LIM identifier step through the pyrhonn core, through
+ * the textbook dense EKF (dense_ekf.h) and through the generic-library EKF
+ * (generic_ekf.h), in one process, on the same samples. Built and driven by
+ * bench/bench_core_vs_dense.py, which generates bench_config.h (the
+ * identifier, pyrhonn.export) and the data file.
  *
- *     core_vs_dense predict DATA T        both runs' predictions, raw, to stdout
- *     core_vs_dense time DATA T REPEATS   best ns per step of each, to stdout
- *     core_vs_dense count-core DATA T     one core run (for callgrind)
- *     core_vs_dense count-dense DATA T    one dense run (for callgrind)
+ *     core_vs_dense predict DATA T          the three runs' predictions, raw, to stdout
+ *     core_vs_dense time DATA T REPEATS     best ns per step of each, to stdout
+ *     core_vs_dense count-core DATA T       one core run (for callgrind)
+ *     core_vs_dense count-dense DATA T      one dense run (for callgrind)
+ *     core_vs_dense count-generic DATA T    one generic-library run (for callgrind)
  *
  * DATA holds, as raw rhonn_real, row-major, for its N >= T rows: X (N x n),
  * U (N x m) and the regressors Z (N x sum of L_i), one block after the other
  * (a run uses the first T rows): row k is z_0(k) .. z_{n-1}(k), the values
  * the core forms at sample k (recorded from pyrhonn's Identifier). The core
- * forms them itself from X and U; the dense EKF is handed them.
+ * forms them itself from X and U; the two other EKFs are handed them.
  *
- * The dense run is the same series-parallel identifier: at sample k >= 1,
- * neuron i learns e = x_i(k) - xhat_i(k) with z_i(k-1); then it predicts
- * xhat_i(k+1) = w_i^T z_i(k). No dropouts (every sample valid).
+ * The dense and generic runs are the same series-parallel identifier: at
+ * sample k >= 1, neuron i learns e = x_i(k) - xhat_i(k) with z_i(k-1); then
+ * it predicts xhat_i(k+1) = w_i^T z_i(k). No dropouts (every sample valid).
  */
 #define _POSIX_C_SOURCE 199309L
 #include <stdint.h>
@@ -28,6 +30,7 @@
 
 #include "rhonn.h"
 #include "dense_ekf.h"
+#include "generic_ekf.h"
 #include "bench_config.h"   /* static const rhonn_config bench_config */
 
 /* The two filters must run in the same precision. */
@@ -47,6 +50,7 @@ typedef struct {
 
 rhonn_status bench_run_core(rhonn_t *net, const bench_data *d, rhonn_real *xhat, size_t *done);
 void bench_run_dense(dense_ekf *f, const bench_data *d, rhonn_real *xhat);
+void bench_run_generic(generic_ekf *g, const bench_data *d, rhonn_real *xhat);
 
 static int fail(const char *what)
 {
@@ -100,7 +104,8 @@ static int load(const char *path, size_t T, bench_data *d)
     return 0;
 }
 
-static int init_dense(dense_ekf *f)
+/* Both baselines start from the config's P0, unpacked to a full L x L. */
+static int init_baselines(dense_ekf *f, generic_ekf *g)
 {
     size_t i;
     for (i = 0; i < bench_config.n_states; ++i) {
@@ -115,6 +120,8 @@ static int init_dense(dense_ekf *f)
                 p0[r * L + c] = p0[c * L + r] = nc->p0[at];
         if (dense_ekf_init(&f[i], L, nc->w0, p0, nc->q, nc->r, nc->eta) != DENSE_OK)
             return fail("dense_ekf_init refused the configuration");
+        if (generic_ekf_init(&g[i], L, nc->w0, p0, nc->q, nc->r, nc->eta) != GENERIC_OK)
+            return fail("generic_ekf_init refused the configuration");
     }
     return 0;
 }
@@ -138,20 +145,29 @@ BENCH_NOINLINE rhonn_status bench_run_core(rhonn_t *net, const bench_data *d, rh
     return RHONN_OK;
 }
 
-BENCH_NOINLINE void bench_run_dense(dense_ekf *f, const bench_data *d, rhonn_real *xhat)
-{
-    size_t k, i;
-    for (k = 0; k < d->T; ++k) {
-        const rhonn_real *x = d->x + k * d->n;
-        const rhonn_real *z = d->z + k * d->nz;
-        rhonn_real *out = xhat + k * d->n;
-        for (i = 0; i < d->n; ++i) {
-            if (k > 0)
-                dense_ekf_update(&f[i], z - d->nz + d->z_off[i], x[i] - out[(ptrdiff_t)i - (ptrdiff_t)d->n]);
-            out[i] = dense_ekf_predict(&f[i], z + d->z_off[i]);
-        }
+/* A baseline's run over the recorded regressors, one neuron at a time: learn
+ * from sample k's error with z(k-1), then predict with z(k). The generic EKF
+ * counts the updates it skips (S not positive) itself; the run goes on, as
+ * the library's caller would. */
+#define BENCH_RUN_BASELINE(name, filter, learn, predict)                                      \
+    BENCH_NOINLINE void name(filter *f, const bench_data *d, rhonn_real *xhat)                \
+    {                                                                                           \
+        size_t k, i;                                                                            \
+        for (k = 0; k < d->T; ++k) {                                                            \
+            const rhonn_real *x = d->x + k * d->n;                                              \
+            const rhonn_real *z = d->z + k * d->nz;                                             \
+            rhonn_real *out = xhat + k * d->n;                                                  \
+            for (i = 0; i < d->n; ++i) {                                                        \
+                if (k > 0)                                                                      \
+                    (void)learn(&f[i], z - d->nz + d->z_off[i],                                 \
+                                x[i] - out[(ptrdiff_t)i - (ptrdiff_t)d->n]);                    \
+                out[i] = predict(&f[i], z + d->z_off[i]);                                       \
+            }                                                                                   \
+        }                                                                                       \
     }
-}
+
+BENCH_RUN_BASELINE(bench_run_dense, dense_ekf, dense_ekf_update, dense_ekf_predict)
+BENCH_RUN_BASELINE(bench_run_generic, generic_ekf, generic_ekf_step, generic_ekf_predict)
 
 static double now_ns(void)
 {
@@ -160,19 +176,28 @@ static double now_ns(void)
     return (double)ts.tv_sec * 1e9 + (double)ts.tv_nsec;
 }
 
+/* Best of `reps` runs of one filter, alternating with the others (so a burst
+ * of load hits all alike): the running minimum of ns per run. */
+static void keep_best(double *best, double t0, double t1, long r)
+{
+    if (r == 0 || t1 - t0 < *best)
+        *best = t1 - t0;
+}
+
 int main(int argc, char **argv)
 {
     static rhonn_t net;
     static dense_ekf dense[RHONN_MAX_STATES];
+    static generic_ekf generic[RHONN_MAX_STATES];
     bench_data d;
-    rhonn_real *xc, *xd;
+    rhonn_real *xc, *xd, *xg;
     rhonn_status st = RHONN_OK;
     size_t done = 0;
     long T, reps = 1;
     const char *mode;
 
     if (argc < 4 || (strcmp(argv[1], "time") == 0 && argc < 5))
-        return fail("usage: core_vs_dense predict|time|count-core|count-dense DATA T [REPEATS]");
+        return fail("usage: core_vs_dense predict|time|count-core|count-dense|count-generic DATA T [REPEATS]");
     mode = argv[1];
     T = strtol(argv[3], NULL, 10);
     if (argc > 4)
@@ -181,51 +206,68 @@ int main(int argc, char **argv)
         return fail("T and REPEATS must be positive");
     if (load(argv[2], (size_t)T, &d) != 0)
         return 2;
-    xc = malloc(2 * d.T * d.n * sizeof(rhonn_real));
+    xc = malloc(3 * d.T * d.n * sizeof(rhonn_real));
     if (xc == NULL)
         return fail("out of memory");
     xd = xc + d.T * d.n;
-    memset(xc, 0, 2 * d.T * d.n * sizeof(rhonn_real));
+    xg = xd + d.T * d.n;
+    memset(xc, 0, 3 * d.T * d.n * sizeof(rhonn_real));
 
     if (strcmp(mode, "predict") == 0) {
-        if (init_core(&net) != 0 || init_dense(dense) != 0)
+        if (init_core(&net) != 0 || init_baselines(dense, generic) != 0)
             return 2;
         st = bench_run_core(&net, &d, xc, &done);
         bench_run_dense(dense, &d, xd);
+        bench_run_generic(generic, &d, xg);
         fprintf(stderr, "core: %s after %lu steps\n", rhonn_status_name(st), (unsigned long)done);
-        if (fwrite(xc, sizeof(rhonn_real), 2 * d.T * d.n, stdout) != 2 * d.T * d.n)
+        {
+            long refused = 0;
+            size_t i;
+            for (i = 0; i < d.n; ++i)
+                refused += generic[i].refused;
+            fprintf(stderr, "generic: %ld updates refused\n", refused);
+        }
+        if (fwrite(xc, sizeof(rhonn_real), 3 * d.T * d.n, stdout) != 3 * d.T * d.n)
             return fail("cannot write the predictions");
     } else if (strcmp(mode, "time") == 0) {
-        double best_core = 0, best_dense = 0;
+        double best_core = 0, best_dense = 0, best_generic = 0;
         long r;
-        for (r = 0; r < reps; ++r) {   /* alternate, so a burst of load hits both alike */
+        for (r = 0; r < reps; ++r) {
             double t0, t1;
-            if (init_core(&net) != 0 || init_dense(dense) != 0)
+            if (init_core(&net) != 0 || init_baselines(dense, generic) != 0)
                 return 2;
             t0 = now_ns();
             st = bench_run_core(&net, &d, xc, &done);
             t1 = now_ns();
-            if (r == 0 || t1 - t0 < best_core)
-                best_core = t1 - t0;
+            keep_best(&best_core, t0, t1, r);
             t0 = now_ns();
             bench_run_dense(dense, &d, xd);
             t1 = now_ns();
-            if (r == 0 || t1 - t0 < best_dense)
-                best_dense = t1 - t0;
+            keep_best(&best_dense, t0, t1, r);
+            t0 = now_ns();
+            bench_run_generic(generic, &d, xg);
+            t1 = now_ns();
+            keep_best(&best_generic, t0, t1, r);
         }
-        printf("core_ns_per_step %.3f\ndense_ns_per_step %.3f\ncore_status %s\ncore_steps %lu\n",
-               best_core / (double)d.T, best_dense / (double)d.T, rhonn_status_name(st), (unsigned long)done);
+        printf("core_ns_per_step %.3f\ndense_ns_per_step %.3f\ngeneric_ns_per_step %.3f\n"
+               "core_status %s\ncore_steps %lu\n",
+               best_core / (double)d.T, best_dense / (double)d.T, best_generic / (double)d.T,
+               rhonn_status_name(st), (unsigned long)done);
     } else if (strcmp(mode, "count-core") == 0) {
         if (init_core(&net) != 0)
             return 2;
         st = bench_run_core(&net, &d, xc, &done);
         printf("core_status %s\ncore_steps %lu\n", rhonn_status_name(st), (unsigned long)done);
     } else if (strcmp(mode, "count-dense") == 0) {
-        if (init_dense(dense) != 0)
+        if (init_baselines(dense, generic) != 0)
             return 2;
         bench_run_dense(dense, &d, xd);
+    } else if (strcmp(mode, "count-generic") == 0) {
+        if (init_baselines(dense, generic) != 0)
+            return 2;
+        bench_run_generic(generic, &d, xg);
     } else {
-        return fail("unknown mode (predict, time, count-core, count-dense)");
+        return fail("unknown mode (predict, time, count-core, count-dense, count-generic)");
     }
     free(xc);
     free(d.x);
