@@ -67,17 +67,21 @@ test-c-sanitize:
 	$(VENV)/bin/cmake --build $(BUILD)/sanitize -j $(JOBS)
 	$(VENV)/bin/ctest --test-dir $(BUILD)/sanitize --output-on-failure
 
-# libFuzzer on the firmware's frame-receive entry, with ASan and UBSan, for
-# FUZZ_SECONDS from a seed corpus: a crash, a sanitizer report or a rejected
-# frame that changes the filter fails the run (firmware_sim/fuzz/). Then the
-# runner's udp_multicast codec for FUZZ_UDP_SECONDS, seeded with python-can's
-# own datagrams: an accepted datagram must re-encode to itself. Then the core
-# (csrc/fuzz/fuzz_core.c), float and double: a committed covariance that is not
-# positive definite, an update with s < R or a refused call that changed the
-# filter fails the run. Then rhonn_run_wide against rhonn_run, and steps in
-# the lanes against rhonn_step (csrc/fuzz/fuzz_wide.c), and each member of rhonn_run_population against
-# its own rhonn_run (csrc/fuzz/fuzz_population.c), float and double: any
-# difference fails the run.
+# libFuzzer, with ASan and UBSan, each target from its own seed corpus:
+# - fuzz-frame: the firmware's frame-receive entry for FUZZ_SECONDS; a crash, a
+#   sanitizer report or a rejected frame that changes the filter fails the run
+#   (firmware_sim/fuzz/);
+# - fuzz-udp: the runner's udp_multicast codec for FUZZ_UDP_SECONDS, seeded
+#   with python-can's own datagrams; an accepted datagram must re-encode to
+#   itself;
+# - fuzz-core-f32/f64: the core (csrc/fuzz/fuzz_core.c); a committed
+#   covariance that is not positive definite, an update with s < R or a refused
+#   call that changed the filter fails the run;
+# - fuzz-wide-f32/f64: rhonn_run_wide against rhonn_run, and steps in the lanes
+#   against rhonn_step (csrc/fuzz/fuzz_wide.c); any difference fails the run;
+# - fuzz-pop-f32/f64: each member of rhonn_run_population against its own
+#   rhonn_run (csrc/fuzz/fuzz_population.c); any difference fails the run.
+# Each is a make target of its own (make fuzz-core-f64 FUZZ_CORE_SECONDS=600).
 CLANG ?= clang-14
 FUZZ_SECONDS ?= 45
 FUZZ_UDP_SECONDS ?= 20
@@ -90,7 +94,16 @@ FW_FLAGS = -std=c99 -ffp-contract=off -DRHONN_SINGLE -Icsrc/include -Ifirmware_s
 	-Ifirmware_sim/generated -Ifirmware_sim/config
 FW_SOURCES = firmware_sim/app/fw_app.c firmware_sim/app/fw_protocol.c firmware_sim/app/fw_hal_mem.c \
 	firmware_sim/app/fw_secoc.c firmware_sim/app/fw_aes_cmac.c firmware_sim/generated/rhonn_id.c csrc/src/rhonn.c
+# The fuzz targets run two at a time (FUZZ_JOBS, one per CPU: each libFuzzer
+# run is one process), every one for its own time; each prints its last lines
+# when it ends (--output-sync keeps them together).
+FUZZ_JOBS ?= 2
+FUZZ_TARGETS = fuzz-frame fuzz-udp fuzz-core-f32 fuzz-core-f64 fuzz-wide-f32 fuzz-wide-f64 fuzz-pop-f32 fuzz-pop-f64
+.PHONY: $(FUZZ_TARGETS)
 test-fuzz:
+	$(MAKE) --no-print-directory --output-sync=target -j $(FUZZ_JOBS) $(FUZZ_TARGETS)
+
+fuzz-frame:
 	mkdir -p $(BUILD)/fuzz/corpus
 	$(CLANG) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $(FW_FLAGS) \
 	  firmware_sim/fuzz/fuzz_on_frame.c $(FW_SOURCES) -o $(BUILD)/fuzz/fuzz_on_frame
@@ -100,6 +113,8 @@ test-fuzz:
 	$(BUILD)/fuzz/fuzz_on_frame -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 \
 	  -artifact_prefix=$(BUILD)/fuzz/ $(BUILD)/fuzz/corpus > $(BUILD)/fuzz/log 2>&1; \
 	  rc=$$?; tail -n 8 $(BUILD)/fuzz/log; exit $$rc
+
+fuzz-udp:
 	mkdir -p $(BUILD)/fuzz/udp-corpus
 	$(CLANG) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -std=c99 \
 	  firmware_sim/linux/fuzz_udp_can.c firmware_sim/linux/udp_can.c -o $(BUILD)/fuzz/fuzz_udp_can
@@ -111,43 +126,38 @@ test-fuzz:
 	$(BUILD)/fuzz/fuzz_udp_can -max_total_time=$(FUZZ_UDP_SECONDS) -print_final_stats=1 \
 	  -artifact_prefix=$(BUILD)/fuzz/udp- $(BUILD)/fuzz/udp-corpus > $(BUILD)/fuzz/udp-log 2>&1; \
 	  rc=$$?; tail -n 8 $(BUILD)/fuzz/udp-log; exit $$rc
-	for prec in f32 f64; do \
-	  mkdir -p $(BUILD)/fuzz/core-$$prec-corpus && \
-	  $(CLANG) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -std=c99 -ffp-contract=off \
-	    $$( [ $$prec = f32 ] && echo -DRHONN_SINGLE ) -Icsrc/include csrc/fuzz/fuzz_core.c csrc/src/rhonn.c \
-	    -o $(BUILD)/fuzz/fuzz_core_$$prec && \
-	  $(BUILD)/fuzz/fuzz_core_$$prec -max_total_time=$(FUZZ_CORE_SECONDS) -print_final_stats=1 \
-	    -artifact_prefix=$(BUILD)/fuzz/core-$$prec- $(BUILD)/fuzz/core-$$prec-corpus > $(BUILD)/fuzz/core-$$prec-log 2>&1; \
-	  rc=$$?; tail -n 4 $(BUILD)/fuzz/core-$$prec-log; [ $$rc -eq 0 ] || exit $$rc; \
-	done
-	for prec in f32 f64; do \
-	  mkdir -p $(BUILD)/fuzz/wide-$$prec-corpus && \
-	  $(CLANG) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -std=c99 -ffp-contract=off \
-	    $$( [ $$prec = f32 ] && echo -DRHONN_SINGLE ) -Icsrc/include csrc/fuzz/fuzz_wide.c csrc/src/rhonn.c \
-	    csrc/src/rhonn_population.c -o $(BUILD)/fuzz/fuzz_wide_$$prec && \
-	  $(BUILD)/fuzz/fuzz_wide_$$prec -max_total_time=$(FUZZ_WIDE_SECONDS) -print_final_stats=1 \
-	    -artifact_prefix=$(BUILD)/fuzz/wide-$$prec- $(BUILD)/fuzz/wide-$$prec-corpus > $(BUILD)/fuzz/wide-$$prec-log 2>&1; \
-	  rc=$$?; tail -n 4 $(BUILD)/fuzz/wide-$$prec-log; [ $$rc -eq 0 ] || exit $$rc; \
-	done
-	for prec in f32 f64; do \
-	  mkdir -p $(BUILD)/fuzz/pop-$$prec-corpus && \
-	  $(CLANG) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -std=c99 -ffp-contract=off \
-	    $$( [ $$prec = f32 ] && echo -DRHONN_SINGLE ) -Icsrc/include csrc/fuzz/fuzz_population.c csrc/src/rhonn.c \
-	    csrc/src/rhonn_population.c -o $(BUILD)/fuzz/fuzz_population_$$prec && \
-	  $(BUILD)/fuzz/fuzz_population_$$prec -max_total_time=$(FUZZ_POP_SECONDS) -print_final_stats=1 \
-	    -artifact_prefix=$(BUILD)/fuzz/pop-$$prec- $(BUILD)/fuzz/pop-$$prec-corpus > $(BUILD)/fuzz/pop-$$prec-log 2>&1; \
-	  rc=$$?; tail -n 4 $(BUILD)/fuzz/pop-$$prec-log; [ $$rc -eq 0 ] || exit $$rc; \
-	done
 
-# This kernel may have no CAN: the vcan-marked tests run in a QEMU VM with
-# the host's userspace (hil/vm/run_in_vm.py installs what it needs).
+# One core fuzz target in one precision: $(call fuzz_core,NAME,PRECISION,SOURCES,SECONDS)
+# builds $(BUILD)/fuzz/fuzz_NAME_PRECISION and runs it on its own corpus.
+define fuzz_core
+	mkdir -p $(BUILD)/fuzz/$(1)-$(2)-corpus
+	$(CLANG) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -std=c99 -ffp-contract=off \
+	  $(if $(filter f32,$(2)),-DRHONN_SINGLE) -Icsrc/include $(3) -o $(BUILD)/fuzz/fuzz_$(1)_$(2)
+	$(BUILD)/fuzz/fuzz_$(1)_$(2) -max_total_time=$(4) -print_final_stats=1 \
+	  -artifact_prefix=$(BUILD)/fuzz/$(1)-$(2)- $(BUILD)/fuzz/$(1)-$(2)-corpus > $(BUILD)/fuzz/$(1)-$(2)-log 2>&1; \
+	  rc=$$?; tail -n 4 $(BUILD)/fuzz/$(1)-$(2)-log; exit $$rc
+endef
+fuzz-core-f32 fuzz-core-f64: fuzz-core-%:
+	$(call fuzz_core,core,$*,csrc/fuzz/fuzz_core.c csrc/src/rhonn.c,$(FUZZ_CORE_SECONDS))
+fuzz-wide-f32 fuzz-wide-f64: fuzz-wide-%:
+	$(call fuzz_core,wide,$*,csrc/fuzz/fuzz_wide.c csrc/src/rhonn.c csrc/src/rhonn_population.c,$(FUZZ_WIDE_SECONDS))
+fuzz-pop-f32 fuzz-pop-f64: fuzz-pop-%:
+	$(call fuzz_core,population,$*,csrc/fuzz/fuzz_population.c csrc/src/rhonn.c csrc/src/rhonn_population.c,$(FUZZ_POP_SECONDS))
+
+# The VM runs only the files that hold vcan tests, found here on the host:
+# collecting every test module under software emulation took most of the
+# VM's time.
 test-vm:
 ifeq ($(SKIP_VM),1)
 	@echo "test-vm: skipped (SKIP_VM=1)"
 else
-	python3 hil/vm/run_in_vm.py --out $(BUILD)/vm --venv $(BUILD)/virtme-venv -- \
-	  sh -c 'cd tests && RHONN_RUNNER=$(abspath $(BUILD))/release/firmware_sim/rhonn_runner \
-	    ../$(VENV)/bin/python -m pytest -q -p no:cacheprovider -m vcan .'
+	files=$$(cd tests && ../$(VENV)/bin/python -m pytest -q --collect-only -m vcan -p no:cacheprovider . \
+	  | sed -n 's|^tests/||; s|::.*||p' | sort -u | tr '\n' ' '); \
+	  [ -n "$$files" ] || { echo "test-vm: no vcan tests collected"; exit 1; }; \
+	  echo "test-vm: $$files"; \
+	  python3 hil/vm/run_in_vm.py --out $(BUILD)/vm --venv $(BUILD)/virtme-venv -- \
+	    sh -c "cd tests && RHONN_RUNNER=$(abspath $(BUILD))/release/firmware_sim/rhonn_runner \
+	      ../$(VENV)/bin/python -m pytest -q -p no:cacheprovider -m vcan $$files"
 endif
 
 clean:
