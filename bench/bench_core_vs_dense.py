@@ -184,7 +184,8 @@ def timed(exe: Path, data: Path, T: int, repeats: int) -> dict[str, str]:
 
 def instructions_per_step(exe: Path, data: Path, T: int, which: str) -> float | None:
     """Instructions of one run of bench_run_<which> over T steps, from
-    callgrind, per step; None without valgrind."""
+    callgrind, per step; None without valgrind, or for a build it cannot
+    run (an instruction it does not decode, such as AVX-512's)."""
     valgrind = shutil.which("valgrind")
     if valgrind is None:
         return None
@@ -194,6 +195,8 @@ def instructions_per_step(exe: Path, data: Path, T: int, which: str) -> float | 
                                f"--toggle-collect=bench_run_{which}", str(exe), f"count-{which}", str(data), str(T)],
                               capture_output=True, text=True)
         if proc.returncode != 0:
+            if "Unrecognised instruction" in proc.stderr:  # e.g. AVX-512 in an -march=native build
+                return None
             raise RuntimeError(f"callgrind on {exe.name}: {proc.stderr[-2000:]}")
         m = re.search(r"^(?:totals|summary):\s*(\d+)", out.read_text(), flags=re.M)
     if m is None:
@@ -315,7 +318,8 @@ def main(argv: list[str] | None = None) -> int:
           f"({version[0] if version else '?'}), {T} samples from t = {START_S} s, best of {repeats}; "
           f"load average {' '.join(f'{v:.2f}' for v in os.getloadavg())}; core covariance form: {args.covariance}")
     print("valgrind: " + ("instructions per step over the first "
-                          f"{min(T, 2000)} samples" if shutil.which("valgrind") else "not installed, no counts"))
+                          f"{min(T, 2000)} samples (none, '-', for a build whose instructions it does not decode)"
+                          if shutil.which("valgrind") else "not installed, no counts"))
     rows: list[Row] = []
     float64_xhat: dict[str, np.ndarray] = {}
     with tempfile.TemporaryDirectory() as tmp:
