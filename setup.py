@@ -5,10 +5,8 @@ an installed pyrhonn can measure ``sizeof(rhonn_t)`` for an exported
 identifier (``pyrhonn.export``) without the source tree.
 
 All project metadata lives in pyproject.toml; setuptools reads cffi_modules
-and cmdclass only from setup(), so this file carries those two arguments, and
-the build's parallelism (the extensions compile one per CPU).
+and cmdclass only from setup(), so this file carries those two arguments.
 """
-import os
 import shutil
 from pathlib import Path
 
@@ -28,7 +26,5 @@ class BuildPyWithCoreHeaders(build_py):
 
 
 setup(cmdclass={"build_py": BuildPyWithCoreHeaders},
-      # the five extensions compile side by side, one per CPU (serially, about 3.5 min on 2 CPUs)
-      options={"build_ext": {"parallel": os.cpu_count() or 1}},
       cffi_modules=["pyrhonn/_build.py:ffi_f64", "pyrhonn/_build.py:ffi_f32", "pyrhonn/_build.py:ffi_small_f64",
                     "pyrhonn/_build.py:ffi_small_f32", "pyrhonn/_build.py:ffi_fwapp"])
