@@ -380,7 +380,7 @@ def test_identify_killed_into_an_existing_out_leaves_whole_files_and_marks_a_mix
 
     runs = {}
     for seed in (7, 8):  # two data files, two sets of outputs, each from a complete run
-        traj = oscillator.simulate(dt=0.02, horizon=300.0, corruption=Corruption(dropout=0.1, seed=seed))
+        traj = oscillator.simulate(dt=0.02, horizon=100.0, corruption=Corruption(dropout=0.1, seed=seed))
         write_csv(tmp_path / f"d{seed}.csv", traj)
         assert main(["identify", str(tmp_path / f"d{seed}.csv"), "--config", "example1", "--out",
                      str(tmp_path / f"ref{seed}")]) == 0
