@@ -83,6 +83,7 @@ test-c-sanitize:
 #   rhonn_run (csrc/fuzz/fuzz_population.c); any difference fails the run.
 # Each is a make target of its own (make fuzz-core-f64 FUZZ_CORE_SECONDS=600).
 CLANG ?= clang-14
+FUZZ_CFLAGS = -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all
 FUZZ_SECONDS ?= 45
 FUZZ_UDP_SECONDS ?= 20
 # the core's public API (csrc/fuzz/fuzz_core.c), per precision; 600 for a real campaign
@@ -105,7 +106,7 @@ test-fuzz:
 
 fuzz-frame:
 	mkdir -p $(BUILD)/fuzz/corpus
-	$(CLANG) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $(FW_FLAGS) \
+	$(CLANG) $(FUZZ_CFLAGS) $(FW_FLAGS) \
 	  firmware_sim/fuzz/fuzz_on_frame.c $(FW_SOURCES) -o $(BUILD)/fuzz/fuzz_on_frame
 	cc -Wall -Wextra $(FW_FLAGS) firmware_sim/fuzz/make_seeds.c firmware_sim/generated/rhonn_id.c \
 	  -o $(BUILD)/fuzz/make_seeds
@@ -116,7 +117,7 @@ fuzz-frame:
 
 fuzz-udp:
 	mkdir -p $(BUILD)/fuzz/udp-corpus
-	$(CLANG) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -std=c99 \
+	$(CLANG) $(FUZZ_CFLAGS) -std=c99 \
 	  firmware_sim/linux/fuzz_udp_can.c firmware_sim/linux/udp_can.c -o $(BUILD)/fuzz/fuzz_udp_can
 	$(VENV)/bin/python -c 'import can, sys; from can.interfaces.udp_multicast.utils import pack_message as p; \
 	  [open(f"{sys.argv[1]}/seed{i}", "wb").write(p(m)) for i, m in enumerate([can.Message(arbitration_id=0x101, \
@@ -131,7 +132,7 @@ fuzz-udp:
 # builds $(BUILD)/fuzz/fuzz_NAME_PRECISION and runs it on its own corpus.
 define fuzz_core
 	mkdir -p $(BUILD)/fuzz/$(1)-$(2)-corpus
-	$(CLANG) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -std=c99 -ffp-contract=off \
+	$(CLANG) $(FUZZ_CFLAGS) -std=c99 -ffp-contract=off \
 	  $(if $(filter f32,$(2)),-DRHONN_SINGLE) -Icsrc/include $(3) -o $(BUILD)/fuzz/fuzz_$(1)_$(2)
 	$(BUILD)/fuzz/fuzz_$(1)_$(2) -max_total_time=$(4) -print_final_stats=1 \
 	  -artifact_prefix=$(BUILD)/fuzz/$(1)-$(2)- $(BUILD)/fuzz/$(1)-$(2)-corpus > $(BUILD)/fuzz/$(1)-$(2)-log 2>&1; \
@@ -144,6 +145,8 @@ fuzz-wide-f32 fuzz-wide-f64: fuzz-wide-%:
 fuzz-pop-f32 fuzz-pop-f64: fuzz-pop-%:
 	$(call fuzz_core,population,$*,csrc/fuzz/fuzz_population.c csrc/src/rhonn.c csrc/src/rhonn_population.c,$(FUZZ_POP_SECONDS))
 
+# This kernel may have no CAN: the vcan-marked tests run in a QEMU VM with
+# the host's userspace (hil/vm/run_in_vm.py installs what it needs).
 # The VM runs only the files that hold vcan tests, found here on the host:
 # collecting every test module under software emulation took most of the
 # VM's time.

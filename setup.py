@@ -4,8 +4,8 @@ core's public headers inside the package (``pyrhonn/core_include``), so that
 an installed pyrhonn can measure ``sizeof(rhonn_t)`` for an exported
 identifier (``pyrhonn.export``) without the source tree.
 
-All project metadata lives in pyproject.toml; setuptools reads cffi_modules,
-cmdclass and options only from setup(), so this file carries those.
+All project metadata lives in pyproject.toml; setuptools reads cffi_modules
+and cmdclass only from setup(), so this file carries those two arguments.
 """
 import os
 import shutil
