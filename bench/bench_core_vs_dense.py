@@ -35,8 +35,12 @@ max_k |dense - core| / max_k |core|, and the same for generic), the best ns
 per LIM step of each (the three timed alternately, best of the repeats), the
 ratios dense / core and generic / core (how many times faster the core is),
 and, when valgrind is installed, the instructions per step from callgrind
-(load-independent). The machine load
-(os.getloadavg) is printed beside every row.
+(load-independent). Below each row, what learning itself takes in the core
+and in the dense EKF, in time and in instructions: each run minus the same
+run with learning off (the core with rhonn_set_learning(0), the dense EKF
+only predicting), so the regressor, the activations and the prediction,
+which the core does and the dense EKF is handed, are out of that ratio. The
+machine load (os.getloadavg) is printed beside every row.
 
     python bench/bench_core_vs_dense.py               # -O2 (about half a minute)
     python bench/bench_core_vs_dense.py --native      # also -O3 -march=native (about a minute)
@@ -182,17 +186,21 @@ def timed(exe: Path, data: Path, T: int, repeats: int) -> dict[str, str]:
     return dict(line.split(None, 1) for line in proc.stdout.splitlines())
 
 
-def instructions_per_step(exe: Path, data: Path, T: int, which: str) -> float | None:
+def instructions_per_step(exe: Path, data: Path, T: int, which: str, frozen: bool = False) -> float | None:
     """Instructions of one run of bench_run_<which> over T steps, from
     callgrind, per step; None without valgrind, or for a build it cannot
-    run (an instruction it does not decode, such as AVX-512's)."""
+    run (an instruction it does not decode, such as AVX-512's). ``frozen``:
+    the same run with learning off (``which`` "core" or "dense")."""
+    if frozen and which not in ("core", "dense"):
+        raise ValueError(f"frozen: only the core and the dense EKF run with learning off, not {which!r}")
     valgrind = shutil.which("valgrind")
     if valgrind is None:
         return None
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "callgrind.out"
         proc = subprocess.run([valgrind, "--tool=callgrind", f"--callgrind-out-file={out}",
-                               f"--toggle-collect=bench_run_{which}", str(exe), f"count-{which}", str(data), str(T)],
+                               f"--toggle-collect=bench_run_{which}", str(exe),
+                               f"count-{which}-frozen" if frozen else f"count-{which}", str(data), str(T)],
                               capture_output=True, text=True)
         if proc.returncode != 0:
             if "Unrecognised instruction" in proc.stderr:  # e.g. AVX-512 in an -march=native build
@@ -222,6 +230,10 @@ class Row:
     core_vs_identifier: float
     core_status: str
     load_1min: float
+    core_learn_ns: float = 0.0              # learning alone: the run minus the same run with learning off
+    dense_learn_ns: float = 0.0
+    core_learn_ir: float | None = None
+    dense_learn_ir: float | None = None
     core_vs_float64: float | None = None    # float32 rows: against the float64 Identifier
     dense_vs_float64: float | None = None
     generic_vs_float64: float | None = None
@@ -233,6 +245,20 @@ class Row:
     @property
     def ir_ratio(self) -> float | None:
         return None if self.core_ir is None or self.dense_ir is None else self.dense_ir / self.core_ir
+
+    @property
+    def learn_ratio(self) -> float | None:
+        """Dense / core time of learning alone (None if a difference is not positive: noise)."""
+        if self.core_learn_ns <= 0 or self.dense_learn_ns <= 0:
+            return None
+        return self.dense_learn_ns / self.core_learn_ns
+
+    @property
+    def learn_ir_ratio(self) -> float | None:
+        """Dense / core instructions of learning alone."""
+        if self.core_learn_ir is None or self.dense_learn_ir is None or self.core_learn_ir <= 0:
+            return None
+        return self.dense_learn_ir / self.core_learn_ir
 
     @property
     def generic_ratio(self) -> float:
@@ -254,11 +280,18 @@ def measure(samples: Samples, name: str, folder: Path, opt: str, kernel: str, *,
     core, dense, generic = p.core, p.dense, p.generic
     t = timed(exe, data, T, repeats)
     n_count = min(count_steps, T)
+    core_ir = instructions_per_step(exe, data, n_count, "core")
+    dense_ir = instructions_per_step(exe, data, n_count, "dense")
+    core_frozen = instructions_per_step(exe, data, n_count, "core", frozen=True)
+    dense_frozen = instructions_per_step(exe, data, n_count, "dense", frozen=True)
     return Row(config=name, dtype=samples.config.dtype, opt=opt, kernel=kernel,
                core_ns=float(t["core_ns_per_step"]), dense_ns=float(t["dense_ns_per_step"]),
                generic_ns=float(t["generic_ns_per_step"]),
-               core_ir=instructions_per_step(exe, data, n_count, "core"),
-               dense_ir=instructions_per_step(exe, data, n_count, "dense"),
+               core_learn_ns=float(t["core_ns_per_step"]) - float(t["core_frozen_ns_per_step"]),
+               dense_learn_ns=float(t["dense_ns_per_step"]) - float(t["dense_frozen_ns_per_step"]),
+               core_ir=core_ir, dense_ir=dense_ir,
+               core_learn_ir=None if core_ir is None or core_frozen is None else core_ir - core_frozen,
+               dense_learn_ir=None if dense_ir is None or dense_frozen is None else dense_ir - dense_frozen,
                generic_ir=instructions_per_step(exe, data, n_count, "generic"),
                max_rel_diff=relative_difference(dense, core),
                generic_max_rel_diff=relative_difference(generic, core),
@@ -284,6 +317,9 @@ def print_rows(rows: list[Row]) -> None:
               f"{r.ratio:6.2f} {r.generic_ns:7.0f}ns {r.generic_ratio:6.2f} {ir(r.core_ir):>8} {ir(r.dense_ir):>9} "
               f"{times(r.ir_ratio):>6} {ir(r.generic_ir):>10} {times(r.generic_ir_ratio):>6} "
               f"{r.max_rel_diff:10.2e} {r.generic_max_rel_diff:10.2e} {r.load_1min:5.2f}")
+        print(f"  learning alone (the run minus the same run with learning off): core {r.core_learn_ns:.0f}ns, "
+              f"dense {r.dense_learn_ns:.0f}ns, x {times(r.learn_ratio)}; core {ir(r.core_learn_ir)}, "
+              f"dense {ir(r.dense_learn_ir)} instructions, x {times(r.learn_ir_ratio)}")
         if r.generic_refused:
             print(f"  the generic EKF skipped {r.generic_refused} updates (S not positive: its P lost "
                   "definiteness), so it ran fewer instructions than a full run")
@@ -346,7 +382,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"load average at the end {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     if args.json:
         atomic.write_text(args.json, json.dumps([dict(asdict(r), ratio=r.ratio, ir_ratio=r.ir_ratio,
-                                                     generic_ratio=r.generic_ratio,
+                                                     generic_ratio=r.generic_ratio, learn_ratio=r.learn_ratio,
+                                                     learn_ir_ratio=r.learn_ir_ratio,
                                                      generic_ir_ratio=r.generic_ir_ratio) for r in rows],
                                                 indent=2))
     return 0

@@ -58,7 +58,8 @@ def test_the_harness_times_all_three_filters_and_callgrind_counts_their_instruct
     exe, data = bench.build(samples, tmp_path, "O2", unroll=True)
     figures = bench.timed(exe, data, STEPS, 2)
     assert figures["core_status"] == "RHONN_OK" and int(figures["core_steps"]) == STEPS
-    assert all(float(figures[f"{which}_ns_per_step"]) > 0 for which in ("core", "dense", "generic"))
+    assert all(float(figures[f"{which}_ns_per_step"]) > 0
+               for which in ("core", "dense", "generic", "core_frozen", "dense_frozen"))
     if shutil.which("valgrind") is None:
         pytest.skip("valgrind not installed: instruction counts not checked")
     counts = {}
@@ -93,3 +94,23 @@ def test_a_native_build_is_counted_or_said_uncountable_never_a_crash(bench, tmp_
     exe, data = bench.build(samples, tmp_path, "O3-native", fixed=True)
     count = bench.instructions_per_step(exe, data, 50, "core")
     assert count is None or count > 0
+
+
+def test_learning_alone_is_each_run_minus_the_same_run_with_learning_off(bench, tmp_path: Path) -> None:
+    """The benchmark's learning-only figures: the core with learning off
+    still forms its regressor and predicts, the dense EKF still predicts;
+    what the full run adds is the EKF updates, most of either filter's work."""
+    if shutil.which("valgrind") is None:
+        pytest.skip("valgrind not installed: instruction counts not checked")
+    samples = bench.record(bench.lim_config("firmware-lim", "float64"), STEPS)
+    exe, data = bench.build(samples, tmp_path, "O2", unroll=True)
+    learning = {}
+    for which in ("core", "dense"):
+        full = bench.instructions_per_step(exe, data, STEPS, which)
+        frozen = bench.instructions_per_step(exe, data, STEPS, which, frozen=True)
+        assert 0 < frozen < full, (which, frozen, full)
+        assert full - frozen > 0.5 * full, (which, frozen, full)
+        learning[which] = full - frozen
+    assert learning["dense"] > learning["core"]
+    with pytest.raises(ValueError, match="frozen"):
+        bench.instructions_per_step(exe, data, STEPS, "generic", frozen=True)

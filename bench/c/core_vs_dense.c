@@ -6,10 +6,16 @@
  * identifier, pyrhonn.export) and the data file.
  *
  *     core_vs_dense predict DATA T          the three runs' predictions, raw, to stdout
- *     core_vs_dense time DATA T REPEATS     best ns per step of each, to stdout
+ *     core_vs_dense time DATA T REPEATS     best ns per step of each (and of the core and
+ *                                           the dense EKF with learning off), to stdout
  *     core_vs_dense count-core DATA T       one core run (for callgrind)
  *     core_vs_dense count-dense DATA T      one dense run (for callgrind)
  *     core_vs_dense count-generic DATA T    one generic-library run (for callgrind)
+ *     core_vs_dense count-core-frozen DATA T    one core run with learning off
+ *     core_vs_dense count-dense-frozen DATA T   one dense run that only predicts
+ *
+ * A run minus the same run frozen is what learning costs: the EKF updates and
+ * their bookkeeping, with the regressor and the prediction taken out.
  *
  * DATA holds, as raw rhonn_real, row-major, for its N >= T rows: X (N x n),
  * U (N x m) and the regressors Z (N x sum of L_i), one block after the other
@@ -49,8 +55,8 @@ typedef struct {
 } bench_data;
 
 rhonn_status bench_run_core(rhonn_t *net, const bench_data *d, rhonn_real *xhat, size_t *done);
-void bench_run_dense(dense_ekf *f, const bench_data *d, rhonn_real *xhat);
-void bench_run_generic(generic_ekf *g, const bench_data *d, rhonn_real *xhat);
+void bench_run_dense(dense_ekf *f, const bench_data *d, rhonn_real *xhat, int learning);
+void bench_run_generic(generic_ekf *g, const bench_data *d, rhonn_real *xhat, int learning);
 
 static int fail(const char *what)
 {
@@ -146,11 +152,12 @@ BENCH_NOINLINE rhonn_status bench_run_core(rhonn_t *net, const bench_data *d, rh
 }
 
 /* A baseline's run over the recorded regressors, one neuron at a time: learn
- * from sample k's error with z(k-1), then predict with z(k). The generic EKF
+ * from sample k's error with z(k-1) (unless learning is 0), then predict with
+ * z(k). The generic EKF
  * counts the updates it skips (S not positive) itself; the run goes on, as
  * the library's caller would. */
 #define BENCH_RUN_BASELINE(name, filter, learn, predict)                                      \
-    BENCH_NOINLINE void name(filter *f, const bench_data *d, rhonn_real *xhat)                \
+    BENCH_NOINLINE void name(filter *f, const bench_data *d, rhonn_real *xhat, int learning)  \
     {                                                                                           \
         size_t k, i;                                                                            \
         for (k = 0; k < d->T; ++k) {                                                            \
@@ -158,7 +165,7 @@ BENCH_NOINLINE rhonn_status bench_run_core(rhonn_t *net, const bench_data *d, rh
             const rhonn_real *z = d->z + k * d->nz;                                             \
             rhonn_real *out = xhat + k * d->n;                                                  \
             for (i = 0; i < d->n; ++i) {                                                        \
-                if (k > 0)                                                                      \
+                if (k > 0 && learning)                                                          \
                     (void)learn(&f[i], z - d->nz + d->z_off[i],                                 \
                                 x[i] - out[(ptrdiff_t)i - (ptrdiff_t)d->n]);                    \
                 out[i] = predict(&f[i], z + d->z_off[i]);                                       \
@@ -184,6 +191,14 @@ static void keep_best(double *best, double t0, double t1, long r)
         *best = t1 - t0;
 }
 
+/* Times one run (a statement) into the running best of repeat r. */
+#define BENCH_TIMED(best, r, run)                      \
+    do {                                               \
+        const double t0_ = now_ns();                   \
+        run;                                           \
+        keep_best(&(best), t0_, now_ns(), (r));        \
+    } while (0)
+
 int main(int argc, char **argv)
 {
     static rhonn_t net;
@@ -197,7 +212,8 @@ int main(int argc, char **argv)
     const char *mode;
 
     if (argc < 4 || (strcmp(argv[1], "time") == 0 && argc < 5))
-        return fail("usage: core_vs_dense predict|time|count-core|count-dense|count-generic DATA T [REPEATS]");
+        return fail("usage: core_vs_dense predict|time|count-core|count-dense|count-generic|count-core-frozen|"
+                    "count-dense-frozen DATA T [REPEATS]");
     mode = argv[1];
     T = strtol(argv[3], NULL, 10);
     if (argc > 4)
@@ -217,8 +233,8 @@ int main(int argc, char **argv)
         if (init_core(&net) != 0 || init_baselines(dense, generic) != 0)
             return 2;
         st = bench_run_core(&net, &d, xc, &done);
-        bench_run_dense(dense, &d, xd);
-        bench_run_generic(generic, &d, xg);
+        bench_run_dense(dense, &d, xd, 1);
+        bench_run_generic(generic, &d, xg, 1);
         fprintf(stderr, "core: %s after %lu steps\n", rhonn_status_name(st), (unsigned long)done);
         {
             long refused = 0;
@@ -230,44 +246,45 @@ int main(int argc, char **argv)
         if (fwrite(xc, sizeof(rhonn_real), 3 * d.T * d.n, stdout) != 3 * d.T * d.n)
             return fail("cannot write the predictions");
     } else if (strcmp(mode, "time") == 0) {
-        double best_core = 0, best_dense = 0, best_generic = 0;
+        double best_core = 0, best_dense = 0, best_generic = 0, best_core_frozen = 0, best_dense_frozen = 0;
+        size_t frozen_done = 0;
         long r;
         for (r = 0; r < reps; ++r) {
-            double t0, t1;
             if (init_core(&net) != 0 || init_baselines(dense, generic) != 0)
                 return 2;
-            t0 = now_ns();
-            st = bench_run_core(&net, &d, xc, &done);
-            t1 = now_ns();
-            keep_best(&best_core, t0, t1, r);
-            t0 = now_ns();
-            bench_run_dense(dense, &d, xd);
-            t1 = now_ns();
-            keep_best(&best_dense, t0, t1, r);
-            t0 = now_ns();
-            bench_run_generic(generic, &d, xg);
-            t1 = now_ns();
-            keep_best(&best_generic, t0, t1, r);
+            BENCH_TIMED(best_core, r, st = bench_run_core(&net, &d, xc, &done));
+            BENCH_TIMED(best_dense, r, bench_run_dense(dense, &d, xd, 1));
+            BENCH_TIMED(best_generic, r, bench_run_generic(generic, &d, xg, 1));
+            /* the same runs with learning off (count-*-frozen) */
+            if (init_core(&net) != 0 || rhonn_set_learning(&net, 0) != RHONN_OK || init_baselines(dense, generic) != 0)
+                return 2;
+            BENCH_TIMED(best_core_frozen, r, (void)bench_run_core(&net, &d, xc, &frozen_done));
+            BENCH_TIMED(best_dense_frozen, r, bench_run_dense(dense, &d, xd, 0));
         }
         printf("core_ns_per_step %.3f\ndense_ns_per_step %.3f\ngeneric_ns_per_step %.3f\n"
+               "core_frozen_ns_per_step %.3f\ndense_frozen_ns_per_step %.3f\n"
                "core_status %s\ncore_steps %lu\n",
                best_core / (double)d.T, best_dense / (double)d.T, best_generic / (double)d.T,
+               best_core_frozen / (double)d.T, best_dense_frozen / (double)d.T,
                rhonn_status_name(st), (unsigned long)done);
-    } else if (strcmp(mode, "count-core") == 0) {
+    } else if (strcmp(mode, "count-core") == 0 || strcmp(mode, "count-core-frozen") == 0) {
         if (init_core(&net) != 0)
             return 2;
+        if (strcmp(mode, "count-core-frozen") == 0 && rhonn_set_learning(&net, 0) != RHONN_OK)
+            return fail("rhonn_set_learning refused");
         st = bench_run_core(&net, &d, xc, &done);
         printf("core_status %s\ncore_steps %lu\n", rhonn_status_name(st), (unsigned long)done);
-    } else if (strcmp(mode, "count-dense") == 0) {
+    } else if (strcmp(mode, "count-dense") == 0 || strcmp(mode, "count-dense-frozen") == 0) {
         if (init_baselines(dense, generic) != 0)
             return 2;
-        bench_run_dense(dense, &d, xd);
+        bench_run_dense(dense, &d, xd, strcmp(mode, "count-dense") == 0);
     } else if (strcmp(mode, "count-generic") == 0) {
         if (init_baselines(dense, generic) != 0)
             return 2;
-        bench_run_generic(generic, &d, xg);
+        bench_run_generic(generic, &d, xg, 1);
     } else {
-        return fail("unknown mode (predict, time, count-core, count-dense, count-generic)");
+        return fail("unknown mode (predict, time, count-core, count-dense, count-generic, count-core-frozen, "
+                    "count-dense-frozen)");
     }
     free(xc);
     free(d.x);
