@@ -42,8 +42,8 @@ only predicting), so the regressor, the activations and the prediction,
 which the core does and the dense EKF is handed, are out of that ratio. The
 machine load (os.getloadavg) is printed beside every row.
 
-    python bench/bench_core_vs_dense.py               # -O2 (about half a minute)
-    python bench/bench_core_vs_dense.py --native      # also -O3 -march=native (about a minute)
+    python bench/bench_core_vs_dense.py               # -O2 (about a minute)
+    python bench/bench_core_vs_dense.py --native      # also -O3 -march=native (about two minutes)
     python bench/bench_core_vs_dense.py --quick       # smoke run
     python bench/bench_core_vs_dense.py --covariance full   # every neuron of the core in eq. 7's full form
     python bench/bench_core_vs_dense.py --json out.json
