@@ -153,9 +153,8 @@ BENCH_NOINLINE rhonn_status bench_run_core(rhonn_t *net, const bench_data *d, rh
 
 /* A baseline's run over the recorded regressors, one neuron at a time: learn
  * from sample k's error with z(k-1) (unless learning is 0), then predict with
- * z(k). The generic EKF
- * counts the updates it skips (S not positive) itself; the run goes on, as
- * the library's caller would. */
+ * z(k). The generic EKF counts the updates it skips (S not positive) itself;
+ * the run goes on, as the library's caller would. */
 #define BENCH_RUN_BASELINE(name, filter, learn, predict)                                      \
     BENCH_NOINLINE void name(filter *f, const bench_data *d, rhonn_real *xhat, int learning)  \
     {                                                                                           \
