@@ -142,16 +142,21 @@ def test_an_estimate_stamped_a_few_us_before_its_measurement_is_still_its_answer
     assert shifted["frames"]["unexpected"] == 0 and shifted["frames"]["missing"] == live["frames"]["missing"]
 
 
-def _as_format_2(rec: Recording, path: Path) -> Path:
+def _as_format_2(rec: Recording, path: Path) -> tuple[Path, bool]:
     """``rec`` written as the format before wrote it: times from 0, no wall clock, no protocol, rhonn_id 2.0
-    Diagnostics, frames in pick-up order (here: two frames swapped out of time order)."""
+    Diagnostics, frames in pick-up order (here: two frames swapped out of time order). Also whether a
+    value had to be saturated to its rhonn_id 2.0 signal, as that firmware did: StepTimeMax, 16 bits
+    there (655.35 us), reaches that on a loaded machine."""
     legacy = diagnostics._message(diagnostics.LEGACY_PROTOCOL)
-    events = []
+    top = {sig.name: (1 << sig.length) - 1 for sig in legacy.signals}
+    events, saturated = [], False
     for t, d, m in rec.events:
         if d == "rx" and m.arbitration_id == DIAG.frame_id:
             values = DIAG.decode(bytes(m.data), scaling=False, decode_choices=False)
+            saturated |= any(values[name] > top[name] for name in top)
+            values = {name: min(values[name], top[name]) for name in top}
             m = can.Message(arbitration_id=m.arbitration_id, is_extended_id=False, is_fd=True, is_rx=True,
-                            data=legacy.encode(values, scaling=False, strict=False))
+                            data=legacy.encode(values, scaling=False))
         events.append((t, d, m))
     k = next(k for k in range(len(events) - 1) if events[k][1] == "tx" and events[k + 1][1] == "rx"
              and events[k + 1][2].arbitration_id == EST.frame_id and k > rec.meta["first_run_event"] + 50)
@@ -163,21 +168,26 @@ def _as_format_2(rec: Recording, path: Path) -> Path:
     for key in ("wall_time_ns", "protocol"):
         del side[key]
     sidecar(path).write_text(json.dumps(side))
-    return path
+    return path, saturated
 
 
 @pytest.mark.parametrize("name", ["old.blf", "old.asc"])
 def test_a_log_of_the_format_before_is_read_and_scores_the_same(tmp_path, name) -> None:
     rec, _, _ = _run()
-    path = _as_format_2(rec, tmp_path / name)
+    path, saturated = _as_format_2(rec, tmp_path / name)
     if name.endswith(".blf"):
         assert can.BLFReader(path).start_timestamp == 0  # as those logs were: no wall clock
     old = read_log(path)
     assert old.meta["protocol"] == "rhonn_id 2.0" and old.meta.get("wall_time_ns") is None
     live, again = score(rec), score(old)
     assert again["frames"]["answered"] == live["frames"]["answered"] and again["frames"]["accounted"]
-    assert {k: v for k, v in again["firmware"].items() if k != "protocol"} == \
-        {k: v for k, v in live["firmware"].items() if k != "protocol"}
+    # a step slower than 655.35 us (a loaded machine) reads as that ceiling in the old layout, flagged
+    differ = {"protocol", "step_time_max_us", "step_time_max_saturated"} if saturated else {"protocol"}
+    assert {k: v for k, v in again["firmware"].items() if k not in differ} == \
+        {k: v for k, v in live["firmware"].items() if k not in differ}
+    if saturated:
+        assert again["firmware"]["step_time_max_saturated"]
+        assert again["firmware"]["step_time_max_us"] == pytest.approx(655.35)
 
 
 def test_a_sidecar_of_a_newer_format_or_an_unknown_protocol_is_refused_by_name(tmp_path, cli_error) -> None:
