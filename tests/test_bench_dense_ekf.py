@@ -53,7 +53,8 @@ def test_both_baselines_predict_what_the_core_predicts_on_the_lim_in_float64(ben
     assert np.ptp(p.core, axis=0).min() > 0
 
 
-def test_the_harness_times_all_three_filters_and_callgrind_counts_their_instructions(bench, tmp_path: Path) -> None:
+def test_the_harness_times_the_three_filters_and_counts_their_instructions_and_learnings(bench,
+                                                                                       tmp_path: Path) -> None:
     samples = bench.record(bench.lim_config("firmware-lim", "float32"), STEPS)
     exe, data = bench.build(samples, tmp_path, "O2", unroll=True)
     figures = bench.timed(exe, data, STEPS, 2)
@@ -71,6 +72,17 @@ def test_the_harness_times_all_three_filters_and_callgrind_counts_their_instruct
         counts[which] = long
     # The generic form does everything the dense one does and F P F^T on top.
     assert counts["generic"] > counts["dense"] > counts["core"]
+    # Learning alone (the run minus the same run with learning off): the core
+    # frozen still forms its regressor and predicts, the dense EKF still
+    # predicts; the EKF updates are most of either filter's work.
+    learning = {}
+    for which in ("core", "dense"):
+        frozen = bench.instructions_per_step(exe, data, 200, which, frozen=True)
+        assert 0 < frozen < counts[which] and counts[which] - frozen > 0.5 * counts[which], (which, frozen)
+        learning[which] = counts[which] - frozen
+    assert learning["dense"] > learning["core"]
+    with pytest.raises(ValueError, match="frozen"):
+        bench.instructions_per_step(exe, data, 200, "generic", frozen=True)
 
 
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
@@ -95,22 +107,3 @@ def test_a_native_build_is_counted_or_said_uncountable_never_a_crash(bench, tmp_
     count = bench.instructions_per_step(exe, data, 50, "core")
     assert count is None or count > 0
 
-
-def test_learning_alone_is_each_run_minus_the_same_run_with_learning_off(bench, tmp_path: Path) -> None:
-    """The benchmark's learning-only figures: the core with learning off
-    still forms its regressor and predicts, the dense EKF still predicts;
-    what the full run adds is the EKF updates, most of either filter's work."""
-    if shutil.which("valgrind") is None:
-        pytest.skip("valgrind not installed: instruction counts not checked")
-    samples = bench.record(bench.lim_config("firmware-lim", "float64"), STEPS)
-    exe, data = bench.build(samples, tmp_path, "O2", unroll=True)
-    learning = {}
-    for which in ("core", "dense"):
-        full = bench.instructions_per_step(exe, data, STEPS, which)
-        frozen = bench.instructions_per_step(exe, data, STEPS, which, frozen=True)
-        assert 0 < frozen < full, (which, frozen, full)
-        assert full - frozen > 0.5 * full, (which, frozen, full)
-        learning[which] = full - frozen
-    assert learning["dense"] > learning["core"]
-    with pytest.raises(ValueError, match="frozen"):
-        bench.instructions_per_step(exe, data, STEPS, "generic", frozen=True)
