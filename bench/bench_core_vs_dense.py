@@ -230,10 +230,10 @@ class Row:
     core_vs_identifier: float
     core_status: str
     load_1min: float
-    core_learn_ns: float = 0.0              # learning alone: the run minus the same run with learning off
-    dense_learn_ns: float = 0.0
-    core_learn_ir: float | None = None
-    dense_learn_ir: float | None = None
+    core_frozen_ns: float = 0.0             # the same runs with learning off
+    dense_frozen_ns: float = 0.0
+    core_frozen_ir: float | None = None
+    dense_frozen_ir: float | None = None
     core_vs_float64: float | None = None    # float32 rows: against the float64 Identifier
     dense_vs_float64: float | None = None
     generic_vs_float64: float | None = None
@@ -245,6 +245,23 @@ class Row:
     @property
     def ir_ratio(self) -> float | None:
         return None if self.core_ir is None or self.dense_ir is None else self.dense_ir / self.core_ir
+
+    @property
+    def core_learn_ns(self) -> float:
+        """Learning alone: the run minus the same run with learning off."""
+        return self.core_ns - self.core_frozen_ns
+
+    @property
+    def dense_learn_ns(self) -> float:
+        return self.dense_ns - self.dense_frozen_ns
+
+    @property
+    def core_learn_ir(self) -> float | None:
+        return None if self.core_ir is None or self.core_frozen_ir is None else self.core_ir - self.core_frozen_ir
+
+    @property
+    def dense_learn_ir(self) -> float | None:
+        return None if self.dense_ir is None or self.dense_frozen_ir is None else self.dense_ir - self.dense_frozen_ir
 
     @property
     def learn_ratio(self) -> float | None:
@@ -280,18 +297,15 @@ def measure(samples: Samples, name: str, folder: Path, opt: str, kernel: str, *,
     core, dense, generic = p.core, p.dense, p.generic
     t = timed(exe, data, T, repeats)
     n_count = min(count_steps, T)
-    core_ir = instructions_per_step(exe, data, n_count, "core")
-    dense_ir = instructions_per_step(exe, data, n_count, "dense")
-    core_frozen = instructions_per_step(exe, data, n_count, "core", frozen=True)
-    dense_frozen = instructions_per_step(exe, data, n_count, "dense", frozen=True)
     return Row(config=name, dtype=samples.config.dtype, opt=opt, kernel=kernel,
                core_ns=float(t["core_ns_per_step"]), dense_ns=float(t["dense_ns_per_step"]),
                generic_ns=float(t["generic_ns_per_step"]),
-               core_learn_ns=float(t["core_ns_per_step"]) - float(t["core_frozen_ns_per_step"]),
-               dense_learn_ns=float(t["dense_ns_per_step"]) - float(t["dense_frozen_ns_per_step"]),
-               core_ir=core_ir, dense_ir=dense_ir,
-               core_learn_ir=None if core_ir is None or core_frozen is None else core_ir - core_frozen,
-               dense_learn_ir=None if dense_ir is None or dense_frozen is None else dense_ir - dense_frozen,
+               core_frozen_ns=float(t["core_frozen_ns_per_step"]),
+               dense_frozen_ns=float(t["dense_frozen_ns_per_step"]),
+               core_ir=instructions_per_step(exe, data, n_count, "core"),
+               dense_ir=instructions_per_step(exe, data, n_count, "dense"),
+               core_frozen_ir=instructions_per_step(exe, data, n_count, "core", frozen=True),
+               dense_frozen_ir=instructions_per_step(exe, data, n_count, "dense", frozen=True),
                generic_ir=instructions_per_step(exe, data, n_count, "generic"),
                max_rel_diff=relative_difference(dense, core),
                generic_max_rel_diff=relative_difference(generic, core),
@@ -382,8 +396,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"load average at the end {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     if args.json:
         atomic.write_text(args.json, json.dumps([dict(asdict(r), ratio=r.ratio, ir_ratio=r.ir_ratio,
-                                                     generic_ratio=r.generic_ratio, learn_ratio=r.learn_ratio,
-                                                     learn_ir_ratio=r.learn_ir_ratio,
+                                                     generic_ratio=r.generic_ratio,
+                                                     core_learn_ns=r.core_learn_ns, dense_learn_ns=r.dense_learn_ns,
+                                                     core_learn_ir=r.core_learn_ir, dense_learn_ir=r.dense_learn_ir,
+                                                     learn_ratio=r.learn_ratio, learn_ir_ratio=r.learn_ir_ratio,
                                                      generic_ir_ratio=r.generic_ir_ratio) for r in rows],
                                                 indent=2))
     return 0

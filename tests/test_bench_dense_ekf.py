@@ -106,4 +106,3 @@ def test_a_native_build_is_counted_or_said_uncountable_never_a_crash(bench, tmp_
     exe, data = bench.build(samples, tmp_path, "O3-native", fixed=True)
     count = bench.instructions_per_step(exe, data, 50, "core")
     assert count is None or count > 0
-
