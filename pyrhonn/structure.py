@@ -54,7 +54,7 @@ from .configfile import ConfigFile, format_term
 from .identifier import capacities
 from .validation import check_int, check_real, fail
 
-__all__ = ["CandidateSpace", "Criterion", "NeuronSelection", "Selection", "SelectedTerm", "candidate_terms",
+__all__ = ["CandidateSpace", "Criterion", "check_capacity", "check_data", "parse_criterion", "NeuronSelection", "Selection", "SelectedTerm", "candidate_terms",
            "input_delays_supported", "select"]
 
 #: The factor kinds a candidate space may use, by their names in the options.
@@ -83,6 +83,14 @@ class Criterion(str, enum.Enum):
     #: thousands the best fit to noise is not taken for a term
     EBIC = "ebic"
     HOLDOUT = "holdout"  #: the one-step mean squared error on the held-out rows
+
+
+def parse_criterion(criterion: "Criterion | str") -> "Criterion":
+    """The :class:`Criterion` a name or member stands for; a ValueError naming ``criterion`` otherwise."""
+    try:
+        return Criterion(criterion)
+    except ValueError:
+        raise fail("criterion", f"expected one of {[c.value for c in Criterion]}, got {criterion!r}") from None
 
 
 def input_delays_supported() -> bool:
@@ -116,8 +124,12 @@ class CandidateSpace:
     factors:
         The factor kinds, a subset of ``("S", "x", "u", "1")``.
     input_max_delay:
-        Input taps u_j(k-d) for d = 0..input_max_delay; above 0 only where
-        the core reads delayed inputs (:func:`input_delays_supported`).
+        Input taps u_j(k-d) for d = input_min_delay..input_max_delay; above 0
+        only where the core reads delayed inputs (:func:`input_delays_supported`).
+    input_min_delay:
+        The shallowest input tap: an input dead time of d samples makes the
+        taps below d carry nothing, so a search past a dead time need not pay
+        for them (0 by default).
     activations, betas:
         The grid of S searched: every activation with every beta.
     """
@@ -129,12 +141,14 @@ class CandidateSpace:
     input_max_delay: int = 0
     activations: tuple[Activation, ...] = (Activation.BIPOLAR, Activation.LOGISTIC)
     betas: tuple[float, ...] = (1.0,)
+    input_min_delay: int = 0
 
     def __post_init__(self) -> None:
         check_int("max_delay", self.max_delay, 0, 254)
         check_int("delay_step", self.delay_step, 1, 254)
         check_int("degree", self.degree, 1, 4)
         check_int("input_max_delay", self.input_max_delay, 0, 254)
+        check_int("input_min_delay", self.input_min_delay, 0, self.input_max_delay)
         if not isinstance(self.factors, tuple) or not self.factors:
             raise fail("factors", "expected a non-empty tuple of factor kinds")
         for f, name in enumerate(self.factors):
@@ -182,7 +196,8 @@ def _atoms(space: CandidateSpace, n: int, m: int) -> list[_Atom]:
         if kind in kinds:
             atoms += [(kind, j, d) for d in space.delays for j in range(n)]
     if FactorKind.U in kinds:
-        atoms += [(FactorKind.U, j, d) for d in range(space.input_max_delay + 1) for j in range(m)]
+        atoms += [(FactorKind.U, j, d) for d in range(space.input_min_delay, space.input_max_delay + 1)
+                  for j in range(m)]
     return atoms
 
 
@@ -522,7 +537,7 @@ def _ranges(values: Sequence[int]) -> str:
     return ", ".join(str(v) for v in vs)
 
 
-def _check_capacity(space: CandidateSpace, n: int, m: int, max_terms: int) -> None:
+def check_capacity(space: CandidateSpace, n: int, m: int, max_terms: int) -> None:
     caps = capacities()
 
     def over(option: str, value: int, cap: str) -> None:
@@ -561,6 +576,27 @@ def _check_data(X: np.ndarray, U: np.ndarray, valid: np.ndarray, state_names: Se
                                  f"{corr[a, b]:.12f}): collinear columns cannot be told apart; leave one out")
 
 
+def check_data(X: np.ndarray, U: np.ndarray, valid: np.ndarray, state_names: Sequence[str],
+               input_names: Sequence[str], first_line: np.ndarray | None = None) -> None:
+    """The checks :func:`select` makes of a recording before any work: every
+    valid state and every input finite (the error names the line, from
+    ``first_line``, or the row), no column constant, no two alike."""
+    snames, inames = state_names, input_names
+
+    def where(k: int) -> str:
+        return f"line {int(first_line[k])}" if first_line is not None else f"row {k}"
+
+    bad = np.argwhere(~np.isfinite(X) & valid)
+    if bad.size:
+        k, j = (int(v) for v in bad[0])
+        raise ValueError(f"X: {where(k)}, {snames[j]}: not finite ({X[k, j]!r}) but marked valid")
+    bad = np.argwhere(~np.isfinite(U))
+    if bad.size:
+        k, j = (int(v) for v in bad[0])
+        raise ValueError(f"U: {where(k)}, {inames[j]}: not finite ({U[k, j]!r}); inputs must be given on every line")
+    _check_data(X, U, valid, snames, inames)
+
+
 def select(
     X: np.ndarray,
     U: np.ndarray | None = None,
@@ -573,6 +609,7 @@ def select(
     state_names: Sequence[str] | None = None,
     input_names: Sequence[str] | None = None,
     first_line: np.ndarray | None = None,
+    starts: Sequence[int] = (),
 ) -> Selection:
     """Select every neuron's terms from a recorded trajectory.
 
@@ -583,16 +620,16 @@ def select(
     last ``holdout`` fraction of the rows scores each path and the rest
     selects; AIC, BIC and EBIC select and score on all rows. ``state_names`` /
     ``input_names`` name columns in errors; ``first_line`` (T,), the file
-    line of each sample, names lines.
+    line of each sample, names lines. ``starts``: the samples where a new
+    experiment begins when several recordings are merged into one X (as
+    MATLAB's ``merge`` of ``iddata``): no regressor row reads across one, so
+    each experiment is its own trajectory.
     """
     t0 = time.perf_counter()
     space = CandidateSpace() if space is None else space
     if not isinstance(space, CandidateSpace):
         raise fail("space", f"expected a CandidateSpace, got {type(space).__name__}")
-    try:
-        crit = Criterion(criterion)
-    except ValueError:
-        raise fail("criterion", f"expected one of {[c.value for c in Criterion]}, got {criterion!r}") from None
+    crit = parse_criterion(criterion)
     if not isinstance(X, np.ndarray) or X.ndim != 2 or X.dtype != np.float64:
         raise fail("X", "expected a (T, n) float64 numpy array")
     T, n = X.shape
@@ -609,27 +646,19 @@ def select(
     snames = tuple(state_names) if state_names else tuple(f"x{j + 1}" for j in range(n))
     inames = tuple(input_names) if input_names else tuple(f"u{j + 1}" for j in range(m))
 
-    def where(k: int) -> str:
-        return f"line {int(first_line[k])}" if first_line is not None else f"row {k}"
-
-    bad = np.argwhere(~np.isfinite(X) & valid)
-    if bad.size:
-        k, j = (int(v) for v in bad[0])
-        raise ValueError(f"X: {where(k)}, {snames[j]}: not finite ({X[k, j]!r}) but marked valid")
-    bad = np.argwhere(~np.isfinite(U))
-    if bad.size:
-        k, j = (int(v) for v in bad[0])
-        raise ValueError(f"U: {where(k)}, {inames[j]}: not finite ({U[k, j]!r}); inputs must be given on every line")
+    check_data(X, U, valid, snames, inames, first_line)
     if "u" in space.factors and m == 0:
         raise fail("factors", "'u' asks for input factors but the data has no inputs")
-    _check_capacity(space, n, m, max_terms)
-    _check_data(X, U, valid, snames, inames)
+    check_capacity(space, n, m, max_terms)
 
     W = space.window
     bad_row = ~valid.all(axis=1)
     csum = np.concatenate([[0], np.cumsum(bad_row)])
     ks = np.arange(W, T - 1)
     clean = csum[ks + 2] - csum[ks - W] == 0  # samples k - W .. k + 1 all valid
+    for e, b in enumerate(starts):
+        b = check_int(f"starts[{e}]", b, 1, T - 1)
+        clean &= ~((ks - W < b) & (b <= ks + 1))  # the row's window would read two experiments
     rows = ks[clean]
     dropped = int(ks.size - rows.size)
     n_val = int(round(holdout * rows.size)) if crit is Criterion.HOLDOUT else 0

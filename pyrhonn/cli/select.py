@@ -1,19 +1,34 @@
-"""``pyrhonn select``: choose the identifier's terms and delays from data.
+"""``pyrhonn select``: choose the identifier's terms, delays and weights from data.
 
-``pyrhonn select data.csv --states x1,x2 [--inputs u1] --out cfg.toml
+``pyrhonn select data.csv [more.csv ...] --states x1,x2 [--inputs u1] --out cfg.toml
+[--validate val.csv ...] [--fit-rows A:B [--validate-rest]] [--search auto|fixed] [--no-refine]
 [--max-delay D] [--delay-step S] [--degree G] [--factors S,x,u,1]
 [--activation bipolar,logistic] [--beta 0.5,1,2] [--criterion ebic|bic|aic|holdout]
 [--holdout F] [--max-terms L] [--p0 V] [--q V] [--r V] [--dtype float64|float32]
 [--report FILE] [--json FILE] [--valid-suffix _valid]``
 
-Reads the data file of ``pyrhonn identify`` (:mod:`pyrhonn.datafile`), with
-the columns named by ``--states`` and ``--inputs``; runs
-:func:`pyrhonn.structure.select`; writes the config (``--out``, the TOML
+Reads the data files of ``pyrhonn identify`` (:mod:`pyrhonn.datafile`), with
+the columns named by ``--states`` and ``--inputs``. Every DATA file is an
+estimation experiment (merged: no regressor reads across two files); with
+``--fit-rows A:B`` only samples A..B-1 of each fit, and ``--validate-rest``
+makes the samples outside them validation experiments. ``--validate`` names
+validation recordings: they never fit a weight.
+
+By default (``--search auto``, and whenever no candidate-space option is
+given) :func:`pyrhonn.search.search` chooses the candidate space itself:
+input dead times, a grid of factor kinds, degrees and delays, each space
+ranked by its free run on the validation experiments (or on blocked
+cross-validation folds of the estimation data without them), weights refined
+on the free-run error (``--no-refine``: least squares). Any candidate-space
+option (``--max-delay``, ``--degree``, ``--factors``, ...) fixes the space
+instead (``--search fixed``) and runs :func:`pyrhonn.structure.select` on it.
+Writes the config (``--out``, the TOML
 format of :mod:`pyrhonn.configfile`, which ``identify``, ``tune`` and
 ``export`` read) and prints the report: per neuron the terms in the order
 chosen with their error reduction ratios, and the estimated delay of each
-state; then the selected model checked on the same data with its
-least-squares weights frozen: one step ahead and in free run (the network
+state; which rows fitted and which validated; then the selected model
+checked with its weights frozen (on the validation experiments, else on the
+fitting data): one step ahead and in free run (the network
 fed its own predictions from the first sample its taps can read on), RMSE
 and RRSE per state (:mod:`pyrhonn.simulation`). Every file is replaced whole
 (:mod:`pyrhonn.atomic`).
@@ -23,6 +38,7 @@ from __future__ import annotations
 import argparse
 import json
 from contextlib import contextmanager
+from dataclasses import replace
 from typing import Iterator
 
 import numpy as np
@@ -34,7 +50,10 @@ from ..datafile import Data, check_suffix, read_data
 from ..identifier import Identifier
 from ..metrics import json_value
 from ..simulation import Scores, scores, simulate
-from ..structure import FACTOR_NAMES, CandidateSpace, Criterion, Selection, select
+from ..experiments import Experiment, merge
+from ..refine import DataRange
+from ..search import SearchResult, Validation, search, validate
+from ..structure import FACTOR_NAMES, CandidateSpace, Criterion, Selection, check_data, select
 from .options import real_option
 
 __all__ = ["register", "run"]
@@ -42,7 +61,7 @@ __all__ = ["register", "run"]
 _OPTIONS = {"max_delay": "--max-delay", "delay_step": "--delay-step", "degree": "--degree",
             "factors": "--factors", "input_max_delay": "--input-max-delay", "max_terms": "--max-terms",
             "holdout": "--holdout", "betas": "--beta", "activations": "--activation", "n_states": "--states", "n_inputs": "--inputs", "state_names": "--states",
-            "input_names": "--inputs", "p0": "--p0", "q": "--q", "r": "--r"}
+            "input_names": "--inputs", "p0": "--p0", "q": "--q", "r": "--r", "input_min_delay": "--input-max-delay"}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -51,25 +70,42 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Select each neuron's high-order terms and delays from a CSV file of states and inputs by "
                     "forward orthogonal least squares (error reduction ratio) on the one-step targets, and "
                     "write an identifier config that identify, tune and export accept.")
-    p.add_argument("data", metavar="DATA.csv", help="the measurements (the format of pyrhonn identify)")
+    p.add_argument("data", metavar="DATA.csv", nargs="+",
+                   help="the estimation experiments (the format of pyrhonn identify); several are merged, "
+                        "no regressor reading across two")
     p.add_argument("--states", required=True, metavar="NAMES", help="comma-separated state columns, in order")
     p.add_argument("--inputs", default="", metavar="NAMES", help="comma-separated input columns (default: none)")
     p.add_argument("--out", required=True, metavar="CFG.toml", help="the config file to write")
-    p.add_argument("--max-delay", default="0", metavar="D", help="deepest state tap x(k-D) (default 0)")
-    p.add_argument("--delay-step", default="1", metavar="S", help="state taps every S samples (default 1)")
-    p.add_argument("--degree", default="2", metavar="G", help="products of up to G factors (default 2)")
-    p.add_argument("--factors", default="S,u,1", metavar="KINDS",
-                   help="factor kinds among S (activation of a state), x (raw state), u (input), 1 (bias); "
-                        "default S,u,1")
-    p.add_argument("--input-max-delay", default="0", metavar="D",
-                   help="input taps u(k-D) (default 0; needs a core that reads delayed inputs)")
-    p.add_argument("--activation", default="bipolar,logistic", metavar="NAMES",
-                   help="activations searched (default bipolar,logistic)")
-    p.add_argument("--beta", default="1", metavar="VALUES", help="slopes of S searched (default 1)")
+    p.add_argument("--validate", action="append", default=[], metavar="VAL.csv",
+                   help="a validation experiment (repeatable): ranks the structures and scores the model, "
+                        "never fits a weight")
+    p.add_argument("--fit-rows", metavar="A:B",
+                   help="only samples A..B-1 (0-based; A or B may be left out) of each DATA file fit")
+    p.add_argument("--validate-rest", action="store_true",
+                   help="with --fit-rows: the samples outside A..B-1 are validation experiments")
+    p.add_argument("--search", choices=("auto", "fixed"),
+                   help="auto: choose the candidate space from data (the default unless a space option is "
+                        "given); fixed: the space the options below describe")
+    p.add_argument("--no-refine", action="store_true",
+                   help="auto search: keep the least-squares weights instead of refining them on the "
+                        "free-run error")
+    space = p.add_argument_group("a fixed candidate space (any of these implies --search fixed)")
+    space.add_argument("--max-delay", metavar="D", help="deepest state tap x(k-D) (default 0)")
+    space.add_argument("--delay-step", metavar="S", help="state taps every S samples (default 1)")
+    space.add_argument("--degree", metavar="G", help="products of up to G factors (default 2)")
+    space.add_argument("--factors", metavar="KINDS",
+                       help="factor kinds among S (activation of a state), x (raw state), u (input), 1 (bias); "
+                            "default S,u,1")
+    space.add_argument("--input-max-delay", metavar="D", help="input taps u(k-0..D) (default 0)")
+    space.add_argument("--activation", metavar="NAMES", help="activations searched (default bipolar,logistic)")
+    space.add_argument("--beta", metavar="VALUES", help="slopes of S searched (default 1)")
     p.add_argument("--criterion", default="ebic", choices=[c.value for c in Criterion],
-                   help="stopping rule: extended BIC (default), BIC, AIC, or the error on held-out rows")
-    p.add_argument("--holdout", default="0.2", metavar="F",
-                   help="with --criterion holdout, the last fraction F of the rows is held out (default 0.2)")
+                   help="where each neuron's term selection stops: extended BIC (default), BIC, AIC, or the "
+                        "one-step error on held-out rows")
+    p.add_argument("--holdout", metavar="F",
+                   help="the fraction of each estimation experiment held out: by --criterion holdout "
+                        "(default 0.2), and by the auto search's cross-validation folds when no validation "
+                        "data is given (default 0.3)")
     p.add_argument("--max-terms", default="16", metavar="L", help="at most L terms per neuron (default 16)")
     p.add_argument("--p0", metavar="V", help="P0 of every neuron (default: from its fit)")
     p.add_argument("--q", metavar="V", help="Q of every neuron (default: from its fit)")
@@ -110,24 +146,81 @@ def _int(option: str, text: str) -> int:
         raise ValueError(f"{option}: expected a whole number, got {text!r}") from None
 
 
+#: The options that describe a fixed candidate space, with their defaults.
+_SPACE_DEFAULTS = {"max_delay": "0", "delay_step": "1", "degree": "2", "factors": "S,u,1", "input_max_delay": "0",
+                   "activation": "bipolar,logistic", "beta": "1"}
+
+
 def _space(args: argparse.Namespace) -> CandidateSpace:
-    factors = _names("--factors", args.factors)
+    opt = {key: default if getattr(args, key) is None else getattr(args, key) for key, default in _SPACE_DEFAULTS.items()}
+    factors = _names("--factors", opt["factors"])
     for name in factors:
         if name not in FACTOR_NAMES:
             raise ValueError(f"--factors: {name!r} is not a factor kind; expected some of {', '.join(FACTOR_NAMES)}")
     acts = []
-    for name in _names("--activation", args.activation):
+    for name in _names("--activation", opt["activation"]):
         try:
             acts.append(Activation(name))
         except ValueError:
             raise ValueError(f"--activation: {name!r}: expected bipolar or logistic") from None
-    betas = tuple(real_option("--beta", b, positive=True) for b in _names("--beta", args.beta))
+    betas = tuple(real_option("--beta", b, positive=True) for b in _names("--beta", opt["beta"]))
     if not betas:
         raise ValueError("--beta: expected at least one slope")
-    return CandidateSpace(max_delay=_int("--max-delay", args.max_delay), delay_step=_int("--delay-step", args.delay_step),
-                          degree=_int("--degree", args.degree), factors=factors,
-                          input_max_delay=_int("--input-max-delay", args.input_max_delay),
+    return CandidateSpace(max_delay=_int("--max-delay", opt["max_delay"]),
+                          delay_step=_int("--delay-step", opt["delay_step"]),
+                          degree=_int("--degree", opt["degree"]), factors=factors,
+                          input_max_delay=_int("--input-max-delay", opt["input_max_delay"]),
                           activations=tuple(acts), betas=betas)
+
+
+def _fit_rows(text: str | None) -> tuple[int | None, int | None]:
+    if text is None:
+        return None, None
+    a, sep, b = text.partition(":")
+    if not sep:
+        raise ValueError(f"--fit-rows: expected A:B (samples A..B-1, 0-based), got {text!r}")
+    lo = _int("--fit-rows", a) if a.strip() else None
+    hi = _int("--fit-rows", b) if b.strip() else None
+    if (lo is not None and lo < 0) or (hi is not None and hi < 0) or (lo is not None and hi is not None and hi <= lo):
+        raise ValueError(f"--fit-rows: expected 0 <= A < B, got {text!r}")
+    return lo, hi
+
+
+def _experiments(args: argparse.Namespace, names: ConfigFile, suffix: str, states: tuple[str, ...],
+                 inputs: tuple[str, ...]) -> tuple[list[Experiment], list[Experiment], list[Data]]:
+    """The estimation and validation experiments the options name, each file checked line by line."""
+    lo, hi = _fit_rows(args.fit_rows)
+    if args.validate_rest and args.fit_rows is None:
+        raise ValueError("--validate-rest: needs --fit-rows (the samples outside them validate)")
+    est: list[Experiment] = []
+    val: list[Experiment] = []
+    files: list[Data] = []
+    for path in args.data:
+        data = read_data(path, names, valid_suffix=suffix, config_source="--states/--inputs")
+        check_data(data.X, data.U, data.valid, states, inputs, data.lines)
+        files.append(data)
+        whole = Experiment(data.X, data.U, data.valid, name=str(path))
+        T = data.n_samples
+        a, b = 0 if lo is None else lo, T if hi is None else min(hi, T)
+        if a >= T or b - a < 2:
+            raise ValueError(f"--fit-rows: {path} has {T} samples; {args.fit_rows} leaves fewer than 2 to fit")
+        est.append(whole.cut(a, b) if (a, b) != (0, T) else whole)
+        if args.validate_rest:
+            val += [whole.cut(s, e) for s, e in ((0, a), (b, T)) if e - s >= 2]
+    if args.validate_rest and not val:
+        raise ValueError(f"--validate-rest: --fit-rows {args.fit_rows} leaves no samples to validate")
+    for path in args.validate:
+        data = read_data(path, names, valid_suffix=suffix, config_source="--states/--inputs")
+        check_data(data.X, data.U, data.valid, states, inputs, data.lines)
+        val.append(Experiment(data.X, data.U, data.valid, name=str(path)))
+    return est, val, files
+
+
+def _tuned(config: IdentifierConfig, tuning: dict[str, float | None]) -> IdentifierConfig:
+    changes = {k: v for k, v in tuning.items() if v is not None}
+    if not changes:
+        return config
+    return config.replace(neurons=tuple(replace(nr, **changes) for nr in config.neurons))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -141,31 +234,117 @@ def run(args: argparse.Namespace) -> int:
     tuning = {key: None if getattr(args, key) is None else
               real_option(f"--{key}", getattr(args, key), positive=key != "q", nonnegative=key == "q")
               for key in ("p0", "q", "r")}
+    given = [f"--{key.replace('_', '-')}" for key in _SPACE_DEFAULTS if getattr(args, key) is not None]
+    mode = args.search or ("fixed" if given else "auto")
+    if mode == "auto" and given:
+        raise ValueError(f"--search auto: {', '.join(given)} fix(es) the candidate space; leave them out or "
+                         "use --search fixed")
     with _options_named():
         space = _space(args)
         max_terms = _int("--max-terms", args.max_terms)
-        holdout = real_option("--holdout", args.holdout)
+        holdout = real_option("--holdout", args.holdout or ("0.3" if mode == "auto" else "0.2"))
+        if not 0.0 < holdout < 1.0:
+            raise ValueError(f"--holdout: expected a fraction in (0, 1), got {args.holdout}")
         # the names as a config file would hold them (checked there), to read the columns
         probe = IdentifierConfig.uniform(((Factor.one(),),), n_states=len(states), n_inputs=len(inputs))
         names = ConfigFile.from_config(probe, state_names=states, input_names=inputs)
-    data = read_data(args.data, names, valid_suffix=suffix, config_source="--states/--inputs")
-    with _options_named():
-        sel = select(data.X, data.U, data.valid, space=space, criterion=args.criterion, max_terms=max_terms,
-                     holdout=holdout, state_names=states, input_names=inputs, first_line=data.lines)
-        cf = sel.config_file(states, inputs, dtype=args.dtype, **tuning)
-    checked = _validation(cf.config, data, space.window + 1)
-    report = sel.report(states) + "\n" + _validation_text(checked, states, space.window + 1)
+    est, val, files = _experiments(args, names, suffix, states, inputs)
+    fit_samples = sum(ex.n_samples for ex in est)
+    if mode == "auto":
+        with _options_named():
+            found = search(est, val, criterion=args.criterion, max_terms=max_terms, holdout=holdout,
+                           refine_weights=not args.no_refine, dtype=args.dtype, state_names=states,
+                           input_names=inputs)
+        cf = found.config_file(states, inputs)
+        cf = ConfigFile.from_config(_tuned(cf.config, tuning), state_names=states, input_names=inputs,
+                                    description=cf.description, why=cf.why)
+        report = found.selection.report(states) + "\n" + found.report(states, inputs)
+        payload: dict[str, object] = {**_as_json(found.selection, states), "search": _search_json(found, states)}
+    else:
+        X, U, valid, starts = merge(est)
+        with _options_named():
+            sel = select(X, U, valid, space=space, criterion=args.criterion, max_terms=max_terms, holdout=holdout,
+                         state_names=states, input_names=inputs, starts=starts,
+                         first_line=files[0].lines if len(files) == 1 and (est[0].n_samples == files[0].n_samples)
+                         else None)
+            cf = sel.config_file(states, inputs, dtype=args.dtype, **tuning)
+        fit_rows = "; ".join(f"{ex.name} rows {ex.rows}" for ex in est)
+        if val:
+            checked_v = validate(cf.config, val, DataRange.of(est))
+            report = (sel.report(states) + f"\nfitted on: {fit_rows}\n"
+                      + _validation_table(checked_v, states, "; ".join(f"{ex.name} rows {ex.rows}" for ex in val)))
+            payload = {**_as_json(sel, states), "fit_rows": [f"{ex.name} rows {ex.rows}" for ex in est],
+                       "validation": _validation_json(checked_v, states, [f"{ex.name} rows {ex.rows}" for ex in val])}
+        else:
+            start = space.window + 1
+            merged = Data(X, U, valid, None, np.arange(X.shape[0]), ())
+            checked = _validation(cf.config, merged, start)
+            report = (sel.report(states) + f"\nfitted on: {fit_rows}\n"
+                      + _validation_text(checked, states, start))
+            payload = {**_as_json(sel, states), "fit_rows": [f"{ex.name} rows {ex.rows}" for ex in est],
+                       "validation": {"from_sample": start, "weights": "least squares, frozen",
+                                      **{kind: {name: {"rmse": json_value(sc.rmse[j]), "rrse": json_value(sc.rrse[j])}
+                                                for j, name in enumerate(states)} for kind, sc in checked.items()}}}
     atomic.write_text(args.out, dumps(cf))
     if args.report:
         atomic.write_text(args.report, report + "\n")
     if args.json:
-        atomic.write_text(args.json, json.dumps({**_as_json(sel, states), "validation": {
-            "from_sample": space.window + 1, "weights": "least squares, frozen",
-            **{kind: {name: {"rmse": json_value(sc.rmse[j]), "rrse": json_value(sc.rrse[j])}
-                      for j, name in enumerate(states)} for kind, sc in checked.items()}}}, indent=2) + "\n")
-    print(f"selected from {args.data}: {data.n_samples} samples; wrote {args.out}")
+        atomic.write_text(args.json, json.dumps(payload, indent=2) + "\n")
+    print(f"selected from {', '.join(args.data)}: {fit_samples} samples fitted; wrote {args.out}")
     print(report)
     return 0
+
+
+def _validation_table(v: Validation, states: tuple[str, ...], rows: str) -> str:
+    width = max(5, *(len(s) for s in states))
+    lines = [f"the selected model, weights frozen, on the validation data ({rows}):",
+             f"  {'state':<{width}}  {'one-step RMSE':>14}  {'RRSE':>9}  {'free-run RMSE':>14}  {'RRSE':>9}"]
+    gone = v.left_range is not None
+    for j, name in enumerate(states):
+        lines.append(f"  {name:<{width}}  {v.one_rmse[j]:14.4g}  {v.one_rrse[j]:9.4g}  "
+                     f"{'diverged' if gone else f'{v.free_rmse[j]:.4g}':>14}  "
+                     f"{'-' if gone else f'{v.free_rrse[j]:.4g}':>9}")
+    if gone:
+        assert v.left_range is not None
+        lines.append(f"  the free run left the data's range at sample {v.left_range[1]} of {v.left_range[0]}")
+    return "\n".join(lines)
+
+
+def _validation_json(v: Validation, states: tuple[str, ...], rows: list[str]) -> dict[str, object]:
+    return {"rows": rows, "weights": "frozen", "scored": v.scored,
+            "free_run_left_range": None if v.left_range is None else
+            {"experiment": v.left_range[0], "sample": v.left_range[1]},
+            "one_step": {name: {"rmse": json_value(v.one_rmse[j]), "rrse": json_value(v.one_rrse[j])}
+                         for j, name in enumerate(states)},
+            "free_run": {name: {"rmse": json_value(v.free_rmse[j]), "rrse": json_value(v.free_rrse[j]),
+                                "fit_percent": json_value(100.0 * (1.0 - v.free_rrse[j]))}
+                         for j, name in enumerate(states)}}
+
+
+def _search_json(found: SearchResult, states: tuple[str, ...]) -> dict[str, object]:
+    ref = found.refinement
+    return {
+        "fit_rows": list(found.fit_rows),
+        "ranked_on": list(found.validation_rows),
+        "ranked_by": "blocked cross-validation of the estimation data" if found.held_out else "validation data",
+        "input_dead_times": list(found.dead_times),
+        "spaces": [{"factors": list(sc.space.factors), "degree": sc.space.degree, "max_delay": sc.space.max_delay,
+                    "input_taps": [sc.space.input_min_delay, sc.space.input_max_delay] if "u" in sc.space.factors
+                    else None, "terms": sc.terms, "status": sc.status, "max_terms_reached": sc.capped,
+                    "free_run_rrse": json_value(sc.score),
+                    "one_step_rrse": None if sc.validation is None else json_value(float(np.mean(sc.validation.one_rrse)))}
+                   for sc in found.scores],
+        "chosen": found.chosen,
+        "refinement": None if ref is None else {"cost_before": ref.cost_before, "cost_after": ref.cost_after,
+                                                "iterations": ref.iterations, "evaluations": ref.evaluations,
+                                                "stopped": ref.stopped},
+        "validation": None if found.validation is None else
+        _validation_json(found.validation, states, list(found.validation_rows)),
+        "in_sample": _validation_json(found.in_sample, states, list(found.fit_rows)),
+        "search_samples": found.search_samples,
+        "notes": list(found.notes),
+        "seconds": found.seconds,
+    }
 
 
 def _validation(config: IdentifierConfig, data: Data, start: int) -> dict[str, Scores]:

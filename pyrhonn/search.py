@@ -1,0 +1,497 @@
+"""Automatic structure search: candidate spaces chosen by how the model simulates on validation data.
+
+:func:`pyrhonn.structure.select` chooses terms *within* a candidate space
+(factor kinds, degree, delays) by an information criterion on the one-step
+targets. Which space to give it is the question a user who knows neither
+the plant's structure nor its delay cannot answer, and one-step criteria
+answer it badly: on slow or integrating plants a model that copies x(k)
+predicts one step well and simulates nothing. :func:`search` answers it
+from data, in five steps:
+
+1. **Input dead time** per input (:func:`dead_times`): for d = 0..D, the
+   least-squares fit of every x_i(k+1) on x(k), x(k-1), 1 and u_j(k-d)
+   alone; the d with the least residual (states scaled to unit variance)
+   is the dead time of u_j. The grid's input taps start at the smallest.
+2. **The grid** (:class:`SearchGrid`): every factor set (raw states, their
+   activations S, inputs, bias), degree 1..G, state delays 0..D_x, input
+   taps from the dead time to D_u beyond it; S is tried at beta = 1 and at
+   the slope that maps the data's largest magnitude to 2 (so that S does
+   not saturate on data far from unit scale).
+3. **Each space** is selected by the information criterion (EBIC) on the
+   estimation data, its least-squares weights frozen, and run free over
+   the estimation data: a space whose free run leaves the data's range
+   there is rejected (reported with the sample). The others are run free
+   over the validation data and scored by the free-run RRSE, averaged over
+   the states (the one-step RRSE beside it).
+4. **The best spaces** (fewest terms among those within 1 % of the best
+   score) have their weights refined on the free-run error of the
+   estimation data (:func:`pyrhonn.refine.refine`); a refinement is kept
+   only where it also lowers the validation free-run error.
+5. **The result**: with validation experiments given by the user, the best
+   model as it is; with only estimation data, the last ``holdout`` of each
+   estimation experiment served as validation for steps 3-4, and the chosen
+   space is selected and refined once more on the whole estimation data.
+
+Validation data never fit a weight: they only rank spaces and refinements,
+and the report names which rows fitted and which validated. Caps are
+stated: a space over ``max_candidates`` candidates is skipped, a neuron
+whose path reached ``max_terms`` is flagged, and the search itself reads
+at most ``search_samples`` estimation samples (the final fit reads all).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from .config import Activation, IdentifierConfig
+from .configfile import ConfigFile
+from .experiments import Experiment, hold_out, merge
+from .identifier import capacities
+from .refine import DataRange, Refinement, free_run_of, refine
+from .structure import CandidateSpace, Criterion, Selection, check_capacity, check_data, parse_criterion, select
+from .validation import check_int, check_real, fail
+
+__all__ = ["SearchGrid", "SpaceScore", "SearchResult", "Validation", "dead_times", "search", "validate"]
+
+#: Spaces within this fraction of the best validation score are taken as tied (fewest terms wins).
+TIE = 0.01
+#: How many of the best spaces are refined on the free-run error.
+REFINED = 3
+
+
+@dataclass(frozen=True)
+class SearchGrid:
+    """The candidate spaces :func:`search` tries.
+
+    ``factor_sets``: the factor kinds of each space (``"u"`` is dropped for
+    a plant without inputs); ``max_degree``: degrees 1..G; ``max_delay``:
+    state taps 0..D for D = 0..max_delay; ``input_taps``: input taps from
+    the dead time to up to this many samples beyond it; ``max_dead_time``:
+    the deepest input dead time looked for; ``max_candidates``: a space with
+    more candidate terms is skipped; ``search_samples``: the estimation
+    samples the search reads at most (the first ones of each experiment,
+    shared out in proportion).
+    """
+
+    factor_sets: tuple[tuple[str, ...], ...] = (("x", "u", "1"), ("S", "x", "u", "1"), ("S", "u", "1"))
+    max_degree: int = 3
+    max_delay: int = 3
+    input_taps: int = 3
+    max_dead_time: int = 30
+    max_candidates: int = 3000
+    search_samples: int = 20000
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.factor_sets, tuple) or not self.factor_sets:
+            raise fail("factor_sets", "expected a non-empty tuple of factor-kind tuples")
+        for f, kinds in enumerate(self.factor_sets):
+            CandidateSpace(factors=kinds)  # names the bad kind
+            if not isinstance(kinds, tuple):
+                raise fail(f"factor_sets[{f}]", "expected a tuple of factor kinds")
+        check_int("max_degree", self.max_degree, 1, 4)
+        check_int("max_delay", self.max_delay, 0, 254)
+        check_int("input_taps", self.input_taps, 0, 254)
+        check_int("max_dead_time", self.max_dead_time, 0, 254)
+        check_int("max_candidates", self.max_candidates, 1)
+        check_int("search_samples", self.search_samples, 100)
+
+
+@dataclass(frozen=True)
+class Validation:
+    """A frozen model over validation experiments: per state RRSE and RMSE of the free run and one step,
+    pooled over the experiments; ``left_range``: (experiment name, sample) where a free run left the data."""
+
+    free_rrse: np.ndarray
+    free_rmse: np.ndarray
+    one_rrse: np.ndarray
+    one_rmse: np.ndarray
+    scored: int
+    left_range: tuple[str, int] | None
+
+    @property
+    def score(self) -> float:
+        """The mean free-run RRSE over the states (inf where a free run left the data)."""
+        return math.inf if self.left_range is not None else float(np.mean(self.free_rrse))
+
+
+def validate(config: IdentifierConfig, experiments: Sequence[Experiment], data_range: DataRange) -> Validation:
+    """``config`` with its weights frozen over every experiment: free run and one step, scored from the
+    first sample each free run predicts on its own (:func:`pyrhonn.refine.first_sample`)."""
+    n = config.n_states
+    se_f, se_o, dev, cnt = np.zeros(n), np.zeros(n), np.zeros(n), 0
+    sums, sums2, ns = np.zeros(n), np.zeros(n), np.zeros(n)
+    left: tuple[str, int] | None = None
+    runs = []
+    for ex in experiments:
+        run = free_run_of(config, ex, data_range)
+        if run.left_range is not None and left is None:
+            left = (ex.name, run.left_range)
+        runs.append((ex, run))
+    for ex, run in runs:
+        mask = ex.valid.copy()
+        mask[: run.start] = False
+        x = np.where(mask, ex.X, 0.0)
+        with np.errstate(invalid="ignore"):
+            ef = np.where(mask, run.free_run - x, 0.0)
+            eo = np.where(mask, run.one_step - x, 0.0)
+        se_f += np.sum(np.where(np.isfinite(ef), ef, 0.0) ** 2, axis=0)
+        se_o += np.sum(eo ** 2, axis=0)
+        sums += x.sum(axis=0)
+        sums2 += (x ** 2).sum(axis=0)
+        ns += mask.sum(axis=0)
+        cnt += int(mask.sum())
+    ns = np.maximum(ns, 1)
+    dev = np.maximum(sums2 - sums ** 2 / ns, 1e-300)
+    return Validation(free_rrse=np.sqrt(se_f / dev), free_rmse=np.sqrt(se_f / ns), one_rrse=np.sqrt(se_o / dev),
+                      one_rmse=np.sqrt(se_o / ns), scored=cnt, left_range=left)
+
+
+def dead_times(experiments: Sequence[Experiment], max_dead_time: int) -> tuple[int, ...]:
+    """The estimated dead time of each input, in samples (step 1 of :func:`search`)."""
+    X, U, valid, starts = merge(experiments)
+    T, n = X.shape
+    m = U.shape[1]
+    if m == 0:
+        return ()
+    D = min(max_dead_time, max(0, T // 10))
+    scale = DataRange.of(experiments).sigma
+    bad = ~valid.all(axis=1)
+    ks = np.arange(max(D, 1), T - 1)
+    keep = ~(bad[ks + 1] | bad[ks] | bad[ks - 1])
+    for b in starts:
+        keep &= ~((ks - max(D, 1) < b) & (b <= ks + 1))
+    ks = ks[keep]
+    if ks.size < 10:
+        return (0,) * m
+    Y = X[ks + 1] / scale
+    base = np.column_stack([X[ks] / scale, X[ks - 1] / scale, np.ones(ks.size)])
+    out = []
+    for j in range(m):
+        rss = []
+        for d in range(D + 1):
+            A = np.column_stack([base, U[ks - d, j]])
+            coef, *_ = np.linalg.lstsq(A, Y, rcond=None)
+            r = Y - A @ coef
+            rss.append(float(np.sum(r * r)))
+        out.append(int(np.argmin(rss)))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class SpaceScore:
+    """One space of the grid as the search scored it."""
+
+    space: CandidateSpace
+    terms: int  #: terms over all neurons (0 where skipped)
+    status: str  #: "scored", or why the space was skipped or rejected
+    validation: Validation | None = None
+    capped: bool = False  #: a neuron's path reached max_terms
+
+    @property
+    def score(self) -> float:
+        return math.inf if self.validation is None else self.validation.score
+
+    def describe(self) -> str:
+        sp = self.space
+        taps = "none" if "u" not in sp.factors else f"{sp.input_min_delay}..{sp.input_max_delay}"
+        return f"{','.join(sp.factors):8s} degree {sp.degree}  x taps 0..{sp.max_delay}  u taps {taps}"
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    """What :func:`search` returns.
+
+    ``selection`` and ``config``: the chosen space's selection on all the
+    estimation data and its config (w0 refined on the free-run error where
+    that lowered it); ``scores``: every space of the grid, in grid order,
+    with its validation score (pooled over the folds without validation
+    experiments); ``chosen``: the index of the chosen one; ``validation``:
+    the final model on the user's validation experiments (None without
+    them); ``in_sample``: the final model over the estimation data;
+    ``refinement``: the final refinement, None where it was off or did not help.
+    """
+
+    selection: Selection
+    config: IdentifierConfig
+    scores: tuple[SpaceScore, ...]
+    chosen: int
+    validation: Validation | None
+    in_sample: Validation
+    refinement: Refinement | None
+    dead_times: tuple[int, ...]
+    fit_rows: tuple[str, ...]  #: the rows that fitted, per experiment ("name rows a..b")
+    validation_rows: tuple[str, ...]  #: the rows that ranked the spaces
+    held_out: bool  #: the ranking rows were folds of the estimation data
+    search_samples: int  #: estimation samples the grid read
+    seconds: float
+    notes: tuple[str, ...] = field(default=())
+
+    def config_file(self, state_names: tuple[str, ...], input_names: tuple[str, ...]) -> ConfigFile:
+        """The config with names, a description of the search and each neuron's terms as its ``why``."""
+        sc = self.scores[self.chosen]
+        how = ("two blocked cross-validation folds of the estimation data, then an information criterion "
+               "on the free-run error" if self.held_out else "the free-run error on the validation data")
+        description = (
+            f"Structure found by pyrhonn select's automatic search of {len(self.scores)} candidate spaces: "
+            f"{' '.join(sc.describe().split())}, ranked by {how}; terms by forward orthogonal least squares "
+            f"({self.selection.criterion.value}) on {'; '.join(self.fit_rows)}; weights "
+            + ("refined on the free-run error." if self.refinement is not None else "by least squares."))
+        why = tuple(f"{nr.activation.value}, beta {nr.beta:g}; ERR " + ", ".join(
+            f"{t.text} {t.err:.3g}" for t in nr.terms) for nr in self.selection.neurons)
+        return ConfigFile.from_config(self.config, state_names=state_names, input_names=input_names,
+                                      description=description, why=why)
+
+    def report(self, state_names: Sequence[str], input_names: Sequence[str]) -> str:
+        """A readable report: the rows, the dead times, the best spaces, the chosen model's errors."""
+        ranking = ("blocked cross-validation on the estimation data, each fold fitted on the rest: "
+                   if self.held_out else "validation data: ")
+        lines = [f"fitted on: {'; '.join(self.fit_rows)}",
+                 f"spaces ranked by their free run on {ranking}{'; '.join(self.validation_rows)}",
+                 "input dead time: " + (", ".join(f"{name} {d} sample(s)" for name, d in
+                                                  zip(input_names, self.dead_times)) or "no inputs"),
+                 f"{len(self.scores)} candidate spaces in {self.seconds:.1f} s (the grid read "
+                 f"{self.search_samples} estimation samples)",
+                 "  rank  free-run RRSE  one-step RRSE  terms  space"]
+        order = sorted(range(len(self.scores)), key=lambda s: (self.scores[s].score, self.scores[s].terms))
+        for rank, s in enumerate(order[:8], 1):
+            sc = self.scores[s]
+            if sc.validation is None:
+                break
+            mark = "*" if s == self.chosen else " "
+            lines.append(f"  {mark}{rank:3d}  {sc.score:13.4g}  {float(np.mean(sc.validation.one_rrse)):13.4g}  "
+                         f"{sc.terms:5d}  {sc.describe()}" + ("  (max_terms reached)" if sc.capped else ""))
+        if self.chosen not in order[:8]:
+            sc = self.scores[self.chosen]
+            lines.append(f"  * {order.index(self.chosen) + 1:3d}  {sc.score:13.4g}  {'':13s}  {sc.terms:5d}  "
+                         f"{sc.describe()}")
+        reasons: dict[str, int] = {}
+        for sc in self.scores:
+            if sc.validation is None:
+                key = sc.status.split(":")[0]
+                reasons[key] = reasons.get(key, 0) + 1
+        if reasons:
+            lines.append("  not ranked: " + ", ".join(f"{c} {why}" for why, c in sorted(reasons.items())))
+        if self.held_out:
+            lines.append(f"chosen among the best {REFINED} by the information criterion N ln(free-run MSE) + 2 k "
+                         "on the estimation data, each fitted on all of it")
+        if self.refinement is not None:
+            r = self.refinement
+            lines.append(f"weights refined on the free-run error: mean squared error {r.cost_before:.4g} -> "
+                         f"{r.cost_after:.4g} (in state variances), {r.iterations} iterations, "
+                         f"{r.evaluations} free runs, {r.seconds:.1f} s ({r.stopped})")
+        else:
+            lines.append("weights: least squares")
+        for title, v in (("on the validation data", self.validation), ("on the estimation data", self.in_sample)):
+            if v is None:
+                continue
+            width = max(5, *(len(s) for s in state_names))
+            lines.append(f"the chosen model {title}, weights frozen:")
+            lines.append(f"  {'state':<{width}}  {'free-run RMSE':>13}  {'RRSE':>9}  {'fit %':>7}  "
+                         f"{'one-step RMSE':>13}  {'RRSE':>9}")
+            for j, name in enumerate(state_names):
+                gone = v.left_range is not None
+                lines.append(f"  {name:<{width}}  {'diverged' if gone else f'{v.free_rmse[j]:.4g}':>13}  "
+                             f"{'-' if gone else f'{v.free_rrse[j]:.4g}':>9}  "
+                             f"{'-' if gone else f'{100 * (1 - v.free_rrse[j]):.1f}':>7}  "
+                             f"{v.one_rmse[j]:13.4g}  {v.one_rrse[j]:9.4g}")
+            if v.left_range is not None:
+                lines.append(f"  the free run left the data's range at sample {v.left_range[1]} of {v.left_range[0]}")
+        lines += [f"note: {n}" for n in self.notes]
+        return "\n".join(lines)
+
+
+def _spaces(grid: SearchGrid, n: int, m: int, dead: int, beta_data: float, caps: dict[str, int]
+            ) -> list[CandidateSpace]:
+    spaces = []
+    u_hi = min(caps["RHONN_MAX_DELAY"], dead + grid.input_taps)
+    for kinds in grid.factor_sets:
+        if m == 0:
+            kinds = tuple(k for k in kinds if k != "u")
+            if not kinds or kinds == ("1",):
+                continue
+        betas = (1.0,) if "S" not in kinds or abs(beta_data - 1.0) < 1e-3 else (1.0, beta_data)
+        for degree in range(1, min(grid.max_degree, caps["RHONN_MAX_FACTORS"]) + 1):
+            for dx in range(min(grid.max_delay, caps["RHONN_MAX_DELAY"]) + 1):
+                u_range = range(dead, u_hi + 1) if "u" in kinds else range(0, 1)
+                for du in u_range:
+                    space = CandidateSpace(factors=kinds, degree=degree, max_delay=dx, input_min_delay=dead
+                                           if "u" in kinds else 0, input_max_delay=du, betas=betas,
+                                           activations=(Activation.BIPOLAR, Activation.LOGISTIC))
+                    if space not in spaces:
+                        spaces.append(space)
+    return spaces
+
+
+def _n_candidates(space: CandidateSpace, n: int, m: int) -> int:
+    atoms = len(space.delays) * n * sum(k in space.factors for k in ("S", "x"))
+    atoms += (space.input_max_delay - space.input_min_delay + 1) * m if "u" in space.factors else 0
+    return math.comb(atoms + space.degree, space.degree) - 1 + ("1" in space.factors)
+
+
+def _budget(experiments: list[Experiment], limit: int) -> list[Experiment]:
+    total = sum(ex.n_samples for ex in experiments)
+    if total <= limit:
+        return experiments
+    out = []
+    for ex in experiments:
+        take = max(2, int(ex.n_samples * limit / total))
+        out.append(ex.cut(0, min(take, ex.n_samples)))
+    return out
+
+
+def _select(space: CandidateSpace, experiments: list[Experiment], criterion: Criterion, max_terms: int,
+            names: tuple[Sequence[str], Sequence[str]]) -> Selection:
+    X, U, valid, starts = merge(experiments)
+    return select(X, U, valid, space=space, criterion=criterion, max_terms=max_terms, starts=starts,
+                  state_names=names[0], input_names=names[1])
+
+
+def _fit_score(space: CandidateSpace, fit: list[Experiment], val: list[Experiment], data_range: DataRange,
+               crit: Criterion, max_terms: int, names: tuple[Sequence[str], Sequence[str]]
+               ) -> tuple[IdentifierConfig, Selection, str | None, Validation]:
+    """The space selected on ``fit``, its free run checked there, scored on ``val``."""
+    sel = _select(space, fit, crit, max_terms, names)
+    config = sel.config()
+    for ex in fit:
+        left = free_run_of(config, ex, data_range).left_range
+        if left is not None:
+            return config, sel, f"rejected: its free run left the data's range at sample {left} of {ex.name}", \
+                Validation(np.full(len(names[0]), np.inf), np.full(len(names[0]), np.inf),
+                           np.full(len(names[0]), np.inf), np.full(len(names[0]), np.inf), 0, (ex.name, left))
+    return config, sel, None, validate(config, val, data_range)
+
+
+def _pooled(parts: list[Validation]) -> Validation:
+    """Fold scores as one: the mean of each figure, the first departure from the data's range."""
+    left = next((v.left_range for v in parts if v.left_range is not None), None)
+    return Validation(free_rrse=np.mean([v.free_rrse for v in parts], axis=0),
+                      free_rmse=np.mean([v.free_rmse for v in parts], axis=0),
+                      one_rrse=np.mean([v.one_rrse for v in parts], axis=0),
+                      one_rmse=np.mean([v.one_rmse for v in parts], axis=0),
+                      scored=sum(v.scored for v in parts), left_range=left)
+
+
+def search(estimation: Sequence[Experiment], validation: Sequence[Experiment] = (), *,
+           grid: SearchGrid | None = None, criterion: Criterion | str = Criterion.EBIC, max_terms: int = 16,
+           holdout: float = 0.3, refine_weights: bool = True, dtype: str = "float64",
+           state_names: Sequence[str] | None = None, input_names: Sequence[str] | None = None) -> SearchResult:
+    """Choose a candidate space, its terms and weights from data; see the module docs.
+
+    ``estimation``: the experiments that fit; ``validation``: the experiments
+    that rank spaces (none: two blocked folds of the estimation experiments,
+    each holding out ``holdout`` of every experiment, the last part in one
+    fold and the first in the other). ``dtype`` is written to the config
+    (the search runs in float64). Raises ValueError when no space of the
+    grid gives a model whose free run stays in the data's range.
+    """
+    t0 = time.perf_counter()
+    grid = SearchGrid() if grid is None else grid
+    if not isinstance(grid, SearchGrid):
+        raise fail("grid", f"expected a SearchGrid, got {type(grid).__name__}")
+    crit = parse_criterion(criterion)
+    max_terms = check_int("max_terms", max_terms, 1, 255)
+    holdout = check_real("holdout", holdout)
+    if not isinstance(refine_weights, bool):
+        raise fail("refine_weights", f"expected a bool, got {refine_weights!r}")
+    est = list(estimation)
+    if not est:
+        raise fail("estimation", "expected at least one experiment")
+    merge(est + list(validation))  # every experiment has the same states and inputs
+    n, m = est[0].X.shape[1], est[0].U.shape[1]
+    snames = tuple(state_names) if state_names else tuple(f"x{j + 1}" for j in range(n))
+    inames = tuple(input_names) if input_names else tuple(f"u{j + 1}" for j in range(m))
+    X, U, valid, _ = merge(est)
+    check_data(X, U, valid, snames, inames)  # data defects are errors, not spaces to skip
+    check_capacity(CandidateSpace(factors=("x",)), n, m, max_terms)
+    names = (snames, inames)
+    held_out = not validation
+    caps = capacities()
+    dead = dead_times(est, min(grid.max_dead_time, caps["RHONN_MAX_DELAY"]))
+    data_range = DataRange.of(est)
+    biggest = float(max(np.nanmax(np.abs(np.where(ex.valid, ex.X, np.nan))) for ex in est))
+    beta_data = float(f"{2.0 / biggest:.2g}") if biggest > 0 else 1.0
+    searched = _budget(est, grid.search_samples)
+    notes = []
+    if sum(ex.n_samples for ex in searched) < sum(ex.n_samples for ex in est):
+        notes.append(f"the search read the first {sum(ex.n_samples for ex in searched)} of "
+                     f"{sum(ex.n_samples for ex in est)} estimation samples (search_samples); the final "
+                     "terms are selected on all of them")
+    if held_out:
+        tail = [hold_out(ex, holdout) for ex in searched]
+        cuts = [(ex, int(round(ex.n_samples * holdout))) for ex in searched]
+        head = [(ex.cut(c, ex.n_samples, f"{ex.name} (fit)"), ex.cut(0, c, f"{ex.name} (validate)")) for ex, c in cuts]
+        folds = [([p[0] for p in tail], [p[1] for p in tail]), ([p[0] for p in head], [p[1] for p in head])]
+        val_rows = tuple(f"{ex.name} rows {ex.rows}" for _, v in folds for ex in v)
+    else:
+        folds = [(searched, list(validation))]
+        val_rows = tuple(f"{ex.name} rows {ex.rows}" for ex in validation)
+
+    scored: list[SpaceScore] = []
+    for space in _spaces(grid, n, m, min(dead, default=0), beta_data, caps):
+        M = _n_candidates(space, n, m)
+        if M > grid.max_candidates:
+            scored.append(SpaceScore(space, 0, f"skipped: {M} candidates (max_candidates {grid.max_candidates})"))
+            continue
+        parts, terms, capped, status = [], 0, False, "scored"
+        try:
+            for fit, val in folds:
+                _, sel, why, v = _fit_score(space, fit, val, data_range, crit, max_terms, names)
+                parts.append(v)
+                terms = max(terms, sum(len(nr.terms) for nr in sel.neurons))
+                capped |= any(len(nr.terms) >= max_terms for nr in sel.neurons)
+                if why is not None:
+                    status = why
+                    break
+        except ValueError as exc:
+            scored.append(SpaceScore(space, 0, f"skipped: {exc}"))
+            continue
+        scored.append(SpaceScore(space, terms, status, _pooled(parts) if status == "scored" else None, capped))
+    ranked = sorted((s for s, sc in enumerate(scored) if math.isfinite(sc.score)),
+                    key=lambda s: (scored[s].score, scored[s].terms))
+    if not ranked:
+        skipped = next((sc.status for sc in scored if sc.status.startswith("skipped")), None)
+        raise ValueError("search: no candidate space gives a model whose free run stays in the data's range "
+                         f"({len(scored)} tried" + (f"; the first skipped: {skipped.partition(': ')[2]}"
+                                                    if skipped else "") + "); widen the grid or record more "
+                         "varied data")
+
+    # the best spaces, fitted on all the estimation data (weights refined on the free-run error),
+    # are compared: on the user's validation data, or by an information criterion on the free-run error
+    finalists = []
+    for s in ranked[: REFINED if refine_weights else 1]:
+        sel = _select(scored[s].space, est, crit, max_terms, names)
+        config, ref = sel.config(), None
+        if refine_weights:
+            ref = refine(config, searched, data_range)
+            config = ref.config
+        runs = [free_run_of(config, ex, data_range) for ex in searched]
+        if any(r.left_range is not None for r in runs):
+            continue
+        if held_out:
+            v_in = validate(config, searched, data_range)
+            N = max(v_in.scored, 1)
+            k = sum(len(nr.terms) for nr in sel.neurons)
+            key = N * math.log(max(float(np.mean(v_in.free_rrse ** 2)), 1e-300)) + 2.0 * k
+        else:
+            key = validate(config, list(validation), data_range).score
+        finalists.append((key, s, sel, config, ref))
+    if not finalists:
+        raise ValueError("search: the best candidate spaces, fitted on all the estimation data, leave the data's "
+                         "range in a free run")
+    _, chosen, sel, config, refinement = min(finalists, key=lambda f: (f[0], f[1]))
+    if refinement is not None and refinement.cost_after >= refinement.cost_before:
+        refinement = None
+    final_val = validate(config, list(validation), data_range) if not held_out else None
+    if any(len(nr.terms) >= max_terms for nr in sel.neurons):
+        notes.append(f"a neuron's selection reached max_terms ({max_terms}): the criterion did not stop it; "
+                     "raise max_terms to let it decide")
+    return SearchResult(
+        selection=sel, config=config.replace(dtype=dtype), scores=tuple(scored), chosen=chosen,
+        validation=final_val, in_sample=validate(config, est, data_range), refinement=refinement,
+        dead_times=dead, fit_rows=tuple(f"{ex.name} rows {ex.rows}" for ex in est), validation_rows=val_rows,
+        held_out=held_out, search_samples=sum(ex.n_samples for ex in searched),
+        seconds=time.perf_counter() - t0, notes=tuple(notes))

@@ -1,0 +1,189 @@
+"""The automatic structure search, simulation-error refinement and experiments kept apart.
+
+The plant: a NARX system with an input dead time of 3 samples and a mild
+nonlinearity, y(k+1) = 0.6 y(k) + 0.25 y(k-1) + 0.5 u(k-3) - 0.2 u(k-3)^2 + 0.1 y(k) u(k-3),
+which no candidate space without delayed inputs can describe.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pyrhonn.cli import main
+from pyrhonn.config import Factor, IdentifierConfig, NeuronConfig
+from pyrhonn.configfile import load_config
+from pyrhonn.experiments import Experiment, hold_out, merge
+from pyrhonn.refine import DataRange, free_run_of, refine
+from pyrhonn.search import SearchGrid, dead_times, search, validate
+from pyrhonn.structure import CandidateSpace, select
+
+DEAD = 3
+SMALL_GRID = SearchGrid(factor_sets=(("x", "u", "1"),), max_degree=2, max_delay=1, input_taps=1)
+
+
+def plant(T: int, seed: int, noise: float = 0.0) -> Experiment:
+    rng = np.random.default_rng(seed)
+    u = np.repeat(rng.uniform(-1.0, 1.0, T // 5 + 1), 5)[:T]  # held for 5 samples: a rich, slow input
+    y = np.zeros(T)
+    for k in range(1, T - 1):
+        ud = u[k - DEAD] if k >= DEAD else 0.0
+        y[k + 1] = 0.6 * y[k] + 0.25 * y[k - 1] + 0.5 * ud - 0.2 * ud ** 2 + 0.1 * y[k] * ud
+    y = y + noise * rng.standard_normal(T)
+    return Experiment(y[:, None], u[:, None], np.ones((T, 1), dtype=bool), name=f"run{seed}")
+
+
+def write_csv(path: Path, ex: Experiment) -> None:
+    lines = ["y,u"] + [f"{float(y)!r},{float(u)!r}" for y, u in zip(ex.X[:, 0], ex.U[:, 0])]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_the_input_dead_time_is_found() -> None:
+    assert dead_times([plant(800, 1)], 10) == (DEAD,)
+
+
+def test_merged_experiments_never_read_across_a_boundary() -> None:
+    a, b = plant(300, 1), plant(300, 2)
+    X, U, valid, starts = merge([a, b])
+    assert starts == (300,)
+    space = CandidateSpace(factors=("x", "u", "1"), degree=2, max_delay=1, input_min_delay=DEAD,
+                           input_max_delay=DEAD)
+    joined = select(X, U, valid, space=space, starts=starts)
+    # each experiment loses the rows whose window reaches before its first sample, and its last
+    assert joined.rows == 2 * (300 - space.window - 1)
+    assert joined.neurons[0].residual_variance < 1e-20  # the exact model: no row mixes the two runs
+    blind = select(X, U, valid, space=space)
+    assert blind.rows == joined.rows + space.window + 1
+    assert blind.neurons[0].residual_variance > 1e-12  # rows across the seam cannot be explained
+
+
+def test_hold_out_names_the_rows_it_cuts() -> None:
+    fit, val = hold_out(plant(100, 1), 0.3)
+    assert (fit.rows, val.rows) == ("0..69", "70..99")
+    with pytest.raises(ValueError, match="fraction"):
+        hold_out(plant(100, 1), 1.0)
+
+
+def test_a_free_run_that_leaves_the_data_is_reported_with_its_sample() -> None:
+    ex = plant(400, 3)
+    unstable = IdentifierConfig(n_states=1, n_inputs=1, neurons=(NeuronConfig(
+        terms=((Factor.x(0),), (Factor.u(0),)), w0=np.array([1.05, 0.5])),))
+    run = free_run_of(unstable, ex, DataRange.of([ex]))
+    assert run.left_range is not None and run.left_range > run.start
+    assert np.all(np.isnan(run.free_run[run.left_range:]))
+    assert np.all(np.isfinite(run.free_run[run.start:run.left_range]))
+    v = validate(unstable, [ex], DataRange.of([ex]))
+    assert v.left_range == (ex.name, run.left_range) and v.score == np.inf
+
+
+def test_refinement_lowers_the_free_run_error_and_changes_only_w0() -> None:
+    est = plant(600, 4, noise=0.1)  # output noise: least squares on noisy regressors is biased
+    space = CandidateSpace(factors=("x", "u", "1"), degree=2, max_delay=1, input_min_delay=DEAD,
+                           input_max_delay=DEAD)
+    X, U, valid, _ = merge([est])
+    base = select(X, U, valid, space=space).config()
+    ref = refine(base, [est])
+    assert ref.cost_after < ref.cost_before
+    for a, b in zip(base.neurons, ref.config.neurons):
+        assert a.terms == b.terms and (a.p0, a.q, a.r, a.activation, a.beta) == (b.p0, b.q, b.r, b.activation, b.beta)
+    assert not np.array_equal(base.neurons[0].w0_vector(), ref.config.neurons[0].w0_vector())
+    # the refined model also simulates a record it was not fitted on better
+    val = plant(600, 5)
+    rng = DataRange.of([est])
+    assert validate(ref.config, [val], rng).score < validate(base, [val], rng).score
+
+
+def test_search_finds_a_model_that_simulates_on_unseen_data() -> None:
+    est, val = plant(800, 6), plant(800, 7)
+    found = search([est], state_names=["y"], input_names=["u"])
+    assert found.dead_times == (DEAD,)
+    assert found.held_out and found.validation is None
+    assert found.fit_rows == ("run6 rows 0..799",)
+    assert found.validation_rows == ("run6 (validate) rows 560..799", "run6 (validate) rows 0..239")
+    check = validate(found.config, [val], DataRange.of([est]))
+    assert check.left_range is None and check.score < 1e-3
+    text = found.report(["y"], ["u"])
+    assert "input dead time: u 3 sample(s)" in text and "fitted on: run6 rows 0..799" in text
+
+
+def test_search_ranks_on_the_validation_experiments_given() -> None:
+    est, val = plant(500, 8), plant(500, 9)
+    found = search([est], [val], grid=SMALL_GRID, state_names=["y"], input_names=["u"])
+    assert not found.held_out and found.validation is not None
+    assert found.validation_rows == ("run9 rows 0..499",)
+    assert found.validation.score < 1e-3
+    assert len(found.scores) == 2 * 2 * 2  # degrees 1-2, state delays 0-1, input taps dead..dead+1
+    assert all(sc.status == "scored" or sc.status.startswith(("rejected", "skipped")) for sc in found.scores)
+
+
+def test_a_search_refuses_bad_data_before_any_work() -> None:
+    ex = plant(300, 1)
+    const = Experiment(ex.X, np.full_like(ex.U, 0.5), ex.valid, "const")
+    with pytest.raises(ValueError, match="input column 'u1': constant"):
+        search([const], grid=SMALL_GRID)
+    with pytest.raises(ValueError, match="max_terms"):
+        search([ex], max_terms=10_000)
+    other = Experiment(np.hstack([ex.X, ex.X ** 2]), ex.U, np.ones((300, 2), dtype=bool), "two")
+    with pytest.raises(ValueError, match=r"validation\[0\]|experiments\[1\]"):
+        search([ex], [other], grid=SMALL_GRID)
+
+
+def test_cli_select_searches_by_default_and_says_which_rows_fit_and_validate(tmp_path: Path, capsys) -> None:
+    data = tmp_path / "run.csv"
+    write_csv(data, plant(900, 10))
+    out, js = tmp_path / "cfg.toml", tmp_path / "sel.json"
+    assert main(["select", str(data), "--states", "y", "--inputs", "u", "--out", str(out), "--json", str(js),
+                 "--fit-rows", "0:600", "--validate-rest"]) == 0
+    text = capsys.readouterr().out
+    assert f"fitted on: {data} rows 0..599" in text
+    assert f"validation data: {data} rows 600..899" in text
+    assert "input dead time: u 3 sample(s)" in text
+    report = json.loads(js.read_text())
+    assert report["rows"] <= 600 and report["search"]["ranked_by"] == "validation data"
+    assert report["search"]["validation"]["free_run"]["y"]["rrse"] < 1e-3
+    assert report["search"]["input_dead_times"] == [3]
+    cfg = load_config(out).config
+    assert cfg.max_delay >= DEAD
+
+
+def test_cli_select_merges_experiments_and_takes_validation_files(tmp_path: Path, capsys) -> None:
+    a, b, v = tmp_path / "a.csv", tmp_path / "b.csv", tmp_path / "v.csv"
+    write_csv(a, plant(400, 11))
+    write_csv(b, plant(400, 12))
+    write_csv(v, plant(400, 13))
+    out = tmp_path / "cfg.toml"
+    assert main(["select", str(a), str(b), "--states", "y", "--inputs", "u", "--out", str(out),
+                 "--validate", str(v), "--no-refine"]) == 0
+    text = capsys.readouterr().out
+    assert f"fitted on: {a} rows 0..399; {b} rows 0..399" in text
+    assert "weights: least squares" in text and f"validation data: {v} rows 0..399" in text
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--search", "auto", "--degree", "2"], "--search auto: --degree fix(es) the candidate space"),
+    (["--validate-rest"], "--validate-rest: needs --fit-rows"),
+    (["--fit-rows", "5:3"], "--fit-rows: expected 0 <= A < B"),
+    (["--fit-rows", "x"], "--fit-rows: expected A:B"),
+    (["--fit-rows", "0:5000", "--validate-rest"], "--validate-rest: --fit-rows 0:5000 leaves no samples"),
+    (["--holdout", "1.5"], "--holdout: expected a fraction in (0, 1)"),
+])
+def test_cli_select_names_bad_options(tmp_path: Path, capsys, extra: list[str], message: str) -> None:
+    data = tmp_path / "run.csv"
+    write_csv(data, plant(300, 14))
+    out = tmp_path / "cfg.toml"
+    assert main(["select", str(data), "--states", "y", "--inputs", "u", "--out", str(out), *extra]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_cli_select_names_a_validation_file_with_a_missing_column(tmp_path: Path, capsys) -> None:
+    data, bad = tmp_path / "run.csv", tmp_path / "bad.csv"
+    write_csv(data, plant(300, 15))
+    bad.write_text("y,v\n1,2\n3,4\n")
+    assert main(["select", str(data), "--states", "y", "--inputs", "u", "--out", str(tmp_path / "c.toml"),
+                 "--validate", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.csv" in err and "'u'" in err
