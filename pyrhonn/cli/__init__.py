@@ -21,7 +21,7 @@ from typing import Sequence
 __all__ = ["main", "COMMANDS"]
 
 # Subcommand modules, in the order ``pyrhonn --help`` lists them.
-COMMANDS = ("info", "show_config", "identify", "reproduce", "tune", "select", "export")
+COMMANDS = ("info", "show_config", "identify", "reproduce", "tune", "select", "validate", "export")
 
 
 def build_parser() -> argparse.ArgumentParser:
