@@ -28,6 +28,7 @@ bench: venv
 	$(VENV)/bin/python bench/bench_hil_udp.py --fifo 50 --cpus 0,1
 	$(VENV)/bin/python bench/bench_writes.py
 	$(VENV)/bin/python bench/bench_core_vs_dense.py
+	$(VENV)/bin/python bench/bench_real_data.py
 
 test: venv test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm
 
