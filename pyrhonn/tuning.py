@@ -2,9 +2,13 @@
 
 :func:`tune` searches the EKF tuning of eq. 7-8 (P_i(0), Q_i, R_i, eta_i)
 and the activation slope beta_i of a base :class:`~pyrhonn.config.IdentifierConfig`
-with optuna's TPE sampler, keeping the base config's terms, activations, w0
+with optuna's TPE sampler, keeping the base config's terms, activations
 and x0; with ``structure=`` it searches the terms too, through the selection
-settings of :mod:`pyrhonn.structure` (see Structure search).
+settings of :mod:`pyrhonn.structure` (see Structure search). A trial that
+changes a neuron's beta starts from w0 refitted for its own S: least squares
+on the training samples (those of the first fold, so that no fold's held-out
+block fits a weight; :func:`pyrhonn.regressors.refit_w0`); a neuron whose
+beta is unchanged keeps its w0.
 :func:`held_out_score` is the objective it minimises, usable on its own.
 
 The objective (exactly)
@@ -89,6 +93,17 @@ Scaling P0, Q and R by one common factor leaves every prediction unchanged
 so (P0, Q, R) has one redundant direction; all three are searched by default,
 as the paper-example targets ask, and ``params=("p0", "q", "eta", "beta")`` removes the
 redundancy (R stays at its base value).
+
+The free-run guard (``free_run_guard``, on by default)
+--------------------------------------------------------
+The objective scores one step ahead, and a tuning that predicts one step
+better can simulate worse. After the search, the best trial and the base
+config are run free over the held-out part (learning online up to the split,
+then the weights frozen and the network fed its own predictions:
+:meth:`_Problem.free_run_score`, the mean over states of the free-run RRSE).
+Where the base's free run is informative (mean RRSE below 1) and the best
+trial's is worse by more than :data:`FREE_RUN_TOLERANCE`, the base config is
+kept and :attr:`TuneResult.kept_base` says why.
 
 When every searched parameter's base value is a scalar inside its range
 (so with the default ranges unless the base has a P0 or Q array or Q = 0;
@@ -216,6 +231,8 @@ import numpy as np
 from . import metrics
 from .config import Activation, IdentifierConfig, NeuronConfig
 from .identifier import Identifier, IdentifierError, capacities
+from .regressors import refit_w0
+from .simulation import scores, simulate
 from .structure import CandidateSpace, Criterion, Selection, select
 from .validation import check_int, check_real, fail
 
@@ -269,6 +286,13 @@ _SETUP_ATTR = "pyrhonn_setup"
 _RUNS_ATTR = "pyrhonn_runs"
 
 Progress = Callable[[str], None]
+
+
+#: The free-run guard: a best trial whose held-out free run is worse than the base config's by more than
+#: this fraction is not written (the base config is kept, and the result says why). It applies where the
+#: base's free run means something (mean RRSE < 1, better than the held-out mean): a chaotic plant's free
+#: run leaves the measurements whatever the tuning, and cannot judge one.
+FREE_RUN_TOLERANCE = 0.05
 
 
 class TrialFailure(Exception):
@@ -419,6 +443,8 @@ class _Problem:
         self.X, self.U = Xr, Ur
         self.valid = None if valid is None else np.ascontiguousarray(valid_mask)
         reference = X if truth is None else truth
+        self.reference = np.where(np.isfinite(reference), reference, 0.0)
+        self.has_truth = truth is not None
         # Per fold f: the targets N_f..E_f-1, which of them are scored, and s_j over them.
         self.targets: list[np.ndarray] = []
         self.masks: list[np.ndarray] = []
@@ -449,6 +475,33 @@ class _Problem:
             digest.update(repr(a.shape).encode())
         digest.update(b"truth" if truth is not None else b"measured")
         self.data_hash = digest.hexdigest()
+
+    def refit(self, config: IdentifierConfig, reference: IdentifierConfig, end: int | None = None) -> IdentifierConfig:
+        """``config`` with w0 refitted on the training samples (0..end-1, by default the first fold's
+        training part) for every neuron whose beta or activation differs from ``reference``'s
+        (:func:`pyrhonn.regressors.refit_w0`): a trial that changes S starts from a fit for its own S."""
+        X, U, valid = self.raw
+        return refit_w0(config, X, U, valid, self.folds[0][0] if end is None else end, reference)
+
+    def free_run_score(self, config: IdentifierConfig) -> float:
+        """The mean over states of the held-out free-run RRSE: learning online up to the split,
+        then the weights frozen and the network fed its own predictions over every held-out
+        sample (:mod:`pyrhonn.simulation`); inf when the run diverges or cannot run."""
+        N = self.n_train
+        X = np.where(np.isfinite(self.X), self.X, 0.0).astype(self.dtype)
+        try:
+            with np.errstate(all="ignore"):
+                sim = simulate(Identifier(config), X, self.U if config.n_inputs else None, self.valid,
+                               free_run_from=N)
+        except ValueError:
+            return math.inf
+        assert sim.free_run is not None
+        reference = self.reference
+        mask = np.zeros(reference.shape, dtype=bool)
+        mask[N:] = True if self.valid is None or self.has_truth else self.valid[N:]
+        sc = scores(reference, sim.free_run.astype(np.float64), mask)
+        values = sc.rrse[np.isfinite(sc.rrse) | np.isinf(sc.rrse)]
+        return float(np.mean(values)) if values.size else math.inf
 
     def _run(self, config: IdentifierConfig, end: int) -> np.ndarray:
         rows = self._run_many([config], end)[0]
@@ -919,6 +972,9 @@ class TuneResult:
     structure: StructureSearch | None = None
     best_structure: dict[str, int] = field(default_factory=dict)
     selection: Selection | None = None
+    base_free_run: float = math.nan  #: the base config's held-out free-run score (free_run_score)
+    best_free_run: float = math.nan  #: the written config's
+    kept_base: str | None = None  #: why the best trial was not written, when the free-run guard kept the base
 
     def summary(self) -> dict[str, Any]:
         """A JSON-serialisable summary of the study and the result."""
@@ -942,6 +998,10 @@ class TuneResult:
             "best_values": dict(self.best_values),
             "best_structure": dict(self.best_structure),
             "improved": self.improved,
+            "free_run": {"definition": "mean over states of the held-out free-run RRSE, learning online up to "
+                                       "the split, then the weights frozen (inf: diverged)",
+                         "base": metrics.json_value(self.base_free_run), "written": metrics.json_value(self.best_free_run)},
+            "kept_base": self.kept_base,
             "top_trials": [dict(t) for t in self.top],
         }
 
@@ -1226,6 +1286,7 @@ def tune(
     study_path: str | Path | None = None,
     n_startup_trials: int = 10,
     progress: Progress | None = None,
+    free_run_guard: bool = True,
 ) -> TuneResult:
     """Search P0, Q, R, eta and beta of ``config`` (and, with ``structure``,
     the selection settings) on ``(X, U, valid)``.
@@ -1252,6 +1313,8 @@ def tune(
     n_startup_trials = check_int("n_startup_trials", n_startup_trials, 0)
     if progress is not None and not callable(progress):
         raise fail("progress", "expected a callable or None")
+    if not isinstance(free_run_guard, bool):
+        raise fail("free_run_guard", f"expected a bool, got {free_run_guard!r}")
     if structure is not None and not isinstance(structure, StructureSearch):
         raise fail("structure", f"expected None or a StructureSearch, got {type(structure).__name__}")
     space = search_space(config, params=params, per_neuron=per_neuron, ranges=ranges, relative=structure is not None)
@@ -1323,11 +1386,12 @@ def tune(
         winner = min(complete, key=lambda t: (t.value, t.number))
         try:
             if selector is None:
-                candidates = [apply_values(config, space, winner.params)]
+                candidates = [problem.refit(apply_values(config, space, winner.params), config)]
                 score = problem.score(candidates[0])
             else:
                 settings = {name: int(winner.params[name]) for name in STRUCTURE_SETTINGS}
-                candidates = [apply_factors(c, space, winner.params) for c in selector.configs(settings)]
+                candidates = [problem.refit(apply_factors(c, space, winner.params), c, problem.folds[f][0])
+                              for f, c in enumerate(selector.configs(settings))]
                 score = problem.score_folds(candidates)
         except TrialFailure:  # pragma: no cover - the C core and the selection are deterministic
             score = None
@@ -1337,6 +1401,15 @@ def tune(
             if selector is not None:
                 best_structure = settings
                 best_selection = selector.selection(len(problem.folds) - 1, settings)
+    kept_base: str | None = None
+    base_free, best_free = problem.free_run_score(config), None
+    if best_score is not None and free_run_guard:
+        best_free = problem.free_run_score(best_config)
+        if base_free < 1.0 and best_free > base_free * (1.0 + FREE_RUN_TOLERANCE):
+            kept_base = (f"the best trial's held-out free run (mean RRSE {best_free:.4g}) is worse than the base "
+                         f"config's ({base_free:.4g}): the base config is kept")
+            best_score, best_trial, best_config = None, None, config
+            best_values, best_structure, best_selection = {}, {}, None
     improved = best_score is not None
     if not improved:
         best_score = base
@@ -1350,6 +1423,7 @@ def tune(
         split=problem.split, space=space, per_neuron=per_neuron, train_fraction=problem.train_fraction,
         seed=seed, study_name=STUDY_NAME, storage=None if loc is None else loc.shown, top=top,
         structure=structure, best_structure=best_structure, selection=best_selection,
+        base_free_run=base_free, best_free_run=best_free if improved else base_free, kept_base=kept_base,
     )
 
 
@@ -1379,7 +1453,7 @@ def _run_trials(study: Any, claim: _Claim, problem: _Problem, config: Identifier
     def suggested(trial: Any) -> IdentifierConfig:
         trial.set_user_attr("worker", worker_name)
         values = {d.name: trial.suggest_float(d.name, d.low, d.high, log=True) for d in space}
-        return apply_values(config, space, values)
+        return problem.refit(apply_values(config, space, values), config)
 
     def scored(trial: Any, score: Score) -> float:
         trial.set_user_attr("rmse", score.rmse.tolist())
@@ -1394,7 +1468,8 @@ def _run_trials(study: Any, claim: _Claim, problem: _Problem, config: Identifier
         assert structure is not None and selector is not None
         settings = {name: trial.suggest_int(name, lo, hi) for name, lo, hi in structure.dimensions()}
         values = {d.name: trial.suggest_float(d.name, d.low, d.high, log=True) for d in space}
-        configs = [apply_factors(c, space, values) for c in selector.configs(settings)]
+        configs = [problem.refit(apply_factors(c, space, values), c, problem.folds[f][0])
+                   for f, c in enumerate(selector.configs(settings))]
         trial.set_user_attr("terms", [sum(len(nr.terms) for nr in c.neurons) for c in configs])
         return configs
 

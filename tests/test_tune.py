@@ -15,6 +15,8 @@ from pyrhonn import tuning
 from pyrhonn.cli import main
 from pyrhonn.configfile import load_config, load_shipped, save_config
 from pyrhonn.plants import Corruption, Trajectory, oscillator
+from pyrhonn.regressors import refit_w0
+from pyrhonn.simulation import simulate
 
 HORIZON = 40.0  # 201 samples at T = 0.2 s: short, and still past the oscillator's start-up
 
@@ -368,8 +370,10 @@ def test_batched_trials_score_exactly_as_each_alone_and_count_the_failing_ones(
     assert 1 <= len(calls) <= 4 and min(calls) >= 2
     space = tuning.search_space(cfg, ranges=ranges)
     for entry in result.top:
-        alone = tuning.held_out_score(tuning.apply_values(cfg, space, entry["values"]), noisy.X_meas, noisy.U,
-                                      noisy.valid)
+        # a trial whose beta differs from the base's starts from w0 refitted on the training part
+        trial = refit_w0(tuning.apply_values(cfg, space, entry["values"]), np.where(noisy.valid, noisy.X_meas, 0.0),
+                         noisy.U, noisy.valid, result.split.n_train, cfg)
+        alone = tuning.held_out_score(trial, noisy.X_meas, noisy.U, noisy.valid)
         assert entry["objective"] == alone.value  # bit for bit: the population runs each member as alone
 
 
@@ -383,3 +387,29 @@ def test_batch_is_refused_beyond_the_population_size(
         code, _, err = run_cli(["--example", "example1", "--config", "example1", "--out",
                                 str(tmp_path / "t.toml"), "--trials", "2", *args], capsys)
         assert code == 2 and message in err and "Traceback" not in err, err
+
+
+def test_the_free_run_guard_keeps_the_base_when_the_best_trial_simulates_worse(
+        traj: Trajectory, base: IdentifierConfig, monkeypatch: pytest.MonkeyPatch) -> None:
+    calls: list[IdentifierConfig] = []
+
+    def free_run_score(self: tuning._Problem, config: IdentifierConfig) -> float:
+        calls.append(config)
+        return 0.5 if config == base else 0.9  # the base simulates, every tuned config worse
+
+    monkeypatch.setattr(tuning._Problem, "free_run_score", free_run_score)
+    r = tuning.tune(base, traj.X_meas, traj.U, traj.valid, n_trials=6, seed=0)
+    assert not r.improved and r.config == base and r.best_trial is None
+    assert r.kept_base is not None and "free run" in r.kept_base and "0.9" in r.kept_base
+    assert r.summary()["kept_base"] == r.kept_base and r.summary()["free_run"]["written"] == 0.5
+    guarded = tuning.tune(base, traj.X_meas, traj.U, traj.valid, n_trials=6, seed=0, free_run_guard=False)
+    assert guarded.improved and guarded.kept_base is None  # the same search writes its best without the guard
+
+
+def test_the_free_run_score_is_the_held_out_free_run_rrse(traj: Trajectory, base: IdentifierConfig) -> None:
+    problem = tuning._Problem(base, traj.X_meas, traj.U, traj.valid, None, tuning.DEFAULT_TRAIN_FRACTION)
+    N = problem.n_train
+    sim = simulate(Identifier(base), traj.X_meas, traj.U, traj.valid, free_run_from=N)
+    e = traj.X_meas[N:] - sim.free_run[N:]
+    rrse = np.sqrt(np.sum(e ** 2, axis=0) / np.sum((traj.X_meas[N:] - traj.X_meas[N:].mean(axis=0)) ** 2, axis=0))
+    assert problem.free_run_score(base) == pytest.approx(float(np.mean(rrse)), rel=1e-12)

@@ -15,6 +15,7 @@ import pytest
 
 from pyrhonn import Identifier, IdentifierConfig, terms
 from pyrhonn import tuning
+from pyrhonn.regressors import refit_w0
 from pyrhonn.cli import main
 from pyrhonn.configfile import load_config, load_shipped
 from pyrhonn.plants import Trajectory, oscillator
@@ -67,7 +68,8 @@ def test_structure_search_selects_on_the_training_part_and_scores_what_it_writes
     # The written config is the selection on samples 0..N-1 alone, with the best factors applied ...
     sel = select(traj.X_meas[:N], traj.U[:N], traj.valid[:N], space=search.space(settings["max_delay"],
                  settings["degree"]), criterion=search.criterion, max_terms=settings["max_terms"])
-    expected = tuning.apply_factors(sel.config(), r.space, r.best_values)
+    expected = refit_w0(tuning.apply_factors(sel.config(), r.space, r.best_values), traj.X_meas, traj.U, traj.valid,
+                        N, sel.config())  # a beta factor other than 1 refits w0 on the same samples
     assert [nr.terms for nr in r.config.neurons] == [nr.terms for nr in expected.neurons]
     for got, want in zip(r.config.neurons, expected.neurons):
         assert (got.p0, got.q, got.r, got.eta, got.beta) == (want.p0, want.q, want.r, want.eta, want.beta)
@@ -204,7 +206,8 @@ def test_batched_structure_trials_share_their_settings_and_score_exactly_as_alon
     selector = tuning._Selector(problem, search)
     for entry in r.top:
         settings = {name: int(entry["values"][name]) for name in tuning.STRUCTURE_SETTINGS}
-        configs = [tuning.apply_factors(c, r.space, entry["values"]) for c in selector.configs(settings)]
+        configs = [problem.refit(tuning.apply_factors(c, r.space, entry["values"]), c, problem.folds[f][0])
+                   for f, c in enumerate(selector.configs(settings))]
         assert problem.score_folds(configs).value == entry["objective"]  # bit for bit what the trial ran alone
     assert calls and max(calls) >= 2 and all(c <= 4 for c in calls)
     assert len(calls) <= 2 * 3  # at most one population call per fold and batch

@@ -422,6 +422,7 @@ def _note(result: tuning.TuneResult, config_source: str, label: str) -> str:
             f"{result.seed}), {result.counts.total} trials in the study.{structure} Held-out score (mean over "
             f"states of RMSE / std of the held-out targets, pyrhonn.tuning): base {base}, ")
     text = head + (f"tuned {tuned} (trial {result.best_trial})." if result.improved
+                   else f"not written: {result.kept_base}." if result.kept_base
                    else "no trial beat it: the tuning is the base config's.")
     return textwrap.fill(text, width=90, break_long_words=False, break_on_hyphens=False)
 
@@ -451,6 +452,8 @@ def _report(result: tuning.TuneResult, cf: ConfigFile) -> str:
         change = 100.0 * (best.value - base.value) / base.value if base.value > 0 else 0.0
         lines.append(f"score (mean normalised RMSE): base {base.value:.6g} -> tuned {best.value:.6g} "
                      f"({change:+.1f} %), trial {result.best_trial}")
+    elif result.kept_base:
+        lines.append(f"score (mean normalised RMSE): base {base.value:.6g}; {result.kept_base}")
     else:
         lines.append(f"score (mean normalised RMSE): base {base.value:.6g}; no trial beat it, the base "
                      "tuning is written")
