@@ -187,3 +187,16 @@ def test_cli_select_names_a_validation_file_with_a_missing_column(tmp_path: Path
                  "--validate", str(bad)]) == 2
     err = capsys.readouterr().err
     assert "bad.csv" in err and "'u'" in err
+
+
+def test_identify_prints_small_and_huge_errors_in_significant_digits(tmp_path: Path, capsys) -> None:
+    data = tmp_path / "run.csv"
+    write_csv(data, plant(500, 16))
+    cfg = tmp_path / "cfg.toml"
+    assert main(["select", str(data), "--states", "y", "--inputs", "u", "--out", str(cfg), "--no-refine"]) == 0
+    capsys.readouterr()
+    assert main(["identify", str(data), "--config", str(cfg), "--out", str(tmp_path / "id"), "--no-plots",
+                 "--free-run-from", "100"]) == 0
+    out = capsys.readouterr().out
+    rows = [line for line in out.splitlines() if line.strip().startswith("y ")]
+    assert rows and "0.0000" not in rows[0] and "e-" in rows[0]  # an exact model's RRSE, e.g. 3.1e-12

@@ -411,7 +411,7 @@ def run(args: argparse.Namespace) -> int:
         row = f"  {name:<{width}}  {sections['one_step']['states'][name]['scored']:>7}"
         for kind, _ in kinds:
             st = sections[kind]["states"][name]
-            row += f"  {_shown(st['rmse']):>18}  {_shown(st['rrse'], '.4f'):>8}"
+            row += f"  {_shown(st['rmse']):>18}  {_shown(st['rrse'], '.4g'):>8}"
         print(row)
     if K is not None and sim.free_run_diverged is not None:
         print(f"the free run diverged at line {int(data.lines[sim.free_run_diverged])} (its prediction was not "
