@@ -18,19 +18,26 @@ from data, in five steps:
    the slope that maps the data's largest magnitude to 2 (so that S does
    not saturate on data far from unit scale).
 3. **Each space** is selected by the information criterion (EBIC) on the
-   estimation data, its least-squares weights frozen, and run free over
-   the estimation data: a space whose free run leaves the data's range
-   there is rejected (reported with the sample). The others are run free
-   over the validation data and scored by the free-run RRSE, averaged over
-   the states (the one-step RRSE beside it).
-4. **The best spaces** (fewest terms among those within 1 % of the best
-   score) have their weights refined on the free-run error of the
-   estimation data (:func:`pyrhonn.refine.refine`); a refinement is kept
-   only where it also lowers the validation free-run error.
-5. **The result**: with validation experiments given by the user, the best
-   model as it is; with only estimation data, the last ``holdout`` of each
-   estimation experiment served as validation for steps 3-4, and the chosen
-   space is selected and refined once more on the whole estimation data.
+   fitting rows, its least-squares weights frozen, and run free over them:
+   a space whose free run leaves the data's range there is rejected
+   (reported with the sample). The others are run free over the ranking
+   rows and scored by the free-run RRSE, averaged over the states. The
+   ranking rows are the user's validation experiments; without them, two
+   blocked cross-validation folds of the estimation data (the last
+   ``holdout`` of each experiment ranks a fit on the rest, then the first
+   ``holdout`` ranks a fit on the rest; the score is the mean of the two).
+4. **The best spaces** (:data:`REFINED` of them) are selected on all the
+   estimation data and their weights refined on the free-run error there
+   (:func:`pyrhonn.refine.refine`). With validation experiments, the
+   refined and the least-squares version of each compete on the validation
+   free run; without them, the refined versions compete by the information
+   criterion N ln(mean squared free-run error / variance) + 2 k on the
+   estimation data (k terms), since the folds are too short to judge a
+   refinement.
+5. **Fallback**: when no space's model stays in the data's range in a free
+   run, the space with the best one-step error is chosen, with least-squares
+   weights, and the result says that this model predicts but does not
+   simulate (:attr:`SearchResult.by_one_step`).
 
 Validation data never fit a weight: they only rank spaces and refinements,
 and the report names which rows fitted and which validated. Caps are
@@ -193,7 +200,13 @@ class SpaceScore:
 
     @property
     def score(self) -> float:
-        return math.inf if self.validation is None else self.validation.score
+        """The mean free-run RRSE on the validation rows; inf unless the space was scored."""
+        return math.inf if self.validation is None or self.status != "scored" else self.validation.score
+
+    @property
+    def one_step(self) -> float:
+        """The mean one-step RRSE on the validation rows (inf where the space gave no model)."""
+        return math.inf if self.validation is None else float(np.mean(self.validation.one_rrse))
 
     def describe(self) -> str:
         sp = self.space
@@ -229,6 +242,7 @@ class SearchResult:
     search_samples: int  #: estimation samples the grid read
     seconds: float
     notes: tuple[str, ...] = field(default=())
+    by_one_step: bool = False  #: no model simulated: the space was chosen by the one-step error
 
     def config_file(self, state_names: tuple[str, ...], input_names: tuple[str, ...]) -> ConfigFile:
         """The config with names, a description of the search and each neuron's terms as its ``why``."""
@@ -259,7 +273,7 @@ class SearchResult:
         order = sorted(range(len(self.scores)), key=lambda s: (self.scores[s].score, self.scores[s].terms))
         for rank, s in enumerate(order[:8], 1):
             sc = self.scores[s]
-            if sc.validation is None:
+            if not math.isfinite(sc.score):
                 break
             mark = "*" if s == self.chosen else " "
             lines.append(f"  {mark}{rank:3d}  {sc.score:13.4g}  {float(np.mean(sc.validation.one_rrse)):13.4g}  "
@@ -270,7 +284,7 @@ class SearchResult:
                          f"{sc.describe()}")
         reasons: dict[str, int] = {}
         for sc in self.scores:
-            if sc.validation is None:
+            if sc.status != "scored":
                 key = sc.status.split(":")[0]
                 reasons[key] = reasons.get(key, 0) + 1
         if reasons:
@@ -360,8 +374,7 @@ def _fit_score(space: CandidateSpace, fit: list[Experiment], val: list[Experimen
         left = free_run_of(config, ex, data_range).left_range
         if left is not None:
             return config, sel, f"rejected: its free run left the data's range at sample {left} of {ex.name}", \
-                Validation(np.full(len(names[0]), np.inf), np.full(len(names[0]), np.inf),
-                           np.full(len(names[0]), np.inf), np.full(len(names[0]), np.inf), 0, (ex.name, left))
+                validate(config, val, data_range)
     return config, sel, None, validate(config, val, data_range)
 
 
@@ -373,6 +386,31 @@ def _pooled(parts: list[Validation]) -> Validation:
                       one_rrse=np.mean([v.one_rrse for v in parts], axis=0),
                       one_rmse=np.mean([v.one_rmse for v in parts], axis=0),
                       scored=sum(v.scored for v in parts), left_range=left)
+
+
+def _by_one_step(scored: list[SpaceScore], est: list[Experiment], searched: list[Experiment],
+                 data_range: DataRange, crit: Criterion, max_terms: int, names: tuple[Sequence[str], Sequence[str]],
+                 dtype: str, dead: tuple[int, ...], val_rows: tuple[str, ...], user_val: list[Experiment],
+                 t0: float, notes: list[str], why: str) -> SearchResult:
+    """The fallback when no model simulates: the space with the best one-step error, least-squares weights."""
+    usable = [s for s, sc in enumerate(scored) if math.isfinite(sc.one_step)]
+    if not usable:
+        skipped = next((sc.status for sc in scored if sc.status.startswith("skipped")), None)
+        raise ValueError(f"search: no candidate space gives a model ({len(scored)} tried"
+                         + (f"; the first skipped: {skipped.partition(': ')[2]}" if skipped else "")
+                         + "); record more data or lower max_terms")
+    chosen = min(usable, key=lambda s: (scored[s].one_step, scored[s].terms))
+    sel = _select(scored[chosen].space, est, crit, max_terms, names)
+    config = sel.config()
+    notes = notes + [f"{why}: the structure was chosen by the one-step error on the validation rows, with "
+                     "least-squares weights; this model predicts one step ahead but does not simulate"]
+    return SearchResult(
+        selection=sel, config=config.replace(dtype=dtype), scores=tuple(scored), chosen=chosen,
+        validation=validate(config, user_val, data_range) if user_val else None,
+        in_sample=validate(config, est, data_range), refinement=None, dead_times=dead,
+        fit_rows=tuple(f"{ex.name} rows {ex.rows}" for ex in est), validation_rows=val_rows, held_out=not user_val,
+        search_samples=sum(ex.n_samples for ex in searched), seconds=time.perf_counter() - t0, notes=tuple(notes),
+        by_one_step=True)
 
 
 def search(estimation: Sequence[Experiment], validation: Sequence[Experiment] = (), *,
@@ -449,39 +487,40 @@ def search(estimation: Sequence[Experiment], validation: Sequence[Experiment] = 
         except ValueError as exc:
             scored.append(SpaceScore(space, 0, f"skipped: {exc}"))
             continue
-        scored.append(SpaceScore(space, terms, status, _pooled(parts) if status == "scored" else None, capped))
+        scored.append(SpaceScore(space, terms, status, _pooled(parts), capped))
     ranked = sorted((s for s, sc in enumerate(scored) if math.isfinite(sc.score)),
                     key=lambda s: (scored[s].score, scored[s].terms))
     if not ranked:
-        skipped = next((sc.status for sc in scored if sc.status.startswith("skipped")), None)
-        raise ValueError("search: no candidate space gives a model whose free run stays in the data's range "
-                         f"({len(scored)} tried" + (f"; the first skipped: {skipped.partition(': ')[2]}"
-                                                    if skipped else "") + "); widen the grid or record more "
-                         "varied data")
+        return _by_one_step(scored, est, searched, data_range, crit, max_terms, names, dtype, dead, val_rows,
+                            list(validation), t0, notes, "no space's model stays in the data's range in a free run")
 
     # the best spaces, fitted on all the estimation data (weights refined on the free-run error),
     # are compared: on the user's validation data, or by an information criterion on the free-run error
     finalists = []
     for s in ranked[: REFINED if refine_weights else 1]:
         sel = _select(scored[s].space, est, crit, max_terms, names)
-        config, ref = sel.config(), None
+        versions: list[tuple[IdentifierConfig, Refinement | None]] = []
         if refine_weights:
-            ref = refine(config, searched, data_range)
-            config = ref.config
-        runs = [free_run_of(config, ex, data_range) for ex in searched]
-        if any(r.left_range is not None for r in runs):
-            continue
-        if held_out:
-            v_in = validate(config, searched, data_range)
-            N = max(v_in.scored, 1)
-            k = sum(len(nr.terms) for nr in sel.neurons)
-            key = N * math.log(max(float(np.mean(v_in.free_rrse ** 2)), 1e-300)) + 2.0 * k
-        else:
-            key = validate(config, list(validation), data_range).score
-        finalists.append((key, s, sel, config, ref))
+            ref = refine(sel.config(), searched, data_range)
+            versions.append((ref.config, ref))
+        if not (refine_weights and held_out):  # with validation data, least squares may still simulate better
+            versions.append((sel.config(), None))
+        for config, ref in versions:
+            runs = [free_run_of(config, ex, data_range) for ex in searched]
+            if any(r.left_range is not None for r in runs):
+                continue
+            if held_out:
+                v_in = validate(config, searched, data_range)
+                N = max(v_in.scored, 1)
+                k = sum(len(nr.terms) for nr in sel.neurons)
+                key = N * math.log(max(float(np.mean(v_in.free_rrse ** 2)), 1e-300)) + 2.0 * k
+            else:
+                key = validate(config, list(validation), data_range).score
+            finalists.append((key, s, sel, config, ref))
     if not finalists:
-        raise ValueError("search: the best candidate spaces, fitted on all the estimation data, leave the data's "
-                         "range in a free run")
+        return _by_one_step(scored, est, searched, data_range, crit, max_terms, names, dtype, dead, val_rows,
+                            list(validation), t0, notes, "the best spaces, fitted on all the estimation data, leave the "
+                                                 "data's range in a free run")
     _, chosen, sel, config, refinement = min(finalists, key=lambda f: (f[0], f[1]))
     if refinement is not None and refinement.cost_after >= refinement.cost_before:
         refinement = None

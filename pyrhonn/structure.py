@@ -398,9 +398,26 @@ def _prune(P: np.ndarray, y: np.ndarray, chosen: list[int], criterion: Criterion
     term the greedy path took early and later ones made redundant)."""
     chosen = list(chosen)
     current = _fit(P, y, chosen, criterion, M, P_val, y_val)[0]
+    yy = float(y @ y)
     while len(chosen) > 1:
-        trials = [(_fit(P, y, chosen[:t] + chosen[t + 1:], criterion, M, P_val, y_val)[0], t)
-                  for t in range(len(chosen))]
+        # One QR of the chosen columns serves every removal: with P_S = Q R and g = Q^T y, the fit
+        # without column t leaves |y - Q g|^2 + min_w |g - R_{-t} w|^2, a k x (k-1) problem.
+        Q, R = np.linalg.qr(P[:, chosen])
+        g = Q.T @ y
+        r = y - Q @ g
+        rss = float(r @ r)
+        trials = []
+        for t in range(len(chosen)):
+            Rt = np.delete(R, t, axis=1)
+            w, *_ = np.linalg.lstsq(Rt, g, rcond=None)
+            d = g - Rt @ w
+            rest = chosen[:t] + chosen[t + 1:]
+            if criterion is Criterion.HOLDOUT:
+                assert P_val is not None and y_val is not None
+                e = y_val - P_val[:, rest] @ w
+                trials.append((_score(criterion, float(e @ e), float(y_val @ y_val), e.size, len(rest), M), t))
+            else:
+                trials.append((_score(criterion, rss + float(d @ d), yy, y.size, len(rest), M), t))
         score, t = min(trials)
         if score > current:
             break

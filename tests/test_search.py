@@ -200,3 +200,24 @@ def test_identify_prints_small_and_huge_errors_in_significant_digits(tmp_path: P
     out = capsys.readouterr().out
     rows = [line for line in out.splitlines() if line.strip().startswith("y ")]
     assert rows and "0.0000" not in rows[0] and "e-" in rows[0]  # an exact model's RRSE, e.g. 3.1e-12
+
+
+def test_when_no_model_simulates_the_search_falls_back_to_the_one_step_error(monkeypatch) -> None:
+    import pyrhonn.search as search_module
+    real = search_module.free_run_of
+
+    def leaves(config, experiment, data_range):  # every free run leaves the data one sample after it starts
+        run = real(config, experiment, data_range)
+        free = run.free_run.copy()
+        free[run.start + 1:] = np.nan
+        return type(run)(run.one_step, free, run.start, run.start + 1)
+
+    monkeypatch.setattr(search_module, "free_run_of", leaves)
+    est = plant(500, 17)
+    found = search([est], grid=SMALL_GRID, state_names=["y"], input_names=["u"])
+    assert found.by_one_step and found.refinement is None
+    assert all(sc.status.startswith(("rejected", "skipped")) for sc in found.scores)
+    best = min(sc.one_step for sc in found.scores)
+    assert found.scores[found.chosen].one_step == best and best < 1e-3
+    assert any("does not simulate" in note for note in found.notes)
+    assert "does not simulate" in found.report(["y"], ["u"])
