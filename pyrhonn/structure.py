@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from .config import Activation, Factor, FactorKind, IdentifierConfig, NeuronConfig, Term
 from .configfile import ConfigFile, format_term
@@ -614,6 +615,44 @@ def check_data(X: np.ndarray, U: np.ndarray, valid: np.ndarray, state_names: Seq
     _check_data(X, U, valid, snames, inames)
 
 
+def _select_paths(space: CandidateSpace, crit: Criterion, X: np.ndarray, U: np.ndarray, Y: np.ndarray,
+                  Y_val: np.ndarray | None, atoms: list[_Atom], table: np.ndarray, bias: bool, est_rows: np.ndarray,
+                  val_rows: np.ndarray, n_val: int, max_terms: int, M: int, terms: tuple[Term, ...],
+                  n: int) -> list["NeuronSelection | None"]:
+    """Every neuron's best model over the grid of (activation, beta): the core of :func:`select`."""
+    best: list[NeuronSelection | None] = [None] * n
+    for act in space.activations:
+        betas = space.betas if "S" in space.factors else space.betas[:1]
+        for beta in betas:
+            A = _atom_matrix(atoms, X, U, est_rows, act, beta)
+            P = _candidate_matrix(A, table, bias)
+            norms = np.linalg.norm(P, axis=0)
+            dead = norms <= 1e-300
+            scale = np.where(dead, 1.0, norms)
+            P /= scale
+            P_val = None
+            if n_val:
+                P_val = _candidate_matrix(_atom_matrix(atoms, X, U, val_rows, act, beta), table, bias) / scale
+            paths = _frols(P, Y, max_terms, crit, P_val, Y_val)
+            for i, path in enumerate(paths):
+                if not path.chosen:
+                    continue
+                chosen = _prune(P, Y[:, i], path.chosen[: path.best()], crit, M,
+                                P_val, None if Y_val is None else Y_val[:, i])
+                score, err, g, R = _fit(P, Y[:, i], chosen, crit, M, P_val,
+                                        None if Y_val is None else Y_val[:, i])
+                w = _back_substitute(R, g) / scale[chosen]
+                resid = Y[:, i] - (P[:, chosen] * scale[chosen]) @ w
+                cand = NeuronSelection(
+                    state=i, activation=act, beta=beta,
+                    terms=tuple(SelectedTerm(terms[c], float(e), float(wt)) for c, e, wt in zip(chosen, err, w)),
+                    score=score, residual_variance=float(resid @ resid) / resid.size, candidates_tried=M)
+                if best[i] is None or cand.score < best[i].score:  # type: ignore[union-attr]
+                    best[i] = cand
+            del P, P_val
+    return best
+
+
 def select(
     X: np.ndarray,
     U: np.ndarray | None = None,
@@ -700,36 +739,9 @@ def select(
     Y = X[est_rows + 1]
     Y_val = X[val_rows + 1] if n_val else None
     terms = candidate_terms(space, n, m)
-    best: list[NeuronSelection | None] = [None] * n
-    for act in space.activations:
-        betas = space.betas if "S" in space.factors else space.betas[:1]
-        for beta in betas:
-            A = _atom_matrix(atoms, X, U, est_rows, act, beta)
-            P = _candidate_matrix(A, table, bias)
-            norms = np.linalg.norm(P, axis=0)
-            dead = norms <= 1e-300
-            scale = np.where(dead, 1.0, norms)
-            P /= scale
-            P_val = None
-            if n_val:
-                P_val = _candidate_matrix(_atom_matrix(atoms, X, U, val_rows, act, beta), table, bias) / scale
-            paths = _frols(P, Y, max_terms, crit, P_val, Y_val)
-            for i, path in enumerate(paths):
-                if not path.chosen:
-                    continue
-                chosen = _prune(P, Y[:, i], path.chosen[: path.best()], crit, M,
-                                P_val, None if Y_val is None else Y_val[:, i])
-                score, err, g, R = _fit(P, Y[:, i], chosen, crit, M, P_val,
-                                        None if Y_val is None else Y_val[:, i])
-                w = _back_substitute(R, g) / scale[chosen]
-                resid = Y[:, i] - (P[:, chosen] * scale[chosen]) @ w
-                cand = NeuronSelection(
-                    state=i, activation=act, beta=beta,
-                    terms=tuple(SelectedTerm(terms[c], float(e), float(wt)) for c, e, wt in zip(chosen, err, w)),
-                    score=score, residual_variance=float(resid @ resid) / resid.size, candidates_tried=M)
-                if best[i] is None or cand.score < best[i].score:  # type: ignore[union-attr]
-                    best[i] = cand
-            del P, P_val
+    with threadpool_limits(limits=1, user_api="blas"):  # many small QRs: threads only wait (see search)
+        best = _select_paths(space, crit, X, U, Y, Y_val, atoms, table, bias, est_rows, val_rows, n_val, max_terms,
+                             M, terms, n)
     for i, nr in enumerate(best):
         if nr is None:
             raise ValueError(f"{snames[i]}: no candidate explains any of x{i + 1}(k+1) (every column is zero)")
