@@ -169,7 +169,7 @@ def dead_times(experiments: Sequence[Experiment], max_dead_time: int) -> tuple[i
         return ()
     D = min(max_dead_time, max(0, T // 10))
     scale = DataRange.of(experiments).sigma
-    bad = ~valid.all(axis=1)
+    bad = np.asarray(~valid.all(axis=1))
     ks = np.arange(max(D, 1), T - 1)
     keep = ~(bad[ks + 1] | bad[ks] | bad[ks - 1])
     for b in starts:
@@ -279,7 +279,7 @@ class SearchResult:
             if not math.isfinite(sc.score):
                 break
             mark = "*" if s == self.chosen else " "
-            lines.append(f"  {mark}{rank:3d}  {sc.score:13.4g}  {float(np.mean(sc.validation.one_rrse)):13.4g}  "
+            lines.append(f"  {mark}{rank:3d}  {sc.score:13.4g}  {sc.one_step:13.4g}  "
                          f"{sc.terms:5d}  {sc.describe()}" + ("  (max_terms reached)" if sc.capped else ""))
         if self.chosen not in order[:8]:
             sc = self.scores[self.chosen]
@@ -525,8 +525,8 @@ def _search(estimation: Sequence[Experiment], validation: Sequence[Experiment], 
         sel = _select(scored[s].space, est, crit, max_terms, names)
         versions: list[tuple[IdentifierConfig, Refinement | None]] = []
         if refine_weights:
-            ref = refine(sel.config(), searched, data_range)
-            versions.append((ref.config, ref))
+            refined = refine(sel.config(), searched, data_range)
+            versions.append((refined.config, refined))
         versions.append((sel.config(), None))  # least squares may predict and simulate better together
         for config, ref in versions:
             runs = [free_run_of(config, ex, data_range) for ex in searched]

@@ -1402,10 +1402,10 @@ def tune(
                 best_structure = settings
                 best_selection = selector.selection(len(problem.folds) - 1, settings)
     kept_base: str | None = None
-    base_free, best_free = problem.free_run_score(config), None
-    if best_score is not None and free_run_guard:
+    base_free, best_free = problem.free_run_score(config), math.nan
+    if best_score is not None:
         best_free = problem.free_run_score(best_config)
-        if base_free < 1.0 and best_free > base_free * (1.0 + FREE_RUN_TOLERANCE):
+        if free_run_guard and base_free < 1.0 and best_free > base_free * (1.0 + FREE_RUN_TOLERANCE):
             kept_base = (f"the best trial's held-out free run (mean RRSE {best_free:.4g}) is worse than the base "
                          f"config's ({base_free:.4g}): the base config is kept")
             best_score, best_trial, best_config = None, None, config

@@ -217,10 +217,16 @@ def _experiments(args: argparse.Namespace, names: ConfigFile, suffix: str, state
 
 
 def _tuned(config: IdentifierConfig, tuning: dict[str, float | None]) -> IdentifierConfig:
-    changes = {k: v for k, v in tuning.items() if v is not None}
-    if not changes:
+    if all(v is None for v in tuning.values()):
         return config
-    return config.replace(neurons=tuple(replace(nr, **changes) for nr in config.neurons))
+
+    def given(key: str, own: float | np.ndarray) -> float | np.ndarray:
+        value = tuning[key]
+        return own if value is None else value
+
+    return config.replace(neurons=tuple(replace(nr, p0=given("p0", nr.p0), q=given("q", nr.q),
+                                                r=nr.r if tuning["r"] is None else tuning["r"])
+                                        for nr in config.neurons))
 
 
 def run(args: argparse.Namespace) -> int:
