@@ -131,6 +131,9 @@ class CandidateSpace:
         The shallowest input tap: an input dead time of d samples makes the
         taps below d carry nothing, so a search past a dead time need not pay
         for them (0 by default).
+    extra_delays:
+        State taps beyond the grid above (a state delay found by a scan, far
+        deeper than the short taps), none by default.
     activations, betas:
         The grid of S searched: every activation with every beta.
     """
@@ -143,6 +146,7 @@ class CandidateSpace:
     activations: tuple[Activation, ...] = (Activation.BIPOLAR, Activation.LOGISTIC)
     betas: tuple[float, ...] = (1.0,)
     input_min_delay: int = 0
+    extra_delays: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         check_int("max_delay", self.max_delay, 0, 254)
@@ -150,6 +154,10 @@ class CandidateSpace:
         check_int("degree", self.degree, 1, 4)
         check_int("input_max_delay", self.input_max_delay, 0, 254)
         check_int("input_min_delay", self.input_min_delay, 0, self.input_max_delay)
+        if not isinstance(self.extra_delays, tuple):
+            raise fail("extra_delays", f"expected a tuple of state delays, got {self.extra_delays!r}")
+        for e, d in enumerate(self.extra_delays):
+            check_int(f"extra_delays[{e}]", d, 1, 254)
         if not isinstance(self.factors, tuple) or not self.factors:
             raise fail("factors", "expected a non-empty tuple of factor kinds")
         for f, name in enumerate(self.factors):
@@ -178,12 +186,12 @@ class CandidateSpace:
         taps = set(range(0, self.max_delay + 1, self.delay_step))
         if self.delay_step > 1 and self.max_delay >= 1:
             taps.add(1)
-        return tuple(sorted(taps))
+        return tuple(sorted(taps | set(self.extra_delays)))
 
     @property
     def window(self) -> int:
         """Samples of history a candidate reads (the deepest tap of any kind)."""
-        return max(self.max_delay, self.input_max_delay if "u" in self.factors else 0)
+        return max(self.delays[-1], self.input_max_delay if "u" in self.factors else 0)
 
 
 # An atom: (kind, index, delay); a candidate term is a sorted tuple of atoms (repeats are powers).
@@ -568,7 +576,7 @@ def check_capacity(space: CandidateSpace, n: int, m: int, max_terms: int) -> Non
     over("max_terms", max_terms, "RHONN_MAX_TERMS")
     over("degree", space.degree, "RHONN_MAX_FACTORS")
     over("degree", space.degree, "RHONN_MAX_POWER")
-    over("max_delay", space.max_delay, "RHONN_MAX_DELAY")
+    over("max_delay", space.delays[-1], "RHONN_MAX_DELAY")
     over("input_max_delay", space.input_max_delay, "RHONN_MAX_DELAY")
 
 

@@ -17,7 +17,7 @@ from pyrhonn.config import Factor, IdentifierConfig, NeuronConfig
 from pyrhonn.configfile import load_config
 from pyrhonn.experiments import Experiment, hold_out, merge
 from pyrhonn.refine import DataRange, free_run_of, refine
-from pyrhonn.search import SearchGrid, dead_times, search, validate
+from pyrhonn.search import SearchGrid, dead_times, search, state_delay, validate
 from pyrhonn.structure import CandidateSpace, select
 
 DEAD = 3
@@ -221,3 +221,43 @@ def test_when_no_model_simulates_the_search_falls_back_to_the_one_step_error(mon
     assert found.scores[found.chosen].one_step == best and best < 1e-3
     assert any("does not simulate" in note for note in found.notes)
     assert "does not simulate" in found.report(["y"], ["u"])
+
+
+def delayed_plant(T: int, seed: int, delay: int = 12) -> Experiment:
+    """y(k+1) = 0.5 y(k) + 0.4 y(k-delay) + u(k): a state delay far beyond the grid's short taps."""
+    rng = np.random.default_rng(seed)
+    u = np.repeat(rng.uniform(-1.0, 1.0, T // 4 + 1), 4)[:T]
+    y = np.zeros(T)
+    for k in range(delay, T - 1):
+        y[k + 1] = 0.5 * y[k] + 0.4 * y[k - delay] + u[k]
+    return Experiment(y[:, None], u[:, None], np.ones((T, 1), dtype=bool), name=f"delayed{seed}")
+
+
+def test_a_deep_state_delay_is_found_and_searched() -> None:
+    est, val = delayed_plant(1000, 1), delayed_plant(1000, 2)
+    assert state_delay([est], 3, 30, (0,)) == 12
+    assert state_delay([plant(800, 8)], 3, 30, (DEAD,)) is None  # no delay: no spurious deep tap
+    found = search([est], grid=SMALL_GRID, state_names=["y"], input_names=["u"])
+    assert found.state_delay == 12
+    assert any(sc.space.extra_delays == (12,) for sc in found.scores)
+    assert found.config.max_delay == 12
+    assert validate(found.config, [val], DataRange.of([est])).score < 1e-3
+    assert "state delay beyond the short taps: 12 samples" in found.report(["y"], ["u"])
+
+
+def test_a_chaotic_plant_is_chosen_by_its_one_step_error() -> None:
+    # the logistic map: every model's free run loses the phase, so no free run beats the mean
+    T = 1000
+    y = np.empty(T)
+    y[0] = 0.3
+    for k in range(T - 1):
+        y[k + 1] = 3.9 * y[k] * (1.0 - y[k])
+    rng = np.random.default_rng(0)
+    y += 1e-4 * rng.standard_normal(T)  # measurement noise: a free run loses the phase within tens of samples
+    ex = Experiment(y[:, None], rng.uniform(-1e-3, 1e-3, (T, 1)), np.ones((T, 1), dtype=bool), "logistic")
+    found = search([ex], grid=SearchGrid(factor_sets=(("x", "1"),), max_degree=2, max_delay=1, input_taps=0),
+                   state_names=["y"], input_names=["u"])
+    assert found.by_one_step and found.refinement is None
+    assert min(sc.score for sc in found.scores) >= 0.95
+    assert found.in_sample.one_rrse[0] < 1e-3  # y(k+1) = 3.9 y - 3.9 y^2, recovered one step ahead
+    assert any("clearly beats the data's mean" in note for note in found.notes)

@@ -334,9 +334,11 @@ def _search_json(found: SearchResult, states: tuple[str, ...]) -> dict[str, obje
         "ranked_on": list(found.validation_rows),
         "ranked_by": "blocked cross-validation of the estimation data" if found.held_out else "validation data",
         "input_dead_times": list(found.dead_times),
+        "state_delay": found.state_delay,
+        "chosen_by": "one-step error (no model simulates)" if found.by_one_step else "free run",
         "spaces": [{"factors": list(sc.space.factors), "degree": sc.space.degree, "max_delay": sc.space.max_delay,
                     "input_taps": [sc.space.input_min_delay, sc.space.input_max_delay] if "u" in sc.space.factors
-                    else None, "terms": sc.terms, "status": sc.status, "max_terms_reached": sc.capped,
+                    else None, "extra_state_delays": list(sc.space.extra_delays), "terms": sc.terms, "status": sc.status, "max_terms_reached": sc.capped,
                     "free_run_rrse": json_value(sc.score),
                     "one_step_rrse": None if sc.validation is None else json_value(float(np.mean(sc.validation.one_rrse)))}
                    for sc in found.scores],
