@@ -480,6 +480,12 @@ def _pooled(parts: list[Validation]) -> Validation:
                       scored=sum(v.scored for v in parts), left_range=left)
 
 
+def _in_dtype(sel: Selection, config: IdentifierConfig, dtype: str) -> IdentifierConfig:
+    """``config`` (its w0) with the P0 and Q :meth:`Selection.config` gives for ``dtype``."""
+    fresh = sel.config(dtype=dtype)
+    return fresh.replace(neurons=tuple(replace(f, w0=c.w0_vector()) for f, c in zip(fresh.neurons, config.neurons)))
+
+
 def _by_one_step(scored: list[SpaceScore], est: list[Experiment], searched: list[Experiment],
                  data_range: DataRange, crit: Criterion, max_terms: int, names: tuple[Sequence[str], Sequence[str]],
                  dtype: str, dead: tuple[int, ...], val_rows: tuple[str, ...], user_val: list[Experiment],
@@ -497,7 +503,7 @@ def _by_one_step(scored: list[SpaceScore], est: list[Experiment], searched: list
     notes = notes + [f"{why}: the structure was chosen by the one-step error on the validation rows, with "
                      "least-squares weights; this model predicts one step ahead but does not simulate"]
     return SearchResult(
-        selection=sel, config=config.replace(dtype=dtype), scores=tuple(scored), chosen=chosen,
+        selection=sel, config=_in_dtype(sel, config, dtype), scores=tuple(scored), chosen=chosen,
         validation=validate(config, user_val, data_range) if user_val else None,
         in_sample=validate(config, est, data_range), refinement=None, dead_times=dead,
         fit_rows=tuple(f"{ex.name} rows {ex.rows}" for ex in est), validation_rows=val_rows, held_out=not user_val,
@@ -637,7 +643,7 @@ def _search(estimation: Sequence[Experiment], validation: Sequence[Experiment], 
         notes.append(f"a neuron's selection reached max_terms ({max_terms}): the criterion did not stop it; "
                      "raise max_terms to let it decide")
     return SearchResult(
-        selection=sel, config=config.replace(dtype=dtype), scores=tuple(scored), chosen=chosen,
+        selection=sel, config=_in_dtype(sel, config, dtype), scores=tuple(scored), chosen=chosen,
         validation=final_val, in_sample=validate(config, est, data_range), refinement=refinement,
         dead_times=dead, fit_rows=tuple(f"{ex.name} rows {ex.rows}" for ex in est), validation_rows=val_rows,
         held_out=held_out, search_samples=sum(ex.n_samples for ex in searched),

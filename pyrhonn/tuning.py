@@ -910,7 +910,9 @@ class _Selector:
 
     def configs(self, settings: Mapping[str, int]) -> list[IdentifierConfig]:
         """The selected config of every fold (its own P0, Q, R, w0; the problem's dtype)."""
-        return [self.selection(f, settings).config(dtype=self.problem.dtype) for f in range(len(self.problem.folds))]
+        # the scalar P0 form: trials scale each neuron's P0 by a factor
+        return [self.selection(f, settings).config(dtype=self.problem.dtype, p0_form="scalar")
+                for f in range(len(self.problem.folds))]
 
 
 # -- the study ---------------------------------------------------------------------------------------------

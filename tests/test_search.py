@@ -87,7 +87,9 @@ def test_refinement_lowers_the_free_run_error_and_changes_only_w0() -> None:
     ref = refine(base, [est])
     assert ref.cost_after < ref.cost_before
     for a, b in zip(base.neurons, ref.config.neurons):
-        assert a.terms == b.terms and (a.p0, a.q, a.r, a.activation, a.beta) == (b.p0, b.q, b.r, b.activation, b.beta)
+        assert a.terms == b.terms and (a.r, a.activation, a.beta) == (b.r, b.activation, b.beta)
+        np.testing.assert_array_equal(a.p0_matrix(), b.p0_matrix())
+        np.testing.assert_array_equal(a.q_diagonal(), b.q_diagonal())
     assert not np.array_equal(base.neurons[0].w0_vector(), ref.config.neurons[0].w0_vector())
     # the refined model also simulates a record it was not fitted on better
     val = plant(600, 5)
@@ -193,7 +195,9 @@ def test_identify_prints_small_and_huge_errors_in_significant_digits(tmp_path: P
     data = tmp_path / "run.csv"
     write_csv(data, plant(500, 16))
     cfg = tmp_path / "cfg.toml"
-    assert main(["select", str(data), "--states", "y", "--inputs", "u", "--out", str(cfg), "--no-refine"]) == 0
+    # P0 = 1e-30, Q = 0: the online filter keeps the exact least-squares weights
+    assert main(["select", str(data), "--states", "y", "--inputs", "u", "--out", str(cfg), "--no-refine",
+                 "--p0", "1e-30", "--q", "0"]) == 0
     capsys.readouterr()
     assert main(["identify", str(data), "--config", str(cfg), "--out", str(tmp_path / "id"), "--no-plots",
                  "--free-run-from", "100"]) == 0
@@ -261,3 +265,32 @@ def test_a_chaotic_plant_is_chosen_by_its_one_step_error() -> None:
     assert min(sc.score for sc in found.scores) >= 0.95
     assert found.in_sample.one_rrse[0] < 1e-3  # y(k+1) = 3.9 y - 3.9 y^2, recovered one step ahead
     assert any("clearly beats the data's mean" in note for note in found.notes)
+
+
+def test_learning_online_after_select_continues_the_fit_instead_of_undoing_it() -> None:
+    # the cascaded tanks (real data): a slow plant whose model has a pole near 1, so that weights moved
+    # beyond their uncertainty by a few EKF steps stop it simulating
+    rows = np.genfromtxt(Path(__file__).resolve().parents[1] / "bench" / "data" / "cascaded_tanks" /
+                         "dataBenchmark.csv", delimiter=",", names=True)
+    yE, uE, yV, uV = (np.ascontiguousarray(rows[k])[:, None] for k in ("yEst", "uEst", "yVal", "uVal"))
+    space = CandidateSpace(factors=("x", "u", "1"), degree=3, max_delay=1, input_min_delay=6, input_max_delay=8)
+    sel = select(yE, uE, space=space)
+
+    def free_run_rmse(config: IdentifierConfig, learn_until: int) -> float:
+        from pyrhonn import Identifier
+        from pyrhonn.simulation import simulate
+        ident = Identifier(config)
+        with np.errstate(all="ignore"):
+            sim = simulate(ident, yV, uV, None, free_run_from=learn_until)  # learning on before learn_until
+        e = sim.free_run[learn_until:, 0] - yV[learn_until:, 0]
+        with np.errstate(over="ignore"):  # a free run that has left for good
+            return float(np.sqrt(np.mean(e ** 2)))
+
+    fit = sel.config()
+    assert isinstance(fit.neurons[0].p0, np.ndarray)  # the least-squares covariance, not a diagonal
+    frozen = validate(fit, [Experiment(yV, uV, np.ones(yV.shape, dtype=bool), "val")], DataRange.of(
+        [Experiment(yE, uE, np.ones(yE.shape, dtype=bool), "est")])).free_rmse[0]
+    for K in (20, 100, 300):
+        assert free_run_rmse(fit, K) < 1.2 * frozen
+    # the per-weight form, after 20 learning steps, no longer simulates
+    assert not free_run_rmse(sel.config(p0_form="scalar"), 20) < 3.0 * frozen
