@@ -166,7 +166,7 @@ def _refuse_overwriting_inputs(outputs: Sequence[Path], inputs: Sequence[tuple[s
 
 
 @dataclass(frozen=True)
-class Experiment:
+class ValidationRun:
     """One validation file: its data, the frozen identifier's predictions and their scores."""
 
     source: str
@@ -199,7 +199,7 @@ def _simulate(cfg: IdentifierConfig, cf: ConfigFile, data: Data, source: str, co
 
 
 def _experiment(cfg: IdentifierConfig, cf: ConfigFile, data: Data, source: str, config_source: str,
-                K: int, H: int) -> Experiment:
+                K: int, H: int) -> ValidationRun:
     sim = _simulate(cfg, cf, data, source, config_source, K, H)
     assert sim.free_run is not None and sim.ahead is not None
     T = data.n_samples
@@ -225,7 +225,7 @@ def _experiment(cfg: IdentifierConfig, cf: ConfigFile, data: Data, source: str, 
                 entry["rmse"] = json_value(float(sc.rmse[j]))
                 entry["rrse"] = json_value(float(sc.rrse[j]))
             states[name][kind] = entry
-    return Experiment(source=source, data=data, sim=sim, first=first, estimates=estimates, diverged=diverged,
+    return ValidationRun(source=source, data=data, sim=sim, first=first, estimates=estimates, diverged=diverged,
                       states=states)
 
 
@@ -239,7 +239,7 @@ class StateResiduals:
     independence: dict[str, CorrelationTest]  #: per input name
 
 
-def _residual_stretches(experiments: Sequence[Experiment], j: int, K: int, D: int
+def _residual_stretches(experiments: Sequence[ValidationRun], j: int, K: int, D: int
                         ) -> tuple[list[np.ndarray], list[list[np.ndarray]]]:
     """State j's usable one-step residual stretches over every file, and each input cut the same way."""
     e_parts: list[np.ndarray] = []
@@ -254,7 +254,7 @@ def _residual_stretches(experiments: Sequence[Experiment], j: int, K: int, D: in
     return e_parts, u_parts
 
 
-def _residuals(experiments: Sequence[Experiment], cf: ConfigFile, K: int, D: int, L: int) -> dict[str, StateResiduals]:
+def _residuals(experiments: Sequence[ValidationRun], cf: ConfigFile, K: int, D: int, L: int) -> dict[str, StateResiduals]:
     out: dict[str, StateResiduals] = {}
     pieces = {name: _residual_stretches(experiments, j, K, D) for j, name in enumerate(cf.state_names)}
     for name, (e_parts, _) in pieces.items():
@@ -316,7 +316,7 @@ def _test_line(what: str, test: CorrelationTest, verdict: str) -> str:
             f"{test.allowed} by chance){peak}: {verdict}")
 
 
-def _report_lines(experiments: Sequence[Experiment], cf: ConfigFile, config_source: str, dtype: str, K: int, D: int,
+def _report_lines(experiments: Sequence[ValidationRun], cf: ConfigFile, config_source: str, dtype: str, K: int, D: int,
                   H: int, L: int, res: dict[str, StateResiduals]) -> list[str]:
     n, m = len(cf.state_names), len(cf.input_names)
     lines = [f"validated {config_source} ({dtype}, {_plural(n, 'state')}, {_plural(m, 'input')}) on "
@@ -364,7 +364,7 @@ def _report_lines(experiments: Sequence[Experiment], cf: ConfigFile, config_sour
     return lines
 
 
-def _min_fit_failures(experiments: Sequence[Experiment], cf: ConfigFile, kind: str, threshold: float,
+def _min_fit_failures(experiments: Sequence[ValidationRun], cf: ConfigFile, kind: str, threshold: float,
                       H: int) -> list[str]:
     failures: list[str] = []
     for ex in experiments:
@@ -389,7 +389,7 @@ def _min_fit_failures(experiments: Sequence[Experiment], cf: ConfigFile, kind: s
 # -- plots ------------------------------------------------------------------------------------------
 
 
-def _plot_compare(path: Path, name: str, j: int, experiments: Sequence[Experiment], H: int) -> None:
+def _plot_compare(path: Path, name: str, j: int, experiments: Sequence[ValidationRun], H: int) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -469,7 +469,7 @@ def run(args: argparse.Namespace) -> int:
     _refuse_overwriting_inputs([*written, out / atomic.MARKER],
                                [("the config file", config_source), *(("the data file", s) for s in args.data)])
 
-    experiments: list[Experiment] = []
+    experiments: list[ValidationRun] = []
     for source in args.data:
         data = read_data(source, cf, valid_suffix=suffix, config_source=config_source)
         T = data.n_samples
