@@ -294,3 +294,21 @@ def test_learning_online_after_select_continues_the_fit_instead_of_undoing_it() 
         assert free_run_rmse(fit, K) < 1.2 * frozen
     # the per-weight form, after 20 learning steps, no longer simulates
     assert not free_run_rmse(sel.config(p0_form="scalar"), 20) < 3.0 * frozen
+
+
+def test_search_and_select_take_recordings_with_dropouts(tmp_path: Path, capsys) -> None:
+    est = plant(900, 18)
+    valid = est.valid.copy()
+    valid[300:320, 0] = False
+    valid[650, 0] = False
+    X = np.where(valid, est.X, np.nan)
+    holed = Experiment(X, est.U, valid, "holed")
+    found = search([holed], grid=SMALL_GRID, state_names=["y"], input_names=["u"])
+    check = validate(found.config, [plant(600, 19)], DataRange.of([holed]))
+    assert check.left_range is None and check.score < 1e-3
+    data = tmp_path / "holed.csv"
+    lines = ["y,u,y_valid"] + [(repr(float(y)) if v else "") + f",{float(u)!r},{int(v)}"
+                               for y, u, v in zip(X[:, 0], est.U[:, 0], valid[:, 0])]
+    data.write_text("\n".join(lines) + "\n")
+    assert main(["select", str(data), "--states", "y", "--inputs", "u", "--out", str(tmp_path / "c.toml")]) == 0
+    assert "fitted on:" in capsys.readouterr().out
