@@ -1,7 +1,7 @@
 """``pyrhonn export``: write an identifier config as the C headers firmware builds with.
 
 ``pyrhonn export --config CFG --out tuned.h [--name tuned] [--dtype float32|float64]
-[--data DATA.csv [--valid-suffix _valid] [--warm-start]]``
+[--data DATA.csv [--fit-rows A:B] [--valid-suffix _valid] [--warm-start]]``
 
 Writes ``tuned.h`` (``static const rhonn_config tuned``) and ``tuned_capacity.h``
 (the smallest capacities that hold it, with ``sizeof(rhonn_t)``): see
@@ -11,7 +11,9 @@ Writes ``tuned.h`` (``static const rhonn_config tuned``) and ``tuned_capacity.h`
 - With ``--data`` the identifier first learns online over the recording
   (the format of ``pyrhonn identify``), and the trained weights and
   covariances become the exported w0 and P0: the firmware starts where the
-  recording left the identifier, its history empty.
+  recording left the identifier, its history empty. ``--fit-rows A:B``
+  learns samples A..B-1 only (the rest of the recording stays for
+  validation).
 - ``--warm-start`` (with ``--data``) exports the running state too
   (``tuned_warm`` for ``rhonn_warm_start``): the firmware continues the run
   bit for bit; the recording's last D + 1 samples must all be measured.
@@ -30,6 +32,7 @@ from ..configfile import load_named
 from ..datafile import check_suffix, read_data
 from ..export import capacity_path, export_header
 from ..identifier import Identifier, IdentifierError
+from .options import row_range
 
 __all__ = ["register", "run"]
 
@@ -46,6 +49,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--dtype", choices=DTYPES, help="precision of the firmware (default: the config's dtype)")
     p.add_argument("--data", metavar="DATA.csv", help="learn online over this recording first; export the trained "
                                                        "weights and covariances")
+    p.add_argument("--fit-rows", metavar="A:B",
+                   help="with --data: learn samples A..B-1 only (0-based; A or B may be left out)")
     p.add_argument("--valid-suffix", default="_valid", metavar="SUFFIX",
                    help="validity columns of --data are named <state><SUFFIX> (default: _valid)")
     p.add_argument("--warm-start", action="store_true",
@@ -60,6 +65,8 @@ def run(args: argparse.Namespace) -> int:
     name = args.name if args.name is not None else out.stem
     if args.warm_start and args.data is None:
         raise ValueError("--warm-start: needs --data (the recording whose running state is exported)")
+    if args.fit_rows is not None and args.data is None:
+        raise ValueError("--fit-rows: needs --data (the recording whose rows are learnt)")
     cf = load_named(args.config)
     cfg = cf.config if args.dtype in (None, cf.config.dtype) else cf.config.replace(dtype=args.dtype)
     try:
@@ -70,13 +77,17 @@ def run(args: argparse.Namespace) -> int:
     if args.data is not None:
         check_suffix(args.valid_suffix)
         data = read_data(args.data, cf, valid_suffix=args.valid_suffix, config_source=args.config)
+        a, b = row_range("--fit-rows", args.fit_rows, data.n_samples)
         X, U = data.in_dtype(cfg.dtype, cf.state_names, cf.input_names, args.data)
+        X, U, valid = X[a:b], U[a:b], data.valid[a:b]
         try:
-            ident.run(X, U if cfg.n_inputs else None, data.valid)
+            ident.run(X, U if cfg.n_inputs else None, valid)
         except IdentifierError as exc:
             raise ValueError(f"{args.data}: the identifier stopped: {exc}") from None
-        trained = f", trained online on {args.data} ({data.n_samples} samples)"
-        warm = (X, U if cfg.n_inputs else None, data.valid) if args.warm_start else None
+        rows = f"samples {a}..{b - 1} of {data.n_samples}" if (a, b) != (0, data.n_samples) else \
+            f"{data.n_samples} samples"
+        trained = f", trained online on {args.data} ({rows})"
+        warm = (X, U if cfg.n_inputs else None, valid) if args.warm_start else None
         try:
             export_header(ident, out, name, warm_start=warm)
         except ValueError as exc:

@@ -6,7 +6,7 @@ import math
 from contextlib import contextmanager
 from typing import Iterator
 
-__all__ = ["options_named", "real_option"]
+__all__ = ["options_named", "real_option", "row_range"]
 
 
 def real_option(option: str, text: str, *, positive: bool = False, nonnegative: bool = False) -> float:
@@ -36,3 +36,24 @@ def options_named(**options: str) -> Iterator[None]:
         if sep and field in options:
             raise ValueError(f"{options[field]}: {rest}") from None
         raise
+
+
+def row_range(option: str, text: str | None, n_samples: int) -> tuple[int, int]:
+    """``text`` ``"A:B"`` (samples A..B-1, 0-based; A or B may be left out) as ``(a, b)`` within
+    0..n_samples, at least 2 samples; None is every sample. ValueError ``"<option>: ..."`` otherwise."""
+    if text is None:
+        return 0, n_samples
+    a, sep, b = text.partition(":")
+    try:
+        lo = int(a) if a.strip() else 0
+        hi = int(b) if b.strip() else n_samples
+    except ValueError:
+        lo = hi = -1
+    if not sep or lo < 0 or hi < 0:
+        raise ValueError(f"{option}: expected A:B (samples A..B-1, 0-based), got {text!r}")
+    if b.strip() and hi <= lo:
+        raise ValueError(f"{option}: expected 0 <= A < B, got {text!r}")
+    hi = min(hi, n_samples)
+    if lo >= n_samples or hi - lo < 2:
+        raise ValueError(f"{option}: {text} leaves fewer than 2 of the {n_samples} samples")
+    return lo, hi

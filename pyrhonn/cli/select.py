@@ -54,7 +54,7 @@ from ..experiments import Experiment, merge
 from ..refine import DataRange
 from ..search import SearchResult, Validation, search, validate
 from ..structure import FACTOR_NAMES, CandidateSpace, Criterion, Selection, check_data, select
-from .options import real_option
+from .options import real_option, row_range
 
 __all__ = ["register", "run"]
 
@@ -173,23 +173,9 @@ def _space(args: argparse.Namespace) -> CandidateSpace:
                           activations=tuple(acts), betas=betas)
 
 
-def _fit_rows(text: str | None) -> tuple[int | None, int | None]:
-    if text is None:
-        return None, None
-    a, sep, b = text.partition(":")
-    if not sep:
-        raise ValueError(f"--fit-rows: expected A:B (samples A..B-1, 0-based), got {text!r}")
-    lo = _int("--fit-rows", a) if a.strip() else None
-    hi = _int("--fit-rows", b) if b.strip() else None
-    if (lo is not None and lo < 0) or (hi is not None and hi < 0) or (lo is not None and hi is not None and hi <= lo):
-        raise ValueError(f"--fit-rows: expected 0 <= A < B, got {text!r}")
-    return lo, hi
-
-
 def _experiments(args: argparse.Namespace, names: ConfigFile, suffix: str, states: tuple[str, ...],
                  inputs: tuple[str, ...]) -> tuple[list[Experiment], list[Experiment], list[Data]]:
     """The estimation and validation experiments the options name, each file checked line by line."""
-    lo, hi = _fit_rows(args.fit_rows)
     if args.validate_rest and args.fit_rows is None:
         raise ValueError("--validate-rest: needs --fit-rows (the samples outside them validate)")
     est: list[Experiment] = []
@@ -201,9 +187,10 @@ def _experiments(args: argparse.Namespace, names: ConfigFile, suffix: str, state
         files.append(data)
         whole = Experiment(data.X, data.U, data.valid, name=str(path))
         T = data.n_samples
-        a, b = 0 if lo is None else lo, T if hi is None else min(hi, T)
-        if a >= T or b - a < 2:
-            raise ValueError(f"--fit-rows: {path} has {T} samples; {args.fit_rows} leaves fewer than 2 to fit")
+        try:
+            a, b = row_range("--fit-rows", args.fit_rows, T)
+        except ValueError as exc:
+            raise ValueError(f"{exc} ({path})") from None
         est.append(whole.cut(a, b) if (a, b) != (0, T) else whole)
         if args.validate_rest:
             val += [whole.cut(s, e) for s, e in ((0, a), (b, T)) if e - s >= 2]
