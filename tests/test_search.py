@@ -312,3 +312,18 @@ def test_search_and_select_take_recordings_with_dropouts(tmp_path: Path, capsys)
     data.write_text("\n".join(lines) + "\n")
     assert main(["select", str(data), "--states", "y", "--inputs", "u", "--out", str(tmp_path / "c.toml")]) == 0
     assert "fitted on:" in capsys.readouterr().out
+
+
+def test_identify_reports_where_a_free_run_leaves_the_data(tmp_path: Path, capsys) -> None:
+    from pyrhonn.configfile import ConfigFile, dumps
+    data, cfg = tmp_path / "run.csv", tmp_path / "unstable.toml"
+    write_csv(data, plant(400, 20))
+    unstable = IdentifierConfig(n_states=1, n_inputs=1, neurons=(NeuronConfig(
+        terms=((Factor.x(0),), (Factor.u(0),)), w0=np.array([1.05, 0.5])),))
+    cfg.write_text(dumps(ConfigFile.from_config(unstable, state_names=("y",), input_names=("u",))))
+    assert main(["identify", str(data), "--config", str(cfg), "--out", str(tmp_path / "id"), "--no-plots",
+                 "--free-run-from", "10"]) == 0
+    out = capsys.readouterr().out
+    metrics = json.loads((tmp_path / "id" / "metrics.json").read_text())
+    line = metrics["free_run"]["left_range_at_line"]
+    assert line is not None and line > 12 and f"the free run left the data's range at line {line}" in out

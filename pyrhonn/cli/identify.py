@@ -78,6 +78,7 @@ from ..configfile import ConfigFile, load_named
 from ..datafile import Data, TIME_COLUMN, check_suffix, read_data, write_data
 from ..identifier import Identifier, IdentifierError
 from ..metrics import absolute_deviation, json_value
+from ..residuals import departure, divergence_range
 from ..simulation import Simulation, scores, simulate
 from . import bus_input
 
@@ -357,6 +358,15 @@ def run(args: argparse.Namespace) -> int:
         sections["free_run"]["from_line"] = int(data.lines[K])
         sections["free_run"]["diverged_at_line"] = (None if sim.free_run_diverged is None
                                                     else int(data.lines[sim.free_run_diverged]))
+        low, high = divergence_range(data.X, data.valid)
+        rows = np.zeros(T, dtype=bool)
+        rows[K:] = True
+        left = departure(sim.free_run.astype(np.float64), rows, low, high)
+        gone = [int(k) for k in left if k >= 0]
+        left_range = min(gone) if gone else None
+        sections["free_run"]["left_range_at_line"] = None if left_range is None else int(data.lines[left_range])
+        sections["free_run"]["range"] = ("a free run leaves the data's range at the first sample outside "
+                                         "[min - span, max + span] of a state's valid measurements in the file")
     if args.steps_ahead is not None:
         assert sim.ahead is not None
         H = args.steps_ahead
@@ -416,5 +426,8 @@ def run(args: argparse.Namespace) -> int:
     if K is not None and sim.free_run_diverged is not None:
         print(f"the free run diverged at line {int(data.lines[sim.free_run_diverged])} (its prediction was not "
               f"finite in {dtype}): its errors are inf")
+    elif K is not None and sections["free_run"]["left_range_at_line"] is not None:
+        print(f"the free run left the data's range at line {sections['free_run']['left_range_at_line']} (beyond "
+              "each state's measured range widened by its span): a model that does not simulate")
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
