@@ -114,5 +114,6 @@ def hold_out(experiment: Experiment, fraction: float) -> tuple[Experiment, Exper
     T = experiment.n_samples
     cut = int(round(T * (1.0 - f)))
     if cut < 2 or T - cut < 2:
-        raise fail("fraction", f"{T} samples cannot be split {1 - f:.2f} / {f:.2f}")
+        raise fail("fraction", f"{experiment.name}: {T} samples cannot be split {1 - f:.2f} / {f:.2f} (record "
+                               "more, or give validation data)")
     return experiment.cut(0, cut, f"{experiment.name} (fit)"), experiment.cut(cut, T, f"{experiment.name} (validate)")

@@ -521,8 +521,10 @@ def search(estimation: Sequence[Experiment], validation: Sequence[Experiment] = 
     that rank spaces (none: two blocked folds of the estimation experiments,
     each holding out ``holdout`` of every experiment, the last part in one
     fold and the first in the other). ``dtype`` is written to the config
-    (the search runs in float64). Raises ValueError when no space of the
-    grid gives a model whose free run stays in the data's range.
+    (the search runs in float64). Where no model simulates, the result is
+    chosen by the one-step error and says so (:attr:`SearchResult.by_one_step`);
+    ValueError only where no space of the grid gives a model at all, or for
+    bad arguments and data (naming them).
     """
     # Small least-squares problems by the thousand: BLAS threads only wait on each other (on a loaded
     # 2-CPU machine a 1,400 x 15 QR took 20 ms with two threads, 0.6 ms with one).

@@ -61,7 +61,7 @@ __all__ = ["register", "run"]
 _OPTIONS = {"max_delay": "--max-delay", "delay_step": "--delay-step", "degree": "--degree",
             "factors": "--factors", "input_max_delay": "--input-max-delay", "max_terms": "--max-terms",
             "holdout": "--holdout", "betas": "--beta", "activations": "--activation", "n_states": "--states", "n_inputs": "--inputs", "state_names": "--states",
-            "input_names": "--inputs", "p0": "--p0", "q": "--q", "r": "--r", "input_min_delay": "--input-max-delay"}
+            "input_names": "--inputs", "p0": "--p0", "q": "--q", "r": "--r", "input_min_delay": "--input-max-delay", "fraction": "--holdout"}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
