@@ -116,13 +116,20 @@ from pyrhonn.configfile import load_config
 from pyrhonn.datafile import read_data
 from pyrhonn.simulation import simulate
 
-try:
-    import sysidentpy
-    from sysidentpy.basis_function import Polynomial
-    from sysidentpy.model_structure_selection import FROLS
-    from sysidentpy.parameter_estimation import LeastSquares
-except ImportError:  # reported by main(): the baseline is part of this benchmark
-    sysidentpy = None
+
+
+def _sysidentpy() -> Any:
+    """The SysIdentPy package, or None (reported by main(): the baseline is part of this benchmark).
+    Imported when the baseline runs, not with this module: importing SysIdentPy sets matplotlib's global
+    rcParams (its plotting module), which would change every plot drawn later in the same process."""
+    try:
+        import sysidentpy
+        import sysidentpy.basis_function
+        import sysidentpy.model_structure_selection
+        import sysidentpy.parameter_estimation
+    except ImportError:
+        return None
+    return sysidentpy
 
 DATA = Path(__file__).resolve().parent / "data"
 STATE, INPUT = "y", "u"
@@ -362,8 +369,10 @@ def run_pyrhonn(ds: Dataset, folder: Path) -> tuple[dict[str, Any], np.ndarray |
 def frols(ds: Dataset, ylag: int, xlag: int) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
     """FROLS fitted on the estimation record; (figures, one-step, free run) on the validation record."""
     candidates = math.comb(ylag + xlag + DEGREE, DEGREE)  # products of up to DEGREE lagged signals, with 1
-    model = FROLS(order_selection=True, n_info_values=min(N_INFO, candidates), ylag=ylag, xlag=xlag,
-                  info_criteria="aic", estimator=LeastSquares(), basis_function=Polynomial(degree=DEGREE))
+    sid = _sysidentpy()
+    model = sid.model_structure_selection.FROLS(
+        order_selection=True, n_info_values=min(N_INFO, candidates), ylag=ylag, xlag=xlag, info_criteria="aic",
+        estimator=sid.parameter_estimation.LeastSquares(), basis_function=sid.basis_function.Polynomial(degree=DEGREE))
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -465,6 +474,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", metavar="FILE", help="also write every figure as JSON")
     ap.add_argument("--keep", metavar="DIR", help="keep the CSV files, configs and select reports in DIR")
     args = ap.parse_args(argv)
+    sysidentpy = _sysidentpy()
     if sysidentpy is None:
         print("bench_real_data: SysIdentPy is needed for the baseline (pip install 'sysidentpy>=0.9', or the "
               "bench extra: pip install '.[bench]')", file=sys.stderr)
