@@ -197,8 +197,15 @@ class NeuronConfig:
         about (2/3) L_i^3 more multiply-adds per step). Either way a step whose
         P_i(k+1) is not positive definite at the working precision is refused.
     forgetting:
-        lambda in (0, 1]: P_i <- (P_i - K_i z^T P_i) / lambda + Q_i. 1 (the
-        default) is eq. 7; below 1, old information fades geometrically.
+        lambda in (0, 1]: 1 (the default) is eq. 7; below 1, old information
+        fades geometrically, up to a ceiling c_i on the trace (``p_trace_max``
+        when set, else trace P_i(0)). With P+ = P_i - K_i z^T P_i::
+
+            P_i <- P+ / lambda + Q_i    when trace(P+) / lambda <= c_i
+            P_i <- P+ + Q_i             otherwise (eq. 7)
+
+        so a quiet stretch, where z visits few directions, grows P_i only
+        until it is as uncertain as it started, not without bound.
     p_trace_max:
         None (the default) or a ceiling on trace P_i, at least trace P_i(0): a
         P_i(k+1) above it is scaled down to it, so a long stretch without
@@ -206,6 +213,14 @@ class NeuronConfig:
     reset_after:
         0 (the default) or N >= 1: the N-th refused learning update in a row
         resets P_i to P_i(0) instead (weights kept) and the step goes on.
+    gate:
+        0 (the default: off) or a threshold >= 0 on the normalised innovation
+        squared: an update with ``e_i^2 / s_i > gate``, where
+        ``e_i = x_i(k) - xhat_i(k)`` (eq. 9) and ``s_i = R_i + z^T P_i z``
+        (eq. 8), is skipped (w_i and P_i unchanged, the step goes on) and
+        counted in :attr:`~pyrhonn.identifier.NeuronHealth.gated`. e^2/s is
+        chi-square with 1 degree of freedom for a consistent filter: 9 skips
+        0.27 % of good samples, so an outlier is not learned.
     """
 
     terms: tuple[Term, ...]
@@ -220,6 +235,7 @@ class NeuronConfig:
     forgetting: float = 1.0
     p_trace_max: float | None = None
     reset_after: int = 0
+    gate: float = 0.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.terms, tuple) or not self.terms:
@@ -289,6 +305,7 @@ class NeuronConfig:
                                           "shrink the starting covariance")
             object.__setattr__(self, "p_trace_max", ceiling)
         object.__setattr__(self, "reset_after", check_int("reset_after", self.reset_after, 0, 65535))
+        object.__setattr__(self, "gate", check_real("gate", self.gate, nonnegative=True))
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, NeuronConfig) and self.to_dict() == other.to_dict()
@@ -337,6 +354,7 @@ class NeuronConfig:
             "forgetting": self.forgetting,
             "p_trace_max": self.p_trace_max,
             "reset_after": self.reset_after,
+            "gate": self.gate,
         }
 
     @classmethod
@@ -344,7 +362,7 @@ class NeuronConfig:
         if not isinstance(data, Mapping):
             raise fail(path, f"expected a table, got {type(data).__name__}")
         known = {"terms", "activation", "beta", "p0", "q", "r", "eta", "w0", "covariance", "forgetting",
-                 "p_trace_max", "reset_after"}
+                 "p_trace_max", "reset_after", "gate"}
         unknown = set(data) - known
         if unknown:
             raise fail(path, f"unknown keys {sorted(unknown)}")
@@ -377,7 +395,7 @@ class NeuronConfig:
             return cls(terms=tuple(terms), activation=activation, beta=data.get("beta", 1.0), p0=p0, q=q,
                        r=data.get("r", 1.0), eta=data.get("eta", 1.0), w0=w0, covariance=covariance,
                        forgetting=data.get("forgetting", 1.0), p_trace_max=data.get("p_trace_max"),
-                       reset_after=data.get("reset_after", 0))
+                       reset_after=data.get("reset_after", 0), gate=data.get("gate", 0.0))
         except ValueError as exc:  # "p0[1]: ..." from the checks: the field, under this neuron's path
             raise ValueError(f"{path}.{exc}") from None
 

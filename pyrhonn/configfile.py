@@ -33,6 +33,8 @@ Example (every key that is not marked required is optional)::
     p_trace_max = 4e8                  # optional: ceiling on trace P, >= trace P0; default none
     reset_after = 3                    # optional: 0..65535; reset P to P0 at the N-th refused
                                        # update in a row (default 0: never)
+    gate = 9.0                         # optional: >= 0; skip an update whose e^2/s exceeds it
+                                       # (an outlier; default 0: off)
 
     [[neurons]]                        # required: exactly n_states tables, in state order
     terms = ["S(x1)", "S(x1)*S(x2)", "S(x1(k-1))^2", "x3", "u1", "1"]   # required, non-empty
@@ -55,8 +57,8 @@ Rules
   A tuning key set neither in the neuron nor in ``[defaults]`` takes the
   :class:`~pyrhonn.config.NeuronConfig` default (logistic, beta = 1, p0 = 1,
   q = 0, r = 1, eta = 1); files written by :func:`dumps` always set all six.
-  The covariance form and windup keys (``covariance``, ``forgetting``,
-  ``p_trace_max``, ``reset_after``) are off by default, so eq. 7 stays exact,
+  The covariance form, windup and gate keys (``covariance``, ``forgetting``,
+  ``p_trace_max``, ``reset_after``, ``gate``) are off by default, so eq. 7 stays exact,
   and :func:`dumps` writes them only where they are set.
 - **Numbers.** A real may be written as a TOML integer or float (``eta = 1``);
   booleans, strings and non-finite values (``inf``, ``nan``) are errors.
@@ -138,7 +140,7 @@ MAX_FILE_BYTES = 1 << 20  #: a config file is a few kB; a larger one is not a co
 
 TUNING_KEYS = ("activation", "beta", "p0", "q", "r", "eta")
 #: Covariance form and windup protection: optional, written by dumps only when not the default.
-PROTECTION_KEYS = ("covariance", "forgetting", "p_trace_max", "reset_after")
+PROTECTION_KEYS = ("covariance", "forgetting", "p_trace_max", "reset_after", "gate")
 
 _TOP_KEYS = ("format", "version", "n_states", "n_inputs", "dtype", "state_names", "input_names", "x0",
              "description", "defaults", "neurons", "bus")
@@ -448,6 +450,8 @@ def _tuning_value(path: str, key: str, value: object) -> Any:
         return check_real(path, value, positive=True)
     if key == "reset_after":
         return check_int(path, value, 0, 65535)
+    if key == "gate":
+        return check_real(path, value, nonnegative=True)
     raise AssertionError(key)  # pragma: no cover
 
 

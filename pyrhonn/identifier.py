@@ -58,7 +58,7 @@ _FIELD_NAMES = {
     1: "n_states", 2: "n_inputs", 3: "x0", 4: "terms", 5: "activation", 6: "beta", 7: "eta",
     8: "r", 9: "q", 10: "w0", 11: "p0", 12: "terms[{t}] factors", 13: "terms[{t}][{f}].kind",
     14: "terms[{t}][{f}].index", 15: "terms[{t}][{f}].delay", 16: "terms[{t}][{f}].power",
-    17: "covariance", 18: "forgetting", 19: "p_trace_max", 20: "reset_after",
+    17: "covariance", 18: "forgetting", 19: "p_trace_max", 20: "reset_after", 21: "gate",
 }
 
 
@@ -66,7 +66,7 @@ _FIELD_NAMES = {
 class NeuronHealth:
     """One neuron's filter health (``rhonn_health`` in ``rhonn.h``)."""
 
-    innovation: float   # e_i of the last learning update (eq. 9)
+    innovation: float   # e_i of the last learning update, committed or gated (eq. 9)
     nis: float          # e_i^2 / s_i of that update: about 1 on average when P_i is consistent
     trace_p: float      # trace of the committed P_i
     updates: int        # learning updates committed
@@ -74,6 +74,7 @@ class NeuronHealth:
     resets: int         # automatic covariance resets (reset_after)
     bounded: int        # updates whose P_i was scaled down to p_trace_max
     fail_run: int       # refused updates in a row, up to now
+    gated: int = 0      # updates skipped by the innovation gate (e_i^2 / s_i > gate)
 
 
 class IdentifierError(ValueError):
@@ -199,7 +200,7 @@ def clearly_indefinite(P: np.ndarray) -> float | None:
 def _float32_note(config: IdentifierConfig, field: int, neuron: int) -> str:
     """Why a float32 core refused a real-valued field that float64 accepts: the
     first value of that field that is beyond float32's range or rounds to 0."""
-    if config.dtype != "float32" or field not in (3, 6, 7, 8, 9, 10, 11, 18, 19):
+    if config.dtype != "float32" or field not in (3, 6, 7, 8, 9, 10, 11, 18, 19, 21):
         return ""
     if field == 3:
         values = config.x0_vector()
@@ -207,7 +208,7 @@ def _float32_note(config: IdentifierConfig, field: int, neuron: int) -> str:
         nr = config.neurons[neuron]
         values = {6: np.array([nr.beta]), 7: np.array([nr.eta]), 8: np.array([nr.r]), 9: nr.q_diagonal(),
                   10: nr.w0_vector(), 11: _packed(nr.p0_matrix()), 18: np.array([nr.forgetting]),
-                  19: np.array([nr.p_trace_max or 0.0])}[field]
+                  19: np.array([nr.p_trace_max or 0.0]), 21: np.array([nr.gate])}[field]
     f32 = np.finfo(np.float32)
     with np.errstate(over="ignore", under="ignore"):
         for v in np.asarray(values, dtype=np.float64):
@@ -223,9 +224,13 @@ def _float32_note(config: IdentifierConfig, field: int, neuron: int) -> str:
 
 
 def _unpacked(p: np.ndarray, L: int) -> np.ndarray:
+    """The symmetric matrix of a packed upper triangle, every entry's bits
+    as stored (a -0 stays -0: P + P.T would turn it into +0)."""
     P = np.zeros((L, L), dtype=p.dtype)
     P[np.triu_indices(L)] = p
-    return P + np.triu(P, 1).T
+    lower = np.tril_indices(L, -1)
+    P[lower] = P.T[lower]
+    return P
 
 
 _F = TypeVar("_F", bound=Callable[..., Any])
@@ -331,6 +336,7 @@ class Identifier:
             nc.forgetting = neuron.forgetting
             nc.p_trace_max = 0.0 if neuron.p_trace_max is None else neuron.p_trace_max
             nc.reset_after = neuron.reset_after
+            nc.gate = neuron.gate
             for t, term in enumerate(neuron.terms):
                 nc.terms[t].n_factors = len(term)
                 for f, fac in enumerate(term):
@@ -867,14 +873,14 @@ class Identifier:
         """Filter health of one neuron: the last innovation e_i, the normalised
         innovation squared e_i^2 / s_i (s_i = R_i + z^T P_i z, eq. 8), trace P_i
         and the counters of updates, refused updates, automatic covariance
-        resets and bounded covariances (since construction; :meth:`reset`
-        keeps them)."""
+        resets, bounded covariances and updates skipped by the innovation
+        gate (since construction; :meth:`reset` keeps them)."""
         i = self._neuron_index(neuron)
         h = self._ffi.new("rhonn_health *")
         self._check(self._lib.rhonn_get_health(self._net, i, h), "health")
         return NeuronHealth(innovation=float(h.innovation), nis=float(h.nis), trace_p=float(h.trace_p),
                             updates=int(h.updates), rejected=int(h.rejected), resets=int(h.resets),
-                            bounded=int(h.bounded), fail_run=int(h.fail_run))
+                            bounded=int(h.bounded), fail_run=int(h.fail_run), gated=int(h.gated))
 
     @property
     def healths(self) -> list[NeuronHealth]:

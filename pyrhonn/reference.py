@@ -69,9 +69,14 @@ class ReferenceIdentifier:
         w_i(k+1) = w_i(k) + eta_i K_i(k) e_i(k)                           (7)
         P_i(k+1) = P_i(k) - K_i(k) H_i^T P_i(k) + Q_i                     (7)
 
-    With a forgetting factor lambda < 1 the last line is
-    (P_i(k) - K_i(k) H_i^T P_i(k)) / lambda + Q_i, and with a ceiling
-    p_trace_max a P_i(k+1) of larger trace is scaled down to it. The
+    With a forgetting factor lambda < 1 the last line is bounded forgetting:
+    with P+ = P_i(k) - K_i(k) H_i^T P_i(k) and the ceiling c_i
+    (p_trace_max when set, else trace P_i(0)),
+    P_i(k+1) = P+ / lambda + Q_i when trace(P+) / lambda <= c_i, else
+    P+ + Q_i; with a ceiling p_trace_max a P_i(k+1) of larger trace is
+    then scaled down to it. With an innovation gate (``gate`` > 0), an
+    update whose e_i^2 / (R_i + H_i^T P_i H_i) exceeds it is skipped (w_i
+    and P_i unchanged). The
     config's covariance form (full or U D U^T) does not matter here: the
     reference always updates the full P_i, in float64; automatic resets
     (reset_after) are not modelled.
@@ -131,6 +136,9 @@ class ReferenceIdentifier:
         self._n, self._m = config.n_states, config.n_inputs
         self._depth = config.max_delay + 1  # rows x(k), x(k-1), .., x(k-l)
         self._q = [np.diag(nr.q_diagonal()) for nr in config.neurons]
+        # the ceiling of bounded forgetting: p_trace_max, else trace P_i(0)
+        self._ceiling = [nr.p_trace_max if nr.p_trace_max is not None else float(np.trace(nr.p0_matrix()))
+                         for nr in config.neurons]
         # neuron i reads its own state down to x_i(k - own_need[i] + 1); 0: not at all
         self._own_need = [max((f.delay + 1 for t in nr.terms for f in t
                                if f.kind in (FactorKind.S, FactorKind.X) and f.index == i), default=0)
@@ -204,10 +212,16 @@ class ReferenceIdentifier:
             s = nr.r + H @ g  # 1 / M_i, eq. 8
             if not (np.isfinite(s) and s > 0.0):
                 raise ValueError(f"neuron {i}: innovation R + z^T P z = {s!r} is not a positive finite number")
+            if nr.gate > 0.0 and e * e / s > nr.gate:
+                continue  # the innovation gate: an outlier is not learned
             K = g / s  # eq. 7
-            # eq. 7 with the windup options: (P - K H^T P) / lambda + Q, then
+            # eq. 7 with the windup options: bounded forgetting, P+ / lambda
+            # while trace(P+) / lambda stays within the ceiling, + Q, then
             # scaled down to the trace ceiling (lambda = 1, no ceiling: eq. 7)
-            p_new[i] = (P - np.outer(g, g) / s) / nr.forgetting + self._q[i]
+            p_plus = P - np.outer(g, g) / s
+            if nr.forgetting < 1.0 and np.trace(p_plus) / nr.forgetting <= self._ceiling[i]:
+                p_plus = p_plus / nr.forgetting
+            p_new[i] = p_plus + self._q[i]
             if nr.p_trace_max is not None and np.trace(p_new[i]) > nr.p_trace_max:
                 p_new[i] = p_new[i] * (nr.p_trace_max / np.trace(p_new[i]))
             w_new[i] = self._w[i] + nr.eta * e * K  # eq. 7

@@ -446,20 +446,23 @@ forgetting = 0.99
 terms = ["S(x1)", "u1"]
 p_trace_max = 8.0
 reset_after = 3
+gate = 9
 [[neurons]]
 terms = ["x2"]
 covariance = "full"
 """
     cf = loads(text)
     a, b = cf.config.neurons
-    assert (a.covariance, a.forgetting, a.p_trace_max, a.reset_after) == (CovarianceForm.UD, 0.99, 8.0, 3)
-    assert (b.covariance, b.forgetting, b.p_trace_max, b.reset_after) == (CovarianceForm.FULL, 0.99, None, 0)
+    assert (a.covariance, a.forgetting, a.p_trace_max, a.reset_after, a.gate) == (CovarianceForm.UD, 0.99, 8.0, 3, 9.0)
+    assert (b.covariance, b.forgetting, b.p_trace_max, b.reset_after, b.gate) == (CovarianceForm.FULL, 0.99, None, 0,
+                                                                                  0.0)
     again = loads(dumps(cf))
     assert again.config == cf.config
+    assert "gate = 9.0" in dumps(cf)
     plain = dumps(loads(text.replace('covariance = "ud"\n', "").replace("forgetting = 0.99\n", "")
                         .replace("p_trace_max = 8.0\n", "").replace("reset_after = 3\n", "")
-                        .replace('covariance = "full"\n', "")))
-    for key in ("covariance", "forgetting", "p_trace_max", "reset_after"):
+                        .replace('covariance = "full"\n', "").replace("gate = 9\n", "")))
+    for key in ("covariance", "forgetting", "p_trace_max", "reset_after", "gate"):
         assert key not in plain  # off: not written, eq. 7 exactly
 
 
@@ -470,6 +473,9 @@ covariance = "full"
     ("p_trace_max = 1.0", r"neurons\[0\]\.p_trace_max: 1\.0 is below trace P0 = 2"),
     ("reset_after = -2", r"neurons\[0\]\.reset_after: -2 out of range 0\.\.65535"),
     ("reset_after = 2.5", r"neurons\[0\]\.reset_after: expected an integer"),
+    ("gate = -1.0", r"neurons\[0\]\.gate: must be >= 0"),
+    ("gate = nan", r"neurons\[0\]\.gate: must be finite"),
+    ('gate = "9"', r"neurons\[0\]\.gate: expected a real number"),
 ])
 def test_bad_covariance_and_windup_keys_name_the_key(line: str, message: str) -> None:
     text = f"""format = "pyrhonn-config"

@@ -1,8 +1,10 @@
 """The covariance stays a covariance: after every step that returns RHONN_OK
 each committed P_i is positive definite at working precision, in float32
 first (the firmware's precision); the factored U D U^T form runs where the
-full form must refuse; windup protection bounds the gain after a quiet
-stretch; automatic recovery resets a neuron that keeps failing."""
+full form must refuse; the covariance read is one the setter accepts, and
+writing it back changes nothing; windup protection bounds the gain after a
+quiet stretch, and forgetting cannot blow P up there; automatic recovery
+resets a neuron that keeps failing."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -234,7 +236,9 @@ def test_protection_fields_are_validated_with_the_field_named() -> None:
                           (dict(forgetting=float("nan")), "forgetting"), (dict(p_trace_max=3.9), "p_trace_max"),
                           (dict(p_trace_max=-1.0), "p_trace_max"), (dict(reset_after=-1), "reset_after"),
                           (dict(reset_after=70000), "reset_after"), (dict(reset_after=1.0), "reset_after"),
-                          (dict(covariance="ud"), "covariance")]:
+                          (dict(covariance="ud"), "covariance"), (dict(gate=-1.0), "gate"),
+                          (dict(gate=float("nan")), "gate"), (dict(gate=float("inf")), "gate"),
+                          (dict(gate="9"), "gate")]:
         with pytest.raises(ValueError, match=rf"^{field}"):
             NeuronConfig(**base, **kwargs)
 
@@ -347,3 +351,145 @@ def test_a_population_skips_the_factorisation_only_where_it_proves_the_covarianc
                 if proven(a, i):
                     assert exactly_definite(a.get_covariance(i))
     assert all(proven(members[0], i) for i in full)
+
+
+# -- the covariance read is one the setter accepts (rhonn.h ROUND TRIP) ----------------------------
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+@pytest.mark.parametrize("form", [FULL, UD])
+@settings(max_examples=25, deadline=None)
+@given(config=configs(), seed=st.integers(0, 2**31 - 1), data=st.data())
+def test_a_covariance_read_is_accepted_back_and_writing_it_changes_nothing(config: IdentifierConfig, seed: int,
+                                                                          data: st.DataObject, form: CovarianceForm,
+                                                                          dtype: str) -> None:
+    """After every OK step, set_covariance(i, get_covariance(i)) succeeds for
+    every neuron and leaves the next predictions unchanged, bit for bit: the
+    identifier that does it and a twin that does not stay identical. Ill
+    conditioned on purpose (small R and Q, scaled data, forgetting), where
+    U D U^T formed in float32 used to come out indefinite. A U D U^T
+    neuron's P read is positive definite in float64 too."""
+    r = data.draw(st.sampled_from([1.0, 1e-3, 1e-6]))
+    q = data.draw(st.sampled_from([1e-2, 1e-6, 0.0]))
+    lam = data.draw(st.sampled_from([1.0, 0.99, 0.9]))
+    config = with_neurons(config.replace(dtype=dtype), covariance=form, r=r, q=q, forgetting=lam)
+    ident, twin = Identifier(config), Identifier(config)
+    X, U, valid = trajectory(seed, 80, config.n_states, config.n_inputs, dropout=0.1, dtype=dtype)
+    scale = data.draw(st.sampled_from([1.0, 1e3, 1e-3]))
+    X = np.where(valid, X * np.asarray(scale, dtype=dtype), X)
+    for k in range(80):
+        try:
+            want = twin.step(X[k], U[k], valid[k])
+        except IdentifierError as exc:
+            with pytest.raises(IdentifierError) as info:
+                ident.step(X[k], U[k], valid[k])
+            assert info.value.status == exc.status
+            continue
+        got = ident.step(X[k], U[k], valid[k])
+        assert got.tobytes() == want.tobytes()
+        for i in range(config.n_states):
+            P = ident.get_covariance(i)
+            if form is UD:
+                np.linalg.cholesky(P.astype(np.float64))  # definite, not only at working precision
+            ident.set_covariance(i, P)
+    assert snapshot(ident)[:3] == snapshot(twin)[:3]
+    assert [h.updates for h in ident.healths] == [h.updates for h in twin.healths]
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_a_factored_covariance_read_is_definite_where_its_plain_product_is_not(dtype: str) -> None:
+    """U D U^T factors of nearly singular covariances (d over 8 decades, |U|
+    up to 1e3), set with rhonn_set_factors: their product formed in float32
+    is often indefinite (the getter used to return it, and the setter then
+    refused it); what the getter reads passes a float64 Cholesky and both
+    setters (the identifier's own and another's), and writing it back keeps
+    the factors bit for bit."""
+    config = IdentifierConfig.uniform(terms.first_order(2, 1) + terms.bias(), n_states=2, n_inputs=1,
+                                      covariance=UD, dtype=dtype)
+    L = config.neurons[0].n_terms
+    ident, other = Identifier(config), Identifier(config)
+    lib, ffi = ident._lib, ident._ffi
+    rng = np.random.default_rng(5)
+    plain_indefinite = 0
+    for _ in range(500):
+        F = np.triu(rng.uniform(-1, 1, (L, L)) * 10.0 ** rng.uniform(0, 3, (L, L)), 1)
+        F[np.diag_indices(L)] = 10.0 ** rng.uniform(-6, 2, L)
+        packed = np.ascontiguousarray(F[np.triu_indices(L)].astype(dtype))
+        assert lib.rhonn_set_factors(ident._net, 0, ffi.from_buffer(ident._real_array, packed), packed.size) == 0
+        Fd = _unpacked_factors(packed, L)
+        Ud = np.triu(Fd, 1) + np.eye(L, dtype=Fd.dtype)
+        plain = (Ud * np.diag(Fd)) @ Ud.T  # the product at working precision
+        try:
+            np.linalg.cholesky(plain.astype(np.float64))
+        except np.linalg.LinAlgError:
+            plain_indefinite += 1
+        P = ident.get_covariance(0)
+        np.linalg.cholesky(P.astype(np.float64))
+        ident.set_covariance(0, P)
+        assert ident._stored_covariance(0).tobytes() == packed.tobytes()
+        other.set_covariance(0, P)
+    if dtype == "float32":
+        assert plain_indefinite > 0  # the case the getter repairs does occur
+
+
+def _unpacked_factors(packed: np.ndarray, L: int) -> np.ndarray:
+    F = np.zeros((L, L), dtype=packed.dtype)
+    F[np.triu_indices(L)] = packed
+    return F
+
+
+# -- forgetting cannot blow P up in a quiet stretch (rhonn.h WINDUP PROTECTION) ------------------
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+@pytest.mark.parametrize("form", [FULL, UD])
+@pytest.mark.parametrize("lam", [0.999, 0.99])
+def test_forgetting_survives_a_long_quiet_stretch_and_learns_every_excited_step_after(dtype: str,
+                                                                                    form: CovarianceForm,
+                                                                                    lam: float) -> None:
+    """Example 1 (eq. 20 tuning) with forgetting: 10^5 samples with x and u
+    held (float32, lambda 0.999, full form: refused for good from quiet
+    step 15,508 before the ceiling), then 1,000 excited samples: every one
+    learned by every neuron, none refused, every P finite and definite."""
+    config = with_neurons(load_shipped("example1").config.replace(dtype=dtype), forgetting=lam, covariance=form)
+    ident = Identifier(config)
+    X, U, _ = trajectory(7, 1100, 4, 1, dtype=dtype)
+    ident.run(X[:100], U[:100])
+    for _ in range(10):  # 10 x 10^4 quiet samples; run() raises on any refusal
+        ident.run(np.repeat(X[99:100], 10_000, axis=0), np.repeat(U[99:100], 10_000, axis=0))
+        for P in ident.covariances:
+            assert np.all(np.isfinite(P))
+            np.linalg.cholesky(P.astype(np.float64))
+    before = [h.updates for h in ident.healths]
+    for k in range(100, 1100):
+        ident.step(X[k], U[k])
+        for P in ident.covariances:
+            assert np.all(np.isfinite(P))
+            np.linalg.cholesky(P.astype(np.float64))
+    assert [h.updates - b for h, b in zip(ident.healths, before)] == [1000] * 4
+    assert all(h.rejected == 0 for h in ident.healths)
+
+
+@pytest.mark.parametrize("form", [FULL, UD])
+def test_without_q_forgetting_keeps_trace_p_within_trace_p0(form: CovarianceForm) -> None:
+    """Bounded forgetting's ceiling (trace P_i(0) here): a quiet stretch
+    grows the unexcited directions only until trace P_i is back to where it
+    started, and the core follows the NumPy reference through it."""
+    config = IdentifierConfig.uniform(terms.first_order(3, 1) + terms.bias(), n_states=3, n_inputs=1,
+                                      activation=Activation.BIPOLAR, beta=0.5, p0=10.0, q=0.0, r=0.1,
+                                      covariance=form, forgetting=0.95)
+    ident, ref = Identifier(config), ReferenceIdentifier(config)
+    X, U, _ = trajectory(11, 600, 3, 1)
+    U[100:500] = U[100]
+    X[100:500] = X[100]  # quiet
+    np.testing.assert_allclose(ident.run(X, U), ref.run(X, U), rtol=1e-8, atol=1e-10)
+    for P, Pr in zip(ident.covariances, ref.covariances):
+        np.testing.assert_allclose(P, Pr, rtol=1e-7, atol=1e-9)
+    ident.reset()
+    traces = []
+    for k in range(500):
+        ident.step(X[k], U[k])
+        traces.append(max(h.trace_p for h in ident.healths))
+    assert max(traces) <= 50.0 * (1 + 1e-12)  # trace P(0) = 5 x 10
+    # the quiet stretch reached the ceiling: forgetting there keeps trace P in [lambda c, c]
+    assert min(traces[400:500]) > 0.95 * 50.0 * 0.99

@@ -106,7 +106,7 @@ def example_config(dtype: str, delays: bool = True, **protection) -> IdentifierC
         n_states=3, n_inputs=2, dtype=dtype, p0=100.0, q=1e-3, r=0.2, beta=0.9, **protection)
 
 
-PROTECTION = dict(covariance=CovarianceForm.UD, forgetting=0.995, p_trace_max=4000.0, reset_after=2)
+PROTECTION = dict(covariance=CovarianceForm.UD, forgetting=0.995, p_trace_max=4000.0, reset_after=2, gate=25.0)
 
 
 @pytest.mark.parametrize("protection", [{}, PROTECTION])
@@ -129,6 +129,9 @@ def test_exported_header_reproduces_python_predictions_bit_for_bit(tmp_path: Pat
     text = header_text(trained, "EXPORTED")
     form = "RHONN_COV_UD" if protection else "RHONN_COV_FULL"
     assert text.count(f"{form}, /* covariance */") == 2 * 3  # both literal branches, every neuron
+    gate = "0x1.9000000000000p+4" if protection else "0x0.0p+0"  # 25.0: the innovation gate travels too
+    assert sum(line.strip().startswith(gate) and line.endswith("/* gate (0: off) */")
+               for line in text.splitlines()) == 3
 
 
 # -- C++ -------------------------------------------------------------------------------------------

@@ -216,8 +216,10 @@ def _trace_p0(neuron) -> float:
 
 
 def test_health_frames_carry_the_bounded_covariance_count_of_a_trace_ceiling() -> None:
-    # forgetting inflates P_i each step; the ceiling scales it back: "bounded" counts it
-    config = CONFIG.replace(neurons=tuple(dataclasses.replace(n, forgetting=0.9, p_trace_max=1.5 * _trace_p0(n))
+    # a large Q piles up in P_i each step (forgetting stops at the ceiling, rhonn.h); the
+    # ceiling scales P_i back: "bounded" counts it
+    config = CONFIG.replace(neurons=tuple(dataclasses.replace(n, forgetting=0.9, p_trace_max=1.5 * _trace_p0(n),
+                                                              q=_trace_p0(n) / n.n_terms)
                                           for n in CONFIG.neurons))
     app = FirmwareApp(None, config)
     ref = Identifier(config)

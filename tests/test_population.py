@@ -98,6 +98,25 @@ def test_identifiers_continue_from_their_state_and_end_in_the_single_runs_state(
         assert same_bits(members[k].step(X[5], U[5]), alone[k].step(X[5], U[5]))
 
 
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_members_with_an_innovation_gate_equal_their_single_runs(dtype: str) -> None:
+    """A gate (not run in the lanes) makes the population N single runs: the
+    same predictions and states, bit for bit, the gates counted alike."""
+    base = load_shipped("firmware-lim").config.replace(dtype=dtype)
+    configs = variants(base, 4)
+    configs[1] = configs[1].replace(neurons=tuple(replace(nr, gate=4.0) for nr in configs[1].neurons))
+    X, U, valid = trajectory(base, T=400)
+    X = X.copy()
+    X[200, 1] += np.asarray(50.0, dtype=dtype)  # an outlier
+    members, alone = [Identifier(c) for c in configs], [Identifier(c) for c in configs]
+    got = run_identifiers(members, X, U, valid)
+    for k in range(len(configs)):
+        assert same_bits(got[k], alone[k].run(X, U, valid)), f"member {k}: predictions differ"
+        assert state(members[k]) == state(alone[k]), f"member {k}: final state differs"
+    assert sum(h.gated for h in members[1].healths) > 0
+    assert all(h.gated == 0 for k in (0, 2, 3) for h in members[k].healths)
+
+
 def test_one_config_runs_as_a_population_of_one() -> None:
     cfg = load_shipped("example1").config
     X, U, valid = trajectory(cfg, T=200)

@@ -29,7 +29,17 @@
  *     e_i^2 / (e_i^2 / s_i));
  *   - a call that does not return RHONN_OK leaves weights, covariances,
  *     prediction and history exactly as they were (only health counters and
- *     the fault diagnostic may change).
+ *     the fault diagnostic may change);
+ *   - the covariance rhonn_get_covariance reads is one rhonn_set_covariance
+ *     accepts, and writing it back (on a copy of the identifier) keeps the
+ *     stored covariance bit for bit; for the U D U^T form it is definite in
+ *     exact arithmetic (the long double factorisation, no allowance);
+ *   - the innovation gate: an update committed with e^2 / s above the
+ *     neuron's gate, or a gated update (health gated counted) that changed
+ *     the neuron's weights or covariance, aborts;
+ *   - bounded forgetting: without Q and without a trace bound, a step's
+ *     trace P_i is at most max(c_i, the trace before) (c_i = trace P_i(0)),
+ *     to rounding: forgetting never lifts it above its ceiling.
  */
 #include <stdint.h>
 #include <stdlib.h>
@@ -76,6 +86,9 @@ static void make_config(reader *r, rhonn_config *c)
                 tr += nc->p0[k];
             }
             nc->p_trace_max = tr * (rhonn_real)(1u + byte(r) % 8u);
+        }
+        if (flags & 0x40u) {
+            nc->gate = (rhonn_real)(1u + byte(r) % 30u);
         }
         read_terms(r, nc, c->n_states, c->n_inputs);
     }
@@ -188,6 +201,29 @@ static int exactly_definite(const rhonn_real *p, size_t L)
     return 1;
 }
 
+/* The covariance read is one the setter accepts, and writing it back keeps
+ * the stored covariance bit for bit (on a copy: a full-form P set from
+ * outside loses its proof of definiteness, which the fuzzing of the steps
+ * after would miss). */
+static void check_round_trip(const rhonn_t *net, size_t i, const rhonn_real *p, const rhonn_real *f, size_t np)
+{
+    static rhonn_t copy;
+    rhonn_real g[RHONN_MAX_PACKED];
+    size_t idx;
+    int finite = 1;
+    for (idx = 0; idx < np; ++idx) {
+        finite &= p[idx] - p[idx] == 0;
+    }
+    if (!finite) {
+        return; /* a product of finite factors that overflowed: no covariance to write */
+    }
+    copy = *net;
+    if (rhonn_set_covariance(&copy, i, p, np) != RHONN_OK || rhonn_get_factors(&copy, i, g, np) != RHONN_OK ||
+        memcmp(f, g, np * sizeof g[0]) != 0) {
+        abort(); /* the setter refused what the getter read, or the round trip changed it */
+    }
+}
+
 static void check_invariants(const rhonn_t *net, const uint32_t *updates_before)
 {
     const long double eps = sizeof(rhonn_real) == 4 ? 1.2e-7L : 2.3e-16L;
@@ -202,13 +238,20 @@ static void check_invariants(const rhonn_t *net, const uint32_t *updates_before)
             rhonn_get_health(net, i, &h) != RHONN_OK) {
             abort();
         }
+        check_round_trip(net, i, p, f, np);
         if (nc->covariance == RHONN_COV_UD) {
+            int finite = 1, normal = 1;
             for (r = 0, idx = 0; r < L; ++r) {
                 for (c = r; c < L; ++c, ++idx) {
                     if (f[idx] - f[idx] != f[idx] - f[idx] || (c == r && !(f[idx] > 0))) {
                         abort(); /* a factor D <= 0 or a non-finite U after RHONN_OK */
                     }
+                    finite &= p[idx] - p[idx] == 0;
+                    normal &= c != r || p[idx] >= (sizeof(rhonn_real) == 4 ? (rhonn_real)1.2e-38 : (rhonn_real)2.3e-308);
                 }
+            }
+            if (finite && normal && !exactly_definite(p, L)) {
+                abort(); /* the covariance read of a U D U^T neuron is not definite */
             }
         } else if (!cholesky_ok(p, L)) {
             abort(); /* a committed full P that is not positive definite */
@@ -226,6 +269,9 @@ static void check_invariants(const rhonn_t *net, const uint32_t *updates_before)
             if (s < (long double)nc->r * (1.0L - 16.0L * eps)) {
                 abort(); /* an update committed with s below R */
             }
+        }
+        if (updates_before != NULL && h.updates != updates_before[i] && nc->gate > 0 && h.nis > nc->gate) {
+            abort(); /* an update the gate should have skipped was committed */
         }
     }
 }
@@ -262,6 +308,46 @@ static void capture(const rhonn_t *net, filter_state *s)
     s->steps = net->steps;
 }
 
+/* After an OK step: a neuron the gate skipped kept its weights and
+ * covariance; a neuron that forgets without Q or a trace bound ended with
+ * trace P at most max(c_i, its trace before), c_i = trace P_i(0) (rhonn.h
+ * WINDUP PROTECTION), to rounding. */
+static void check_gate_and_ceiling(const rhonn_t *net, const filter_state *before, const uint32_t *gated,
+                                   const rhonn_real *traces)
+{
+    const long double eps = sizeof(rhonn_real) == 4 ? 1.2e-7L : 2.3e-16L;
+    size_t i;
+    for (i = 0; i < net->cfg.n_states; ++i) {
+        const rhonn_neuron_config *nc = &net->cfg.neurons[i];
+        const size_t L = nc->n_terms;
+        rhonn_health h;
+        size_t t, k;
+        int q_zero = 1;
+        if (rhonn_get_health(net, i, &h) != RHONN_OK) {
+            abort();
+        }
+        if (h.gated != gated[i] &&
+            (memcmp(net->w[i][net->bank[i]], before->w[i], L * sizeof(rhonn_real)) != 0 ||
+             memcmp(net->p[i][net->bank[i]], before->p[i], L * (L + 1u) / 2u * sizeof(rhonn_real)) != 0)) {
+            abort(); /* a gated update changed the neuron */
+        }
+        for (t = 0; t < L; ++t) {
+            q_zero &= nc->q[t] == 0;
+        }
+        if (q_zero && nc->p_trace_max == 0 && nc->forgetting > 0 && nc->forgetting < 1 &&
+            h.trace_p - h.trace_p == 0 && traces[i] - traces[i] == 0) {
+            long double c = 0, bound;
+            for (t = 0, k = 0; t < L; k += L - t, ++t) {
+                c += (long double)nc->p0[k];
+            }
+            bound = c > (long double)traces[i] ? c : (long double)traces[i];
+            if ((long double)h.trace_p > bound * (1.0L + 64.0L * (long double)L * eps)) {
+                abort(); /* forgetting lifted trace P above its ceiling */
+            }
+        }
+    }
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     static rhonn_t net;
@@ -279,12 +365,16 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     while (r.n > 0u && ops++ < 512u) {
         const uint8_t op = byte(&r);
         filter_state before, after;
-        uint32_t updates[RHONN_MAX_STATES];
+        uint32_t updates[RHONN_MAX_STATES], gated[RHONN_MAX_STATES];
+        rhonn_real traces[RHONN_MAX_STATES];
         rhonn_status st;
         size_t j;
         capture(&net, &before);
         for (j = 0; j < RHONN_MAX_STATES; ++j) {
+            rhonn_health h;
             updates[j] = net.health[j].updates;
+            gated[j] = net.health[j].gated;
+            traces[j] = j < cfg.n_states && rhonn_get_health(&net, j, &h) == RHONN_OK ? h.trace_p : 0;
         }
         switch (op % 8u) {
         case 5:
@@ -320,6 +410,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         }
         if (st == RHONN_OK) {
             check_invariants(&net, updates);
+            if (op % 8u <= 4u) {
+                check_gate_and_ceiling(&net, &before, gated, traces);
+            }
         } else {
             capture(&net, &after);
             if (memcmp(&before, &after, sizeof before) != 0) {

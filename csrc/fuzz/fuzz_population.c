@@ -72,6 +72,9 @@ static void tune_member(reader *r, rhonn_config *c, const rhonn_config *first)
             nc->p0[k] = positive(r, -3, 9);
         }
         nc->p_trace_max = (rhonn_real)0;
+        /* now and then (member 0, all flags set) an innovation gate: the
+         * population then runs as rhonn_run calls (rhonn_population.h) */
+        nc->gate = (first == NULL && flags == 0xFFu) ? (rhonn_real)(1u + byte(r) % 30u) : (rhonn_real)0;
         if (flags & 0x20u) {
             rhonn_real tr = 0;
             for (t = 0, k = 0; t < L; k += L - t, ++t) {

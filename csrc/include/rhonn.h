@@ -45,8 +45,23 @@
  * P_i factorised. The verdict is the factorisation's in every case.
 
  * WINDUP PROTECTION (per neuron, all off when zero, so eq. 7 stays exact):
- *   forgetting   lambda in (0, 1]: P_i <- (P_i - K_i z^T P_i) / lambda + Q_i
- *                (exponential forgetting of old information; 0 means 1)
+ *   forgetting   lambda in (0, 1]: exponential forgetting of old information,
+ *                bounded by the trace ceiling c_i (p_trace_max when set, else
+ *                trace P_i(0)). With P+ = P_i - K_i z^T P_i (eq. 7's
+ *                correction):
+ *                    P_i <- P+ / lambda + Q_i   when trace(P+) / lambda <= c_i
+ *                    P_i <- P+ + Q_i            otherwise (eq. 7 as written)
+ *                so forgetting alone never lifts trace P_i above c_i: in a
+ *                quiet stretch, where z visits few directions, the others
+ *                grow by 1 / lambda a step only until P_i is as uncertain as
+ *                it started, not without bound (which overflowed P or, in
+ *                the full form, made it indefinite after ~10^4 steps at
+ *                lambda = 0.999 in float). Where the filter is excited and
+ *                trace P+ / lambda stays below c_i (the usual regime),
+ *                every step forgets, as plain exponential forgetting does.
+ *                trace(P+) is the sum of P+'s diagonal as formed (U D U^T:
+ *                sum_j d_j (1 + sum_{i<j} U(i,j)^2)), in working precision;
+ *                0 or 1 means off
  *   p_trace_max  a ceiling on trace P_i: a P_i(k+1) above it is scaled by
  *                p_trace_max / trace P_i(k+1) (counted in rhonn_health.bounded),
  *                so a long unexcited stretch, where Q_i piles up in every
@@ -55,6 +70,18 @@
  *                times in a row, the next refusal resets its P_i to P_i(0)
  *                instead (weights kept, the update skipped, counted in
  *                rhonn_health.resets) and the step goes on
+ *
+ * INNOVATION GATE (per neuron, gate; 0 = off, so eq. 7 stays exact): an
+ * update whose normalised innovation squared nis_i = e_i^2 / s_i (eq. 8-9,
+ * s_i = R_i + z^T P_i z) exceeds gate is skipped: w_i and P_i stay as they
+ * were, the step goes on and returns RHONN_OK, and the skip is counted in
+ * rhonn_health.gated (innovation and nis record it; fail_run is unchanged:
+ * neither a refusal nor an update). For a consistent filter nis_i is
+ * chi-square with 1 degree of freedom, so gate = 9 skips 0.27 % of good
+ * samples, 10.83 0.1 %: an outlier (a spike, a stuck sensor's jump) is not
+ * learned. s_i is checked first (RHONN_E_INNOVATION), the gate before the
+ * weights are formed, so an outlier that would overflow them is skipped, not
+ * refused.
  *
  * ORDER OF ONE STEP (rhonn_step), for the sample k carrying x(k), u(k):
  *   1. Learn: for every neuron i whose measurement is valid, form
@@ -66,6 +93,7 @@
  *      counted down to its deepest one): then xhat_i(k) is the end of a free
  *      run of x_i, and e_i(k) is that run's accumulated drift, not a one-step
  *      error; learning it would kick w_i at the end of every dropout.
+ *      A neuron whose e_i^2 / s_i exceeds its gate skips its update.
  *   2. Form the regressor z(k) from x(k), the delayed samples x(k-d), u(k)
  *      and the delayed inputs u(k-d). A state whose measurement is invalid
  *      is replaced by its own prediction xhat_j(k) (on the very first step:
@@ -114,7 +142,7 @@ typedef double rhonn_real;
 
 /* Version of this header's API and of rhonn_t's layout. */
 #define RHONN_VERSION_MAJOR 1
-#define RHONN_VERSION_MINOR 2
+#define RHONN_VERSION_MINOR 3
 
 typedef enum {
     RHONN_OK = 0,
@@ -185,6 +213,9 @@ typedef struct {
     uint16_t reset_after;       /* 0 = off; else reset P_i after this many refusals in a row */
     rhonn_real forgetting;      /* lambda in (0, 1]; 0 = 1 = off */
     rhonn_real p_trace_max;     /* 0 = off; else >= trace P_i(0) */
+    /* Innovation gate (see above): 0 = off; else >= 0, finite: the largest
+     * e_i^2 / s_i learned (e.g. 9, chi-square 1 dof at 99.7 %). */
+    rhonn_real gate;
 } rhonn_neuron_config;
 
 typedef struct {
@@ -203,7 +234,7 @@ typedef enum {
     RHONN_FIELD_N_FACTORS, RHONN_FIELD_FACTOR_KIND, RHONN_FIELD_FACTOR_INDEX,
     RHONN_FIELD_FACTOR_DELAY, RHONN_FIELD_FACTOR_POWER,
     RHONN_FIELD_COVARIANCE, RHONN_FIELD_FORGETTING, RHONN_FIELD_P_TRACE_MAX,
-    RHONN_FIELD_RESET_AFTER
+    RHONN_FIELD_RESET_AFTER, RHONN_FIELD_GATE
 } rhonn_field;
 
 typedef struct {
@@ -215,7 +246,8 @@ typedef struct {
 
 /* Filter health of one neuron (rhonn_get_health). The counters wrap. */
 typedef struct {
-    rhonn_real innovation;  /* e_i of the last learning update (eq. 9); 0 before the first */
+    rhonn_real innovation;  /* e_i of the last learning update, committed or gated (eq. 9);
+                             * 0 before the first */
     rhonn_real nis;         /* normalised innovation squared e_i^2 / s_i of that update,
                              * s_i = R_i + z^T P_i z (eq. 8); about 1 on average for a
                              * consistent filter, persistently large when P_i is too small */
@@ -224,6 +256,7 @@ typedef struct {
     uint32_t rejected;      /* learning updates refused (a step that returned an error) */
     uint32_t resets;        /* automatic covariance resets (reset_after) */
     uint32_t bounded;       /* updates whose P_i was scaled down to p_trace_max */
+    uint32_t gated;         /* updates skipped by the innovation gate (e^2 / s > gate) */
     uint16_t fail_run;      /* refused updates in a row, up to now */
 } rhonn_health;
 
@@ -297,7 +330,9 @@ typedef struct {
     uint8_t own_need[RHONN_MAX_STATES];
     rhonn_real q_min[RHONN_MAX_STATES];  /* min_t Q_i[t], for the definiteness proof */
     rhonn_real inv_lambda[RHONN_MAX_STATES];  /* 1 / forgetting, 0 when off */
+    rhonn_real forget_ceiling[RHONN_MAX_STATES]; /* c_i: p_trace_max, else trace P_i(0) */
     uint8_t q_zero[RHONN_MAX_STATES];         /* Q_i all zero: nothing to add */
+    uint8_t gates;                            /* some neuron has an innovation gate */
     uint8_t valid_run[RHONN_MAX_STATES];
     uint8_t entry_delay[RHONN_MAX_ENTRIES];
     uint8_t entry_power[RHONN_MAX_ENTRIES];
@@ -362,10 +397,30 @@ rhonn_status rhonn_set_learning(rhonn_t *net, int on);
 /* Read or replace one neuron's weights (len must equal L_i) and covariance
  * (packed upper triangle, len must equal L_i (L_i + 1) / 2). The setters
  * reject non-finite values, and a covariance that is not positive definite
- * at working precision, with RHONN_E_VALUE. For a RHONN_COV_UD neuron the
- * covariance read is U D U^T formed from the stored factors and the one
- * written is factorised: a read-write round trip is equal to rounding, not
- * bit for bit (rhonn_get_factors/rhonn_set_factors are). */
+ * at working precision, with RHONN_E_VALUE.
+ *
+ * ROUND TRIP. What rhonn_get_covariance reads, rhonn_set_covariance accepts,
+ * and writing it back changes nothing (bit for bit: the next steps are those
+ * without the round trip), for both covariance forms, after init, reset and
+ * every RHONN_OK step. A RHONN_COV_FULL neuron's P_i is stored as read, and
+ * every committed one passed the setter's own check. For a RHONN_COV_UD
+ * neuron the covariance read is U D U^T formed from the stored factors,
+ * P^_rc = sum_{k >= c} U(r,k) d_k U(c,k) in working precision, whose
+ * rounding (|P^ - U D U^T|_rc <= g sqrt(P_rr P_cc), g = gamma_{L+1} =
+ * 1.01 (L+1) u, u = eps / 2) can leave a nearly singular P^ indefinite. So
+ * the getter returns P^ when Rump's shifted factorisation proves it positive
+ * definite in exact arithmetic with room to spare (the core's own proof, see
+ * rhonn.c shifted_check: then every Cholesky at this precision or a wider
+ * one accepts it), which is nearly always, and otherwise P^ with its
+ * diagonal raised by delta P^_rr, delta = 32 L g (a relative 5.2e-4 in float
+ * and 9.8e-13 in double at L = 16; doubled should the proof still fail):
+ * definite with that margin whatever P^'s rounding (proof in rhonn.c
+ * ud_covariance). Either way the result is positive definite in exact
+ * arithmetic (when the factors' product is finite and its diagonal normal).
+ * Given what the getter reads for the stored factors (equal as numbers:
+ * -0 and +0 alike), the setter keeps those factors; any other P is
+ * factorised (U D U^T), equal to rounding. rhonn_get_factors and
+ * rhonn_set_factors move the factors bit for bit. */
 rhonn_status rhonn_get_weights(const rhonn_t *net, size_t neuron, rhonn_real *w, size_t len);
 rhonn_status rhonn_set_weights(rhonn_t *net, size_t neuron, const rhonn_real *w, size_t len);
 rhonn_status rhonn_get_covariance(const rhonn_t *net, size_t neuron, rhonn_real *p, size_t len);

@@ -33,6 +33,10 @@
  * missing states' values with its own prediction, and the terms that read
  * them. Otherwise each member forms its own, as rhonn_step does.
  *
+ * INNOVATION GATES are not run in the lanes: when some member has a gate on
+ * (rhonn_neuron_config.gate > 0) in some neuron, every member is run by
+ * rhonn_run, one after the other (the same results, at rhonn_run's speed).
+ *
  * A MEMBER THAT FAILS stops there, exactly as rhonn_run stops: its rhonn_t
  * holds the state after its last good step, status[m] says why and done[m]
  * how many steps ran; the other members go on to the end.
@@ -86,6 +90,7 @@ typedef struct {
     rhonn_real r[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     rhonn_real eta[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     rhonn_real inv_lambda[RHONN_MAX_STATES][RHONN_MAX_POPULATION];  /* 1 / forgetting; 1 when off */
+    rhonn_real forget_ceiling[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* rhonn_t.forget_ceiling */
     rhonn_real p_trace_max[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* 0 when off */
     rhonn_real q[RHONN_MAX_STATES][RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
     rhonn_real q_min[RHONN_MAX_STATES][RHONN_MAX_POPULATION];  /* min_t q (rhonn_t.q_min) */
@@ -96,6 +101,7 @@ typedef struct {
     /* kernel scratch */
     rhonn_real zeros[RHONN_MAX_POPULATION];  /* +0 for every member: the sums' start */
     rhonn_real e[RHONN_MAX_POPULATION];
+    rhonn_real ilam_step[RHONN_MAX_POPULATION]; /* the step's 1 / lambda: inv_lambda, or 1 at the ceiling */
     rhonn_real innov[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     rhonn_real nis[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     rhonn_real pz[RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
@@ -183,9 +189,10 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
  * z(k-1), may hold other values), with neuron i's
  * learning state and EKF arithmetic in lane i of the workspace, every
  * neuron's update done at once. It does so when every neuron has the same
- * number of terms and the same covariance form, at most
- * RHONN_MAX_POPULATION neurons (and, for the U D U^T form, the vector
- * build, RHONN_POP_VECTOR); for any other structure it is rhonn_run. For a
+ * number of terms and the same covariance form, no neuron has an innovation
+ * gate, at most RHONN_MAX_POPULATION neurons (and, for the U D U^T form, the
+ * vector build, RHONN_POP_VECTOR); for any other configuration it is
+ * rhonn_run. For a
  * host with a vector unit (on a scalar FPU the lanes only add work), and
  * for identifiers with enough neurons to fill it: see rhonn_wide_pays.
  *
@@ -233,8 +240,8 @@ int rhonn_wide_pays(const rhonn_t *net);
  *
  * rhonn_wide_begin: RHONN_E_NULL for a NULL net or work; RHONN_E_NOT_INIT
  * for a net not set up or already lent; RHONN_E_CONFIG when the lanes cannot
- * hold net (its neurons differ in size or form, or are more than
- * RHONN_MAX_POPULATION: rhonn_run_wide would run it as rhonn_run).
+ * hold net (its neurons differ in size or form, one has a gate, or they are
+ * more than RHONN_MAX_POPULATION: rhonn_run_wide would run it as rhonn_run).
  * rhonn_wide_step and rhonn_wide_end: RHONN_E_NULL for a NULL net or work
  * (or x, xhat_next, or u with inputs); RHONN_E_NOT_INIT for a net not lent;
  * RHONN_E_ARGUMENT when it is lent to another workspace. A refused call

@@ -41,6 +41,14 @@
 #define RHONN_UNROLL_LOOP
 #endif
 
+/* Kept out of line (GCC, clang): the accessors' one copy of a factorisation
+ * that the unrolled build would otherwise inline, unrolled, at each call. */
+#if defined(__GNUC__) || defined(__clang__)
+#define RHONN_NOINLINE __attribute__((noinline))
+#else
+#define RHONN_NOINLINE
+#endif
+
 /* RHONN_CERTIFY=0 (tests) always factorises a full-form P: CTest holds it
  * to the default build, which proves most covariances without factorising,
  * and requires the same verdict and the same bits. */
@@ -187,6 +195,7 @@ static size_t packed_size(size_t L)
 }
 
 RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L);
+RHONN_NOINLINE static int accessor_check(const rhonn_real *P, size_t L, rhonn_real shift);
 static rhonn_real full_trace(const rhonn_real *P, size_t L);
 static void load_p0(const rhonn_t *net, size_t i, rhonn_real *dst);
 static uint8_t p0_proven(const rhonn_neuron_config *nc);
@@ -295,7 +304,7 @@ rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *
         }
         /* P0 is a covariance (eq. 10): positive definite at this precision
          * (and, kept as U D U^T, its factors are normal numbers) */
-        if (!pd_check(nc->p0, L)) {
+        if (!accessor_check(nc->p0, L, R(0.0))) { /* pd_check */
             return config_error(where, RHONN_FIELD_P0, i, 0, 0);
         }
 #if RHONN_WITH_UD
@@ -316,6 +325,9 @@ rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *
         if (!is_finite(nc->p_trace_max) || nc->p_trace_max < R(0.0) ||
             (nc->p_trace_max > R(0.0) && nc->p_trace_max < full_trace(nc->p0, L))) {
             return config_error(where, RHONN_FIELD_P_TRACE_MAX, i, 0, 0);
+        }
+        if (!is_finite(nc->gate) || nc->gate < R(0.0)) {
+            return config_error(where, RHONN_FIELD_GATE, i, 0, 0);
         }
         for (t = 0; t < L; ++t) {
             const rhonn_term *term = &nc->terms[t];
@@ -404,6 +416,15 @@ RHONN_INLINE rhonn_real q_min_of(const rhonn_neuron_config *nc)
     return qm;
 }
 
+/* c_i, the ceiling of bounded forgetting (rhonn.h WINDUP PROTECTION):
+ * p_trace_max when set, else trace P_i(0) as full_trace sums it. rhonn_init
+ * keeps it in rhonn_t (also with RHONN_FIXED_CONFIG: a load where a
+ * neuron forgets, nothing where it does not). */
+RHONN_NOINLINE static rhonn_real forget_ceiling_of(const rhonn_neuron_config *nc)
+{
+    return nc->p_trace_max > R(0.0) ? nc->p_trace_max : full_trace(nc->p0, nc->n_terms);
+}
+
 RHONN_INLINE uint8_t q_zero_of(const rhonn_neuron_config *nc)
 {
     uint8_t zero = 1u;
@@ -423,6 +444,17 @@ RHONN_INLINE uint8_t q_zero_of(const rhonn_neuron_config *nc)
 #define INV_LAMBDA(net, i) ((net)->inv_lambda[i])
 #define Q_MIN(net, i) ((net)->q_min[i])
 #define Q_ZERO(net, i) ((net)->q_zero[i])
+#endif
+
+#define FORGET_CEILING(net, i) ((net)->forget_ceiling[i])
+
+/* Whether neuron i's update may be gated: its own gate, a constant, with
+ * RHONN_FIXED_CONFIG; else whether any neuron has one (rhonn_t.gates), so
+ * that a configuration without gates pays one test of a flag. */
+#ifdef RHONN_FIXED_CONFIG
+#define GATE_ON(net, i) (CFG(net)->neurons[i].gate > R(0.0))
+#else
+#define GATE_ON(net, i) ((net)->gates != 0u)
 #endif
 
 /* Where a factor's value sits in a sample (its delay and power aside), for
@@ -466,14 +498,18 @@ static void compile_terms(rhonn_t *net)
     size_t i, t, f, e;
     net->n_entries = 0;
     net->max_delay = 0;
+    net->gates = 0;
     for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
         net->own_need[i] = 0;
         net->q_min[i] = R(0.0);
         net->inv_lambda[i] = R(0.0);
+        net->forget_ceiling[i] = R(0.0);
         net->q_zero[i] = 1u;
     }
     for (i = 0; i < cfg->n_states; ++i) {
         net->inv_lambda[i] = inverse_forgetting(&cfg->neurons[i]);
+        net->forget_ceiling[i] = forget_ceiling_of(&cfg->neurons[i]);
+        net->gates = (uint8_t)(net->gates | (cfg->neurons[i].gate > R(0.0)));
         net->q_zero[i] = q_zero_of(&cfg->neurons[i]);
         net->q_min[i] = q_min_of(&cfg->neurons[i]);
         for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
@@ -602,6 +638,9 @@ static rhonn_status fixed_config_matches(const rhonn_config *cfg, rhonn_config_e
         if (a->reset_after != b->reset_after) {
             return config_error(where, RHONN_FIELD_RESET_AFTER, i, 0, 0);
         }
+        if (bits_of(a->gate) != bits_of(b->gate)) {
+            return config_error(where, RHONN_FIELD_GATE, i, 0, 0);
+        }
     }
     return RHONN_OK;
 }
@@ -656,6 +695,7 @@ rhonn_status rhonn_init(rhonn_t *net, const rhonn_config *cfg, rhonn_config_erro
         h->rejected = 0;
         h->resets = 0;
         h->bounded = 0;
+        h->gated = 0;
         h->fail_run = 0;
     }
     net->magic = (uint32_t)RHONN_MAGIC;
@@ -935,6 +975,16 @@ RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L)
     return scaled_udu(P, F, sc, L, R(0.0));
 }
 
+/* pd_check (shift 0: x - 0 is x, bit for bit) or shifted_check
+ * (rhonn_proof_shift(L)) for the configuration check and the accessors:
+ * the same verdicts, from one out-of-line copy of the factorisation (the
+ * step's own checks stay inlined into its kernels). */
+RHONN_NOINLINE static int accessor_check(const rhonn_real *P, size_t L, rhonn_real shift)
+{
+    rhonn_real F[RHONN_MAX_PACKED], sc[RHONN_MAX_TERMS];
+    return scaled_udu(P, F, sc, L, shift);
+}
+
 #if RHONN_CERTIFY
 /* Is P positive definite in exact arithmetic, with room to spare? The
  * factorisation of C - alpha I, C = S P S scaled to a diagonal in [1, 4),
@@ -1112,7 +1162,7 @@ static void bound_trace(rhonn_real *P, size_t L, rhonn_real p_trace_max, uint8_t
  * H = z (eq. 11: the network is linear in w). P is the packed upper
  * triangle: row r holds P(r, r..L-1) contiguously. */
 RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
-                                      uint8_t *bounded, const size_t L)
+                                      uint8_t *bounded, uint8_t *gated, const size_t L)
 {
     const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
     const uint8_t b = net->bank[i];
@@ -1122,7 +1172,7 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
     rhonn_real *RHONN_RESTRICT wn = net->w[i][b ^ 1u];
     rhonn_real pz[RHONN_MAX_TERMS];
     rhonn_real s, inv_s, gain;
-    const rhonn_real inv_lambda = INV_LAMBDA(net, i);
+    rhonn_real inv_lambda = INV_LAMBDA(net, i);
     size_t r, c, len;
     const rhonn_real *row;
 
@@ -1153,6 +1203,12 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
     }
     inv_s = R(1.0) / s;
     *nis = e * (e * inv_s);
+    /* The innovation gate: an update with e^2 / s (eq. 8-9) above it is
+     * skipped, nothing written (rhonn.h INNOVATION GATE). */
+    if (RHONN_UNLIKELY(GATE_ON(net, i) && nc->gate > R(0.0) && *nis > nc->gate)) {
+        *gated = 1;
+        return RHONN_OK;
+    }
     /* eq. 7: K = P z M and w(k+1) = w + eta K e, i.e. w + (eta e M) P z. */
     gain = nc->eta * e * inv_s;
     RHONN_UNROLL_LOOP
@@ -1161,6 +1217,21 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
     }
     if (any_nonfinite(wn, L)) {
         return neuron_fault(net, i, RHONN_E_DIVERGED);
+    }
+    /* Bounded forgetting (rhonn.h WINDUP PROTECTION): / lambda only when the
+     * trace of P+ = P - K z^T P, its diagonal formed as below, stays within
+     * the ceiling after it; else eq. 7 as written. */
+    if (inv_lambda > R(0.0)) {
+        rhonn_real trp = R(0.0);
+        row = P;
+        RHONN_UNROLL_LOOP
+        for (r = 0; r < L; ++r) {
+            trp += row[0] - (pz[r] * inv_s) * pz[r];
+            row += L - r;
+        }
+        if (!(trp * inv_lambda <= FORGET_CEILING(net, i))) {
+            inv_lambda = R(0.0);
+        }
     }
     /* eq. 7: P(k+1) = P - K z^T P + Q = P - (P z)(P z)^T M + Q: symmetric,
      * so only the upper triangle is formed, row by row. With forgetting,
@@ -1245,7 +1316,7 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
  * Gram-Schmidt re-factorisation of [U | I] (Thornton's). A neuron whose Q is
  * all zero skips it. */
 RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
-                                  uint8_t *bounded, const size_t L)
+                                  uint8_t *bounded, uint8_t *gated, const size_t L)
 {
     const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
     const uint8_t bk = net->bank[i];
@@ -1309,6 +1380,11 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
         return neuron_fault(net, i, RHONN_E_INNOVATION);
     }
     *nis = e * (e * inv_prev);
+    /* the innovation gate (rhonn.h INNOVATION GATE): skipped, nothing written */
+    if (RHONN_UNLIKELY(GATE_ON(net, i) && nc->gate > R(0.0) && *nis > nc->gate)) {
+        *gated = 1;
+        return RHONN_OK;
+    }
     gain = nc->eta * e * inv_prev;
     RHONN_UD_UNROLL_LOOP
     for (j = 0; j < L; ++j) {
@@ -1318,9 +1394,25 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
         return neuron_fault(net, i, RHONN_E_DIVERGED);
     }
     if (inv_lambda > R(0.0)) {
+        /* bounded forgetting (rhonn.h WINDUP PROTECTION): D / lambda only
+         * when trace(U~ D~ U~^T) / lambda, the measurement's P+ as
+         * ud_trace sums it, stays within the ceiling */
+        rhonn_real trp = R(0.0);
         RHONN_UD_UNROLL_LOOP
         for (j = 0; j < L; ++j) {
-            dt[j] *= inv_lambda;
+            rhonn_real col = R(1.0);
+            RHONN_UD_UNROLL_LOOP
+            for (k = 0; k < j; ++k) {
+                const rhonn_real u = wu[rs[k] + (j - k)];
+                col += u * u;
+            }
+            trp += dt[j] * col;
+        }
+        if (trp * inv_lambda <= FORGET_CEILING(net, i)) {
+            RHONN_UD_UNROLL_LOOP
+            for (j = 0; j < L; ++j) {
+                dt[j] *= inv_lambda;
+            }
         }
     }
     /* The measurement's factors into the new bank, then + Q in place. */
@@ -1397,21 +1489,21 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
  * above its specialised sizes (up to L = 8: where loop overhead dominates,
  * at a bounded code size). */
 static rhonn_status ekf_ud_generic(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
-                                   uint8_t *bounded, size_t L)
+                                   uint8_t *bounded, uint8_t *gated, size_t L)
 {
-    return ekf_ud(net, i, e, z, nis, bounded, L);
+    return ekf_ud(net, i, e, z, nis, bounded, gated, L);
 }
 #endif
 #endif
 
-#define RHONN_KERNEL(n) ekf_kernel(net, i, e, z, nis, bounded, n)
+#define RHONN_KERNEL(n) ekf_kernel(net, i, e, z, nis, bounded, gated, n)
 
 #if RHONN_UNROLL && RHONN_MAX_TERMS > 16
 /* The kernel for L above the unrolled sizes: one loop-based copy. */
 static rhonn_status ekf_kernel_generic(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
-                                       uint8_t *bounded, size_t L)
+                                       uint8_t *bounded, uint8_t *gated, size_t L)
 {
-    return ekf_kernel(net, i, e, z, nis, bounded, L);
+    return ekf_kernel(net, i, e, z, nis, bounded, gated, L);
 }
 #endif
 
@@ -1420,7 +1512,7 @@ static rhonn_status ekf_kernel_generic(rhonn_t *net, size_t i, rhonn_real e, con
  * registers, and saving and restoring them once per step instead of once
  * per neuron is a few hundred cycles on the Cortex-M4. */
 RHONN_INLINE rhonn_status ekf_dispatch(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
-                                       uint8_t *bounded)
+                                       uint8_t *bounded, uint8_t *gated)
 {
     const size_t L = CFG(net)->neurons[i].n_terms;
 #if RHONN_WITH_UD
@@ -1429,7 +1521,7 @@ RHONN_INLINE rhonn_status ekf_dispatch(rhonn_t *net, size_t i, rhonn_real e, con
     if (CFG(net)->neurons[i].covariance == (uint8_t)RHONN_COV_UD) {
 #if RHONN_UNROLL
         switch (L) {
-#define RHONN_UD_CASE(n) case n: return ekf_ud(net, i, e, z, nis, bounded, n);
+#define RHONN_UD_CASE(n) case n: return ekf_ud(net, i, e, z, nis, bounded, gated, n);
         RHONN_UD_CASE(1)
 #if RHONN_MAX_TERMS >= 2
         RHONN_UD_CASE(2)
@@ -1455,13 +1547,13 @@ RHONN_INLINE rhonn_status ekf_dispatch(rhonn_t *net, size_t i, rhonn_real e, con
 #undef RHONN_UD_CASE
         default:
 #if RHONN_MAX_TERMS > 8
-            return ekf_ud_generic(net, i, e, z, nis, bounded, L);
+            return ekf_ud_generic(net, i, e, z, nis, bounded, gated, L);
 #else
             return RHONN_E_NOT_INIT; /* L outside 1..RHONN_MAX_TERMS: rhonn_init never allows it */
 #endif
         }
 #else
-        return ekf_ud_generic(net, i, e, z, nis, bounded, L);
+        return ekf_ud_generic(net, i, e, z, nis, bounded, gated, L);
 #endif
     }
 #endif
@@ -1518,7 +1610,7 @@ RHONN_INLINE rhonn_status ekf_dispatch(rhonn_t *net, size_t i, rhonn_real e, con
 #undef RHONN_CASE
     default:
 #if RHONN_MAX_TERMS > 16
-        return ekf_kernel_generic(net, i, e, z, nis, bounded, L);
+        return ekf_kernel_generic(net, i, e, z, nis, bounded, gated, L);
 #else
         return RHONN_E_NOT_INIT; /* L outside 1..RHONN_MAX_TERMS: rhonn_init never allows it */
 #endif
@@ -1536,9 +1628,11 @@ RHONN_INLINE rhonn_status ekf_dispatch(rhonn_t *net, size_t i, rhonn_real e, con
  * neurons, the population's per-member fallback over one, so the kernels'
  * code is in the core once. Its loop runs over every neuron (a constant
  * count under RHONN_FIXED_CONFIG, whose kernels are then specialised per
- * neuron) and skips the others. */
-static rhonn_status update_neurons(rhonn_t *net, const uint8_t *learns, const rhonn_real *e,
-                                   rhonn_real (*z)[RHONN_MAX_TERMS], rhonn_real *nis, uint8_t *bounded, size_t *from)
+ * neuron) and skips the others. A neuron the innovation gate skips is
+ * marked in gated[] and cleared in learns[] (nothing to commit). */
+static rhonn_status update_neurons(rhonn_t *net, uint8_t *learns, const rhonn_real *e,
+                                   rhonn_real (*z)[RHONN_MAX_TERMS], rhonn_real *nis, uint8_t *bounded, uint8_t *gated,
+                                   size_t *from)
 {
     const size_t n = CFG(net)->n_states, start = *from;
     size_t i;
@@ -1546,10 +1640,13 @@ static rhonn_status update_neurons(rhonn_t *net, const uint8_t *learns, const rh
     RHONN_NEURON_LOOP
     for (i = 0; i < n; ++i) {
         if (i >= start && learns[i]) {
-            const rhonn_status st = ekf_dispatch(net, i, e[i], z[i], &nis[i], &bounded[i]);
+            const rhonn_status st = ekf_dispatch(net, i, e[i], z[i], &nis[i], &bounded[i], &gated[i]);
             if (RHONN_UNLIKELY(st != RHONN_OK)) {
                 *from = i;
                 return st;
+            }
+            if (GATE_ON(net, i) && RHONN_UNLIKELY(gated[i])) {
+                learns[i] = 0; /* skipped by the gate: its bank is not committed */
             }
         }
     }
@@ -1771,6 +1868,7 @@ typedef struct {
     uint8_t updated[RHONN_MAX_STATES];   /* its inactive bank holds the update */
     uint8_t bounded[RHONN_MAX_STATES];
     uint8_t recovered[RHONN_MAX_STATES]; /* skipped, covariance back to P_i(0) */
+    uint8_t gated[RHONN_MAX_STATES];     /* skipped by the innovation gate (not updated) */
     rhonn_real innov[RHONN_MAX_STATES];
     rhonn_real nis[RHONN_MAX_STATES];
 } learned;
@@ -1827,10 +1925,11 @@ static rhonn_status learn(rhonn_t *net, const rhonn_real *x, const uint8_t *vali
         out->updated[i] = (uint8_t)(on && (valid == NULL || valid[i] != 0u) && net->valid_run[i] >= net->own_need[i]);
         out->bounded[i] = 0;
         out->recovered[i] = 0;
+        out->gated[i] = 0;
         out->innov[i] = out->updated[i] ? x[i] - net->xhat[i] : R(0.0);
     }
-    while ((st = update_neurons(net, out->updated, out->innov, net->z[net->zbank], out->nis, out->bounded, &from)) !=
-           RHONN_OK) {
+    while ((st = update_neurons(net, out->updated, out->innov, net->z[net->zbank], out->nis, out->bounded, out->gated,
+                                &from)) != RHONN_OK) {
         if (refused(net, from, st, out) != RHONN_OK) {
             return st;
         }
@@ -1909,6 +2008,11 @@ static rhonn_status step_checked(rhonn_t *net, const rhonn_real *x, const rhonn_
             }
             h->fail_run = 0;
             net->bank[i] = (uint8_t)(net->bank[i] ^ 1u);
+        } else if (GATE_ON(net, i) && RHONN_UNLIKELY(out.gated[i])) {
+            rhonn_health *h = &net->health[i];
+            h->innovation = out.innov[i];
+            h->nis = out.nis[i];
+            h->gated += 1u;
         }
         net->xhat[i] = xnew[i];
         if (xhat_next != NULL) { /* here, not in a loop of its own: that becomes a memcpy call */
@@ -2011,7 +2115,7 @@ void rhonn_internal_store_sample(rhonn_t *net, size_t slot, const rhonn_real *cu
 rhonn_status rhonn_internal_ekf_update(rhonn_t *net, size_t i, rhonn_real e, const rhonn_real *z, rhonn_real *nis,
                                        uint8_t *bounded)
 {
-    uint8_t learns[RHONN_MAX_STATES] = {0}, bnd[RHONN_MAX_STATES] = {0};
+    uint8_t learns[RHONN_MAX_STATES] = {0}, bnd[RHONN_MAX_STATES] = {0}, gated[RHONN_MAX_STATES] = {0};
     rhonn_real ev[RHONN_MAX_STATES], zv[RHONN_MAX_STATES][RHONN_MAX_TERMS], nv[RHONN_MAX_STATES];
     size_t t, from = i;
     rhonn_status st;
@@ -2022,7 +2126,7 @@ rhonn_status rhonn_internal_ekf_update(rhonn_t *net, size_t i, rhonn_real e, con
     for (t = 0; t < CFG(net)->neurons[i].n_terms; ++t) {
         zv[i][t] = z[t];
     }
-    st = update_neurons(net, learns, ev, zv, nv, bnd, &from);
+    st = update_neurons(net, learns, ev, zv, nv, bnd, gated, &from); /* no gate in the lanes' configs */
     *nis = nv[i];
     *bounded = bnd[i];
     return st;
@@ -2148,21 +2252,11 @@ static int is_ud(const rhonn_t *net, size_t neuron)
     return CFG(net)->neurons[neuron].covariance == (uint8_t)RHONN_COV_UD;
 }
 
-rhonn_status rhonn_get_covariance(const rhonn_t *net, size_t neuron, rhonn_real *p, size_t len)
+/* U D U^T from the factors F (D on the packed diagonal, U beside it):
+ * P(r,c) = sum_{k >= c} U(r,k) d_k U(c,k), r <= c, U(k,k) = 1. */
+static void ud_product(const rhonn_real *F, rhonn_real *p, size_t L)
 {
-    rhonn_status st = neuron_access(net, p, neuron, len, 1);
-    const rhonn_real *F;
-    size_t L, r, c, k;
-    if (st != RHONN_OK) {
-        return st;
-    }
-    F = net->p[neuron][net->bank[neuron]];
-    if (!is_ud(net, neuron)) {
-        copy_reals(p, F, len);
-        return RHONN_OK;
-    }
-    /* P(r,c) = sum_{k >= c} U(r,k) d_k U(c,k), r <= c, U(k,k) = 1 */
-    L = CFG(net)->neurons[neuron].n_terms;
+    size_t r, c, k;
     for (r = 0; r < L; ++r) {
         const size_t rr = row_start(r, L);
         for (c = r; c < L; ++c) {
@@ -2174,18 +2268,93 @@ rhonn_status rhonn_get_covariance(const rhonn_t *net, size_t neuron, rhonn_real 
             p[rr + (c - r)] = acc;
         }
     }
+}
+
+/* The covariance a RHONN_COV_UD neuron reads (rhonn.h ROUND TRIP): the
+ * product P^ of ud_product when shifted_check proves it definite, else P^
+ * with its diagonal raised by delta P^_rr.
+ *
+ * Why delta = 32 L g, g = gamma_{L+1} = 1.01 (L+1) u, suffices. Let P be
+ * the exact U D U^T of the stored factors (positive definite: d_j > 0, U
+ * unit triangular). Each P^_rc sums at most L products of three factors,
+ * so |P^_rc - P_rc| <= g sum_k |U(r,k)| d_k |U(c,k)| <= g sqrt(P_rr P_cc)
+ * (Cauchy-Schwarz; Higham, Accuracy and Stability, 3.1). With
+ * T = diag(P_rr)^(-1/2): |T (P^ - P) T|_2 <= L g, and the raised diagonal
+ * adds at least (delta - 2u)(1 - g) to T P^ T's, so the raised P~ has
+ * lambda_min(T P~ T) >= (delta - 2u)(1 - g) - L g > 30.9 L g - 2u.
+ * shifted_check scales P~ to C, diagonal in [1, 4), and passes when
+ * lambda_min(C) > 17 L g + 4u + 4.04 L g (the shift, its rounding, Demmel's
+ * bound at a diagonal below 4; see shifted_check); C = (S T^-1)(T P~ T)
+ * (T^-1 S) with (S T^-1)_rr^2 >= P_rr / P~_rr >= 1 - delta - g - 3u, so
+ * lambda_min(C) > (30.9 L g - 2u)(1 - 2 delta) > 21.1 L g + 4u whenever
+ * delta <= 1/8 (L g <= 1/256: L up to 255 in float). Each further doubling
+ * of delta, for the rounding of these bounds themselves, only adds margin;
+ * a P^ that is not finite, or whose diagonal leaves the normal range, no
+ * raise can help (the last one tried is returned). */
+RHONN_NOINLINE static void ud_covariance(const rhonn_real *F, rhonn_real *p, size_t L)
+{
+    rhonn_real diag[RHONN_MAX_TERMS];
+    rhonn_real delta = (R(32.0) / R(17.0)) * rhonn_proof_shift(L); /* 32 L gamma_{L+1} */
+    size_t r, attempt;
+    ud_product(F, p, L);
+    for (r = 0; r < L; ++r) {
+        diag[r] = p[row_start(r, L)];
+    }
+    /* attempt 0: P^ itself; then the raises (one factorisation in the code) */
+    for (attempt = 0; !accessor_check(p, L, rhonn_proof_shift(L)) && attempt < 9u; ++attempt) { /* shifted_check */
+        for (r = 0; r < L; ++r) {
+            p[row_start(r, L)] = diag[r] + delta * diag[r];
+        }
+        delta *= R(2.0);
+    }
+}
+
+rhonn_status rhonn_get_covariance(const rhonn_t *net, size_t neuron, rhonn_real *p, size_t len)
+{
+    rhonn_status st = neuron_access(net, p, neuron, len, 1);
+    const rhonn_real *F;
+    if (st != RHONN_OK) {
+        return st;
+    }
+    F = net->p[neuron][net->bank[neuron]];
+    if (!is_ud(net, neuron)) {
+        copy_reals(p, F, len);
+        return RHONN_OK;
+    }
+    ud_covariance(F, p, CFG(net)->neurons[neuron].n_terms);
     return RHONN_OK;
 }
 
 rhonn_status rhonn_set_covariance(rhonn_t *net, size_t neuron, const rhonn_real *p, size_t len)
 {
     rhonn_status st = neuron_access(net, p, neuron, len, 1);
-    const size_t L = CFG(net)->neurons[neuron].n_terms;
+    size_t L;
     if (st != RHONN_OK) {
         return st;
     }
-    /* a covariance: finite and positive definite at working precision */
-    if (any_nonfinite(p, len) || !pd_check(p, L)) {
+    L = CFG(net)->neurons[neuron].n_terms;
+    if (any_nonfinite(p, len)) {
+        return RHONN_E_VALUE;
+    }
+#if RHONN_WITH_UD
+    if (is_ud(net, neuron)) {
+        rhonn_real F[RHONN_MAX_PACKED];
+        size_t t;
+        int same = 1;
+        /* what rhonn_get_covariance reads for the stored factors keeps them
+         * (rhonn.h ROUND TRIP): the round trip changes nothing. Equal as
+         * numbers (a copy may have turned a -0 into +0). */
+        ud_covariance(net->p[neuron][net->bank[neuron]], F, L);
+        for (t = 0; t < len; ++t) {
+            same &= F[t] == p[t];
+        }
+        if (same) {
+            return RHONN_OK;
+        }
+    }
+#endif
+    /* a covariance: positive definite at working precision (pd_check) */
+    if (!accessor_check(p, L, R(0.0))) {
         return RHONN_E_VALUE;
     }
 #if RHONN_WITH_UD

@@ -235,7 +235,7 @@ static int lane_proofs(rhonn_population_work *wk, size_t i, size_t L, const rhon
     int all = 1;
     size_t m;
     for (m = 0; m < NPOP; ++m) {
-        fast[m] = (uint8_t)(wk->learn[i][m] && wk->cert[i][m] && wk->inv_lambda[i][m] == R(1.0) &&
+        fast[m] = (uint8_t)(wk->learn[i][m] && wk->cert[i][m] && wk->ilam_step[m] == R(1.0) &&
                             !wk->bounded[i][m] &&
                             lane_proof(P, &wk->z[wk->zb][i][0][0], &wk->pz[0][0], inv_s[m], Pn, wk->q_min[i][m],
                                        wk->r[i][m], L, m));
@@ -427,7 +427,9 @@ static void full_kernel_loops(rhonn_population_work *wk, size_t i, size_t L)
     rhonn_real *POP_RESTRICT pz = &wk->pz[0][0];
     const rhonn_real *POP_RESTRICT rr = wk->r[i];
     const rhonn_real *POP_RESTRICT eta = wk->eta[i];
-    const rhonn_real *POP_RESTRICT ilam = wk->inv_lambda[i];
+    rhonn_real *POP_RESTRICT ilam = wk->ilam_step;
+    const rhonn_real *POP_RESTRICT ilam_cfg = wk->inv_lambda[i];
+    const rhonn_real *POP_RESTRICT ceil_i = wk->forget_ceiling[i];
     const rhonn_real *POP_RESTRICT ptm = wk->p_trace_max[i];
     const rhonn_real *POP_RESTRICT q = &wk->q[i][0][0];
     const rhonn_real *POP_RESTRICT e = wk->e;
@@ -486,6 +488,21 @@ static void full_kernel_loops(rhonn_population_work *wk, size_t i, size_t L)
         for (m = 0; m < NPOP; ++m) {
             out[m] = wr[m] + gain[m] * pr[m];
         }
+    }
+    /* Bounded forgetting (rhonn.c ekf_kernel): 1 / lambda where the trace
+     * of P - (P z)(P z)^T M, its diagonal as formed below, stays within the
+     * ceiling after it; else 1 (a lane that does not forget has 1 anyway). */
+    for (m = 0; m < NPOP; ++m) {
+        acc[m] = R(0.0);
+    }
+    for (r = 0; r < L; ++r) {
+        const rhonn_real *POP_RESTRICT d = LANE(P, rs[r]), *POP_RESTRICT pr = LANE(pz, r);
+        for (m = 0; m < NPOP; ++m) {
+            acc[m] += d[m] - (pr[m] * inv_s[m]) * pr[m];
+        }
+    }
+    for (m = 0; m < NPOP; ++m) {
+        ilam[m] = acc[m] * ilam_cfg[m] <= ceil_i[m] ? ilam_cfg[m] : R(1.0);
     }
     /* eq. 7: (P - (P z)(P z)^T M) / lambda + Q. Without forgetting rhonn.c
      * skips the division; multiplying by 1 instead is exact. */
@@ -709,7 +726,7 @@ POP_ALWAYS_INLINE int vec_proofs(rhonn_population_work *wk, size_t i, size_t L, 
             learn[m] = wk->learn[i][m];
             flags[m] = (pop_ubits)(wk->cert[i][m] != 0u) & (pop_ubits)(wk->bounded[i][m] ^ 1u);
         }
-        keep = learn & flags & (lanei)(VC(wk->inv_lambda[i], 0) == R(1.0)) & *(const lanei *)a_holds;
+        keep = learn & flags & (lanei)(VC(wk->ilam_step, 0) == R(1.0)) & *(const lanei *)a_holds;
         for (m = 0; m < NPOP; ++m) {
             fast[m] = (uint8_t)keep[m];
             all &= (uint8_t)(keep[m] | (learn[m] ^ 1u));
@@ -783,10 +800,10 @@ POP_ALWAYS_INLINE void full_kernel_body(rhonn_population_work *wk, size_t i, siz
     const rhonn_real *z = &wk->z[wk->zb][i][0][0];
     const rhonn_real *q = &wk->q[i][0][0];
     rhonn_real *pz = &wk->pz[0][0];
-    const lanev rr = VC(wk->r[i], 0), ilam = VC(wk->inv_lambda[i], 0);
+    const lanev rr = VC(wk->r[i], 0);
     const lanev zero = VC(wk->zeros, 0);
     const lanev one = zero + R(1.0);
-    lanev s, inv_s, acc, s0, s1, scale;
+    lanev s, inv_s, acc, s0, s1, scale, ilam = one;
     size_t rs[RHONN_MAX_TERMS];
     size_t r, c, len;
     const size_t packed = L * (L + 1u) / 2u;
@@ -846,6 +863,21 @@ POP_ALWAYS_INLINE void full_kernel_body(rhonn_population_work *wk, size_t i, siz
      * skips the division; a member without it among members with it
      * multiplies by 1, which is exact. */
     forgets = any_forgetting(wk, i);
+    if (forgets) {
+        /* bounded forgetting (rhonn.c ekf_kernel): 1 / lambda where the
+         * trace of P - (P z)(P z)^T M, its diagonal as formed below, stays
+         * within the ceiling after it; else 1 */
+        const lanev ilam_cfg = VC(wk->inv_lambda[i], 0);
+        lanei forget;
+        acc = zero;
+        POP_UNROLL
+        for (r = 0; r < L; ++r) {
+            acc += VC(P, rs[r]) - (V(pz, r) * inv_s) * V(pz, r);
+        }
+        forget = (lanei)(acc * ilam_cfg <= VC(wk->forget_ceiling[i], 0));
+        ilam = (lanev)(((lanei)ilam_cfg & forget) | ((lanei)one & ~forget));
+    }
+    V(wk->ilam_step, 0) = ilam;
     POP_UNROLL
     for (r = 0; r < L; ++r) {
         const lanev kr = V(pz, r) * inv_s;
@@ -940,7 +972,7 @@ POP_ALWAYS_INLINE void ud_kernel_body(rhonn_population_work *wk, size_t i, size_
     rhonn_real *a = &wk->ua[4][0][0];
     uint8_t zero_q[RHONN_MAX_POPULATION];
     int any_q;
-    const lanev rr = VC(wk->r[i], 0), ilam = VC(wk->inv_lambda[i], 0);
+    const lanev rr = VC(wk->r[i], 0), ilam_cfg = VC(wk->inv_lambda[i], 0);
     const lanev zero = VC(wk->zeros, 0);
     const lanev one = zero + R(1.0);
     lanev alpha, inv_prev, fsum, tr;
@@ -992,8 +1024,23 @@ POP_ALWAYS_INLINE void ud_kernel_body(rhonn_population_work *wk, size_t i, size_
     }
     V(tmp, 0) = inv_prev;
     weights_update(wk, i, L, tmp, b, out_wsum);
-    /* / lambda (rhonn.c skips it without forgetting; * 1 is exact) */
+    /* / lambda where trace(U~ D~ U~^T) / lambda stays within the ceiling
+     * (rhonn.c ekf_ud: bounded forgetting); rhonn.c skips it without
+     * forgetting, and * 1 is exact */
     if (any_forgetting(wk, i)) {
+        lanev ilam;
+        lanei forget;
+        tr = zero;
+        for (j = 0; j < L; ++j) {
+            lanev col = one;
+            for (k = 0; k < j; ++k) {
+                const lanev u = V(wu, rs[k] + (j - k));
+                col += u * u;
+            }
+            tr += V(dt, j) * col;
+        }
+        forget = (lanei)(tr * ilam_cfg <= VC(wk->forget_ceiling[i], 0));
+        ilam = (lanev)(((lanei)ilam_cfg & forget) | ((lanei)one & ~forget));
         for (j = 0; j < L; ++j) {
             V(dt, j) *= ilam;
         }
@@ -1254,6 +1301,7 @@ static void load_lane(rhonn_population_work *wk, const rhonn_t *net, size_t m)
         /* rhonn.c inverse_forgetting, with 1 (exact) for off */
         wk->inv_lambda[i][m] = (nc->forgetting > R(0.0) && nc->forgetting < R(1.0)) ? R(1.0) / nc->forgetting
                                                                                      : R(1.0);
+        wk->forget_ceiling[i][m] = net->forget_ceiling[i];
         wk->p_trace_max[i][m] = nc->p_trace_max;
         wk->need[i][m] = net->own_need[i];
         wk->vrun[i][m] = net->valid_run[i];
@@ -1607,6 +1655,49 @@ POP_LANES void commit_alike(rhonn_population_work *wk, size_t i, uint8_t measure
     }
 }
 
+/* Does some member have an innovation gate on in some neuron? The lanes do
+ * not run the gate (rhonn_population.h). */
+static int any_gate(rhonn_t *const *nets, size_t N)
+{
+    size_t m, i;
+    for (m = 0; m < N; ++m) {
+        const rhonn_config *cfg = CFG(nets[m]);
+        for (i = 0; i < cfg->n_states; ++i) {
+            if (cfg->neurons[i].gate > R(0.0)) {
+                return 1;
+            }
+        }
+    }
+    return 0;
+}
+
+/* The population as N calls of rhonn_run (members with a gate): member m's
+ * predictions at Xhat[m T n ...], its status and steps; returns the status
+ * of the lowest-indexed member that stopped, else RHONN_OK. */
+static rhonn_status run_one_by_one(rhonn_t *const *nets, size_t N, rhonn_population_work *work, size_t T,
+                                   const rhonn_real *X, const rhonn_real *U, const uint8_t *valid, rhonn_real *Xhat,
+                                   rhonn_status *status, size_t *done)
+{
+    const size_t n = CFG(nets[0])->n_states;
+    rhonn_status ret = RHONN_OK;
+    size_t m;
+    work->holder = NULL; /* the workspace is scratch: a loan it held is forgotten */
+    for (m = 0; m < N; ++m) {
+        size_t ran = 0;
+        const rhonn_status st = rhonn_run(nets[m], T, X, U, valid, T > 0u ? Xhat + m * T * n : Xhat, &ran);
+        if (status != NULL) {
+            status[m] = st;
+        }
+        if (done != NULL) {
+            done[m] = ran;
+        }
+        if (st != RHONN_OK && ret == RHONN_OK) {
+            ret = st;
+        }
+    }
+    return ret;
+}
+
 /* ------------------------------------------------------------------------ */
 
 rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_population_work *work, size_t T,
@@ -1659,6 +1750,9 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
     maxd = nets[0]->max_delay;
     if (T > 0u && (X == NULL || Xhat == NULL || (U == NULL && mi > 0u))) {
         return RHONN_E_NULL;
+    }
+    if (any_gate(nets, N)) {
+        return run_one_by_one(nets, N, work, T, X, U, valid, Xhat, status, done);
     }
 
     /* Each member's lane, and copies of member 0 in the unused ones (finite
@@ -1983,10 +2077,10 @@ static int wide_fits(const rhonn_t *net)
         return 0; /* the portable U D U^T update runs rhonn.c's kernel member by member */
     }
 #endif
-    for (i = 1; i < cfg->n_states; ++i) {
+    for (i = 0; i < cfg->n_states; ++i) {
         if (cfg->neurons[i].n_terms != cfg->neurons[0].n_terms ||
-            cfg->neurons[i].covariance != cfg->neurons[0].covariance) {
-            return 0;
+            cfg->neurons[i].covariance != cfg->neurons[0].covariance || cfg->neurons[i].gate > R(0.0)) {
+            return 0; /* the innovation gate runs neuron by neuron (rhonn_step) */
         }
     }
     return 1;
@@ -2063,6 +2157,7 @@ static void wide_load(rhonn_population_work *wk, const rhonn_t *net)
         wk->eta[0][m] = nc->eta;
         wk->inv_lambda[0][m] = (nc->forgetting > R(0.0) && nc->forgetting < R(1.0)) ? R(1.0) / nc->forgetting
                                                                                      : R(1.0);
+        wk->forget_ceiling[0][m] = net->forget_ceiling[i];
         wk->p_trace_max[0][m] = nc->p_trace_max;
     }
     lane_flags(wk, 1);

@@ -61,6 +61,7 @@ static void refuses_any_other_configuration_naming_the_field(void)
     c = LIM_IDENTIFIER; c.neurons[3].forgetting = (rhonn_real)0.99; refused(&c, RHONN_FIELD_FORGETTING, 3, 0, 0);
     c = LIM_IDENTIFIER; c.neurons[3].p_trace_max = (rhonn_real)1e6; refused(&c, RHONN_FIELD_P_TRACE_MAX, 3, 0, 0);
     c = LIM_IDENTIFIER; c.neurons[4].reset_after = 3; refused(&c, RHONN_FIELD_RESET_AFTER, 4, 0, 0);
+    c = LIM_IDENTIFIER; c.neurons[5].gate = (rhonn_real)9.0; refused(&c, RHONN_FIELD_GATE, 5, 0, 0);
     /* an invalid configuration is reported as such first */
     c = LIM_IDENTIFIER; c.neurons[4].r = (rhonn_real)-1.0; refused(&c, RHONN_FIELD_R, 4, 0, 0);
     CHECK_STATUS(rhonn_init(&net, NULL, NULL), RHONN_E_NULL);

@@ -124,20 +124,33 @@ static rhonn_config lim_config(unsigned k, int delayed, int ud_all)
     return c;
 }
 
+/* A quiet stretch in the trajectories (samples 150..299 hold sample 150,
+ * all measured; bounded forgetting reaches its ceiling there) and an
+ * outlier (x2 + 50 at sample 200, 330 with the hold), when set. */
+static int hold_quiet = 0, add_outlier = 0;
+
+static int held(size_t k)
+{
+    return hold_quiet && k >= 150u && k < 300u;
+}
+
 /* A smooth, exciting, deterministic trajectory; from sample 120 on, 4 in
  * every 37 have states 0 and 3 not measured (NaN). */
 static void trajectory(rhonn_real *X, rhonn_real *U, uint8_t *valid, size_t T, int dropouts)
 {
     size_t k, j;
     for (k = 0; k < T; ++k) {
-        const double t = 0.01 * (double)k;
+        const double t = 0.01 * (double)(held(k) ? 150u : k);
         U[2 * k] = (rhonn_real)(0.8 * sin(1.3 * t));
         U[2 * k + 1] = (rhonn_real)(0.8 * cos(0.9 * t));
         for (j = 0; j < 6; ++j) {
             X[6 * k + j] = (rhonn_real)(0.5 * sin((0.7 + 0.31 * (double)j) * t + (double)j) + 0.2 * cos(2.1 * t));
             valid[6 * k + j] = 1;
         }
-        if (dropouts && k >= 120 && k % 37u < 4u) { /* state 0 is read through a delayed tap too */
+        if (add_outlier && k == (hold_quiet ? 330u : 200u)) {
+            X[6 * k + 1] += (rhonn_real)50.0;
+        }
+        if (dropouts && k >= 120 && k % 37u < 4u && !held(k)) { /* state 0 is read through a delayed tap too */
             valid[6 * k + 0] = 0;
             valid[6 * k + 3] = 0;
             X[6 * k + 0] = (rhonn_real)NAN;
@@ -170,7 +183,7 @@ static int same_state(rhonn_t *a, rhonn_t *b, const rhonn_real *x, const rhonn_r
                 memcmp(&ha.innovation, &hb.innovation, sizeof ha.innovation) == 0 &&
                 memcmp(&ha.nis, &hb.nis, sizeof ha.nis) == 0 && memcmp(&ha.trace_p, &hb.trace_p, sizeof ha.trace_p) == 0 &&
                 ha.updates == hb.updates && ha.rejected == hb.rejected && ha.resets == hb.resets &&
-                ha.bounded == hb.bounded && ha.fail_run == hb.fail_run;
+                ha.bounded == hb.bounded && ha.gated == hb.gated && ha.fail_run == hb.fail_run;
     }
     for (s = 0; s < 3; ++s) {
         const rhonn_status sa = rhonn_step(a, x + s * n, u + s * 2u, NULL, ya);
@@ -323,9 +336,11 @@ static void forgetting_ceiling_and_resets_equal_single_runs(void)
     }
 }
 
-/* Forgetting with lambda = 1e-3 multiplies P by 1000 a step until it
- * overflows: member 1 stops there (as alone), member 2 (reset_after = 1)
- * resets P to P(0) and goes on; member 0 is well tuned. */
+/* Forgetting with lambda = 1e-3 multiplies P by 1000 a step up to a trace
+ * ceiling near the top of the range (p_trace_max: bounded forgetting lets
+ * it get that far): member 1 stops at the first refused update (as alone),
+ * member 2 (reset_after = 1) resets P to P(0) and goes on; member 0 is
+ * well tuned. */
 static void refused_updates_stop_or_reset_a_member_as_alone(void)
 {
     rhonn_config cfg[MAXN];
@@ -337,6 +352,7 @@ static void refused_updates_stop_or_reset_a_member_as_alone(void)
     for (m = 1; m < 3; ++m) {
         for (i = 0; i < 6; ++i) { /* neuron 0 in the U D U^T form too */
             cfg[m].neurons[i].forgetting = (rhonn_real)1e-3;
+            cfg[m].neurons[i].p_trace_max = (rhonn_real)(BIG / 8);
             cfg[m].neurons[i].reset_after = (uint16_t)(m == 2u ? 1u : 0u);
         }
     }
@@ -360,7 +376,8 @@ static void a_stopping_first_member_hands_the_shared_regressor_on(void)
         cfg[m] = lim_config((unsigned)m, 1, 0);
     }
     for (i = 0; i < 6; ++i) { /* P grows a step until an update is refused, which stops it */
-        cfg[0].neurons[i].forgetting = (rhonn_real)0.5; /* stops after 47 (float: 18) samples */
+        cfg[0].neurons[i].forgetting = (rhonn_real)0.5;
+        cfg[0].neurons[i].p_trace_max = (rhonn_real)(BIG / 8); /* a ceiling too high to stop it */
     }
     CHECK(compare(cfg, 4, NULL, 0) == 1u);
     CHECK(alone[0].steps > 3u && alone[0].steps < POP_T / 2u); /* past the deepest tap (2), long before the end */
@@ -382,6 +399,7 @@ static void a_diverging_member_stops_and_the_others_go_on(void)
     CHECK(compare(cfg, 3, NULL, 0) >= 1u);
     CHECK(rhonn_run(&alone[0], 1, X, U, NULL, Xhat_alone[0], NULL) == RHONN_OK);
 }
+
 
 static void arguments_and_structures_are_checked(void)
 {
@@ -496,7 +514,7 @@ static void wide_trajectory(rhonn_real *x, rhonn_real *u, uint8_t *v, size_t n, 
         u[2 * k] = U[2 * k];
         u[2 * k + 1] = U[2 * k + 1];
         for (j = 0; j < n; ++j) {
-            const double t = 0.01 * (double)k;
+            const double t = 0.01 * (double)(held(k) ? 150u : k);
             x[n * k + j] = j < 6u ? X[6 * k + j] : (rhonn_real)(0.4 * sin((0.5 + 0.2 * (double)j) * t));
             v[n * k + j] = j < 6u ? V[6 * k + j] : 1u;
         }
@@ -624,12 +642,14 @@ static void wide_runs_forget_bound_and_reset_neuron_by_neuron(void)
             cfg.neurons[i].p_trace_max = i >= 2u ? (rhonn_real)(130.0 * (1.0 + 0.1 * (double)i)) : (rhonn_real)0.0;
         }
         CHECK_STATUS(wide_compare(&cfg, 0, 1), RHONN_OK);
-        /* forgetting 0.1 takes the full form's P out of definiteness:
-         * neuron 2 resets (reset_after 1) and goes on, then neuron 4
-         * (reset_after 0) stops the run; the U D U^T form keeps going */
+        /* forgetting 0.1 up to a ceiling near the top of the range takes
+         * the full form's P out of definiteness: neuron 2 resets
+         * (reset_after 1) and goes on, then neuron 4 (reset_after 0) stops
+         * the run; the U D U^T form keeps going */
         cfg = uniform_config(0, 6, 0, ud);
         for (i = 0; i < 6; ++i) {
             cfg.neurons[i].forgetting = (i == 2u || i == 4u) ? (rhonn_real)0.1 : (rhonn_real)0.0;
+            cfg.neurons[i].p_trace_max = (i == 2u || i == 4u) ? (rhonn_real)(BIG / 8) : (rhonn_real)0.0;
             cfg.neurons[i].reset_after = (uint16_t)(i == 2u ? 1u : 0u);
         }
         if (ud) {
@@ -786,6 +806,7 @@ static void wide_steps_go_on_after_a_refusal_as_single_steps(void)
         cfg = uniform_config(scenario ? 0u : 2u, 6, !scenario, 0);
         for (i = 0; scenario && i < 6; ++i) {
             cfg.neurons[i].forgetting = (i == 2u || i == 4u) ? (rhonn_real)0.1 : (rhonn_real)0.0;
+            cfg.neurons[i].p_trace_max = (i == 2u || i == 4u) ? (rhonn_real)(BIG / 8) : (rhonn_real)0.0;
             cfg.neurons[i].reset_after = (uint16_t)(i == 2u ? 1u : 0u);
         }
         wide_trajectory(WX, WU, WV, 6, 60, !scenario);
@@ -906,6 +927,93 @@ static void lanes_prove_as_the_scalar_proof(void)
     CHECK(held > total / 5u && held < total - total / 5u); /* both verdicts well represented */
 }
 
+/* Bounded forgetting (rhonn.h WINDUP PROTECTION) through a quiet stretch,
+ * where the ceiling switches it off and on, lane by lane: the population,
+ * the wide run and the steps in the lanes are single runs, bit for bit, in
+ * both forms; and the ceiling did bind (lifted, the runs differ). */
+static void bounded_forgetting_at_its_ceiling_equals_single_runs(void)
+{
+    rhonn_config cfg[MAXN], one;
+    size_t m, i, k;
+    int ud, differ = 0;
+    hold_quiet = 1;
+    for (ud = 0; ud < 2; ++ud) {
+        for (m = 0; m < 6; ++m) {
+            cfg[m] = lim_config((unsigned)m, 1, ud);
+            for (i = 0; i < 6; ++i) {
+                cfg[m].neurons[i].forgetting = m % 3u == 0u ? (rhonn_real)0.0 : m % 3u == 1u ? (rhonn_real)0.9
+                                                                                            : (rhonn_real)0.99;
+                cfg[m].neurons[i].q[0] = (rhonn_real)0.0;
+                cfg[m].neurons[i].p_trace_max = m >= 4u ? (rhonn_real)(1.5 * 10.0 * (1.0 + 0.25 * (double)m) * 7.0)
+                                                        : (rhonn_real)0.0;
+            }
+        }
+        CHECK(compare(cfg, 6, NULL, 1) == 0);
+        /* the ceiling lifted, member 1 runs otherwise (its quiet stretch
+         * is refused for good, or at least its predictions differ) */
+        one = cfg[1];
+        for (i = 0; i < 6; ++i) {
+            one.neurons[i].p_trace_max = (rhonn_real)(BIG / 8);
+        }
+        CHECK_STATUS(rhonn_init(&alone[1], &one, NULL), RHONN_OK);
+        CHECK_STATUS(rhonn_init(&alone[0], &cfg[1], NULL), RHONN_OK);
+        CHECK_STATUS(rhonn_run(&alone[0], POP_T, X, U, V, Xhat_alone[0], NULL), RHONN_OK);
+        differ += rhonn_run(&alone[1], POP_T, X, U, V, Xhat_alone[1], NULL) != RHONN_OK ||
+                  memcmp(Xhat_alone[0], Xhat_alone[1], POP_T * 6u * sizeof(rhonn_real)) != 0;
+        /* one identifier's neurons in the lanes */
+        one = uniform_config(1, 6, 1, ud);
+        for (i = 0; i < 6; ++i) {
+            one.neurons[i].forgetting = i % 2u ? (rhonn_real)0.9 : (rhonn_real)0.995;
+            for (k = 0; k < one.neurons[i].n_terms; ++k) {
+                one.neurons[i].q[k] = i < 3u ? (rhonn_real)0.0 : one.neurons[i].q[k];
+            }
+        }
+        CHECK_STATUS(wide_compare(&one, 0, 1), RHONN_OK);
+        CHECK(ran_in_lanes(&one) == (!ud || RHONN_WIDE_UD));
+    }
+    CHECK(differ == 2);
+    hold_quiet = 0;
+}
+
+/* A member with an innovation gate: the population runs as single runs
+ * (rhonn_population.h), bit for bit, and the gate does skip the outlier;
+ * an identifier with a gate is not lent to the lanes (rhonn_wide_begin:
+ * RHONN_E_CONFIG, not advised) and its wide run is rhonn_run. */
+static void gated_members_and_neurons_run_as_single_runs(void)
+{
+    rhonn_config cfg[MAXN], one;
+    rhonn_health h;
+    size_t m, i, gated = 0;
+    add_outlier = 1;
+    for (m = 0; m < 4; ++m) {
+        cfg[m] = lim_config((unsigned)m, 1, 0);
+    }
+    cfg[2].neurons[1].gate = (rhonn_real)9.0;
+    CHECK(compare(cfg, 4, NULL, 1) == 0);
+    for (m = 0; m < 4; ++m) {
+        for (i = 0; i < 6; ++i) {
+            CHECK_STATUS(rhonn_get_health(&members[m], i, &h), RHONN_OK);
+            gated += h.gated;
+            CHECK(h.gated == 0u || (m == 2u && i == 1u));
+        }
+    }
+    CHECK(gated > 0u); /* the outlier was gated */
+    CHECK(work.holder == NULL);
+    /* one identifier */
+    one = uniform_config(0, 8 <= RHONN_MAX_STATES ? 8u : 6u, 0, 0);
+    CHECK_STATUS(rhonn_init(&members[0], &one, NULL), RHONN_OK);
+    CHECK(rhonn_wide_pays(&members[0]) == (one.n_states == 8u));
+    one.neurons[3].gate = (rhonn_real)9.0;
+    CHECK_STATUS(rhonn_init(&members[0], &one, NULL), RHONN_OK);
+    CHECK(rhonn_wide_pays(&members[0]) == 0);
+    CHECK_STATUS(rhonn_wide_begin(&members[0], &lend), RHONN_E_CONFIG);
+    memset(&work, 0, sizeof work);
+    CHECK_STATUS(wide_compare(&one, 0, 1), RHONN_OK);
+    CHECK(!ran_in_lanes(&one));
+    CHECK_STATUS(rhonn_get_health(&alone[0], 1, &h), RHONN_OK);
+    add_outlier = 0;
+}
+
 static double seconds(void)
 {
     return (double)clock() / (double)CLOCKS_PER_SEC;
@@ -965,6 +1073,8 @@ int main(void)
     RUN(wide_run_arguments_are_checked);
     RUN(wide_loans_are_checked_and_guarded);
     RUN(wide_steps_go_on_after_a_refusal_as_single_steps);
+    RUN(bounded_forgetting_at_its_ceiling_equals_single_runs);
+    RUN(gated_members_and_neurons_run_as_single_runs);
     if (b != NULL) {
         bench((size_t)strtoul(b, NULL, 10));
     }

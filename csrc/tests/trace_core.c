@@ -1,7 +1,9 @@
 /* Prints every prediction of a fixed identifier over a fixed trajectory as
- * C99 hex floats. CTest runs it from differently built cores (generic and
- * RHONN_UNROLL) and requires byte-identical output: unrolling may change
- * speed, never a single bit. */
+ * C99 hex floats, then again with the windup options and the gate on (both
+ * covariance forms, bounded forgetting through a quiet stretch, an outlier
+ * the gate skips) with the covariances read now and then. CTest runs it
+ * from differently built cores (generic and RHONN_UNROLL) and requires
+ * byte-identical output: unrolling may change speed, never a single bit. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -24,7 +26,7 @@ static void add_term(rhonn_neuron_config *nc, uint8_t kind0, uint8_t idx0, uint8
     }
 }
 
-int main(void)
+static int run(int options)
 {
     static rhonn_t net;
     rhonn_config c;
@@ -55,6 +57,11 @@ int main(void)
                 nc->p0[pi] = c2 == L ? (rhonn_real)100.0 : (rhonn_real)0.0;
             }
         }
+        if (options) {
+            nc->covariance = (uint8_t)(i % 2u);
+            nc->forgetting = i % 3u == 0u ? (rhonn_real)0.99 : i % 3u == 1u ? (rhonn_real)0.9 : (rhonn_real)0.0;
+            nc->gate = i >= 3u ? (rhonn_real)9.0 : (rhonn_real)0.0;
+        }
     }
     if (rhonn_init(&net, &c, NULL) != RHONN_OK) {
         fprintf(stderr, "rhonn_init failed\n");
@@ -63,13 +70,19 @@ int main(void)
     for (k = 0; k < 3000; ++k) {
         rhonn_real x[5], u[2], y[5];
         uint8_t valid[5];
-        double t = 0.01 * (double)k;
+        double t = 0.01 * (double)(options && k >= 1000u && k < 2000u ? 1000u : k); /* quiet */
         for (j = 0; j < 5; ++j) {
             x[j] = (rhonn_real)(sin((1.0 + 0.3 * (double)j) * t) + 0.2 * cos(3.7 * t * (double)(j + 1)));
             valid[j] = (uint8_t)((k + 7u * j) % 23u != 0u);
         }
         u[0] = (rhonn_real)sin(0.7 * t);
         u[1] = (rhonn_real)cos(0.4 * t);
+        if (options && k >= 1000u && k < 2000u) {
+            valid[0] = valid[1] = valid[2] = valid[3] = valid[4] = 1;
+            if (k % 97u == 0u) {
+                x[3] = (rhonn_real)1e4; /* an outlier */
+            }
+        }
         if (rhonn_step(&net, x, u, valid, y) != RHONN_OK) {
             fprintf(stderr, "rhonn_step failed at %u\n", (unsigned)k);
             return 3;
@@ -78,6 +91,24 @@ int main(void)
             printf(j ? " %a" : "%a", (double)y[j]);
         }
         printf("\n");
+        for (i = 0; options && k % 50u == 0u && i < c.n_states; ++i) {
+            rhonn_real p[RHONN_MAX_PACKED];
+            rhonn_health h;
+            const size_t np = (size_t)c.neurons[i].n_terms * (c.neurons[i].n_terms + 1u) / 2u;
+            if (rhonn_get_covariance(&net, i, p, np) != RHONN_OK || rhonn_get_health(&net, i, &h) != RHONN_OK) {
+                return 4;
+            }
+            for (j = 0; j < np; ++j) {
+                printf(j ? " %a" : "P %a", (double)p[j]);
+            }
+            printf(" | %u %u %u %a\n", (unsigned)h.updates, (unsigned)h.gated, (unsigned)h.bounded, (double)h.trace_p);
+        }
     }
     return 0;
+}
+
+int main(void)
+{
+    int st = run(0);
+    return st != 0 ? st : run(1);
 }

@@ -1,7 +1,9 @@
 /* Prints, step by step, the status and every committed full-form covariance
  * (C99 hex floats) of identifiers run where definiteness is at stake: small
  * and zero Q, tiny R, nearly collinear regressors, large P0, a motor-like
- * ramp, scales from 1e-6 to 1e6, covariances set from outside. CTest runs it
+ * ramp, scales from 1e-6 to 1e6, covariances set from outside, bounded
+ * forgetting through a quiet stretch (the ceiling switching it on and off),
+ * an innovation gate skipping an outlier. CTest runs it
  * from the default core, which proves most covariances definite from
  * rounding-error bounds instead of factorising them, and from a core built
  * with RHONN_CERTIFY=0, which always factorises, and requires byte-identical
@@ -69,6 +71,12 @@ static int run(unsigned sc)
             term(nc, RHONN_FACTOR_ONE, 0, 255u, 0);             /* a bias */
             term(nc, RHONN_FACTOR_S, (uint8_t)((i + 1u) % 3u), RHONN_FACTOR_S, (uint8_t)((i + 2u) % 3u));
         }
+        if (sc % 3u == 1u) {
+            nc->forgetting = (rhonn_real)(sc % 2u ? 0.99 : 0.9);
+        }
+        if (sc % 4u == 2u) {
+            nc->gate = (rhonn_real)16.0;
+        }
         for (L = 0, pi = 0; L < nc->n_terms; ++L) {
             size_t c2;
             nc->q[L] = (rhonn_real)(q * (1.0 + 0.1 * (double)L));
@@ -83,7 +91,7 @@ static int run(unsigned sc)
     }
     for (k = 0; k < 400; ++k) {
         rhonn_real x[3], u[2], y[3], p[RHONN_MAX_PACKED];
-        const double t = 3e-4 * (double)k;
+        const double t = 3e-4 * (double)(k < 250u || k >= 330u ? k : 250u); /* quiet from 250 to 329 */
         rhonn_status st;
         /* a ramp that moves from the first sample, its near copy, and noise */
         x[0] = (rhonn_real)(scale * (0.5 + 0.3 * t + 1e-4 * uniform(&seed)));
@@ -91,6 +99,14 @@ static int run(unsigned sc)
         x[2] = (rhonn_real)(scale * sin(40.0 * t) + 0.01 * uniform(&seed));
         u[0] = (rhonn_real)(k < 200u ? 10.0 : 10.0 + uniform(&seed));
         u[1] = (rhonn_real)(cos(25.0 * t));
+        if (k >= 250u && k < 330u) {
+            x[0] = (rhonn_real)(scale * 0.575);
+            x[1] = (rhonn_real)(scale * 0.575);
+            u[0] = (rhonn_real)10.0;
+        }
+        if (k == 360u) {
+            x[2] = (rhonn_real)(1e3 * scale); /* an outlier */
+        }
         if (k == 150u) {
             /* a nearly singular covariance set from outside */
             const size_t L1 = c.neurons[1].n_terms;

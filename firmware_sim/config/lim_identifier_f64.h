@@ -5,8 +5,8 @@
 
 #include "rhonn.h"
 
-#if RHONN_VERSION_MAJOR != 1 || RHONN_VERSION_MINOR < 2
-#error "LIM_IDENTIFIER: exported for the rhonn.h 1.2 configuration layout"
+#if RHONN_VERSION_MAJOR != 1 || RHONN_VERSION_MINOR < 3
+#error "LIM_IDENTIFIER: exported for the rhonn.h 1.3 configuration layout"
 #endif
 #if RHONN_MAX_STATES < 6 || RHONN_MAX_INPUTS < 2 || RHONN_MAX_TERMS < 6 || RHONN_MAX_FACTORS < 2 || RHONN_MAX_DELAY < 1 || RHONN_MAX_POWER < 1
 #error "LIM_IDENTIFIER: the RHONN_MAX_* capacities are too small for this identifier (see its exported capacity header)"
@@ -39,6 +39,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0, /* reset_after */
             0x1.0000000000000p+0, /* forgetting */
             0x0.0p+0, /* p_trace_max (0: off) */
+            0x0.0p+0, /* gate (0: off) */
         },
         { /* [1]: x2 + x5*x6(k-1) + x6*x5(k-1) + u1*x6 + u2*x5 */
             5, /* n_terms */
@@ -60,6 +61,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0, /* reset_after */
             0x1.0000000000000p+0, /* forgetting */
             0x0.0p+0, /* p_trace_max (0: off) */
+            0x0.0p+0, /* gate (0: off) */
         },
         { /* [2]: S(x3) + S(x5) + S(x6) + S(x1)*S(x5) + S(x1)*S(x6) */
             5, /* n_terms */
@@ -81,6 +83,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0, /* reset_after */
             0x1.0000000000000p+0, /* forgetting */
             0x0.0p+0, /* p_trace_max (0: off) */
+            0x0.0p+0, /* gate (0: off) */
         },
         { /* [3]: S(x4) + S(x5) + S(x6) + S(x1)*S(x5) + S(x1)*S(x6) */
             5, /* n_terms */
@@ -102,6 +105,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0, /* reset_after */
             0x1.0000000000000p+0, /* forgetting */
             0x0.0p+0, /* p_trace_max (0: off) */
+            0x0.0p+0, /* gate (0: off) */
         },
         { /* [4]: S(x5) + S(x3) + S(x4) + S(x2)*S(x3) + S(x2)*S(x4) + u1 */
             6, /* n_terms */
@@ -124,6 +128,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0, /* reset_after */
             0x1.0000000000000p+0, /* forgetting */
             0x0.0p+0, /* p_trace_max (0: off) */
+            0x0.0p+0, /* gate (0: off) */
         },
         { /* [5]: S(x6) + S(x3) + S(x4) + S(x2)*S(x3) + S(x2)*S(x4) + u2 */
             6, /* n_terms */
@@ -146,6 +151,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0, /* reset_after */
             0x1.0000000000000p+0, /* forgetting */
             0x0.0p+0, /* p_trace_max (0: off) */
+            0x0.0p+0, /* gate (0: off) */
         },
     },
 };
@@ -173,6 +179,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0, /* reset_after */
             1.0, /* forgetting */
             0.0, /* p_trace_max (0: off) */
+            0.0, /* gate (0: off) */
         },
         { /* [1]: x2 + x5*x6(k-1) + x6*x5(k-1) + u1*x6 + u2*x5 */
             5, /* n_terms */
@@ -194,6 +201,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0, /* reset_after */
             1.0, /* forgetting */
             0.0, /* p_trace_max (0: off) */
+            0.0, /* gate (0: off) */
         },
         { /* [2]: S(x3) + S(x5) + S(x6) + S(x1)*S(x5) + S(x1)*S(x6) */
             5, /* n_terms */
@@ -215,6 +223,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0, /* reset_after */
             1.0, /* forgetting */
             0.0, /* p_trace_max (0: off) */
+            0.0, /* gate (0: off) */
         },
         { /* [3]: S(x4) + S(x5) + S(x6) + S(x1)*S(x5) + S(x1)*S(x6) */
             5, /* n_terms */
@@ -236,6 +245,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0, /* reset_after */
             1.0, /* forgetting */
             0.0, /* p_trace_max (0: off) */
+            0.0, /* gate (0: off) */
         },
         { /* [4]: S(x5) + S(x3) + S(x4) + S(x2)*S(x3) + S(x2)*S(x4) + u1 */
             6, /* n_terms */
@@ -258,6 +268,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0, /* reset_after */
             1.0, /* forgetting */
             0.0, /* p_trace_max (0: off) */
+            0.0, /* gate (0: off) */
         },
         { /* [5]: S(x6) + S(x3) + S(x4) + S(x2)*S(x3) + S(x2)*S(x4) + u2 */
             6, /* n_terms */
@@ -280,6 +291,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0, /* reset_after */
             1.0, /* forgetting */
             0.0, /* p_trace_max (0: off) */
+            0.0, /* gate (0: off) */
         },
     },
 };
