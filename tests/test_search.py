@@ -327,3 +327,42 @@ def test_identify_reports_where_a_free_run_leaves_the_data(tmp_path: Path, capsy
     metrics = json.loads((tmp_path / "id" / "metrics.json").read_text())
     line = metrics["free_run"]["left_range_at_line"]
     assert line is not None and line > 12 and f"the free run left the data's range at line {line}" in out
+
+
+def test_experiments_refine_and_search_refuse_bad_arguments_naming_them() -> None:
+    ex = plant(200, 21)
+    with pytest.raises(ValueError, match=r"^bad: X: expected a \(T, n\) float64"):
+        Experiment(ex.X.astype(np.float32), ex.U, ex.valid, "bad")
+    with pytest.raises(ValueError, match=r"^bad: U: expected a \(200, m\)"):
+        Experiment(ex.X, ex.U[:-1], ex.valid, "bad")
+    with pytest.raises(ValueError, match=r"^bad: valid: expected a \(200, 1\) bool"):
+        Experiment(ex.X, ex.U, ex.valid.astype(int), "bad")
+    nan = ex.X.copy()
+    nan[5, 0] = np.nan
+    with pytest.raises(ValueError, match=r"^bad: X: sample 5, state 0: not finite but marked valid"):
+        Experiment(nan, ex.U, ex.valid, "bad")
+    Experiment(nan, ex.U, ~np.isnan(nan), "holed")  # a NaN where the sample is marked missing is fine
+    two = Experiment(np.hstack([ex.X, ex.X]), ex.U, np.ones((200, 2), dtype=bool), "two")
+    with pytest.raises(ValueError, match=r"^experiments\[1\]: 2 states and 1 inputs"):
+        merge([ex, two])
+    with pytest.raises(ValueError, match=r"^experiments: expected at least one"):
+        merge([])
+    cfg = IdentifierConfig(n_states=1, n_inputs=1, neurons=(NeuronConfig(terms=((Factor.x(0),),)),))
+    with pytest.raises(ValueError, match=r"^config: expected an IdentifierConfig"):
+        refine("cfg", [ex])  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"^experiments: expected a non-empty list"):
+        refine(cfg, [])
+    with pytest.raises(ValueError, match=r"^max_evaluations: "):
+        refine(cfg, [ex], max_evaluations=0)
+    with pytest.raises(ValueError, match=r"^grid: expected a SearchGrid"):
+        search([ex], grid="small")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"^criterion: expected one of"):
+        search([ex], grid=SMALL_GRID, criterion="mdl")
+    with pytest.raises(ValueError, match=r"^refine_weights: expected a bool"):
+        search([ex], grid=SMALL_GRID, refine_weights=1)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"^max_degree: "):
+        SearchGrid(max_degree=5)
+    with pytest.raises(ValueError, match=r"^factors\[0\]: expected one of"):
+        SearchGrid(factor_sets=(("q",),))
+    with pytest.raises(ValueError, match=r"^extra_delays\[0\]: "):
+        CandidateSpace(extra_delays=(0,))
