@@ -23,7 +23,7 @@ import numpy as np
 
 from .validation import check_real, fail
 
-__all__ = ["Experiment", "merge", "hold_out"]
+__all__ = ["Experiment", "merge", "hold_out", "window_rows"]
 
 
 @dataclass(frozen=True)
@@ -117,3 +117,20 @@ def hold_out(experiment: Experiment, fraction: float) -> tuple[Experiment, Exper
         raise fail("fraction", f"{experiment.name}: {T} samples cannot be split {1 - f:.2f} / {f:.2f} (record "
                                "more, or give validation data)")
     return experiment.cut(0, cut, f"{experiment.name} (fit)"), experiment.cut(cut, T, f"{experiment.name} (validate)")
+
+
+def window_rows(valid: np.ndarray, lead: int, *, reach: int | None = None, starts: Sequence[int] = (),
+                stop: int | None = None) -> np.ndarray:
+    """The regressor rows k, lead <= k < stop - 1 (``stop`` default: every sample), whose samples
+    k - reach .. k + 1 (``reach`` default: ``lead``) are measured in every state and whose window
+    k - lead .. k + 1 lies inside one experiment (``starts``: where each after the first begins, as
+    :func:`merge` gives them). ``valid`` (T, n) bool."""
+    T = valid.shape[0]
+    stop = T if stop is None else stop
+    reach = lead if reach is None else reach
+    bad = np.concatenate([[0], np.cumsum(~valid.all(axis=1))])
+    ks = np.arange(lead, max(lead, stop - 1))
+    keep = bad[ks + 2] - bad[ks - reach] == 0
+    for b in starts:
+        keep &= ~((ks - lead < b) & (b <= ks + 1))  # the row's window would read two experiments
+    return ks[keep]

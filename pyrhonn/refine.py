@@ -15,7 +15,7 @@ measurements, from K on every state the network reads is its own prediction,
 exactly the core's step with learning off and every state marked not valid.
 A free run *leaves the data's range* at the first sample where a prediction
 is not finite or lies outside ``[min_j - span_j, max_j + span_j]`` of the
-estimation data (span = max - min): it is reported as diverged there, and
+estimation data (span = max - min; :func:`pyrhonn.residuals.divergence_range`): it is reported as diverged there, and
 its later samples are not scored as numbers.
 
 Simulation-error refinement (:func:`refine`) minimises
@@ -45,6 +45,7 @@ import numpy as np
 from .config import IdentifierConfig
 from .experiments import Experiment
 from .identifier import Identifier
+from .residuals import divergence_range
 from .simulation import simulate
 from .validation import check_int, fail
 
@@ -64,12 +65,10 @@ class DataRange:
 
     @classmethod
     def of(cls, experiments: Sequence[Experiment]) -> "DataRange":
-        X = np.vstack([np.where(ex.valid, ex.X, np.nan) for ex in experiments])
-        lo, hi = np.nanmin(X, axis=0), np.nanmax(X, axis=0)
-        span = hi - lo
-        sigma = np.nanstd(X, axis=0)
-        sigma = np.where(sigma > 0, sigma, 1.0)
-        return cls(low=lo - span, high=hi + span, sigma=sigma)
+        X, valid = np.vstack([ex.X for ex in experiments]), np.vstack([ex.valid for ex in experiments])
+        low, high = divergence_range(X, valid)
+        sigma = np.nanstd(np.where(valid, X, np.nan), axis=0)
+        return cls(low=low, high=high, sigma=np.where(sigma > 0, sigma, 1.0))
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ from dataclasses import replace
 import numpy as np
 
 from .config import FactorKind, IdentifierConfig, NeuronConfig
+from .experiments import window_rows
 from .reference import activate
 from .validation import check_int, fail
 
@@ -31,12 +32,8 @@ __all__ = ["regressor_matrix", "usable_rows", "refit_w0"]
 
 def usable_rows(config: IdentifierConfig, valid: np.ndarray, end: int) -> np.ndarray:
     """The rows k < end - 1 whose samples k - D .. k + 1 (D the config's deepest delay) are all measured."""
-    T = valid.shape[0]
-    end = check_int("end", end, 0, T)
-    D = config.max_delay
-    bad = np.concatenate([[0], np.cumsum(~valid.all(axis=1))])
-    ks = np.arange(D, max(D, end - 1))
-    return ks[bad[ks + 2] - bad[ks - D] == 0]
+    end = check_int("end", end, 0, valid.shape[0])
+    return window_rows(valid, config.max_delay, stop=end)
 
 
 def regressor_matrix(neuron: NeuronConfig, X: np.ndarray, U: np.ndarray, rows: np.ndarray) -> np.ndarray:

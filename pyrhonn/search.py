@@ -66,7 +66,7 @@ from threadpoolctl import threadpool_limits
 
 from .config import Activation, IdentifierConfig
 from .configfile import ConfigFile
-from .experiments import Experiment, hold_out, merge
+from .experiments import Experiment, hold_out, merge, window_rows
 from .identifier import capacities
 from .refine import DataRange, Refinement, free_run_of, refine
 from .structure import CandidateSpace, Criterion, Selection, check_capacity, check_data, parse_criterion, select
@@ -185,12 +185,7 @@ def dead_times(experiments: Sequence[Experiment], max_dead_time: int) -> tuple[i
         return ()
     D = min(max_dead_time, max(0, T // 10))
     scale = DataRange.of(experiments).sigma
-    bad = np.asarray(~valid.all(axis=1))
-    ks = np.arange(max(D, 1), T - 1)
-    keep = ~(bad[ks + 1] | bad[ks] | bad[ks - 1])
-    for b in starts:
-        keep &= ~((ks - max(D, 1) < b) & (b <= ks + 1))
-    ks = ks[keep]
+    ks = window_rows(valid, max(D, 1), reach=1, starts=starts)  # x(k-1), x(k), x(k+1) measured
     if ks.size < 10:
         return (0,) * m
     Y = X[ks + 1] / scale
@@ -225,14 +220,7 @@ def state_delay(experiments: Sequence[Experiment], shallow: int, deepest: int,
     if D <= shallow:
         return None
     scale = DataRange.of(experiments).sigma
-    bad = np.asarray(~valid.all(axis=1))
-    csum = np.concatenate([[0], np.cumsum(bad)])
-    lead = max(D, max(dead, default=0), 1)
-    ks = np.arange(lead, T - 1)
-    keep = csum[ks + 2] - csum[ks - lead] == 0
-    for b in starts:
-        keep &= ~((ks - lead < b) & (b <= ks + 1))
-    ks = ks[keep]
+    ks = window_rows(valid, max(D, max(dead, default=0), 1), starts=starts)
     if ks.size < 10 * (3 * n + 2):
         return None
     Xs = X / scale

@@ -52,6 +52,7 @@ from threadpoolctl import threadpool_limits
 
 from .config import Activation, Factor, FactorKind, IdentifierConfig, NeuronConfig, Term
 from .configfile import ConfigFile, format_term
+from .experiments import window_rows
 from .identifier import capacities
 from .validation import check_int, check_real, fail
 
@@ -771,15 +772,9 @@ def select(
     check_capacity(space, n, m, max_terms)
 
     W = space.window
-    bad_row = ~valid.all(axis=1)
-    csum = np.concatenate([[0], np.cumsum(bad_row)])
-    ks = np.arange(W, T - 1)
-    clean = csum[ks + 2] - csum[ks - W] == 0  # samples k - W .. k + 1 all valid
-    for e, b in enumerate(starts):
-        b = check_int(f"starts[{e}]", b, 1, T - 1)
-        clean &= ~((ks - W < b) & (b <= ks + 1))  # the row's window would read two experiments
-    rows = ks[clean]
-    dropped = int(ks.size - rows.size)
+    starts = [check_int(f"starts[{e}]", b, 1, T - 1) for e, b in enumerate(starts)]
+    rows = window_rows(valid, W, starts=starts)
+    dropped = int(max(T - 1 - W, 0) - rows.size)
     n_val = int(round(holdout * rows.size)) if crit is Criterion.HOLDOUT else 0
     if crit is Criterion.HOLDOUT and not 0.0 < holdout < 1.0:
         raise fail("holdout", f"expected a fraction in (0, 1), got {holdout!r}")
