@@ -221,6 +221,16 @@ class NeuronConfig:
         counted in :attr:`~pyrhonn.identifier.NeuronHealth.gated`. e^2/s is
         chi-square with 1 degree of freedom for a consistent filter: 9 skips
         0.27 % of good samples, so an outlier is not learned.
+    skip_refused:
+        False (the default): a refused learning update of this neuron (its
+        P_i(k+1) not positive definite or not finite, its weights not
+        finite) refuses the whole step, which changes nothing and raises.
+        True: only this neuron's update is skipped (w_i and P_i kept, the
+        refusal counted in :attr:`~pyrhonn.identifier.NeuronHealth.rejected`),
+        the other neurons learn and the step goes on; with ``reset_after``
+        the N-th refusal in a row still resets P_i, inside
+        :meth:`~pyrhonn.identifier.Identifier.run` as well. For records that
+        must not stop the identifier.
     """
 
     terms: tuple[Term, ...]
@@ -236,6 +246,7 @@ class NeuronConfig:
     p_trace_max: float | None = None
     reset_after: int = 0
     gate: float = 0.0
+    skip_refused: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.terms, tuple) or not self.terms:
@@ -306,6 +317,9 @@ class NeuronConfig:
             object.__setattr__(self, "p_trace_max", ceiling)
         object.__setattr__(self, "reset_after", check_int("reset_after", self.reset_after, 0, 65535))
         object.__setattr__(self, "gate", check_real("gate", self.gate, nonnegative=True))
+        if not isinstance(self.skip_refused, (bool, np.bool_)):
+            raise fail("skip_refused", f"expected True or False, got {self.skip_refused!r}")
+        object.__setattr__(self, "skip_refused", bool(self.skip_refused))
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, NeuronConfig) and self.to_dict() == other.to_dict()
@@ -355,6 +369,7 @@ class NeuronConfig:
             "p_trace_max": self.p_trace_max,
             "reset_after": self.reset_after,
             "gate": self.gate,
+            "skip_refused": self.skip_refused,
         }
 
     @classmethod
@@ -362,7 +377,7 @@ class NeuronConfig:
         if not isinstance(data, Mapping):
             raise fail(path, f"expected a table, got {type(data).__name__}")
         known = {"terms", "activation", "beta", "p0", "q", "r", "eta", "w0", "covariance", "forgetting",
-                 "p_trace_max", "reset_after", "gate"}
+                 "p_trace_max", "reset_after", "gate", "skip_refused"}
         unknown = set(data) - known
         if unknown:
             raise fail(path, f"unknown keys {sorted(unknown)}")
@@ -395,7 +410,8 @@ class NeuronConfig:
             return cls(terms=tuple(terms), activation=activation, beta=data.get("beta", 1.0), p0=p0, q=q,
                        r=data.get("r", 1.0), eta=data.get("eta", 1.0), w0=w0, covariance=covariance,
                        forgetting=data.get("forgetting", 1.0), p_trace_max=data.get("p_trace_max"),
-                       reset_after=data.get("reset_after", 0), gate=data.get("gate", 0.0))
+                       reset_after=data.get("reset_after", 0), gate=data.get("gate", 0.0),
+                       skip_refused=data.get("skip_refused", False))
         except ValueError as exc:  # "p0[1]: ..." from the checks: the field, under this neuron's path
             raise ValueError(f"{path}.{exc}") from None
 

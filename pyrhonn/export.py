@@ -57,7 +57,7 @@ __all__ = ["export_header", "header_text", "capacity_text", "capacity_path", "mi
 
 #: The rhonn.h API version (RHONN_VERSION_MAJOR, _MINOR) whose rhonn_config and
 #: rhonn_warm_state field order the positional initialisers follow.
-LAYOUT_VERSION = (1, 3)
+LAYOUT_VERSION = (1, 4)
 
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 #: C99's keywords (6.4.1): a name the compiler would refuse
@@ -277,6 +277,7 @@ def _config_initializer(cfg: IdentifierConfig, name: str, lit: LiteralFormat) ->
             f"            {lit(nr.forgetting)}, /* forgetting */",
             f"            {lit(0.0 if nr.p_trace_max is None else nr.p_trace_max)}, /* p_trace_max (0: off) */",
             f"            {lit(nr.gate)}, /* gate (0: off) */",
+            f"            {int(nr.skip_refused)}, /* skip_refused */",
             "        },",
         ]
     return lines + ["    },", "};"]

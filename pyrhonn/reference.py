@@ -76,7 +76,8 @@ class ReferenceIdentifier:
     P+ + Q_i; with a ceiling p_trace_max a P_i(k+1) of larger trace is
     then scaled down to it. With an innovation gate (``gate`` > 0), an
     update whose e_i^2 / (R_i + H_i^T P_i H_i) exceeds it is skipped (w_i
-    and P_i unchanged). The
+    and P_i unchanged). With ``skip_refused``, an update whose innovation
+    variance, P_i or w_i is not finite is skipped for that neuron alone. The
     config's covariance form (full or U D U^T) does not matter here: the
     reference always updates the full P_i, in float64; automatic resets
     (reset_after) are not modelled.
@@ -211,6 +212,8 @@ class ReferenceIdentifier:
             g = P @ H
             s = nr.r + H @ g  # 1 / M_i, eq. 8
             if not (np.isfinite(s) and s > 0.0):
+                if nr.skip_refused:
+                    continue  # only this neuron's update is refused
                 raise ValueError(f"neuron {i}: innovation R + z^T P z = {s!r} is not a positive finite number")
             if nr.gate > 0.0 and e * e / s > nr.gate:
                 continue  # the innovation gate: an outlier is not learned
@@ -225,10 +228,12 @@ class ReferenceIdentifier:
             if nr.p_trace_max is not None and np.trace(p_new[i]) > nr.p_trace_max:
                 p_new[i] = p_new[i] * (nr.p_trace_max / np.trace(p_new[i]))
             w_new[i] = self._w[i] + nr.eta * e * K  # eq. 7
-            if not np.all(np.isfinite(p_new[i])):
-                raise ValueError(f"neuron {i}: updated covariance P is not finite")
-            if not np.all(np.isfinite(w_new[i])):
-                raise ValueError(f"neuron {i}: updated weights are not finite")
+            refusal = ("updated covariance P is not finite" if not np.all(np.isfinite(p_new[i])) else
+                       "updated weights are not finite" if not np.all(np.isfinite(w_new[i])) else "")
+            if refusal and nr.skip_refused:
+                w_new[i], p_new[i] = self._w[i], self._P[i]  # only this neuron's update is refused
+            elif refusal:
+                raise ValueError(f"neuron {i}: {refusal}")
         return w_new, p_new
 
     def step(self, x: np.ndarray, u: np.ndarray | None = None, valid: np.ndarray | None = None) -> np.ndarray:

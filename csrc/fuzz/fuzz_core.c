@@ -37,6 +37,10 @@
  *   - the innovation gate: an update committed with e^2 / s above the
  *     neuron's gate, or a gated update (health gated counted) that changed
  *     the neuron's weights or covariance, aborts;
+ *   - skip_refused: a step that returned RHONN_OK while counting a refusal
+ *     (health rejected) that was not a recovery (health resets) is one whose
+ *     neuron has skip_refused set, and that neuron kept its weights and
+ *     covariance;
  *   - bounded forgetting: without Q and without a trace bound, a step's
  *     trace P_i is at most max(c_i, the trace before) (c_i = trace P_i(0)),
  *     to rounding: forgetting never lifts it above its ceiling.
@@ -90,6 +94,7 @@ static void make_config(reader *r, rhonn_config *c)
         if (flags & 0x40u) {
             nc->gate = (rhonn_real)(1u + byte(r) % 30u);
         }
+        nc->skip_refused = (uint8_t)(flags >> 7);
         read_terms(r, nc, c->n_states, c->n_inputs);
     }
 }
@@ -313,7 +318,7 @@ static void capture(const rhonn_t *net, filter_state *s)
  * trace P at most max(c_i, its trace before), c_i = trace P_i(0) (rhonn.h
  * WINDUP PROTECTION), to rounding. */
 static void check_gate_and_ceiling(const rhonn_t *net, const filter_state *before, const uint32_t *gated,
-                                   const rhonn_real *traces)
+                                   const uint32_t *rejected, const uint32_t *resets, const rhonn_real *traces)
 {
     const long double eps = sizeof(rhonn_real) == 4 ? 1.2e-7L : 2.3e-16L;
     size_t i;
@@ -326,10 +331,14 @@ static void check_gate_and_ceiling(const rhonn_t *net, const filter_state *befor
         if (rhonn_get_health(net, i, &h) != RHONN_OK) {
             abort();
         }
-        if (h.gated != gated[i] &&
+        const int skipped = h.rejected != rejected[i] && h.resets == resets[i];
+        if (skipped && nc->skip_refused == 0u) {
+            abort(); /* a step refused by a neuron without skip_refused returned RHONN_OK */
+        }
+        if ((h.gated != gated[i] || skipped) &&
             (memcmp(net->w[i][net->bank[i]], before->w[i], L * sizeof(rhonn_real)) != 0 ||
              memcmp(net->p[i][net->bank[i]], before->p[i], L * (L + 1u) / 2u * sizeof(rhonn_real)) != 0)) {
-            abort(); /* a gated update changed the neuron */
+            abort(); /* a gated or skipped update changed the neuron */
         }
         for (t = 0; t < L; ++t) {
             q_zero &= nc->q[t] == 0;
@@ -365,7 +374,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     while (r.n > 0u && ops++ < 512u) {
         const uint8_t op = byte(&r);
         filter_state before, after;
-        uint32_t updates[RHONN_MAX_STATES], gated[RHONN_MAX_STATES];
+        uint32_t updates[RHONN_MAX_STATES], gated[RHONN_MAX_STATES], rejected[RHONN_MAX_STATES],
+            resets[RHONN_MAX_STATES];
         rhonn_real traces[RHONN_MAX_STATES];
         rhonn_status st;
         size_t j;
@@ -374,6 +384,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             rhonn_health h;
             updates[j] = net.health[j].updates;
             gated[j] = net.health[j].gated;
+            rejected[j] = net.health[j].rejected;
+            resets[j] = net.health[j].resets;
             traces[j] = j < cfg.n_states && rhonn_get_health(&net, j, &h) == RHONN_OK ? h.trace_p : 0;
         }
         switch (op % 8u) {
@@ -411,7 +423,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         if (st == RHONN_OK) {
             check_invariants(&net, updates);
             if (op % 8u <= 4u) {
-                check_gate_and_ceiling(&net, &before, gated, traces);
+                check_gate_and_ceiling(&net, &before, gated, rejected, resets, traces);
             }
         } else {
             capture(&net, &after);

@@ -83,6 +83,19 @@
  * weights are formed, so an outlier that would overflow them is skipped, not
  * refused.
  *
+ * REFUSALS, NEURON BY NEURON (per neuron, skip_refused; 0 = off): a neuron
+ * whose learning update is refused (RHONN_E_INNOVATION, RHONN_E_COVARIANCE,
+ * RHONN_E_DIVERGED for its weights, RHONN_E_NOT_PD) does not stop the step:
+ * its w_i and P_i stay as they were (the update is skipped), the refusal is
+ * counted (rhonn_health.rejected, fail_run), the other neurons learn and the
+ * step returns RHONN_OK. With reset_after, the refusal that completes the
+ * run recovers the neuron as without skip_refused, so recovery happens
+ * inside rhonn_run too. A neuron that keeps refusing is frozen (its
+ * prediction goes on from its weights) until then, or until the caller
+ * replaces its weights or covariance; the others keep learning. Errors that
+ * are not a neuron's update (bad arguments, non-finite inputs, a prediction
+ * that would not be finite) still stop the step.
+ *
  * ORDER OF ONE STEP (rhonn_step), for the sample k carrying x(k), u(k):
  *   1. Learn: for every neuron i whose measurement is valid, form
  *      e_i(k) = x_i(k) - xhat_i(k) and update w_i, P_i using the regressor
@@ -142,7 +155,7 @@ typedef double rhonn_real;
 
 /* Version of this header's API and of rhonn_t's layout. */
 #define RHONN_VERSION_MAJOR 1
-#define RHONN_VERSION_MINOR 3
+#define RHONN_VERSION_MINOR 4
 
 typedef enum {
     RHONN_OK = 0,
@@ -216,6 +229,12 @@ typedef struct {
     /* Innovation gate (see above): 0 = off; else >= 0, finite: the largest
      * e_i^2 / s_i learned (e.g. 9, chi-square 1 dof at 99.7 %). */
     rhonn_real gate;
+    /* What a refused learning update stops (see REFUSALS above): 0 (as in a
+     * zero-initialised config) the whole step, which returns the refusal and
+     * commits nothing; 1 only this neuron's update, skipped while the others
+     * learn and the step goes on. Last, so that positional initialisers
+     * written before it existed leave it 0. */
+    uint8_t skip_refused;
 } rhonn_neuron_config;
 
 typedef struct {
@@ -234,7 +253,7 @@ typedef enum {
     RHONN_FIELD_N_FACTORS, RHONN_FIELD_FACTOR_KIND, RHONN_FIELD_FACTOR_INDEX,
     RHONN_FIELD_FACTOR_DELAY, RHONN_FIELD_FACTOR_POWER,
     RHONN_FIELD_COVARIANCE, RHONN_FIELD_FORGETTING, RHONN_FIELD_P_TRACE_MAX,
-    RHONN_FIELD_RESET_AFTER, RHONN_FIELD_GATE
+    RHONN_FIELD_RESET_AFTER, RHONN_FIELD_GATE, RHONN_FIELD_SKIP_REFUSED
 } rhonn_field;
 
 typedef struct {
@@ -253,7 +272,8 @@ typedef struct {
                              * consistent filter, persistently large when P_i is too small */
     rhonn_real trace_p;     /* trace of the committed P_i, computed by rhonn_get_health */
     uint32_t updates;       /* learning updates committed */
-    uint32_t rejected;      /* learning updates refused (a step that returned an error) */
+    uint32_t rejected;      /* learning updates refused (the step returned the refusal, or
+                             * with skip_refused went on without this neuron's update) */
     uint32_t resets;        /* automatic covariance resets (reset_after) */
     uint32_t bounded;       /* updates whose P_i was scaled down to p_trace_max */
     uint32_t gated;         /* updates skipped by the innovation gate (e^2 / s > gate) */

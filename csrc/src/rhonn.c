@@ -329,6 +329,9 @@ rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *
         if (!is_finite(nc->gate) || nc->gate < R(0.0)) {
             return config_error(where, RHONN_FIELD_GATE, i, 0, 0);
         }
+        if (nc->skip_refused > 1u) {
+            return config_error(where, RHONN_FIELD_SKIP_REFUSED, i, 0, 0);
+        }
         for (t = 0; t < L; ++t) {
             const rhonn_term *term = &nc->terms[t];
             if (term->n_factors < 1u || term->n_factors > (size_t)RHONN_MAX_FACTORS) {
@@ -640,6 +643,9 @@ static rhonn_status fixed_config_matches(const rhonn_config *cfg, rhonn_config_e
         }
         if (bits_of(a->gate) != bits_of(b->gate)) {
             return config_error(where, RHONN_FIELD_GATE, i, 0, 0);
+        }
+        if (a->skip_refused != b->skip_refused) {
+            return config_error(where, RHONN_FIELD_SKIP_REFUSED, i, 0, 0);
         }
     }
     return RHONN_OK;
@@ -1879,7 +1885,9 @@ RHONN_COLD static int count_refusal(rhonn_t *net, size_t i);
 
 /* A neuron's update was refused (st): counted; with reset_after reached,
  * recovered instead (RHONN_OK): the update skipped, the weights kept and
- * the covariance restarted from P_i(0). Off the hot path. */
+ * the covariance restarted from P_i(0); else, with skip_refused, the update
+ * skipped alone (RHONN_OK, nothing of this neuron committed). Off the hot
+ * path. */
 static int count_refusal(rhonn_t *net, size_t i)
 {
     const rhonn_neuron_config *nc = &CFG(net)->neurons[i];
@@ -1897,7 +1905,12 @@ static rhonn_status refused(rhonn_t *net, size_t i, rhonn_status st, learned *ou
     const uint8_t nb = (uint8_t)(net->bank[i] ^ 1u);
     size_t t;
     if (!count_refusal(net, i)) {
-        return st;
+        if (nc->skip_refused == 0u) {
+            return st;
+        }
+        out->updated[i] = 0; /* skip_refused: this neuron's update is skipped, the step goes on */
+        out->bounded[i] = 0;
+        return RHONN_OK;
     }
     for (t = 0; t < nc->n_terms; ++t) {
         net->w[i][nb][t] = net->w[i][net->bank[i]][t];
@@ -1911,8 +1924,8 @@ static rhonn_status refused(rhonn_t *net, size_t i, rhonn_status st, learned *ou
 
 /* Step 1: learn from e(k) = x(k) - xhat(k) (eq. 9) with z(k-1), into the
  * inactive banks; nothing is committed until every neuron passed. A neuron
- * whose update is refused stops the step, or (reset_after) is recovered and
- * the others go on. */
+ * whose update is refused stops the step, or (reset_after) is recovered, or
+ * (skip_refused) keeps its weights and covariance, and the others go on. */
 static rhonn_status learn(rhonn_t *net, const rhonn_real *x, const uint8_t *valid, learned *out)
 {
     const size_t n = CFG(net)->n_states;

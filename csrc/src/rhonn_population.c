@@ -1655,15 +1655,15 @@ POP_LANES void commit_alike(rhonn_population_work *wk, size_t i, uint8_t measure
     }
 }
 
-/* Does some member have an innovation gate on in some neuron? The lanes do
- * not run the gate (rhonn_population.h). */
-static int any_gate(rhonn_t *const *nets, size_t N)
+/* Does some member have an innovation gate or skip_refused on in some
+ * neuron? The lanes run neither (rhonn_population.h). */
+static int any_by_neuron(rhonn_t *const *nets, size_t N)
 {
     size_t m, i;
     for (m = 0; m < N; ++m) {
         const rhonn_config *cfg = CFG(nets[m]);
         for (i = 0; i < cfg->n_states; ++i) {
-            if (cfg->neurons[i].gate > R(0.0)) {
+            if (cfg->neurons[i].gate > R(0.0) || cfg->neurons[i].skip_refused != 0u) {
                 return 1;
             }
         }
@@ -1671,7 +1671,8 @@ static int any_gate(rhonn_t *const *nets, size_t N)
     return 0;
 }
 
-/* The population as N calls of rhonn_run (members with a gate): member m's
+/* The population as N calls of rhonn_run (members with a gate or
+ * skip_refused): member m's
  * predictions at Xhat[m T n ...], its status and steps; returns the status
  * of the lowest-indexed member that stopped, else RHONN_OK. */
 static rhonn_status run_one_by_one(rhonn_t *const *nets, size_t N, rhonn_population_work *work, size_t T,
@@ -1751,7 +1752,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
     if (T > 0u && (X == NULL || Xhat == NULL || (U == NULL && mi > 0u))) {
         return RHONN_E_NULL;
     }
-    if (any_gate(nets, N)) {
+    if (any_by_neuron(nets, N)) {
         return run_one_by_one(nets, N, work, T, X, U, valid, Xhat, status, done);
     }
 
@@ -2079,8 +2080,9 @@ static int wide_fits(const rhonn_t *net)
 #endif
     for (i = 0; i < cfg->n_states; ++i) {
         if (cfg->neurons[i].n_terms != cfg->neurons[0].n_terms ||
-            cfg->neurons[i].covariance != cfg->neurons[0].covariance || cfg->neurons[i].gate > R(0.0)) {
-            return 0; /* the innovation gate runs neuron by neuron (rhonn_step) */
+            cfg->neurons[i].covariance != cfg->neurons[0].covariance || cfg->neurons[i].gate > R(0.0) ||
+            cfg->neurons[i].skip_refused != 0u) {
+            return 0; /* the innovation gate and skip_refused run neuron by neuron (rhonn_step) */
         }
     }
     return 1;

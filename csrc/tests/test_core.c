@@ -205,6 +205,7 @@ static void config_errors_name_the_field(void)
     EXPECT_FIELD(c.neurons[1].gate = -1, RHONN_FIELD_GATE, 1, 0, 0);
     EXPECT_FIELD(c.neurons[0].gate = (rhonn_real)NAN, RHONN_FIELD_GATE, 0, 0, 0);
     EXPECT_FIELD(c.neurons[1].gate = (rhonn_real)INFINITY, RHONN_FIELD_GATE, 1, 0, 0);
+    EXPECT_FIELD(c.neurons[1].skip_refused = 2, RHONN_FIELD_SKIP_REFUSED, 1, 0, 0);
 #undef EXPECT_FIELD
     CHECK_STATUS(rhonn_validate_config(NULL, &where), RHONN_E_NULL);
     CHECK_STATUS(rhonn_init(NULL, &c, NULL), RHONN_E_NULL);
@@ -1223,6 +1224,72 @@ static void the_gate_skips_an_outlier_in_every_neuron(void)
     CHECK(h.gated == 0u && h.updates == K);
 }
 
+/* rhonn.h REFUSALS, NEURON BY NEURON: neuron 0's covariance overflows on
+ * every update (its term x_1 is held at 0, so P_00 + Q_00 with both at the
+ * largest real gains nothing from the measurement). Without skip_refused
+ * the run stops at the first learning step. With it the run goes to the
+ * end: neuron 0 keeps w_0(0) and P_0(0), every refusal is counted, and
+ * neuron 1 learns bit for bit as in a twin whose neuron 0 is well posed
+ * (neuron 1 reads measured states only). With reset_after = 3 every third
+ * refusal in a row recovers the neuron inside the same run. */
+static void a_refused_neuron_is_skipped_while_the_others_learn(void)
+{
+    enum { T = 50 };
+    rhonn_t net, twin;
+    rhonn_config c = small_config(), good;
+    rhonn_real X[T * 2], U[T], Y[T * 2], Yt[T * 2], w[4], wt[4], p[10], p0[10];
+    rhonn_health h;
+    size_t k, done = 0;
+#ifdef RHONN_SINGLE
+    const rhonn_real big = FLT_MAX;
+#else
+    const rhonn_real big = DBL_MAX;
+#endif
+    for (k = 0; k < T; ++k) {
+        sample(k, &X[2 * k], &U[k]);
+        X[2 * k] = 0;
+    }
+    c.neurons[0].terms[0].factors[0].kind = (uint8_t)RHONN_FACTOR_X;
+    good = c;
+    c.neurons[0].q[0] = big;
+    c.neurons[0].p0[0] = big;
+
+    CHECK_STATUS(rhonn_init(&net, &c, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_run(&net, T, X, U, NULL, Y, &done), RHONN_E_COVARIANCE);
+    CHECK(done == 1u);
+
+    c.neurons[0].skip_refused = 1;
+    c.neurons[1].skip_refused = 1;
+    CHECK_STATUS(rhonn_init(&net, &c, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_init(&twin, &good, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_run(&net, T, X, U, NULL, Y, &done), RHONN_OK);
+    CHECK(done == T);
+    CHECK_STATUS(rhonn_run(&twin, T, X, U, NULL, Yt, &done), RHONN_OK);
+    CHECK_STATUS(rhonn_get_health(&net, 0, &h), RHONN_OK);
+    CHECK(h.rejected == T - 1u && h.updates == 0u && h.resets == 0u && h.fail_run == T - 1u);
+    CHECK_STATUS(rhonn_get_weights(&net, 0, w, 4), RHONN_OK);
+    CHECK(memcmp(w, c.neurons[0].w0, sizeof w) == 0);
+    CHECK_STATUS(rhonn_get_covariance(&net, 0, p, 10), RHONN_OK);
+    memcpy(p0, c.neurons[0].p0, sizeof p0);
+    CHECK(memcmp(p, p0, sizeof p) == 0);
+    CHECK_STATUS(rhonn_get_health(&net, 1, &h), RHONN_OK);
+    CHECK(h.rejected == 0u && h.updates == T - 1u);
+    CHECK_STATUS(rhonn_get_weights(&net, 1, w, 4), RHONN_OK);
+    CHECK_STATUS(rhonn_get_weights(&twin, 1, wt, 4), RHONN_OK);
+    CHECK(memcmp(w, wt, sizeof w) == 0);
+    for (k = 0; k < T; ++k) {
+        CHECK(Y[2 * k + 1] == Yt[2 * k + 1]);
+    }
+
+    /* recovery inside one run */
+    c.neurons[0].reset_after = 3;
+    CHECK_STATUS(rhonn_init(&net, &c, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_run(&net, T, X, U, NULL, Y, &done), RHONN_OK);
+    CHECK(done == T);
+    CHECK_STATUS(rhonn_get_health(&net, 0, &h), RHONN_OK);
+    CHECK(h.rejected == T - 1u && h.resets == (T - 1u) / 3u && h.fail_run == (T - 1u) % 3u);
+}
+
 int main(void)
 {
     printf("rhonn core tests (%s, sizeof(rhonn_t) = %u bytes)\n",
@@ -1258,5 +1325,6 @@ int main(void)
     RUN(covariance_round_trips_change_nothing_after_any_step);
     RUN(the_gate_skips_an_outlier_in_every_neuron);
     RUN(bounded_forgetting_learns_after_a_million_quiet_samples);
+    RUN(a_refused_neuron_is_skipped_while_the_others_learn);
     return CHECK_SUMMARY();
 }

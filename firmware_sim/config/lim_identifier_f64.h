@@ -5,8 +5,8 @@
 
 #include "rhonn.h"
 
-#if RHONN_VERSION_MAJOR != 1 || RHONN_VERSION_MINOR < 3
-#error "LIM_IDENTIFIER: exported for the rhonn.h 1.3 configuration layout"
+#if RHONN_VERSION_MAJOR != 1 || RHONN_VERSION_MINOR < 4
+#error "LIM_IDENTIFIER: exported for the rhonn.h 1.4 configuration layout"
 #endif
 #if RHONN_MAX_STATES < 6 || RHONN_MAX_INPUTS < 2 || RHONN_MAX_TERMS < 6 || RHONN_MAX_FACTORS < 2 || RHONN_MAX_DELAY < 1 || RHONN_MAX_POWER < 1
 #error "LIM_IDENTIFIER: the RHONN_MAX_* capacities are too small for this identifier (see its exported capacity header)"
@@ -40,6 +40,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x1.0000000000000p+0, /* forgetting */
             0x0.0p+0, /* p_trace_max (0: off) */
             0x0.0p+0, /* gate (0: off) */
+            0, /* skip_refused */
         },
         { /* [1]: x2 + x5*x6(k-1) + x6*x5(k-1) + u1*x6 + u2*x5 */
             5, /* n_terms */
@@ -62,6 +63,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x1.0000000000000p+0, /* forgetting */
             0x0.0p+0, /* p_trace_max (0: off) */
             0x0.0p+0, /* gate (0: off) */
+            0, /* skip_refused */
         },
         { /* [2]: S(x3) + S(x5) + S(x6) + S(x1)*S(x5) + S(x1)*S(x6) */
             5, /* n_terms */
@@ -84,6 +86,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x1.0000000000000p+0, /* forgetting */
             0x0.0p+0, /* p_trace_max (0: off) */
             0x0.0p+0, /* gate (0: off) */
+            0, /* skip_refused */
         },
         { /* [3]: S(x4) + S(x5) + S(x6) + S(x1)*S(x5) + S(x1)*S(x6) */
             5, /* n_terms */
@@ -106,6 +109,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x1.0000000000000p+0, /* forgetting */
             0x0.0p+0, /* p_trace_max (0: off) */
             0x0.0p+0, /* gate (0: off) */
+            0, /* skip_refused */
         },
         { /* [4]: S(x5) + S(x3) + S(x4) + S(x2)*S(x3) + S(x2)*S(x4) + u1 */
             6, /* n_terms */
@@ -129,6 +133,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x1.0000000000000p+0, /* forgetting */
             0x0.0p+0, /* p_trace_max (0: off) */
             0x0.0p+0, /* gate (0: off) */
+            0, /* skip_refused */
         },
         { /* [5]: S(x6) + S(x3) + S(x4) + S(x2)*S(x3) + S(x2)*S(x4) + u2 */
             6, /* n_terms */
@@ -152,6 +157,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x1.0000000000000p+0, /* forgetting */
             0x0.0p+0, /* p_trace_max (0: off) */
             0x0.0p+0, /* gate (0: off) */
+            0, /* skip_refused */
         },
     },
 };
@@ -180,6 +186,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             1.0, /* forgetting */
             0.0, /* p_trace_max (0: off) */
             0.0, /* gate (0: off) */
+            0, /* skip_refused */
         },
         { /* [1]: x2 + x5*x6(k-1) + x6*x5(k-1) + u1*x6 + u2*x5 */
             5, /* n_terms */
@@ -202,6 +209,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             1.0, /* forgetting */
             0.0, /* p_trace_max (0: off) */
             0.0, /* gate (0: off) */
+            0, /* skip_refused */
         },
         { /* [2]: S(x3) + S(x5) + S(x6) + S(x1)*S(x5) + S(x1)*S(x6) */
             5, /* n_terms */
@@ -224,6 +232,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             1.0, /* forgetting */
             0.0, /* p_trace_max (0: off) */
             0.0, /* gate (0: off) */
+            0, /* skip_refused */
         },
         { /* [3]: S(x4) + S(x5) + S(x6) + S(x1)*S(x5) + S(x1)*S(x6) */
             5, /* n_terms */
@@ -246,6 +255,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             1.0, /* forgetting */
             0.0, /* p_trace_max (0: off) */
             0.0, /* gate (0: off) */
+            0, /* skip_refused */
         },
         { /* [4]: S(x5) + S(x3) + S(x4) + S(x2)*S(x3) + S(x2)*S(x4) + u1 */
             6, /* n_terms */
@@ -269,6 +279,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             1.0, /* forgetting */
             0.0, /* p_trace_max (0: off) */
             0.0, /* gate (0: off) */
+            0, /* skip_refused */
         },
         { /* [5]: S(x6) + S(x3) + S(x4) + S(x2)*S(x3) + S(x2)*S(x4) + u2 */
             6, /* n_terms */
@@ -292,6 +303,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             1.0, /* forgetting */
             0.0, /* p_trace_max (0: off) */
             0.0, /* gate (0: off) */
+            0, /* skip_refused */
         },
     },
 };
