@@ -47,7 +47,6 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
-import io
 import math
 import os
 import platform
@@ -58,6 +57,7 @@ import tempfile
 import uuid
 import xml.etree.ElementTree as ET
 import zipfile
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
@@ -438,24 +438,21 @@ def export_fmu(cf: ConfigFile, path: str | Path, settings: FmuSettings, *, confi
     if s.fmi_version == 3:
         files["sources/buildDescription.xml"] = _build_description(s, unity)
     files["modelDescription.xml"] = _model_description(cf, cfg, s, variables, token, [unity])
-    with tempfile.TemporaryDirectory(prefix="pyrhonn-fmu-") as tmp:
-        src = Path(tmp) / "sources"
-        src.mkdir()
+    with ExitStack() as stack:
+        try:  # the temporary file first: a folder that cannot be written fails before the build
+            out = stack.enter_context(atomic.replacing(path, "wb"))
+        except OSError as exc:
+            raise ValueError(f"path {str(path)!r}: cannot be written ({exc.strerror or exc})") from None
+        tmp = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="pyrhonn-fmu-")))
+        (tmp / "sources").mkdir()
         for name, data in files.items():
-            if name.startswith("sources/"):
-                (Path(tmp) / name).write_bytes(data)
-        binary = Path(tmp) / f"{ident}.so"
-        _compile(cc, src, headers, unity, binary)
-        files[f"{binaries}/{ident}.so"] = binary.read_bytes()
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
-        for name in sorted(files):
-            info = zipfile.ZipInfo(name, date_time=(2020, 1, 1, 0, 0, 0))
-            info.compress_type = zipfile.ZIP_DEFLATED
-            info.external_attr = (0o755 if name.endswith(".so") else 0o644) << 16
-            zf.writestr(info, files[name])
-    try:
-        atomic.write_bytes(path, buf.getvalue())
-    except OSError as exc:
-        raise ValueError(f"path {str(path)!r}: cannot be written ({exc.strerror or exc})") from None
+            (tmp / name).write_bytes(data)
+        _compile(cc, tmp / "sources", headers, unity, tmp / f"{ident}.so")
+        files[f"{binaries}/{ident}.so"] = (tmp / f"{ident}.so").read_bytes()
+        with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:
+            for name in sorted(files):
+                info = zipfile.ZipInfo(name, date_time=(2020, 1, 1, 0, 0, 0))
+                info.compress_type = zipfile.ZIP_DEFLATED
+                info.external_attr = (0o755 if name.endswith(".so") else 0o644) << 16
+                zf.writestr(info, files[name])
     return path

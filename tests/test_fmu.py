@@ -7,6 +7,7 @@ sizes other than the sample period and bad exports are refused, naming what
 is wrong."""
 from __future__ import annotations
 
+import subprocess
 import zipfile
 from pathlib import Path
 
@@ -18,6 +19,7 @@ fmpy = pytest.importorskip("fmpy")
 from fmpy import extract, instantiate_fmu, read_model_description, simulate_fmu  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 from fmpy.fmi1 import FMICallException  # noqa: E402
+from fmpy.fmi2 import FMU2Slave  # noqa: E402
 from fmpy.fmi3 import FMU3Slave  # noqa: E402
 
 from pyrhonn import Identifier  # noqa: E402
@@ -152,6 +154,16 @@ def test_observer_predicts_bit_for_bit_as_the_identifier_with_dropouts(fmus: dic
 
 
 @pytest.mark.parametrize("version", [3, 2])
+def test_learning_off_predicts_from_the_exported_weights(fmus: dict, version: int) -> None:
+    X, U, valid = _samples()
+    result = _simulate(fmus[version, "float64"], _table(X, U, valid), start_values={"learning": False})
+    ident = Identifier(_cf().config)
+    ident.learning = False
+    assert _bits(_predictions(result)[1:]) == _bits(ident.run(X, U, valid))
+    assert result["pos_trace_p"][-1] == result["pos_trace_p"][0]  # nothing learnt
+
+
+@pytest.mark.parametrize("version", [3, 2])
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
 def test_simulator_mode_is_the_identifiers_free_run(fmus: dict, version: int, dtype: str) -> None:
     """Observer for the first K samples (learning), then simulator (the mode a
@@ -238,6 +250,76 @@ def test_a_step_other_than_the_period_is_refused_with_a_message(fmus: dict, tmp_
         fmu.freeInstance()
 
 
+NO_INPUTS = """
+format = "pyrhonn-config"
+version = 1
+n_states = 1
+n_inputs = 0
+state_names = ["level"]
+x0 = [0.25]
+
+[defaults]
+p0 = 10.0
+q = 1e-4
+r = 1e-2
+
+[[neurons]]
+terms = ["x1", "S(x1)", "S(x1(k-2))", "1"]
+"""
+STRICT = ["-std=c99", "-fsyntax-only", "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wshadow",
+          "-Wdouble-promotion", "-Werror"]
+
+
+@pytest.mark.parametrize("version", [3, 2])
+def test_sources_compile_without_warnings_under_the_projects_flags(fmus: dict, version: int, tmp_path: Path) -> None:
+    """The FMU's own sources (sources/MODEL_fmu.c with what it includes), both
+    precisions, and a plant without inputs too."""
+    from pyrhonn.fmu import fmi_headers
+
+    no_inputs = tmp_path / "tank.fmu"
+    export_fmu(loads(NO_INPUTS, source="tank.toml"), no_inputs,
+               FmuSettings(period=0.5, model_identifier="tank", fmi_version=version))
+    for path, ident in ((fmus[version, "float64"], "plant"), (fmus[version, "float32"], "plant"), (no_inputs, "tank")):
+        folder = tmp_path / path.stem
+        zipfile.ZipFile(path).extractall(folder)
+        build = subprocess.run(["cc", *STRICT, f"-I{folder / 'sources'}", f"-I{fmi_headers(version)}",
+                                str(folder / "sources" / f"{ident}_fmu.c")], capture_output=True, text=True)
+        assert build.returncode == 0, build.stderr
+
+
+def test_a_plant_without_inputs_simulates_as_the_identifier(tmp_path: Path) -> None:
+    path = tmp_path / "tank.fmu"
+    cf = loads(NO_INPUTS, source="tank.toml")
+    export_fmu(cf, path, FmuSettings(period=0.5, model_identifier="tank"))
+    level = 1.0 + 0.5 * np.sin(0.2 * np.arange(40))
+    valid = np.arange(40) % 9 != 4
+    table = np.zeros(40, dtype=[("time", np.float64), ("level", np.float64), ("level_valid", np.bool_)])
+    table["time"], table["level"], table["level_valid"] = 0.5 * np.arange(40), level, valid
+    result = simulate_fmu(str(path), stop_time=20.0, output_interval=0.5, input=table, output=["level_hat"])
+    rows = Identifier(cf.config).run(level[:, None], None, valid[:, None])
+    assert _bits(result["level_hat"]) == _bits(np.concatenate([[0.25], rows[:, 0]]))
+
+
+def test_fmi2_refuses_a_step_other_than_the_period(fmus: dict, tmp_path: Path) -> None:
+    unzipped = extract(str(fmus[2, "float64"]), unzipdir=str(tmp_path / "fmu"))
+    md = read_model_description(unzipped)
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier="plant", instanceName="plant")
+    fmu.instantiate(callbacks=None)
+    try:
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        with pytest.raises(FMICallException):
+            fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=T / 2)
+        fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=T)
+        with pytest.raises(FMICallException):  # the same communication point again
+            fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=T)
+        fmu.doStep(currentCommunicationPoint=T, communicationStepSize=T)
+    finally:
+        fmu.terminate()
+        fmu.freeInstance()
+
+
 # -- the command line ------------------------------------------------------------------------------
 
 
@@ -294,11 +376,14 @@ def test_cli_refuses_bad_exports_and_keeps_the_previous_file(tmp_path: Path, cli
                                                   "--period", "0.01"])
     monkeypatch.setenv("CC", "no-such-compiler-cc")
     assert "compiler: 'no-such-compiler-cc' not found" in cli_error(base + ["--period", "0.01"])
+    monkeypatch.setenv("CC", "false")  # a compiler that fails: the build stops, nothing is written
+    assert "compiler: false failed" in cli_error(base + ["--period", "0.01"])
     monkeypatch.delenv("CC")
     clash = CONFIG.replace('state_names = ["pos", "vel"]', 'state_names = ["pos", "pos_hat"]')
     assert "pos_hat" in cli_error(["export", "--config", str(_write_config(tmp_path, clash, "clash.toml")), "--fmu", str(out),
                                    "--period", "0.01"])
     assert out.read_bytes() == b"previous"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["clash.toml", "plant.fmu", "plant.toml"]  # no leftovers
     # a folder nobody can create files in, root included
     assert "cannot be written" in cli_error(["export", "--config", cfg, "--fmu", "/proc/plant.fmu", "--period", "0.01"])
 

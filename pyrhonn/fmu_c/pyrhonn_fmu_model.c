@@ -312,6 +312,7 @@ static fmu_result fmu_do_step(fmu_model *m, double t, double h)
             return FMU_RESULT_ERROR;
         }
     }
+#if FMU_M > 0
     for (j = 0; j < FMU_M; ++j) {
         u[j] = (rhonn_real)m->u[j];
         if (!isfinite(u[j])) {
@@ -320,6 +321,7 @@ static fmu_result fmu_do_step(fmu_model *m, double t, double h)
             return FMU_RESULT_ERROR;
         }
     }
+#endif
     (void)rhonn_set_learning(&m->net, m->learning);
     st = rhonn_step(&m->net, x, FMU_M > 0 ? u : NULL, valid, xhat);
     if (st != RHONN_OK && m->learning) {
