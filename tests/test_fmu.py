@@ -22,7 +22,7 @@ from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.fmi2 import FMU2Slave  # noqa: E402
 from fmpy.fmi3 import FMU3Slave  # noqa: E402
 
-from pyrhonn import Identifier  # noqa: E402
+from pyrhonn import Identifier, IdentifierError  # noqa: E402
 from pyrhonn.cli import main  # noqa: E402
 from pyrhonn.configfile import ConfigFile, loads  # noqa: E402
 from pyrhonn.fmu import FmuSettings, export_fmu  # noqa: E402
@@ -182,6 +182,35 @@ def test_simulator_mode_is_the_identifiers_free_run(fmus: dict, version: int, dt
     assert [h.updates for h in ident.healths] == [h.updates for h in learnt_only.healths]  # none in the free run
 
 
+def test_a_refused_learning_update_steps_the_sample_frozen_and_is_counted(tmp_path: Path) -> None:
+    """float32 with P0 / R = 1e14 and no Q: some updates would leave P indefinite
+    and the core refuses them. The simulation goes on: each such sample is
+    stepped with learning frozen, as the identifier below does by hand."""
+    text = CONFIG.replace("p0 = 10.0", "p0 = 1e6").replace("r = 1e-2", "r = 1e-8").replace("q = 1e-4", "q = 0.0")
+    cf = loads(text, source="stiff.toml")
+    cf = ConfigFile(cf.config.replace(dtype="float32"), cf.state_names, cf.input_names)
+    path = tmp_path / "stiff.fmu"
+    export_fmu(cf, path, FmuSettings(period=T, model_identifier="stiff"))
+    X, U, valid = _samples()
+    messages: list[str] = []
+    result = _simulate(path, _table(X, U, valid), logger=lambda *args: messages.append(str(args[-1])))
+    ident = Identifier(cf.config)
+    rows = []
+    for k in range(N):
+        x, u = X[k].astype(np.float32), U[k].astype(np.float32)
+        try:
+            rows.append(ident.step(x, u, valid[k]))
+        except IdentifierError:
+            ident.learning = False
+            rows.append(ident.step(x, u, valid[k]))
+            ident.learning = True
+    refused = [h.rejected for h in ident.healths]
+    assert sum(refused) > 0
+    assert [result["pos_refused"][-1], result["vel_refused"][-1]] == refused
+    assert _bits(_predictions(result)[1:]) == _bits(np.array(rows))
+    assert sum("learning update was refused" in m for m in messages) == sum(refused)
+
+
 def test_simulator_from_the_start_needs_no_measurements(fmus: dict) -> None:
     X, U, valid = _samples()
     result = _simulate(fmus[3, "float64"], _table(np.full_like(X, np.nan), U, valid), start_values={"mode": 1})
@@ -242,6 +271,12 @@ def test_a_step_other_than_the_period_is_refused_with_a_message(fmus: dict, tmp_
         with pytest.raises(FMICallException):
             fmu.setInt32([vr["mode"]], [2])
         assert "mode: 2 is not a mode" in messages[-1]
+        with pytest.raises(FMICallException):
+            fmu.fmi3GetFloat64(fmu.component, None, 1, None, 1)
+        assert "valueReferences or values is NULL" in messages[-1]
+        with pytest.raises(FMICallException):
+            fmu.getFloat64([vr["learning"]])
+        assert "value reference 1 is not a Float64" in messages[-1]
         fmu.setFloat64([vr["pos"]], [0.5])
         fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=T)  # the period itself steps
         assert fmu.getFloat64([md.modelVariables[0].valueReference]) == [T]

@@ -31,6 +31,13 @@ static fmi2Status fmu_status(fmu_result result)
         return fmi2Error;                                             \
     }
 
+/* The arrays of a getter or setter: given whenever there are values. */
+#define FMU_ARRAYS(call)                                                                   \
+    if (nvr > 0 && (vr == NULL || value == NULL)) {                                        \
+        fmu_logf(m, FMU_RESULT_ERROR, "%s: vr or value is NULL", call);                    \
+        return fmi2Error;                                                                  \
+    }
+
 #define FMU_NOT_PROVIDED(call)                                        \
     if (c != NULL) {                                                  \
         fmu_logf((const fmu_model *)c, FMU_RESULT_ERROR,              \
@@ -142,6 +149,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 {
     size_t k;
     FMU_INSTANCE
+    FMU_ARRAYS("fmi2GetReal")
     for (k = 0; k < nvr; ++k) {
         if (fmu_get_real(m, vr[k], &value[k], 0) != FMU_RESULT_OK) {
             return fmi2Error;
@@ -154,6 +162,7 @@ fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 {
     size_t k;
     FMU_INSTANCE
+    FMU_ARRAYS("fmi2GetInteger")
     for (k = 0; k < nvr; ++k) {
         int v = 0;
         if (fmu_get_int(m, vr[k], &v) != FMU_RESULT_OK) {
@@ -168,6 +177,7 @@ fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 {
     size_t k;
     FMU_INSTANCE
+    FMU_ARRAYS("fmi2GetBoolean")
     for (k = 0; k < nvr; ++k) {
         int v = 0;
         if (fmu_get_bool(m, vr[k], &v) != FMU_RESULT_OK) {
@@ -199,6 +209,7 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     size_t k;
     FMU_INSTANCE
     FMU_SETTABLE("fmi2SetReal")
+    FMU_ARRAYS("fmi2SetReal")
     for (k = 0; k < nvr; ++k) {
         if (fmu_set_real(m, vr[k], value[k]) != FMU_RESULT_OK) {
             return fmi2Error;
@@ -212,6 +223,7 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
     size_t k;
     FMU_INSTANCE
     FMU_SETTABLE("fmi2SetInteger")
+    FMU_ARRAYS("fmi2SetInteger")
     for (k = 0; k < nvr; ++k) {
         if (fmu_set_int(m, vr[k], (int)value[k]) != FMU_RESULT_OK) {
             return fmi2Error;
@@ -225,6 +237,7 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
     size_t k;
     FMU_INSTANCE
     FMU_SETTABLE("fmi2SetBoolean")
+    FMU_ARRAYS("fmi2SetBoolean")
     for (k = 0; k < nvr; ++k) {
         if (fmu_set_bool(m, vr[k], value[k] ? 1 : 0) != FMU_RESULT_OK) {
             return fmi2Error;

@@ -172,6 +172,10 @@ fmi3Status fmi3Reset(fmi3Instance instance)
         fmu_logf(m, FMU_RESULT_ERROR, "%s: nValues %lu for %lu scalar variables", call,      \
                  (unsigned long)nValues, (unsigned long)nValueReferences);                 \
         return fmi3Error;                                                                  \
+    }                                                                                      \
+    if (nValueReferences > 0 && (valueReferences == NULL || values == NULL)) {             \
+        fmu_logf(m, FMU_RESULT_ERROR, "%s: valueReferences or values is NULL", call);      \
+        return fmi3Error;                                                                  \
     }
 
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
