@@ -47,9 +47,10 @@ __all__ = ["register", "run"]
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "export", help="write a config (optionally trained on a recording) as C headers for firmware",
+        "export", help="write a config (optionally trained on a recording) as C headers for firmware, or as an FMU",
         description="Write an identifier config as the C header firmware builds with (static const rhonn_config) "
-                    "and its capacity header; with --data, trained online on a recording first.")
+                    "and its capacity header, or (--fmu) as an FMI co-simulation FMU for simulation tools; with "
+                    "--data, trained online on a recording first.")
     p.add_argument("--config", required=True, metavar="CFG",
                    help="identifier config: a .toml file (pyrhonn select, tune) or a shipped config name")
     out = p.add_mutually_exclusive_group(required=True)
@@ -57,7 +58,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     out.add_argument("--fmu", metavar="MODEL.fmu", help="write a co-simulation FMU instead (see --fmi-version)")
     p.add_argument("--name", metavar="IDENT", help="C name of the config, or the FMU's model identifier (default: "
                                                    "the output file's stem)")
-    p.add_argument("--dtype", choices=DTYPES, help="precision of the firmware (default: the config's dtype)")
+    p.add_argument("--dtype", choices=DTYPES, help="precision of the firmware or FMU (default: the config's dtype)")
     p.add_argument("--data", metavar="DATA.csv", help="learn online over this recording first; export the trained "
                                                        "weights and covariances")
     p.add_argument("--fit-rows", metavar="A:B",
