@@ -2,7 +2,9 @@
 each in a large and a small build, see pyrhonn/_build.py), and ships the
 core's public headers inside the package (``pyrhonn/core_include``), so that
 an installed pyrhonn can measure ``sizeof(rhonn_t)`` for an exported
-identifier (``pyrhonn.export``) without the source tree.
+identifier (``pyrhonn.export``) without the source tree, and the core's
+source (``pyrhonn/core_src``), which an exported FMU compiles
+(``pyrhonn.fmu``).
 
 All project metadata lives in pyproject.toml; setuptools reads cffi_modules
 and cmdclass only from setup(), so this file carries those two arguments.
@@ -18,14 +20,18 @@ from setuptools.command.build_py import build_py
 
 
 class BuildPyWithCoreHeaders(build_py):
-    """build_py, then csrc/include/*.h copied into the built package."""
+    """build_py, then csrc/include/*.h and the core's source (rhonn.c and its
+    private header) copied into the built package."""
 
     def run(self) -> None:
         super().run()
-        dst = Path(self.build_lib) / "pyrhonn" / "core_include"
-        dst.mkdir(parents=True, exist_ok=True)
-        for header in sorted(Path("csrc/include").glob("*.h")):
-            shutil.copyfile(header, dst / header.name)
+        copies = {"core_include": sorted(Path("csrc/include").glob("*.h")),
+                  "core_src": [Path("csrc/src/rhonn.c"), Path("csrc/src/rhonn_internal.h")]}
+        for folder, files in copies.items():
+            dst = Path(self.build_lib) / "pyrhonn" / folder
+            dst.mkdir(parents=True, exist_ok=True)
+            for path in files:
+                shutil.copyfile(path, dst / path.name)
 
 
 class BuildExtSideBySide(build_ext):

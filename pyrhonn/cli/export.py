@@ -1,7 +1,14 @@
-"""``pyrhonn export``: write an identifier config as the C headers firmware builds with.
+"""``pyrhonn export``: write an identifier config as the C headers firmware builds with,
+or as a Functional Mock-up Unit for simulation tools.
 
 ``pyrhonn export --config CFG --out tuned.h [--name tuned] [--dtype float32|float64]
 [--data DATA.csv [--fit-rows A:B] [--valid-suffix _valid] [--warm-start]]``
+
+``pyrhonn export --config CFG --fmu MODEL.fmu [--fmi-version 3|2] [--period T]
+[--units NAME=UNIT,...] [--mode observer|simulator] [--name MODEL] [--dtype ...] [--data ...]``
+writes an FMI co-simulation FMU instead (:mod:`pyrhonn.fmu`): one
+communication step of the sample period T (default the config's
+``bus.sample_period``) is one identifier step.
 
 Writes ``tuned.h`` (``static const rhonn_config tuned``) and ``tuned_capacity.h``
 (the smallest capacities that hold it, with ``sizeof(rhonn_t)``): see
@@ -28,25 +35,30 @@ import argparse
 from pathlib import Path
 
 from ..config import DTYPES
-from ..configfile import load_named
+from ..configfile import ConfigFile, load_named
 from ..datafile import check_suffix, read_data
 from ..export import capacity_path, export_header
+from ..fmu import MODES, FmuSettings, check_for, export_fmu
 from ..identifier import Identifier, IdentifierError
-from .options import row_range
+from .options import options_named, real_option, row_range, units_option
 
 __all__ = ["register", "run"]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "export", help="write a config (optionally trained on a recording) as C headers for firmware",
+        "export", help="write a config (optionally trained on a recording) as C headers for firmware, or as an FMU",
         description="Write an identifier config as the C header firmware builds with (static const rhonn_config) "
-                    "and its capacity header; with --data, trained online on a recording first.")
+                    "and its capacity header, or (--fmu) as an FMI co-simulation FMU for simulation tools; with "
+                    "--data, trained online on a recording first.")
     p.add_argument("--config", required=True, metavar="CFG",
                    help="identifier config: a .toml file (pyrhonn select, tune) or a shipped config name")
-    p.add_argument("--out", required=True, metavar="NAME.h", help="the header to write (NAME_capacity.h beside it)")
-    p.add_argument("--name", metavar="IDENT", help="C name of the config (default: the output file's stem)")
-    p.add_argument("--dtype", choices=DTYPES, help="precision of the firmware (default: the config's dtype)")
+    out = p.add_mutually_exclusive_group(required=True)
+    out.add_argument("--out", metavar="NAME.h", help="the header to write (NAME_capacity.h beside it)")
+    out.add_argument("--fmu", metavar="MODEL.fmu", help="write a co-simulation FMU instead (see --fmi-version)")
+    p.add_argument("--name", metavar="IDENT", help="C name of the config, or the FMU's model identifier (default: "
+                                                   "the output file's stem)")
+    p.add_argument("--dtype", choices=DTYPES, help="precision of the firmware or FMU (default: the config's dtype)")
     p.add_argument("--data", metavar="DATA.csv", help="learn online over this recording first; export the trained "
                                                        "weights and covariances")
     p.add_argument("--fit-rows", metavar="A:B",
@@ -55,12 +67,37 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="validity columns of --data are named <state><SUFFIX> (default: _valid)")
     p.add_argument("--warm-start", action="store_true",
                    help="with --data: also export the running state, for rhonn_warm_start")
+    fmu = p.add_argument_group("FMU (--fmu)")
+    fmu.add_argument("--fmi-version", choices=("3", "2"), default="3", help="FMI 3.0 (default) or 2.0 co-simulation")
+    fmu.add_argument("--period", metavar="T", help="sample period in s: the FMU's only communication step size "
+                                                   "(default: the config's bus.sample_period)")
+    fmu.add_argument("--units", type=units_option, default={}, metavar="NAME=UNIT[,NAME=UNIT...]",
+                     help="units of states and inputs (their FMU variables and predictions)")
+    fmu.add_argument("--mode", choices=MODES, default="observer",
+                     help="start value of the FMU's mode parameter (default: observer)")
     p.set_defaults(func=run)
 
 
+def _fmu_only(args: argparse.Namespace) -> None:
+    """The FMU options given without --fmu (or --warm-start with it): a ValueError naming the option."""
+    if args.fmu is not None:
+        if args.warm_start:
+            raise ValueError("--warm-start: not with --fmu (an FMU starts from the exported configuration; export "
+                             "with --data to start it from the trained weights)")
+        return
+    given = [opt for opt, value, default in (("--fmi-version", args.fmi_version, "3"), ("--period", args.period, None),
+                                             ("--units", args.units, {}), ("--mode", args.mode, "observer"))
+             if value != default]
+    if given:
+        raise ValueError(f"{given[0]}: only with --fmu")
+
+
 def run(args: argparse.Namespace) -> int:
-    out = Path(args.out)
-    if not args.out.strip() or out.suffix != ".h":
+    _fmu_only(args)
+    out = Path(args.out if args.fmu is None else args.fmu)
+    if args.fmu is not None and (not args.fmu.strip() or out.suffix != ".fmu"):
+        raise ValueError(f"--fmu {args.fmu!r}: expected a file name ending in .fmu")
+    if args.fmu is None and (not args.out.strip() or out.suffix != ".h"):
         raise ValueError(f"--out {args.out!r}: expected a header file name ending in .h")
     name = args.name if args.name is not None else out.stem
     if args.warm_start and args.data is None:
@@ -69,6 +106,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--fit-rows: needs --data (the recording whose rows are learnt)")
     cf = load_named(args.config)
     cfg = cf.config if args.dtype in (None, cf.config.dtype) else cf.config.replace(dtype=args.dtype)
+    settings = _fmu_settings(args, cf, name) if args.fmu is not None else None
     try:
         ident = Identifier(cfg)
     except ValueError as exc:
@@ -87,6 +125,13 @@ def run(args: argparse.Namespace) -> int:
         rows = f"samples {a}..{b - 1} of {data.n_samples}" if (a, b) != (0, data.n_samples) else \
             f"{data.n_samples} samples"
         trained = f", trained online on {args.data} ({rows})"
+    if settings is not None:
+        export_fmu(cf, out, settings, config=ident.as_config() if args.data is not None else cfg)
+        print(f"exported {args.config} as FMI {settings.fmi_version}.0 co-simulation FMU {name} ({cfg.dtype}, "
+              f"period {settings.period!r} s, mode {settings.mode}){trained}")
+        print(f"wrote {out}")
+        return 0
+    if args.data is not None:
         warm = (X, U if cfg.n_inputs else None, valid) if args.warm_start else None
         try:
             export_header(ident, out, name, warm_start=warm)
@@ -98,3 +143,26 @@ def run(args: argparse.Namespace) -> int:
           + (", with its running state" if args.warm_start else ""))
     print(f"wrote {out}, {capacity_path(out)}")
     return 0
+
+
+def _fmu_settings(args: argparse.Namespace, cf: ConfigFile, name: str) -> FmuSettings:
+    """The FMU's settings from the options, checked before anything is trained or written."""
+    if args.period is not None:
+        period = real_option("--period", args.period, positive=True)
+    elif cf.bus is not None and cf.bus.sample_period is not None:
+        period = float(cf.bus.sample_period)
+    else:
+        raise ValueError(f"--period: needed: {args.config} has no bus.sample_period (give the identifier's sample "
+                         "period in s)")
+    try:
+        settings = FmuSettings(period=period, model_identifier=name, fmi_version=int(args.fmi_version),
+                               units=args.units, mode=args.mode)
+    except ValueError as exc:
+        field, sep, rest = str(exc).partition(": ")
+        if field == "name":
+            raise ValueError(f"--name {name!r}: the FMU's model identifier must be a C identifier ({rest}); "
+                             f"give --name") from None
+        raise
+    with options_named(units="--units"):
+        check_for(cf, settings)
+    return settings

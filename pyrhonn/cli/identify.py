@@ -81,6 +81,7 @@ from ..metrics import absolute_deviation, json_value
 from ..residuals import departure, divergence_range
 from ..simulation import Simulation, scores, simulate
 from . import bus_input
+from .options import units_option
 
 __all__ = ["register", "run"]
 
@@ -108,20 +109,6 @@ def _suffix(text: str) -> str:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _units(text: str) -> dict[str, str]:
-    """--units: NAME=UNIT pairs, comma-separated; names are checked against the config in run()."""
-    units: dict[str, str] = {}
-    for item in text.split(","):
-        name, sep, unit = item.partition("=")
-        name, unit = name.strip(), unit.strip()
-        if not sep or not name or not unit:
-            raise argparse.ArgumentTypeError(f"expected NAME=UNIT[,NAME=UNIT...], got {item.strip()!r}")
-        if name in units:
-            raise argparse.ArgumentTypeError(f"{name!r} is given twice")
-        units[name] = unit
-    return units
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "identify", help="identify a plant from a CSV file of states and inputs (or a CAN log)",
@@ -143,7 +130,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--steps-ahead", type=_positive_int, metavar="H",
                    help="also score the H-step-ahead prediction of every sample (own outputs for H-1 steps)")
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
-    p.add_argument("--units", type=_units, default={}, metavar="NAME=UNIT[,NAME=UNIT...]",
+    p.add_argument("--units", type=units_option, default={}, metavar="NAME=UNIT[,NAME=UNIT...]",
                    help="units of the states (and of the time column t) for the plots' axes, e.g. "
                         "q_m=m,v=m/s,t=s; the CSV carries none, so a state without one is labelled "
                         "'(no unit given)'")
