@@ -27,12 +27,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..buslog import load_dbc
 from ..config import DTYPES
-from ..configfile import load_named
+from ..configfile import ConfigFile, load_named
 from ..datafile import check_suffix, read_data
-from ..export import capacity_path, export_header
+from ..export import Signals, capacity_path, export_header
 from ..identifier import Identifier, IdentifierError
-from .options import row_range
+from .options import name_units, row_range
 
 __all__ = ["register", "run"]
 
@@ -55,7 +56,40 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="validity columns of --data are named <state><SUFFIX> (default: _valid)")
     p.add_argument("--warm-start", action="store_true",
                    help="with --data: also export the running state, for rhonn_warm_start")
+    p.add_argument("--units", type=name_units, default={}, metavar="NAME=UNIT[,NAME=UNIT...]",
+                   help="units of the states and inputs, written beside their names in the header (over the "
+                        "DBC's units)")
+    p.add_argument("--dbc", metavar="FILE",
+                   help="the DBC the config's [bus] signals are in: the header names it and each state's and "
+                        "input's signal, and takes their units from it")
     p.set_defaults(func=run)
+
+
+def _signals(args: argparse.Namespace, cf: ConfigFile) -> Signals:
+    """The names, units and bus signals the header lists (--units, --dbc with the config's [bus] table)."""
+    names = list(cf.state_names) + list(cf.input_names)
+    units: dict[str, str] = {}
+    bus: dict[str, str] = {}
+    dbc = None
+    if args.dbc is not None:
+        db = load_dbc(args.dbc)
+        if cf.bus is None or not cf.bus.signals:
+            raise ValueError(f"--dbc {args.dbc}: {args.config} has no [bus.signals] table saying which signal each "
+                             "state and input is")
+        for key, ref in cf.bus.signals.items():
+            try:
+                sig = db.get_message_by_name(ref.message).get_signal_by_name(ref.signal)
+            except KeyError:
+                raise ValueError(f"{args.config}: bus.signals.{key}: {ref} is not in --dbc {args.dbc}") from None
+            bus[key] = str(ref)
+            if sig.unit:
+                units[key] = str(sig.unit)
+        dbc = Path(args.dbc).name
+    for key, unit in args.units.items():
+        if key not in names:
+            raise ValueError(f"--units: {key!r} is not a state or input of {args.config} ({', '.join(names)})")
+        units[key] = unit
+    return Signals(states=list(cf.state_names), inputs=list(cf.input_names), units=units, bus=bus, dbc=dbc)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -68,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
     if args.fit_rows is not None and args.data is None:
         raise ValueError("--fit-rows: needs --data (the recording whose rows are learnt)")
     cf = load_named(args.config)
+    signals = _signals(args, cf)
     cfg = cf.config if args.dtype in (None, cf.config.dtype) else cf.config.replace(dtype=args.dtype)
     try:
         ident = Identifier(cfg)
@@ -89,11 +124,11 @@ def run(args: argparse.Namespace) -> int:
         trained = f", trained online on {args.data} ({rows})"
         warm = (X, U if cfg.n_inputs else None, valid) if args.warm_start else None
         try:
-            export_header(ident, out, name, warm_start=warm)
+            export_header(ident, out, name, warm_start=warm, signals=signals)
         except ValueError as exc:
             raise ValueError(f"--warm-start: {exc}" if args.warm_start else str(exc)) from None
     else:
-        export_header(cfg, out, name)
+        export_header(cfg, out, name, signals=signals)
     print(f"exported {args.config} as {name} ({cfg.dtype}){trained}"
           + (", with its running state" if args.warm_start else ""))
     print(f"wrote {out}, {capacity_path(out)}")

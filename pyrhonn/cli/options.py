@@ -2,11 +2,12 @@
 line, checked with a message that names the option."""
 from __future__ import annotations
 
+import argparse
 import math
 from contextlib import contextmanager
 from typing import Iterator
 
-__all__ = ["options_named", "real_option", "row_range"]
+__all__ = ["name_units", "options_named", "real_option", "row_range"]
 
 
 def real_option(option: str, text: str, *, positive: bool = False, nonnegative: bool = False) -> float:
@@ -57,3 +58,18 @@ def row_range(option: str, text: str | None, n_samples: int) -> tuple[int, int]:
     if lo >= n_samples or hi - lo < 2:
         raise ValueError(f"{option}: {text} leaves fewer than 2 of the {n_samples} samples")
     return lo, hi
+
+
+def name_units(text: str) -> dict[str, str]:
+    """``--units``: NAME=UNIT pairs, comma-separated (an argparse type; the names are checked against the
+    config by the command)."""
+    units: dict[str, str] = {}
+    for item in text.split(","):
+        name, sep, unit = item.partition("=")
+        name, unit = name.strip(), unit.strip()
+        if not sep or not name or not unit:
+            raise argparse.ArgumentTypeError(f"expected NAME=UNIT[,NAME=UNIT...], got {item.strip()!r}")
+        if name in units:
+            raise argparse.ArgumentTypeError(f"{name!r} is given twice")
+        units[name] = unit
+    return units
