@@ -3,7 +3,7 @@
 ``pyrhonn identify data.csv --config cfg.toml [--out DIR] [--dtype float32|float64]
 [--valid-suffix _valid] [--warmup N] [--free-run-from K] [--steps-ahead H] [--no-plots]``
 
-``pyrhonn identify --can-log RUN.{blf,asc,log} --dbc FILE --config cfg.toml [...]`` reads the states
+``pyrhonn identify --can-log RUN.{blf,asc,log,mf4} --dbc FILE --config cfg.toml [...]`` reads the states
 and inputs from a CAN log instead (:mod:`pyrhonn.cli.bus_input`, :mod:`pyrhonn.buslog`), runs and
 writes the same outputs, plus ``samples.csv``, the aligned samples in the CSV format.
 
@@ -75,12 +75,14 @@ import numpy as np
 from .. import atomic
 from ..config import DTYPES, IdentifierConfig
 from ..configfile import ConfigFile, load_named
-from ..datafile import Data, TIME_COLUMN, check_suffix, read_data, write_data
+from ..datafile import SEPARATORS, Data, TIME_COLUMN, check_suffix, read_data, write_data
+from ..gaps import Segments, segments_of, simulate_segments
 from ..identifier import Identifier, IdentifierError
 from ..metrics import absolute_deviation, json_value
 from ..residuals import departure, divergence_range
 from ..simulation import Simulation, scores, simulate
 from . import bus_input
+from .options import name_units
 
 __all__ = ["register", "run"]
 
@@ -108,20 +110,6 @@ def _suffix(text: str) -> str:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _units(text: str) -> dict[str, str]:
-    """--units: NAME=UNIT pairs, comma-separated; names are checked against the config in run()."""
-    units: dict[str, str] = {}
-    for item in text.split(","):
-        name, sep, unit = item.partition("=")
-        name, unit = name.strip(), unit.strip()
-        if not sep or not name or not unit:
-            raise argparse.ArgumentTypeError(f"expected NAME=UNIT[,NAME=UNIT...], got {item.strip()!r}")
-        if name in units:
-            raise argparse.ArgumentTypeError(f"{name!r} is given twice")
-        units[name] = unit
-    return units
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "identify", help="identify a plant from a CSV file of states and inputs (or a CAN log)",
@@ -143,39 +131,58 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--steps-ahead", type=_positive_int, metavar="H",
                    help="also score the H-step-ahead prediction of every sample (own outputs for H-1 steps)")
     p.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
-    p.add_argument("--units", type=_units, default={}, metavar="NAME=UNIT[,NAME=UNIT...]",
+    p.add_argument("--units", type=name_units, default={}, metavar="NAME=UNIT[,NAME=UNIT...]",
                    help="units of the states (and of the time column t) for the plots' axes, e.g. "
-                        "q_m=m,v=m/s,t=s; the CSV carries none, so a state without one is labelled "
+                        "q_m=m,v=m/s,t=s; over the CSV's unit row, if it has one; a state without one is labelled "
                         "'(no unit given)'")
+    p.add_argument("--csv-sep", type=_separator, metavar="SEP",
+                   help="the CSV's column separator: ',', ';' or tab (default: the one that splits the header into "
+                        "the config's names)")
+    p.add_argument("--decimal", choices=(".", ","),
+                   help="the CSV's decimal mark (default: '.', or ',' when the file is not comma-separated and its "
+                        "numbers have decimal commas)")
     bus_input.add_options(p)
     p.set_defaults(func=run)
+
+
+def _separator(text: str) -> str:
+    sep = {"tab": "\t", "\\t": "\t"}.get(text, text)
+    if sep not in SEPARATORS:
+        raise argparse.ArgumentTypeError(f"expected ',', ';' or tab, got {text!r}")
+    return sep
 
 
 # -- running ----------------------------------------------------------------------------------------
 
 
 def _run_identifier(cfg: IdentifierConfig, data: Data, cf: ConfigFile, source: str, config_source: str,
-                    free_run_from: int | None, steps: int | None) -> Simulation:
-    """The run's one-step (and free-run, k-step) predictions, aligned with the data rows."""
+                    free_run_from: int | None, steps: int | None,
+                    segs: Segments | None) -> tuple[Simulation, np.ndarray | None, np.ndarray | None]:
+    """The run's one-step (and free-run, k-step) predictions, aligned with the data rows, and (with
+    gaps) the rows the free run and the k-step predictions reach."""
     try:
         ident = Identifier(cfg)
     except ValueError as exc:
         raise ValueError(f"{config_source}: {exc}") from None
     X, U = data.in_dtype(cfg.dtype, cf.state_names, cf.input_names, source)
     try:
-        return simulate(ident, X, U, data.valid, free_run_from=free_run_from, steps=steps)
+        if segs is not None:
+            return simulate_segments(ident, X, U, data.valid, segs, free_run_from=free_run_from, steps=steps)
+        return simulate(ident, X, U, data.valid, free_run_from=free_run_from, steps=steps), None, None
     except IdentifierError as exc:
         found = re.search(r"at sample (\d+)", str(exc))
         where = f"line {int(data.lines[int(found.group(1))])}: " if found else ""
         raise ValueError(f"{source}: {where}the identifier stopped: {exc}") from None
 
 
-def _scored(data: Data, first: int, stop: int | None = None) -> np.ndarray:
-    """Bool (T, n): the valid targets among data rows first..stop-1."""
+def _scored(data: Data, first: int, stop: int | None = None, rows: np.ndarray | None = None) -> np.ndarray:
+    """Bool (T, n): the valid targets among data rows first..stop-1 (and ``rows``, (T,) bool, if given)."""
     mask = data.valid.copy()
     mask[:first] = False
     if stop is not None:
         mask[stop:] = False
+    if rows is not None:
+        mask &= rows[:, None]
     return mask
 
 
@@ -206,7 +213,9 @@ def _count(k: int, noun: str) -> str:
     return f"{k} {noun}{'' if k == 1 else 's'}"
 
 
-def _write_predictions(path: Path, data: Data, cf: ConfigFile, sim: Simulation) -> None:
+def _write_predictions(path: Path, data: Data, cf: ConfigFile, sim: Simulation, errors: np.ndarray) -> None:
+    """predictions.csv; ``errors`` (T,) bool: the rows whose prediction is a one-step prediction of
+    that row's sample (not row 0, nor the first row of a segment after a gap)."""
     T = data.n_samples
     hat = sim.one_step.astype(np.float64)
     err = data.X - hat
@@ -226,8 +235,8 @@ def _write_predictions(path: Path, data: Data, cf: ConfigFile, sim: Simulation) 
             if data.t is not None:
                 row.append(repr(float(data.t[k])))
             for j in range(len(cf.state_names)):
-                row.append(repr(float(hat[k, j])))
-                row.append(repr(float(err[k, j])) if k and data.valid[k, j] else "")
+                row.append(repr(float(hat[k, j])) if np.isfinite(hat[k, j]) else "")
+                row.append(repr(float(err[k, j])) if errors[k] and data.valid[k, j] else "")
                 for _, values in extra:
                     row.append(repr(float(values[k, j])) if np.isfinite(values[k, j]) else "")
             w.writerow(row)
@@ -307,7 +316,13 @@ def run(args: argparse.Namespace) -> int:
     bus_input.check_options(args)
     bus = bus_input.read(args, cf, config_source) if args.can_log is not None else None
     source = bus.source if bus else args.data
-    data = bus.data if bus else read_data(source, cf, valid_suffix=args.valid_suffix, config_source=config_source)
+    if bus and (args.csv_sep is not None or args.decimal is not None):
+        raise ValueError(f"{'--csv-sep' if args.csv_sep is not None else '--decimal'}: only for a CSV file, not with "
+                         "--can-log")
+    data = bus.data if bus else read_data(source, cf, valid_suffix=args.valid_suffix, config_source=config_source,
+                                          sep=args.csv_sep, decimal=args.decimal)
+    units = {**{k: v for k, v in (data.units or {}).items() if k in cf.state_names or k == TIME_COLUMN},
+             **args.units}  # --units over the file's unit row
     T = data.n_samples
     if T < 2:
         raise ValueError(f"{source}: line {int(data.lines[0])}: only one data row; one-step-ahead "
@@ -335,23 +350,28 @@ def run(args: argparse.Namespace) -> int:
     if args.steps_ahead is not None and args.steps_ahead >= T:
         raise ValueError(f"--steps-ahead {args.steps_ahead}: needs more than {args.steps_ahead} data rows, "
                          f"the file has {T}")
-    sim = _run_identifier(cfg, data, cf, source, config_source, K, args.steps_ahead)
+    segs = segments_of(data.lost) if data.lost is not None and data.lost.any() else None
+    sim, free_rows, ahead_rows = _run_identifier(cfg, data, cf, source, config_source, K, args.steps_ahead, segs)
+    # one-step rows: stepped, and not the first of a segment (its x̂ was made for a sample before the gap)
+    one_rows = None if segs is None else segs.stepped & ~segs.starts()
+    if segs is not None and free_rows is not None and one_rows is not None:
+        free_rows &= one_rows | (np.arange(T) == K)
     first = args.warmup + 1  # row 0 holds x0, not a prediction; --warmup drops that many pairs more
     split = max(first, K) if K is not None else first
     weights = "online" if K is None else f"frozen from sample {K}"
     sections: dict[str, Any] = {
-        "one_step": _section(data, cf, sim.one_step, _scored(data, split),
+        "one_step": _section(data, cf, sim.one_step, _scored(data, split, rows=one_rows),
                              f"one step ahead: x̂(k) made at sample k-1 from measured values, against the "
                              f"measurement of sample k, valid targets k >= {split}; weights {weights}",
                              with_deviation=True)}
     if K is not None:
         sections["one_step_learning"] = _section(
-            data, cf, sim.one_step, _scored(data, first, K),
+            data, cf, sim.one_step, _scored(data, first, K, rows=one_rows),
             f"one step ahead over the learnt samples {first}..{K - 1}, weights learning online",
             with_deviation=True)
         assert sim.free_run is not None
         sections["free_run"] = _section(
-            data, cf, sim.free_run, _scored(data, split),
+            data, cf, sim.free_run, _scored(data, split, rows=free_rows),
             f"free run (parallel model): weights frozen from sample {K}, the network fed its own predictions "
             f"and the measured inputs, against the measurements of samples k >= {split}")
         sections["free_run"]["from_sample"] = K
@@ -361,6 +381,8 @@ def run(args: argparse.Namespace) -> int:
         low, high = divergence_range(data.X, data.valid)
         rows = np.zeros(T, dtype=bool)
         rows[K:] = True
+        if free_rows is not None:
+            rows &= free_rows
         left = departure(sim.free_run.astype(np.float64), rows, low, high)
         gone = [int(k) for k in left if k >= 0]
         left_range = min(gone) if gone else None
@@ -371,7 +393,7 @@ def run(args: argparse.Namespace) -> int:
         assert sim.ahead is not None
         H = args.steps_ahead
         sections["steps_ahead"] = _section(
-            data, cf, sim.ahead, _scored(data, max(split, H)),
+            data, cf, sim.ahead, _scored(data, max(split, H), rows=ahead_rows),
             f"{H} steps ahead: x̂(k | k-{H}), the network as after learning sample k-{H} fed its own "
             f"predictions for {H - 1} steps, against the measurements of samples k >= {max(split, H)}; "
             f"weights {weights}")
@@ -390,20 +412,23 @@ def run(args: argparse.Namespace) -> int:
         "ahead_steps": args.steps_ahead,
         "valid_suffix": args.valid_suffix,
         "ignored_columns": list(data.ignored),
+        **({"units": data.units} if data.units else {}),
         "definition": "rmse, rrse (root relative squared error) and absolute_deviation (mean |e - mean e|) as "
                       "in pyrhonn.metrics; 'states' repeats one_step.states",
         "states": sections["one_step"]["states"],
         **sections,
         "next_prediction": {name: float(sim.next_prediction[j]) for j, name in enumerate(cf.state_names)},
         **({"bus": bus.report()} if bus else {}),
+        **({"gaps": segs.report(data.t, data.lines)} if segs is not None else {}),
     }
     with atomic.output_folder(out, "pyrhonn identify"):  # marked INCOMPLETE until every file is in place
         if bus:
             write_data(out / bus_input.SAMPLES, data, cf, valid_suffix=args.valid_suffix)
-        _write_predictions(out / "predictions.csv", data, cf, sim)
+        errors = np.arange(T) > 0 if one_rows is None else one_rows
+        _write_predictions(out / "predictions.csv", data, cf, sim, errors)
         atomic.write_text(out / "metrics.json", json.dumps(report, indent=2) + "\n")
         for j, path in enumerate(plots):
-            _plot(path, cf.state_names[j], data, sim, j, args.warmup, args.units)
+            _plot(path, cf.state_names[j], data, sim, j, args.warmup, units)
 
     print(f"identified {source}: {T} samples, {_count(cfg.n_states, 'state')}, {_count(cfg.n_inputs, 'input')}, "
           f"config {config_source}, {dtype}")
@@ -411,6 +436,10 @@ def run(args: argparse.Namespace) -> int:
         print("ignored columns: " + ", ".join(data.ignored))
     for line in bus.summary() if bus else []:
         print(line)
+    if segs is not None:
+        print(f"gaps: {segs.lost} lost samples in {_count(len(segs.gaps), 'gap')}; {len(segs.gaps)} not stepped after "
+              f"them, {_count(segs.restarts, 'restart')}; {_count(len(segs.bounds), 'segment')} "
+              f"({', '.join(str(b - a) for a, b in segs.bounds[:8])}{' ...' if len(segs.bounds) > 8 else ''} samples)")
     kinds = [("one_step", "one step")] + ([("free_run", "free run")] if K is not None else []) + \
         ([("steps_ahead", f"{args.steps_ahead} steps ahead")] if args.steps_ahead is not None else [])
     scope = f"samples >= {K}, weights frozen" if K is not None else "weights learning online"
