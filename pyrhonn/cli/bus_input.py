@@ -150,17 +150,25 @@ def _bus_map(args: argparse.Namespace, cf: ConfigFile, config_source: str) -> tu
 def check_options(args: argparse.Namespace) -> None:
     """DATA.csv or --can-log, not both; the bus options only with --can-log."""
     if args.can_log is None:
+        signal_mdf = args.data is not None and Path(args.data).suffix.lower() == ".mf4"
         given = [opt for opt, value in (("--dbc", args.dbc), ("--signal", args.signal or None),
-                                        ("--sample-period", args.sample_period), ("--clock", args.clock), ("--counter", args.counter),
+                                        ("--sample-period", None if signal_mdf else args.sample_period),
+                                        ("--clock", args.clock), ("--counter", args.counter),
                                         ("--start", args.start), ("--stop", args.stop),
-                                        ("--partial-log", args.partial_log or None)) if value is not None]
+                                        ("--partial-log", None if signal_mdf else args.partial_log or None))
+                 if value is not None]
         if given:
-            raise ValueError(f"{given[0]}: only with --can-log (a bus recording)")
+            also = " or a signal MDF4 DATA.mf4" if given[0] in ("--sample-period", "--partial-log") else ""
+            raise ValueError(f"{given[0]}: only with --can-log (a bus recording){also}")
+        if args.channel and not signal_mdf:
+            raise ValueError("--channel: only with a signal MDF4 DATA.mf4")
         if args.data is None:
             raise ValueError("give DATA.csv, or --can-log RUN.{blf,asc,log,mf4} with --dbc FILE")
         return
     if args.data is not None:
         raise ValueError(f"--can-log: give either DATA.csv ({args.data}) or --can-log, not both")
+    if args.channel:
+        raise ValueError("--channel: only with a signal MDF4 DATA.mf4 (with --can-log, --signal maps the states)")
     if args.dbc is None:
         raise ValueError("--dbc: required with --can-log (the DBC that decodes the log)")
     if Path(args.can_log).suffix.lower() not in LOG_SUFFIXES:

@@ -77,12 +77,13 @@ from ..config import DTYPES, IdentifierConfig
 from ..configfile import ConfigFile, load_named
 from ..datafile import SEPARATORS, Data, TIME_COLUMN, check_suffix, read_data, write_data
 from ..gaps import Segments, segments_of, simulate_segments
+from ..mdfsignals import METHOD, MdfSignals, read_signal_mdf
 from ..identifier import Identifier, IdentifierError
 from ..metrics import absolute_deviation, json_value
 from ..residuals import departure, divergence_range
 from ..simulation import Simulation, scores, simulate
 from . import bus_input
-from .options import name_units
+from .options import name_units, real_option
 
 __all__ = ["register", "run"]
 
@@ -141,6 +142,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--decimal", choices=(".", ","),
                    help="the CSV's decimal mark (default: '.', or ',' when the file is not comma-separated and its "
                         "numbers have decimal commas)")
+    p.add_argument("--channel", action="append", default=[], metavar="NAME=CHANNEL",
+                   help="with a signal MDF4 DATA.mf4: the channel of state or input NAME (default: the channel "
+                        "named NAME); repeat for each. The channels are resampled on --sample-period (default: "
+                        "the first state's median interval) by a zero-order hold of the latest sample; a state is "
+                        "valid only where its channel has a new sample in the period before")
     bus_input.add_options(p)
     p.set_defaults(func=run)
 
@@ -153,6 +159,30 @@ def _separator(text: str) -> str:
 
 
 # -- running ----------------------------------------------------------------------------------------
+
+
+def _signal_mdf(args: argparse.Namespace, cf: ConfigFile) -> tuple[Data, MdfSignals]:
+    """A signal MDF4 DATA.mf4 on the identifier's grid, as the arrays a CSV gives (lines: samples.csv's)."""
+    if args.csv_sep is not None or args.decimal is not None:
+        raise ValueError(f"{'--csv-sep' if args.csv_sep is not None else '--decimal'}: only for a CSV file")
+    names = (*cf.state_names, *cf.input_names)
+    channels: dict[str, str] = {}
+    for text in args.channel:
+        name, sep, channel = text.partition("=")
+        if not sep or not channel.strip():
+            raise ValueError(f"--channel {text}: expected NAME=CHANNEL")
+        if name.strip() not in names:
+            raise ValueError(f"--channel {text}: {name.strip()!r} is not one of the states and inputs of "
+                             f"{args.config} ({', '.join(names)})")
+        channels[name.strip()] = channel.strip()
+    period = None if args.sample_period is None else real_option("--sample-period", args.sample_period,
+                                                                   positive=True)
+    m = read_signal_mdf(args.data, cf.state_names, cf.input_names, period=period, channels=channels,
+                        partial=bool(args.partial_log))
+    K = m.t.shape[0]
+    data = Data(X=m.X, U=m.U, valid=m.valid, t=m.t, lines=np.arange(2, K + 2, dtype=np.int64), ignored=(),
+                units=m.units)
+    return data, m
 
 
 def _run_identifier(cfg: IdentifierConfig, data: Data, cf: ConfigFile, source: str, config_source: str,
@@ -315,12 +345,14 @@ def run(args: argparse.Namespace) -> int:
     config_source = args.config
     bus_input.check_options(args)
     bus = bus_input.read(args, cf, config_source) if args.can_log is not None else None
+    mdf = _signal_mdf(args, cf) if bus is None and Path(args.data).suffix.lower() == ".mf4" else None
     source = bus.source if bus else args.data
     if bus and (args.csv_sep is not None or args.decimal is not None):
         raise ValueError(f"{'--csv-sep' if args.csv_sep is not None else '--decimal'}: only for a CSV file, not with "
                          "--can-log")
-    data = bus.data if bus else read_data(source, cf, valid_suffix=args.valid_suffix, config_source=config_source,
-                                          sep=args.csv_sep, decimal=args.decimal)
+    data = bus.data if bus else mdf[0] if mdf else read_data(source, cf, valid_suffix=args.valid_suffix,
+                                                             config_source=config_source, sep=args.csv_sep,
+                                                             decimal=args.decimal)
     units = {**{k: v for k, v in (data.units or {}).items() if k in cf.state_names or k == TIME_COLUMN},
              **args.units}  # --units over the file's unit row
     T = data.n_samples
@@ -336,7 +368,8 @@ def run(args: argparse.Namespace) -> int:
                          f"{', '.join(cf.state_names)}; t for time)")
     out = _output_dir(args.out, source)
     plots = [] if args.no_plots else [out / f"{name}.png" for name in cf.state_names]
-    written = [out / "predictions.csv", out / "metrics.json"] + plots + ([out / bus_input.SAMPLES] if bus else [])
+    samples = [out / bus_input.SAMPLES] if bus or mdf else []  # the aligned or resampled samples
+    written = [out / "predictions.csv", out / "metrics.json"] + plots + samples
     _refuse_overwriting_inputs([*written, out / atomic.MARKER],
                                {"the data file": source, "the config file": config_source,
                                 **({"the DBC": bus.dbc} if bus else {})})
@@ -420,9 +453,10 @@ def run(args: argparse.Namespace) -> int:
         "next_prediction": {name: float(sim.next_prediction[j]) for j, name in enumerate(cf.state_names)},
         **({"bus": bus.report()} if bus else {}),
         **({"gaps": segs.report(data.t, data.lines)} if segs is not None else {}),
+        **({"mdf": mdf[1].report()} if mdf else {}),
     }
     with atomic.output_folder(out, "pyrhonn identify"):  # marked INCOMPLETE until every file is in place
-        if bus:
+        if bus or mdf:
             write_data(out / bus_input.SAMPLES, data, cf, valid_suffix=args.valid_suffix)
         errors = np.arange(T) > 0 if one_rows is None else one_rows
         _write_predictions(out / "predictions.csv", data, cf, sim, errors)
@@ -436,6 +470,14 @@ def run(args: argparse.Namespace) -> int:
         print("ignored columns: " + ", ".join(data.ignored))
     for line in bus.summary() if bus else []:
         print(line)
+    if mdf:
+        m = mdf[1]
+        if m.incomplete:
+            print(f"warning: {source} is incomplete, read partially (--partial-log): {m.incomplete}")
+        print(f"mdf: {T} samples every {m.period:.6g} s ({m.period_source}); resampled by {METHOD}")
+        for name, ch in m.channels.items():
+            if ch.get("not_valid"):
+                print(f"  {name} ({ch['channel']}): {ch['not_valid']} samples not valid (no new sample)")
     if segs is not None:
         print(f"gaps: {segs.lost} lost samples in {_count(len(segs.gaps), 'gap')}; {len(segs.gaps)} not stepped after "
               f"them, {_count(segs.restarts, 'restart')}; {_count(len(segs.bounds), 'segment')} "
