@@ -185,3 +185,20 @@ def test_a_csv_whose_first_row_is_lost_is_refused_naming_the_line(files: dict[st
     err = cli_error(["identify", str(tmp_path / "bad.csv"), "--config", str(files["config"]), "--out",
                      str(tmp_path / "o")])
     assert "line 2, column 'lost': the first data row cannot be a lost sample" in err
+
+
+def test_a_free_run_ends_with_its_segment_and_k_step_predictions_restart_after_a_gap(
+        files: dict[str, Path], tmp_path: Path) -> None:
+    assert main(["identify", str(files["csv"]), "--config", str(files["config"]), "--out", str(tmp_path / "o"),
+                 "--free-run-from", "250", "--steps-ahead", "3", "--no-plots"]) == 0
+    with (tmp_path / "o" / "predictions.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    free = [k for k, r in enumerate(rows) if r["q_m_free_run"] != ""]
+    assert free == list(range(250, 333))  # from K to the end of its segment (the gap at 333)
+    ahead = {k for k, r in enumerate(rows) if r["q_m_ahead3"] != ""}
+    for a, b in [(0, 57), (59, 200), (202, 333), (337, 540), (544, N)]:  # the first 3 of every segment have none
+        assert ahead & set(range(a, b)) == set(range(a + 3, b))
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert m["free_run"]["states"]["q_m"]["scored"] == 333 - 250
+    assert all(np.isfinite(s["rmse"]) for kind in ("one_step", "free_run", "steps_ahead")
+               for s in m[kind]["states"].values())
