@@ -59,18 +59,26 @@ carrying it in sample k's window. Nothing else is ever used:
 - A frame whose data does not decode (a length the DBC does not give, an
   unknown multiplexer value), a non-finite value, or a ``[bus.valid]`` flag
   of 0: not valid at k, counted per signal.
-- Inputs have no validity: u(k) is needed on every sample. Samples at the
-  start and end of the log without every input are cut off (said so); an
-  input missing inside the run is an error naming it and the first such
-  sample, never filled in (``start``/``stop``, seconds after the first
-  clock frame, choose a stretch without the gap).
+- Inputs have no validity: u(k) is needed to step. Samples at the start
+  and end of the log without every input are cut off (said so). A sample
+  inside the run without every input (its frame lost, a lost clock frame
+  that carried them) is a **lost sample**, never filled in: the record is
+  split there into segments as the firmware does (:mod:`pyrhonn.gaps`:
+  the sample after the gap is not stepped, the identifier restarts on the
+  next, and every gap is counted and reported per segment).
 
 A multiplexed signal counts only in the frames whose multiplexer selects it.
 A ``[bus.valid]`` flag must be carried by every frame that carries its
 value (same message, and not under another multiplexer value).
 
 Supported logs: ``.blf`` and ``.asc`` (Vector; python-can's ``can.Logger``
-writes both), ``.log`` (candump ``-l``). Frames of every channel count;
+writes both), ``.log`` (candump ``-l``), ``.mf4`` (an ASAM MDF4 bus log of
+CAN frames, read with asammdf through python-can's ``MF4Reader``). A log cut short (an ASC without its
+``End TriggerBlock``, a BLF shorter than its header records, cut inside an
+object or whose header was never completed, a text log whose last line is
+cut) is refused naming what is missing, or with ``partial``
+(``--partial-log``) its complete part is read and the report says what is
+missing. Frames of every channel count;
 error and remote frames are skipped. Every defect raises ``ValueError``
 naming the file, option, key or signal (and the frame, or the line of a
 candump log).
@@ -78,19 +86,23 @@ candump log).
 from __future__ import annotations
 
 import difflib
+import io
 import math
 import re
+import struct
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from .validation import near_names
+
 __all__ = ["Aligned", "BusMap", "LOG_SUFFIXES", "SignalRef", "SignalStats", "align", "load_dbc", "read_bus_log",
            "read_frames"]
 
 #: the log formats read, by file name suffix
-LOG_SUFFIXES = (".blf", ".asc", ".log")
+LOG_SUFFIXES = (".blf", ".asc", ".log", ".mf4")
 _REF = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)\.([A-Za-z_][A-Za-z0-9_]*)\Z")
 _KEYS = ("sample_period", "clock", "counter", "window_start", "signals", "valid")
 _WINDOW_RANGE = (-1.0, 0.0)
@@ -282,13 +294,15 @@ def _mux_values(msg: Any, sig: Any) -> frozenset[int] | None:
 class Frames:
     """The data frames of a log in time order: ``t`` (N,) log timestamps in
     s, ``ids`` (N,) arbitration ids, ``extended`` (N,) bool, ``data`` the
-    payloads; ``skipped`` error and remote frames."""
+    payloads; ``skipped`` error and remote frames; ``incomplete`` what a
+    log read with ``partial`` misses (None: the log is complete)."""
 
     t: np.ndarray
     ids: np.ndarray
     extended: np.ndarray
     data: tuple[bytes, ...]
     skipped: int
+    incomplete: str | None = None
 
 
 def _candump_line(path: Path, frame: int) -> int:
@@ -303,10 +317,70 @@ def _candump_line(path: Path, frame: int) -> int:
     return line_no + 1 if seen >= 0 else 1
 
 
-def read_frames(path: str | Path, option: str = "--can-log") -> Frames:
+#: the most bytes of a log read (a text log is held whole while it is checked)
+MAX_LOG_BYTES = 1 << 31
+_BLF_OBJ = struct.Struct("<4sHHII")  # signature, header size, header version, object size, object type
+_PARTIAL_HINT = "; read what is there with --partial-log"
+
+
+def _blf_completeness(p: Path, declared_size: int, declared_objects: int) -> str | None:
+    """What a BLF file misses, from its header and its objects' sizes (None: complete). Walks the
+    object headers without decompressing: the last one must end inside the file."""
+    actual = p.stat().st_size
+    found: list[str] = []
+    if declared_size > actual:  # the header, written when the logger stopped, says how long the file was
+        found.append(f"its BLF header records {declared_size:,} bytes, the file has {actual:,} "
+                     f"({100.0 * (declared_size - actual) / declared_size:.1f} % missing)")
+    count = 0
+    with open(p, "rb") as fh:
+        head = fh.read(8)
+        pos = int.from_bytes(head[4:8], "little") if len(head) == 8 else actual
+        while pos < actual:
+            fh.seek(pos)
+            raw = fh.read(_BLF_OBJ.size)
+            if len(raw) < _BLF_OBJ.size:
+                found.append(f"cut inside an object header at byte {pos:,} of {actual:,}")
+                break
+            sig, _, _, size, _ = _BLF_OBJ.unpack(raw)
+            if sig != b"LOBJ" or size < _BLF_OBJ.size:
+                found.append(f"no object where one should start, at byte {pos:,} (the file is damaged there)")
+                break
+            if pos + size > actual:
+                found.append(f"cut inside its object {count + 1} (a container) at byte {pos:,}: it declares "
+                             f"{size:,} bytes, {actual - pos:,} are there")
+                break
+            pos += size + size % 4
+            count += 1
+    if declared_objects == 0 and count:
+        found.append("its header was never completed (0 objects, written when the logger stops): the logger did "
+                     "not finish the file")
+    return "; ".join(found) or None
+
+
+def _text_completeness(raw: bytes, suffix: str) -> tuple[str | None, bytes]:
+    """What a text log misses (None: complete) and the part of it to read: without a cut last line."""
+    cut = not raw.endswith(b"\n")
+    body = raw[:raw.rfind(b"\n") + 1] if cut else raw
+    lines = body.count(b"\n")
+    missing: list[str] = []
+    if cut:
+        missing.append(f"its last line ({lines + 1}) is cut short (no end of line)")
+    if suffix == ".asc":
+        tail = [ln.strip() for ln in body[-4096:].splitlines() if ln.strip()]
+        if not tail or tail[-1] != b"End TriggerBlock":
+            missing.append("it does not end with 'End TriggerBlock' (written when the logger stops): the rest "
+                           "of the recording is missing")
+    return ("; ".join(missing) or None), body
+
+
+def read_frames(path: str | Path, option: str = "--can-log", partial: bool = False) -> Frames:
     """Every data frame of a ``.blf``, ``.asc`` or candump ``.log`` file;
     a ValueError naming ``option``, the file and the frame (or candump line)
-    for a log that cannot be read."""
+    for a log that cannot be read. A log that is not complete (an ASC without
+    its ``End TriggerBlock``, a BLF shorter than its header records or cut
+    inside an object, a text log whose last line is cut) is refused, naming
+    what is missing, unless ``partial``: then its complete frames are read and
+    ``Frames.incomplete`` says what is missing."""
     import can
 
     p = Path(path)
@@ -314,24 +388,44 @@ def read_frames(path: str | Path, option: str = "--can-log") -> Frames:
     if suffix not in LOG_SUFFIXES:
         raise ValueError(f"{option} {path}: unsupported log format {p.suffix or '(no suffix)'!r}; expected one of "
                          f"{', '.join(LOG_SUFFIXES)} (Vector BLF and ASC, as python-can's can.Logger writes them, "
-                         "or a candump -l log)")
+                         "a candump -l log, or an MDF4 bus log as python-can's can.Logger writes it)")
     if not p.is_file():
-        raise ValueError(f"{option} {path}: no such file")
-    if p.stat().st_size == 0:
+        raise ValueError(f"{option} {path}: no such file{near_names(p)}")
+    size = p.stat().st_size
+    if size == 0:
         raise ValueError(f"{option} {path}: empty file (not a {suffix[1:].upper()} log)")
-    reader_type = {".blf": can.BLFReader, ".asc": can.ASCReader, ".log": can.CanutilsLogReader}[suffix]
+    if size > MAX_LOG_BYTES:
+        raise ValueError(f"{option} {path}: {size:,} bytes, more than the {MAX_LOG_BYTES:,} read at once; cut the "
+                         "recording into parts")
+    kind = {".blf": "a BLF", ".asc": "an ASC", ".log": "a candump", ".mf4": "an MDF4 bus"}[suffix]
     t: list[float] = []
     ids: list[int] = []
     ext: list[bool] = []
     data: list[bytes] = []
     skipped = 0
     count = 0
+    incomplete: str | None = None
+    source: Any = str(p)
+    if suffix == ".mf4":
+        with open(p, "rb") as fh:
+            ident = fh.read(64)
+        if ident[:8] == b"UnFinMF ":
+            incomplete = ("its identification block says 'UnFinMF' (not finalised: the logger did not finish the "
+                          "file)")
+        elif ident[:8] != b"MDF     ":
+            raise ValueError(f"{option} {path}: not an MDF file (it does not start with 'MDF')")
+    elif suffix != ".blf":
+        raw = p.read_bytes()
+        if b"\0" in raw[:4096]:
+            raise ValueError(f"{option} {path}: binary data, not {kind} log (text); a BLF file must be named .blf")
+        incomplete, body = _text_completeness(raw, suffix)
+        source = io.StringIO(body.decode("utf-8", errors="replace"))
     try:
-        with reader_type(str(p)) as reader:
-            declared = int(getattr(reader, "file_size", 0) or 0) if suffix == ".blf" else 0
-            if declared > p.stat().st_size:  # the header, written when the logger stopped, says how long it was
-                raise ValueError(f"{option} {path}: truncated: its BLF header records {declared:,} bytes, the file "
-                                 f"has {p.stat().st_size:,} (cut short after it was written)")
+        readers = {".blf": can.BLFReader, ".asc": can.ASCReader, ".log": can.CanutilsLogReader, ".mf4": can.MF4Reader}
+        with readers[suffix](source) as reader:
+            if suffix == ".blf":
+                incomplete = _blf_completeness(p, int(getattr(reader, "file_size", 0) or 0),
+                                               int(getattr(reader, "object_count", 0) or 0))
             for msg in reader:
                 count += 1
                 if msg.is_error_frame or msg.is_remote_frame:
@@ -341,24 +435,30 @@ def read_frames(path: str | Path, option: str = "--can-log") -> Frames:
                 ids.append(int(msg.arbitration_id))
                 ext.append(bool(msg.is_extended_id))
                 data.append(bytes(msg.data))
-    except Exception as exc:  # python-can's readers raise struct.error, ValueError, BLFParseError, ...
-        if str(exc).startswith(f"{option} {path}: truncated"):
-            raise
-        where = f"line {_candump_line(p, count)}" if suffix == ".log" else f"after frame {count}"
-        text = " ".join(str(exc).split()) or type(exc).__name__
-        kind = "a BLF" if suffix == ".blf" else "an ASC" if suffix == ".asc" else "a candump"
-        raise ValueError(f"{option} {path}: {where}: cannot read it as {kind} log ({type(exc).__name__}: "
-                         f"{text[:200]})") from None
+    except Exception as exc:  # python-can's readers raise struct.error, ValueError, BLFParseError, zlib.error ...
+        if not (partial and incomplete):
+            where = f"line {_candump_line(p, count)}" if suffix == ".log" else f"after frame {count}"
+            text = " ".join(str(exc).split()) or type(exc).__name__
+            why = f" ({incomplete})" if incomplete else ""
+            raise ValueError(f"{option} {path}: {where}: cannot read it as {kind} log ({type(exc).__name__}: "
+                             f"{text[:200]}){why}") from None
+    if incomplete and not partial:
+        upto = f", up to log time {max(t):.6f}" if t else ""
+        raise ValueError(f"{option} {path}: truncated: {incomplete}; {count:,} frames are complete{upto}"
+                         f"{_PARTIAL_HINT}")
     if not t:
         raise ValueError(f"{option} {path}: no data frames in it ({count} records read, {skipped} error or "
-                         f"remote frames); is it {'a BLF' if suffix == '.blf' else 'an ASC' if suffix == '.asc' else 'a candump'} log?")
+                         f"remote frames); is it {kind} log?"
+                         + (" (an MDF4 of named signal channels is not a bus log)" if suffix == ".mf4" else ""))
     ts = np.asarray(t, dtype=np.float64)
     if not np.isfinite(ts).all():
         k = int(np.argwhere(~np.isfinite(ts))[0, 0])
         raise ValueError(f"{option} {path}: frame {k + 1}: timestamp {ts[k]!r} is not finite")
     order = np.argsort(ts, kind="stable")  # logs of several channels may interleave slightly out of order
     return Frames(t=ts[order], ids=np.asarray(ids, dtype=np.int64)[order],
-                  extended=np.asarray(ext, dtype=bool)[order], data=tuple(data[i] for i in order), skipped=skipped)
+                  extended=np.asarray(ext, dtype=bool)[order], data=tuple(data[i] for i in order), skipped=skipped,
+                  incomplete=None if not incomplete else f"{incomplete}; {count:,} frames read, up to log time "
+                                                         f"{float(ts.max()):.6f}")
 
 
 # -- alignment ----------------------------------------------------------------------------------------
@@ -399,7 +499,9 @@ class Aligned:
     ``clock_frames`` in the log, ``clock_missing`` samples inserted for lost
     clock frames, ``cut_start``/``cut_end`` samples cut off before and after
     the run (``--start``/``--stop``, or no value for an input), ``stats`` per
-    state and input name, over the samples kept.
+    state and input name, over the samples kept; ``lost`` (K,) bool the
+    samples inside the run without every input (NaN in ``U``);
+    ``incomplete`` what a log read partially misses (None: complete).
     """
 
     t: np.ndarray
@@ -416,6 +518,8 @@ class Aligned:
     cut_start: int
     cut_end: int
     stats: Mapping[str, SignalStats]
+    lost: np.ndarray
+    incomplete: str | None = None
 
     @property
     def n_samples(self) -> int:
@@ -608,7 +712,7 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
                 got[w, col] = True
                 value[w, col] = x
 
-    # the stretch: --start/--stop, then the ends without every input cut off; a gap inside is refused
+    # the stretch: --start/--stop, then the ends without every input cut off; a gap inside is a lost sample
     t_all = tau - tau[0]
     keep = np.ones(K, dtype=bool)
     if start is not None:
@@ -626,19 +730,13 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
                          f"has a value at {int(got[keep][:, n + j].sum())} of {int(keep.sum())} samples)")
     lo = int(np.argmax(have))
     hi = K - int(np.argmax(have[::-1]))
-    if not have[lo:hi].all():
-        k = lo + int(np.argmax(~have[lo:hi]))
-        j = int(np.argmax(~got[k, n:]))
-        ref = bus.signals[input_names[j]]
-        gaps = int((~got[lo:hi, n + j]).sum())
-        raise ValueError(f"{ref.origin}: {ref}: input {input_names[j]!r} is missing at {gaps} sample(s) inside the "
-                         f"run, the first at t = {t_all[k]:.6g} s (log time {tau[k]:.6f}): an input is needed on "
-                         "every sample and is never filled in; identify a stretch without the gap (--start/--stop, "
-                         "s after the first clock frame) or record the input's message")
     if hi - lo < 2:
         raise ValueError(f"{source}: only one sample with every input; one-step-ahead identification needs at least "
                          "two")
     sl = slice(lo, hi)
+    lost = ~have[sl]
+    value[sl][lost] = np.nan
+    got[sl][lost] = False
     stats = {name: SignalStats(signal=str(bus.signals[name]), frames=int(counts["frames"][sl, col].sum()),
                                used=int(got[sl, col].sum()),
                                missing=int((counts["frames"][sl, col] == 0).sum()),
@@ -650,15 +748,17 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
     return Aligned(t=t_all[sl].copy(), start=float(tau[0]), X=value[sl, :n].copy(), valid=got[sl, :n].copy(),
                    U=value[sl, n:].copy(), clock=clock_msg.name, sample_period=T, period_source=period_source,
                    window_start=bus.window_start, clock_frames=int(tc.size), clock_missing=inserted,
-                   cut_start=lo, cut_end=K - hi, stats=stats)
+                   cut_start=lo, cut_end=K - hi, stats=stats, lost=lost.copy(),
+                   incomplete=frames.incomplete)
 
 
 def read_bus_log(log: str | Path, dbc: str | Path, bus: BusMap, state_names: Sequence[str],
                  input_names: Sequence[str], *, start: float | None = None, stop: float | None = None,
-                 **options: str) -> Aligned:
-    """:func:`read_frames` of ``log``, decoded with the DBC file ``dbc`` and :func:`align`-ed."""
+                 partial: bool = False, **options: str) -> Aligned:
+    """:func:`read_frames` of ``log`` (``partial``: a truncated log's complete part), decoded with the DBC
+    file ``dbc`` and :func:`align`-ed."""
     db = load_dbc(dbc, options.get("dbc_option", "--dbc"))
-    frames = read_frames(log, options.get("log_option", "--can-log"))
+    frames = read_frames(log, options.get("log_option", "--can-log"), partial=partial)
     return align(frames, db, bus, state_names, input_names, source=str(log), dbc=str(dbc),
                  period_option=options.get("period_option", "bus.sample_period"),
                  clock_option=options.get("clock_option", "bus.clock"), start=start, stop=stop)

@@ -6,8 +6,17 @@ aligned from a bus log so).
 
 Input file
 ----------
-UTF-8 text (a byte-order mark is allowed), comma-separated, first line a
-header naming the columns; one line per sample k = 0..T-1, in time order.
+UTF-8 text (a byte-order mark is allowed), first line a header naming the
+columns; one line per sample k = 0..T-1, in time order.
+
+- The separator is ``,``, ``;`` or a tab: the one that splits the header
+  into the config's names (``sep`` / ``--csv-sep`` sets it). Numbers use a
+  decimal point, or a decimal comma (``1,5``) in a file separated by ``;``
+  or tabs, as spreadsheets in many locales export it (found from the data,
+  or set by ``decimal`` / ``--decimal``).
+- An optional **unit row** right after the header: a line none of whose
+  cells is a number (``s;m;m/s;V``, ``[s]``, or empty cells); its units are
+  kept in ``Data.units`` (brackets dropped).
 
 - One column per state and per input, named by the config's ``state_names``
   and ``input_names`` (``pyrhonn show-config`` prints them). ``--config``
@@ -20,11 +29,21 @@ header naming the columns; one line per sample k = 0..T-1, in time order.
   The identifier does not learn from it and uses its own prediction in its
   place (see :meth:`pyrhonn.Identifier.run`); its cell may be empty or NaN.
   A state without a validity column is valid on every line.
+- Optional ``lost`` holding ``0`` or ``1``: 1 marks a sample that never
+  arrived (a lost frame); its inputs and states may be empty. The record is
+  split there into segments, the firmware's way (:mod:`pyrhonn.gaps`): the
+  sample after the gap is not stepped and the identifier restarts on the
+  next. The first and last data rows cannot be lost.
 - Other columns are ignored (and listed on the output).
-- Numbers are decimal (``-1.5``, ``2e-3``); spaces around a cell are allowed.
+- Numbers are decimal (``-1.5``, ``2e-3``, or ``-1,5`` with a decimal
+  comma); spaces around a cell are allowed.
   An empty cell or ``nan`` is a missing value, allowed only in a state
   column whose validity is 0 on that line. Infinities, other text, missing
   inputs or times are errors.
+
+A file that is not CSV text (a BLF, MDF or other binary file, a candump or
+ASC log) is named as such, with the option that reads it; a missing file
+names the closest file names in its folder.
 
 Every defect (undecodable text, malformed CSV, an empty file, a header
 without data, duplicate or missing columns, a line with the wrong number of
@@ -36,6 +55,7 @@ all; N is the first line of the record).
 from __future__ import annotations
 
 import csv
+import difflib
 import io
 import re
 from dataclasses import dataclass
@@ -48,12 +68,15 @@ from . import atomic
 from .configfile import ConfigFile
 from .validation import decode_text, read_file
 
-__all__ = ["Data", "TIME_COLUMN", "check_suffix", "read_data", "write_data"]
+__all__ = ["Data", "LOST_COLUMN", "SEPARATORS", "TIME_COLUMN", "check_suffix", "read_data", "write_data"]
 
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
 _MISSING = ("", "nan", "NaN", "NAN")
 _INFINITE = re.compile(r"[+-]?(?:inf|Inf|INF|infinity|Infinity|INFINITY)\Z")
 TIME_COLUMN = "t"
+LOST_COLUMN = "lost"  #: 1 marks a sample that never arrived
+SEPARATORS = {",": "comma", ";": "semicolon", "\t": "tab"}  #: the column separators read
+_DECIMAL_COMMA = re.compile(r"\s*[+-]?[0-9]+,[0-9]+(?:[eE][+-]?[0-9]+)?\s*\Z")
 MAX_FILE_BYTES = 1 << 30  #: 1 GiB of CSV: ~10 million rows of a 9-column log, beyond what one run holds
 
 
@@ -71,7 +94,8 @@ class Data:
 
     ``X`` (T, n) float64 with NaN where a state is missing, ``U`` (T, m),
     ``valid`` (T, n) bool, ``t`` (T,) or None, ``lines`` (T,) the file line
-    of each sample, ``ignored`` the columns not used.
+    of each sample, ``ignored`` the columns not used; ``lost`` (T,) bool or
+    None: the samples that never arrived (NaN inputs, no valid state).
     """
 
     X: np.ndarray
@@ -80,6 +104,8 @@ class Data:
     t: np.ndarray | None
     lines: np.ndarray
     ignored: tuple[str, ...]
+    lost: np.ndarray | None = None
+    units: dict[str, str] | None = None
 
     @property
     def n_samples(self) -> int:
@@ -104,9 +130,9 @@ class Data:
         return convert(self.X, state_names, self.valid), convert(self.U, input_names, None)
 
 
-def _records(text: str, source: str) -> list[tuple[int, list[str]]]:
+def _records(text: str, source: str, sep: str = ",") -> list[tuple[int, list[str]]]:
     """Every CSV record with the line it starts on; blank lines are kept as []."""
-    reader = csv.reader(io.StringIO(text, newline=""), strict=True)
+    reader = csv.reader(io.StringIO(text, newline=""), strict=True, delimiter=sep)
     out: list[tuple[int, list[str]]] = []
     last = 0
     while True:
@@ -123,9 +149,17 @@ def _records(text: str, source: str) -> list[tuple[int, list[str]]]:
         last = reader.line_num
 
 
-def _cell(source: str, line: int, column: str, text: str) -> float:
+def _cell(source: str, line: int, column: str, text: str, decimal: str = ".") -> float:
     """A numeric cell: a float, NaN for a missing value; ValueError otherwise."""
     s = text.strip()
+    if decimal == ",":
+        if "." in s and _NUMBER.match(s):
+            raise ValueError(f"{source}: line {line}, column {column!r}: {s!r} has a decimal point, but the file's "
+                             "numbers use a decimal comma (--decimal . if they do not)")
+        s = s.replace(",", ".")
+    elif _DECIMAL_COMMA.match(s):
+        raise ValueError(f"{source}: line {line}, column {column!r}: {text.strip()!r} has a decimal comma; the file "
+                         "is read with a decimal point (--decimal , to read decimal commas)")
     if _NUMBER.match(s):
         value = float(s)
         if not np.isfinite(value):
@@ -138,14 +172,79 @@ def _cell(source: str, line: int, column: str, text: str) -> float:
     raise ValueError(f"{source}: line {line}, column {column!r}: not a number: {text!r}")
 
 
+def _not_csv(raw: bytes, source: str) -> None:
+    """A ValueError for a file that is plainly not CSV text, saying what it is and what reads it."""
+    head = raw[:4096]
+    first = head.split(b"\n", 1)[0].strip()
+    if head.startswith(b"LOGG"):
+        what = "a BLF bus log (binary); read it with --can-log FILE.blf --dbc FILE.dbc"
+    elif head.startswith(b"MDF "):
+        what = "an MDF measurement file (binary), not CSV"
+    elif b"\0" in head:
+        what = "binary data, not CSV text"
+    elif re.match(rb"\(\d+\.\d+\)\s+\S+\s+[0-9A-Fa-f]+#", first):
+        what = "a candump log; read it with --can-log FILE.log --dbc FILE.dbc"
+    elif first.lower().startswith(b"date ") and b"base " in head.lower():
+        what = "an ASC bus log; read it with --can-log FILE.asc --dbc FILE.dbc"
+    else:
+        return
+    raise ValueError(f"{source}: not a CSV file: {what}")
+
+
+def _separator(header: str, required: Sequence[str], sep: str | None) -> str:
+    """The separator: ``sep`` if given, else the one that splits ``header`` into most of ``required``."""
+    if sep is not None:
+        return sep
+    def found(c: str) -> int:
+        names = {h.strip() for h in next(csv.reader([header], delimiter=c), [])}
+        return sum(name in names for name in required)
+    return max(SEPARATORS, key=found)  # ties: the first, a comma
+
+
+def _decimal(records: list[tuple[int, list[str]]], sep: str, decimal: str | None) -> str:
+    """The decimal mark: ``decimal`` if given; else a comma when the separator is not one and a cell of
+    the first 100 lines is a number with a decimal comma."""
+    if decimal is not None:
+        return decimal
+    if sep == ",":
+        return "."
+    for _, record in records[1:101]:
+        if any(_DECIMAL_COMMA.match(cell) for cell in record):
+            return ","
+    return "."
+
+
+def _unit_row(record: list[str], decimal: str) -> bool:
+    """Whether the line after the header is a unit row: no cell a number or a missing value marker."""
+    cells = [c.strip() for c in record]
+    if not any(cells):
+        return False
+    for c in cells:
+        if _NUMBER.match(c.replace(",", ".") if decimal == "," else c) or _INFINITE.match(c) or c in _MISSING[1:]:
+            return False
+    return True
+
+
 def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
-              config_source: str = "the config") -> Data:
-    """Read and check a data file for the config ``cf`` (see the module docs)."""
+              config_source: str = "the config", sep: str | None = None, decimal: str | None = None) -> Data:
+    """Read and check a data file for the config ``cf`` (see the module docs); ``sep`` (one of
+    :data:`SEPARATORS`) and ``decimal`` (``.`` or ``,``) None: found from the file."""
     source = str(path)
-    text = decode_text(read_file(path, source, limit=MAX_FILE_BYTES), source, bom=True)  # spreadsheets write a BOM
+    if sep is not None and sep not in SEPARATORS:
+        raise ValueError(f"--csv-sep: expected one of ',', ';' or tab, got {sep!r}")
+    if decimal is not None and decimal not in (".", ","):
+        raise ValueError(f"--decimal: expected '.' or ',', got {decimal!r}")
+    if sep == "," and decimal == ",":
+        raise ValueError("--decimal ,: a comma cannot be both the separator and the decimal mark; use --csv-sep ';'")
+    raw = read_file(path, source, limit=MAX_FILE_BYTES)
+    _not_csv(raw, source)
+    text = decode_text(raw, source, bom=True)  # spreadsheets write a BOM
     if not text.strip():
         raise ValueError(f"{source}: empty file (expected a header row naming the columns, then the data)")
-    records = _records(text, source)
+    required = list(cf.state_names) + list(cf.input_names)
+    sep = _separator(text.split("\n", 1)[0], required, sep)
+    records = _records(text, source, sep)
+    decimal = _decimal(records, sep, decimal)
     header_line, header = records[0]
     if not header:
         raise ValueError(f"{source}: line {header_line}: empty line where the header row was expected")
@@ -158,25 +257,40 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
             raise ValueError(f"{source}: line {header_line}: duplicate column {name!r} "
                              f"(columns {where[name] + 1} and {c + 1})")
         where[name] = c
-    required = list(cf.state_names) + list(cf.input_names)
     missing = [name for name in required if name not in where]
     if missing:
+        close = [f"{m!r} -> {c[0]!r}" for m in missing
+                 for c in [difflib.get_close_matches(m, [n for n in names if n not in required], n=1)] if c]
+        hint = ("; did you mean " + ", ".join(close) + "?") if close else ""
+        if len(names) == 1 and any(c in names[0] for c in SEPARATORS if c != sep):
+            other = next(c for c in SEPARATORS if c != sep and c in names[0])
+            hint += (f"; the header is one column when split on {SEPARATORS[sep]}s: is the file separated by "
+                     f"{SEPARATORS[other]}s? (--csv-sep {'tab' if other == chr(9) else other})")
         raise ValueError(
             f"{source}: line {header_line}: missing column{'s' if len(missing) > 1 else ''} "
             + ", ".join(repr(m) for m in missing)
             + f" ({config_source} names the states {', '.join(cf.state_names)}"
-            + (f" and the inputs {', '.join(cf.input_names)})" if cf.input_names else " and no inputs)"))
+            + (f" and the inputs {', '.join(cf.input_names)})" if cf.input_names else " and no inputs)")
+            + f"{hint}; the header has {', '.join(repr(n) for n in names[:12])}{' ...' if len(names) > 12 else ''}")
     validity: dict[int, int] = {}
     for j, name in enumerate(cf.state_names):
         vname = f"{name}{valid_suffix}"
-        if vname in required or vname == TIME_COLUMN:
+        if vname in required or vname in (TIME_COLUMN, LOST_COLUMN):
             raise ValueError(f"--valid-suffix: the validity column of state {name!r} would be {vname!r}, "
                              "which is also a state, input or time column; choose another suffix")
         if vname in where:
             validity[j] = where[vname]
-    used = set(required) | {f"{cf.state_names[j]}{valid_suffix}" for j in validity} | {TIME_COLUMN}
+    if LOST_COLUMN in required:
+        raise ValueError(f"{config_source}: a state or input is named {LOST_COLUMN!r}, the column that marks lost "
+                         "samples; rename it")
+    used = set(required) | {f"{cf.state_names[j]}{valid_suffix}" for j in validity} | {TIME_COLUMN, LOST_COLUMN}
     ignored = tuple(name for name in names if name not in used)
     body = records[1:]
+    units: dict[str, str] | None = None
+    if body and body[0][1] and len(body[0][1]) == len(names) and _unit_row(body[0][1], decimal):
+        units = {name: cell.strip().strip("[]()").strip() for name, cell in zip(names, body[0][1])
+                 if name in used and cell.strip().strip("[]()").strip()}
+        body = body[1:]
     while body and not body[-1][1]:
         body.pop()  # blank lines at the end of the file
     if not body:
@@ -187,6 +301,7 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
     valid = np.ones((T, n), dtype=bool)
     t = np.empty(T) if TIME_COLUMN in where else None
     lines = np.empty(T, dtype=np.int64)
+    lost = np.zeros(T, dtype=bool)
     state_cols = [where[name] for name in cf.state_names]
     input_cols = [where[name] for name in cf.input_names]
     width = len(names)
@@ -197,20 +312,33 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
         if len(record) != width:
             raise ValueError(f"{source}: line {line}: expected {width} fields as in the header, got {len(record)}")
         if t is not None:
-            value = _cell(source, line, TIME_COLUMN, record[where[TIME_COLUMN]])
+            value = _cell(source, line, TIME_COLUMN, record[where[TIME_COLUMN]], decimal)
             if np.isnan(value):
                 raise ValueError(f"{source}: line {line}, column 't': missing time")
             if k and not value > t[k - 1]:
                 raise ValueError(f"{source}: line {line}, column 't': time {value!r} is not after "
                                  f"{float(t[k - 1])!r} on line {int(lines[k - 1])} (times must increase)")
             t[k] = value
+        if LOST_COLUMN in where:
+            flag = record[where[LOST_COLUMN]].strip()
+            if flag not in ("0", "1"):
+                raise ValueError(f"{source}: line {line}, column {LOST_COLUMN!r}: expected 0 or 1, got "
+                                 f"{record[where[LOST_COLUMN]]!r}")
+            if flag == "1":
+                if k == 0 or k == T - 1:
+                    which = "first" if k == 0 else "last"
+                    raise ValueError(f"{source}: line {line}, column {LOST_COLUMN!r}: the {which} data row cannot be "
+                                     "a lost sample (leave it out)")
+                lost[k] = True
+                X[k], U[k], valid[k] = np.nan, np.nan, False
+                continue
         for j, c in validity.items():
             flag = record[c].strip()
             if flag not in ("0", "1"):
                 raise ValueError(f"{source}: line {line}, column {names[c]!r}: expected 0 or 1, got {record[c]!r}")
             valid[k, j] = flag == "1"
         for j, c in enumerate(state_cols):
-            value = _cell(source, line, names[c], record[c])
+            value = _cell(source, line, names[c], record[c], decimal)
             if np.isnan(value) and valid[k, j]:
                 how = (f"{names[validity[j]]} = 1" if j in validity
                        else f"no {cf.state_names[j]}{valid_suffix!s} column; add one with 0 on this line "
@@ -219,12 +347,13 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
                                  f"but the state is marked valid ({how})")
             X[k, j] = value
         for j, c in enumerate(input_cols):
-            value = _cell(source, line, names[c], record[c])
+            value = _cell(source, line, names[c], record[c], decimal)
             if np.isnan(value):
                 raise ValueError(f"{source}: line {line}, column {names[c]!r}: missing input value "
                                  "(inputs must be given on every line)")
             U[k, j] = value
-    return Data(X=X, U=U, valid=valid, t=t, lines=lines, ignored=ignored)
+    return Data(X=X, U=U, valid=valid, t=t, lines=lines, ignored=ignored,
+                lost=lost if LOST_COLUMN in where else None, units=units)
 
 
 def write_data(path: str | Path, data: Data, cf: ConfigFile, *, valid_suffix: str = "_valid") -> None:
@@ -237,14 +366,16 @@ def write_data(path: str | Path, data: Data, cf: ConfigFile, *, valid_suffix: st
     if data.X.shape != (data.n_samples, n) or data.U.shape != (data.n_samples, m):
         raise ValueError(f"data: expected X ({data.n_samples}, {n}) and U ({data.n_samples}, {m}) for the config, "
                          f"got {data.X.shape} and {data.U.shape}")
+    gaps = data.lost is not None and bool(data.lost.any())
     header = ([TIME_COLUMN] if data.t is not None else []) + list(cf.state_names) + list(cf.input_names) + \
-        [f"{name}{valid_suffix}" for name in cf.state_names]
+        [f"{name}{valid_suffix}" for name in cf.state_names] + ([LOST_COLUMN] if gaps else [])
     with atomic.replacing(path, "w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(header)
         for k in range(data.n_samples):
             row = [repr(float(data.t[k]))] if data.t is not None else []
             row += [repr(float(data.X[k, j])) if data.valid[k, j] else "" for j in range(n)]
-            row += [repr(float(v)) for v in data.U[k]]
-            row += ["1" if v else "0" for v in data.valid[k]]
+            lost = gaps and bool(data.lost[k])  # type: ignore[index]
+            row += ["" if lost else repr(float(v)) for v in data.U[k]]
+            row += ["1" if v else "0" for v in data.valid[k]] + (["1" if lost else "0"] if gaps else [])
             w.writerow(row)

@@ -34,9 +34,18 @@ predictions, weights and covariances as the Python identifier stepping on
 The last D + 1 of those samples (D the deepest delay) must be measured (no
 dropout), and the identifier must have stepped since it was built, reset or
 restarted.
+
+Names: ``export_header(..., signals=Signals(states, inputs, units, bus, dbc))``
+also writes, in the header, which state and input each index is: a comment
+table (index, name, unit, the DBC signal it comes from), ``NAME_N_STATES`` /
+``NAME_N_INPUTS``, one index macro per name (``NAME_STATE_Q_M 0``) and
+initialiser macros of the names and units in order
+(``static const char *const names[] = NAME_STATE_NAMES;``), and the DBC
+file the bus signals are in, when given.
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import shutil
@@ -44,7 +53,7 @@ import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Optional, Tuple
+from typing import Callable, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -52,7 +61,7 @@ from . import atomic
 from .config import FactorKind, IdentifierConfig
 from .identifier import Identifier
 
-__all__ = ["export_header", "header_text", "capacity_text", "capacity_path", "min_capacities",
+__all__ = ["Signals", "export_header", "header_text", "capacity_text", "capacity_path", "min_capacities",
            "measure_rhonn_t_size", "LAYOUT_VERSION"]
 
 #: The rhonn.h API version (RHONN_VERSION_MAJOR, _MINOR) whose rhonn_config and
@@ -105,6 +114,85 @@ def _check_name(name: object) -> str:
     if name.startswith("__") or (name.startswith("_") and name[1:2].isupper()):
         raise ValueError(f"name: {name!r} is reserved to the C implementation (7.1.3)")
     return name
+
+
+@dataclass(frozen=True)
+class Signals:
+    """What each state and input of an exported identifier is: ``states`` and ``inputs`` the names in
+    order, ``units`` a unit per name (any may be missing), ``bus`` a "Message.Signal" per name (any may
+    be missing) and ``dbc`` the DBC file's name those signals are in."""
+
+    states: Sequence[str]
+    inputs: Sequence[str]
+    units: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    bus: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    dbc: str | None = None
+
+    def check(self, cfg: IdentifierConfig) -> None:
+        if len(self.states) != cfg.n_states or len(self.inputs) != cfg.n_inputs:
+            raise ValueError(f"signals: {len(self.states)} state and {len(self.inputs)} input names for an "
+                             f"identifier of {cfg.n_states} states and {cfg.n_inputs} inputs")
+        names = list(self.states) + list(self.inputs)
+        for name in names:
+            if not isinstance(name, str) or not name:
+                raise ValueError(f"signals: expected non-empty names, got {name!r}")
+        for what, table in (("units", self.units), ("bus", self.bus)):
+            for key, value in table.items():
+                if key not in names:
+                    raise ValueError(f"signals.{what}: {key!r} is not a state or input ({', '.join(names)})")
+                if not isinstance(value, str):
+                    raise ValueError(f"signals.{what}.{key}: expected a string, got {type(value).__name__}")
+        macros = [_macro_part(n) for n in names]
+        for kind, part in (("STATE", macros[:len(self.states)]), ("INPUT", macros[len(self.states):])):
+            twice = sorted({m for m in part if part.count(m) > 1})
+            if twice:
+                raise ValueError(f"signals: names that give the same macro NAME_{kind}_{twice[0]}: "
+                                 f"{', '.join(n for n, m in zip(names, macros) if m == twice[0])}")
+
+
+def _macro_part(name: str) -> str:
+    """A name as part of a C macro name: upper case, other characters as underscores."""
+    part = re.sub(r"[^A-Za-z0-9]", "_", name).upper()
+    return part if not part[:1].isdigit() else f"_{part}"
+
+
+def _c_string(text: str) -> str:
+    """A C string literal of ``text``: printable ASCII as is, everything else as octal escapes of its UTF-8."""
+    out = []
+    for byte in text.encode("utf-8"):
+        c = chr(byte)
+        out.append(f"\\{c}" if c in "\\\"" else c if 32 <= byte < 127 and c != "?" else f"\\{byte:03o}")
+    return '"' + "".join(out) + '"'
+
+
+def _comment(text: str) -> str:
+    """``text`` safe inside a C comment (no comment end, ASCII only)."""
+    return text.replace("*/", "* /").encode("ascii", "backslashreplace").decode("ascii")
+
+
+def _names_block(sig: Signals, name: str) -> list[str]:
+    """The comment table and macros naming each state and input (see the module docs)."""
+    prefix = name.upper()
+    lines = [f"/* What {name}'s vectors hold, in order: x(k) the states, u(k) the inputs."]
+    if sig.dbc:
+        lines.append(f" * Bus signals as in the DBC {_comment(sig.dbc)}.")
+    for kind, names in (("state", sig.states), ("input", sig.inputs)):
+        lines.append(f" * {kind}s:" + ("" if names else " none"))
+        for i, n in enumerate(names):
+            unit = f" [{sig.units[n]}]" if sig.units.get(n) else ""
+            bus = f"  {sig.bus[n]}" if n in sig.bus else ""
+            lines.append(_comment(f" *   {i}: {n}{unit}{bus}"))
+    lines.append(" */")
+    for kind, names in (("STATE", sig.states), ("INPUT", sig.inputs)):
+        lines.append(f"#define {prefix}_N_{kind}S {len(names)}")
+        for i, n in enumerate(names):
+            unit = f" [{sig.units[n]}]" if sig.units.get(n) else ""
+            lines.append(f"#define {prefix}_{kind}_{_macro_part(n)} {i} /* {_comment(n + unit)} */")
+        if names:
+            lines.append(f"#define {prefix}_{kind}_NAMES {{ {', '.join(_c_string(n) for n in names)} }}")
+            lines.append(f"#define {prefix}_{kind}_UNITS {{ "
+                         f"{', '.join(_c_string(sig.units.get(n, '')) for n in names)} }}")
+    return lines + [""]
 
 
 def _config_of(source: object) -> IdentifierConfig:
@@ -317,7 +405,7 @@ def _both_precisions_of_literal(render: Callable[[LiteralFormat], list[str]], dt
             "#endif"]
 
 
-def _text(cfg: IdentifierConfig, name: str, warm: _WarmState | None) -> str:
+def _text(cfg: IdentifierConfig, name: str, warm: _WarmState | None, signals: Signals | None = None) -> str:
     dt = cfg.dtype
     guard = f"{name.upper()}_RHONN_EXPORT_H"
     caps = min_capacities(cfg)
@@ -350,6 +438,8 @@ def _text(cfg: IdentifierConfig, name: str, warm: _WarmState | None) -> str:
         "#endif",
         "",
     ]
+    if signals is not None:
+        lines += _names_block(signals, name)
 
     def render(lit: LiteralFormat) -> list[str]:
         return _config_initializer(cfg, name, lit) + (_warm_initializer(warm, name, lit) if warm else [])
@@ -359,11 +449,15 @@ def _text(cfg: IdentifierConfig, name: str, warm: _WarmState | None) -> str:
     return "\n".join(lines)
 
 
-def header_text(source: Identifier | IdentifierConfig, name: str) -> str:
+def header_text(source: Identifier | IdentifierConfig, name: str, signals: Signals | None = None) -> str:
     """The header as a string; ``source`` is an Identifier (its current
-    weights and covariances become w0 and p0) or a config (exported as is)."""
+    weights and covariances become w0 and p0) or a config (exported as is);
+    ``signals`` names the states and inputs in it."""
     name = _check_name(name)
-    return _text(_config_of(source), name, None)
+    cfg = _config_of(source)
+    if signals is not None:
+        signals.check(cfg)
+    return _text(cfg, name, None, signals)
 
 
 # -- warm start ------------------------------------------------------------------------------------
@@ -434,7 +528,7 @@ def _warm_state(ident: Identifier, samples: object) -> _WarmState:
 
 def export_header(source: Identifier | IdentifierConfig, path: str | Path, name: str = "rhonn_exported", *,
                   warm_start: WarmSamples | None = None, include_dir: str | Path | None = None,
-                  compiler: str | None = None) -> Path:
+                  compiler: str | None = None, signals: Signals | None = None) -> Path:
     """Write the header to ``path`` and the capacity header beside it
     (:func:`capacity_path`), and return ``path``. ``warm_start``: the
     samples (X, U, valid) an Identifier ``source`` last stepped on, to
@@ -442,17 +536,19 @@ def export_header(source: Identifier | IdentifierConfig, path: str | Path, name:
     ``compiler`` serve :func:`measure_rhonn_t_size`; when it cannot measure,
     the capacity header says why. Each file is replaced whole (an
     interrupted export leaves the previous file or none, see
-    :mod:`pyrhonn.atomic`)."""
+    :mod:`pyrhonn.atomic`). ``signals`` names the states and inputs in the header."""
     name = _check_name(name)
     path = Path(path)
+    if signals is not None:
+        signals.check(_config_of(source))
     if warm_start is not None:
         if not isinstance(source, Identifier):
             raise ValueError(f"source: a warm start exports an Identifier's running state, got {type(source).__name__}")
-        text = _text(source.config, name, _warm_state(source, warm_start))
+        text = _text(source.config, name, _warm_state(source, warm_start), signals)
         cfg = source.config
     else:
         cfg = _config_of(source)
-        text = _text(cfg, name, None)
+        text = _text(cfg, name, None, signals)
     caps = capacity_text(cfg, name)
     size: int | str
     try:

@@ -95,9 +95,42 @@ def _fail(path: Path, member: str, message: str) -> ValueError:
     return ValueError(f"{path}: {member}: {message}")
 
 
+#: the header member's most characters (a config of the largest capacities is far smaller)
+MAX_HEADER_CHARS = 1 << 22
+
+
+def _declared(path: Path, archive: Any, name: str) -> tuple[tuple[int, ...], np.dtype]:
+    """The shape and dtype a member's .npy header declares, read before anything is allocated."""
+    try:
+        info = archive.zip.getinfo(f"{name}.npy")
+        with archive.zip.open(info) as fh:
+            version = np.lib.format.read_magic(fh)
+            if version == (1, 0):
+                shape, _, dtype = np.lib.format.read_array_header_1_0(fh)
+            elif version == (2, 0):
+                shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
+            else:
+                raise ValueError(f"unsupported .npy version {version}")
+    except (KeyError, ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
+        raise _fail(path, name, f"unreadable ({exc})") from None
+    count = 1
+    for d in shape:
+        count *= int(d)
+    need = count * int(dtype.itemsize)
+    if need > info.file_size:  # the archive's own record of the member's size
+        raise _fail(path, name, f"declares shape {shape} of {dtype} ({need:,} bytes), but the member holds "
+                                f"{info.file_size:,} bytes")
+    return tuple(int(d) for d in shape), dtype
+
+
 def _member(path: Path, archive: Any, name: str, shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
     if name not in archive.files:
         raise _fail(path, name, "missing")
+    declared, kind = _declared(path, archive, name)
+    if kind != dtype:
+        raise _fail(path, name, f"expected dtype {dtype}, got {kind}")
+    if declared != shape:
+        raise _fail(path, name, f"expected shape {shape}, got {declared}")
     try:
         a = archive[name]
     except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
@@ -128,6 +161,13 @@ def load_state(path: str | Path) -> Identifier:
     with archive:
         if "header" not in archive.files:
             raise _fail(path, "header", f"missing: not a {FORMAT} file")
+        shape, kind = _declared(path, archive, "header")
+        if shape != () or kind.kind != "U":
+            raise _fail(path, "header", f"expected a JSON object (a 0-d unicode string), declared {kind} of shape "
+                                        f"{shape}")
+        if kind.itemsize > 4 * MAX_HEADER_CHARS:
+            raise _fail(path, "header", f"declares a string of {kind.itemsize // 4:,} characters, more than the "
+                                        f"{MAX_HEADER_CHARS:,} a state file's header holds")
         try:
             raw = archive["header"]
             header = json.loads(str(raw[()])) if raw.dtype.kind == "U" and raw.shape == () else None

@@ -7,6 +7,7 @@ complex or object array is not real.
 """
 from __future__ import annotations
 
+import difflib
 import math
 import os
 import stat
@@ -30,6 +31,8 @@ def read_file(path: str | os.PathLike, source: str, *, limit: int) -> bytes:
     cannot be opened raises the OSError ``open`` gives.
     """
     p = Path(path)
+    if not p.exists():
+        raise ValueError(f"{source}: No such file or directory{near_names(p)}")
     if p.exists() and not (p.is_file() or p.is_dir()):  # a directory: let open() say so
         raise ValueError(f"{source}: not a regular file (a device, pipe or socket)")
     with open(p, "rb") as fh:
@@ -39,6 +42,20 @@ def read_file(path: str | os.PathLike, source: str, *, limit: int) -> bytes:
     if len(data) > limit:
         raise ValueError(f"{source}: larger than {limit:,} bytes, the most pyrhonn reads from such a file")
     return data
+
+
+def near_names(p: Path) -> str:
+    """A hint for a file that is not there: "; did you mean ...?" with the closest names in its
+    folder, or that the folder itself is missing ("" when nothing is close)."""
+    folder = p.parent
+    try:
+        names = [q.name for q in folder.iterdir()] if folder.is_dir() else []
+    except OSError:
+        names = []
+    close = difflib.get_close_matches(p.name, names, n=2, cutoff=0.7)
+    if close:
+        return "; did you mean " + " or ".join(repr(str(folder / c)) for c in close) + "?"
+    return "" if folder.is_dir() else f" (the folder {str(folder)!r} does not exist either)"
 
 
 def decode_text(data: bytes, source: str, *, bom: bool = False) -> str:

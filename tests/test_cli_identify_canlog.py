@@ -236,16 +236,19 @@ def test_lost_late_and_flagged_frames_are_not_valid_samples_never_filled_in(file
     assert s["x4"].used == int(rec.valid[:, 3].sum())
 
 
-def test_a_missing_input_inside_the_run_is_refused_and_the_ends_are_cut(files: dict[str, Path], rec: Recording,
-                                                                       tmp_path: Path, cli_error) -> None:
+def test_a_missing_input_inside_the_run_is_a_gap_and_the_ends_are_cut(files: dict[str, Path], rec: Recording,
+                                                                      tmp_path: Path) -> None:
     cmd = 512
     commands = [i for i, m in enumerate(rec.frames) if m.arbitration_id == cmd]
     gap = [m for i, m in enumerate(rec.frames) if i != commands[50]]
     _candump(gap, tmp_path / "gap.log")
-    err = cli_error(["identify", "--can-log", str(tmp_path / "gap.log"), "--dbc", str(files["dbc"]), "--config",
-                     str(files["config"]), "--out", str(tmp_path / "out")])
-    assert "bus.signals.u: Command.U: input 'u' is missing at 1 sample(s) inside the run" in err
-    assert "never filled in" in err and not (tmp_path / "out").exists()
+    assert main(["identify", "--can-log", str(tmp_path / "gap.log"), "--dbc", str(files["dbc"]), "--config",
+                 str(files["config"]), "--out", str(tmp_path / "out"), "--no-plots"]) == 0
+    report = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert report["gaps"]["gap_list"][0]["first_lost"]["sample"] == 50 and report["gaps"]["lost_samples"] == 1
+    with (tmp_path / "out" / "samples.csv").open(newline="") as fh:
+        row = list(csv.DictReader(fh))[50]
+    assert row["lost"] == "1" and row["u"] == "" and row["x1"] == ""  # never filled in
     # the same log from after the gap runs; so does one whose first and last commands are lost
     assert main(["identify", "--can-log", str(tmp_path / "gap.log"), "--dbc", str(files["dbc"]), "--config",
                  str(files["config"]), "--out", str(tmp_path / "after"), "--start", "0.505", "--no-plots"]) == 0
@@ -449,7 +452,7 @@ def test_a_counter_keeps_a_late_burst_of_clock_frames_in_place(files: dict[str, 
                                                                tmp_path: Path, cli_error) -> None:
     """The Command sender stalls for 6 periods and then sends its backlog at once: numbered by their
     counter, the frames keep their samples (every input in place); by time alone, the stall reads as lost
-    samples, whose inputs are then missing (refused, not filled in)."""
+    samples, whose inputs are then missing: lost samples, a gap (never filled in)."""
     stalled = range(30, 36)
     burst = [can.Message(timestamp=round(T0 + 35 * PERIOD + 0.3 * PERIOD + 1e-5 * (k - 30), 6),
                          arbitration_id=m.arbitration_id, data=m.data, dlc=m.dlc, is_extended_id=False)
@@ -459,7 +462,8 @@ def test_a_counter_keeps_a_late_burst_of_clock_frames_in_place(files: dict[str, 
     _candump(sorted(late + burst, key=lambda m: m.timestamp), tmp_path / "burst.log")
     args = ["identify", "--can-log", str(tmp_path / "burst.log"), "--dbc", str(files["dbc"]), "--config",
             str(files["config"]), "--clock", "Command", "--no-plots"]
-    assert "input 'u' is missing at 5 sample(s) inside the run" in cli_error(args + ["--out", str(tmp_path / "t")])
+    assert main(args + ["--out", str(tmp_path / "t")]) == 0
+    assert json.loads((tmp_path / "t" / "metrics.json").read_text())["gaps"]["lost_samples"] == 5
     assert main(args + ["--counter", "Command.Seq", "--out", str(tmp_path / "n")]) == 0
     with (tmp_path / "n" / "samples.csv").open(newline="") as fh:
         rows = list(csv.DictReader(fh))

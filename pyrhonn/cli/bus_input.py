@@ -27,21 +27,24 @@ __all__ = ["BusInput", "SAMPLES", "add_options", "read"]
 SAMPLES = "samples.csv"
 
 _HELP = (
-    "Read the states and inputs from a CAN log (.blf, .asc: python-can's can.Logger; .log: candump -l) "
+    "Read the states and inputs from a CAN log (.blf, .asc: python-can's can.Logger; .log: candump -l; "
+    ".mf4: an MDF4 bus log) "
     "with a DBC, instead of DATA.csv. The config's [bus] table (or --signal) maps every state and input to "
     "a DBC signal \"Message.Signal\"; each frame of the clock message is one sample (numbered by its "
     "--counter if it has one). Missing and late "
     "messages are never invented: a state whose message has no frame in a sample's window (lost, or late "
     "into the next window), does not decode, or whose [bus.valid] flag is 0 is a not-valid sample (the "
     "identifier neither learns from it nor feeds it back); the ends of the log without every input are cut "
-    "off, and an input missing inside the run is an error. Writes samples.csv (the aligned samples, in the "
+    "off, and a sample inside the run without every input is a lost sample: the record splits there into "
+    "segments as the firmware does (the sample after the gap is not stepped, the identifier restarts on the "
+    "next; every gap counted). Writes samples.csv (the aligned samples, in the "
     "CSV format) beside the usual outputs.")
 
 
 def add_options(p: argparse.ArgumentParser) -> None:
     """The bus-log options of ``pyrhonn identify``."""
     g = p.add_argument_group("bus recording (instead of DATA.csv)", _HELP)
-    g.add_argument("--can-log", metavar="RUN.{blf,asc,log}", help="the bus recording")
+    g.add_argument("--can-log", metavar="RUN.{blf,asc,log,mf4}", help="the bus recording")
     g.add_argument("--dbc", metavar="FILE", help="the DBC that decodes it (required with --can-log)")
     g.add_argument("--signal", action="append", default=[], metavar="NAME=Message.Signal",
                    help="where state or input NAME is on the bus; repeat for each, replaces the config's "
@@ -55,6 +58,10 @@ def add_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--counter", metavar="Message.Signal",
                    help="the clock message's sequence counter, which numbers the samples (default: the config's "
                         "bus.counter, else none: lost clock frames are found from the gaps in time)")
+    g.add_argument("--partial-log", action="store_true",
+                   help="read a recording that was cut short (no ASC 'End TriggerBlock', a BLF shorter than its "
+                        "header says or cut inside an object, a cut last line): its complete frames are used and the "
+                        "report says what is missing; without it such a log is refused")
     g.add_argument("--start", metavar="S", help="leave out the samples before S seconds after the first clock frame")
     g.add_argument("--stop", metavar="S", help="leave out the samples after S seconds after the first clock frame")
 
@@ -76,6 +83,7 @@ class BusInput:
                 "start_log_time": a.start, "clock_frames": a.clock_frames,
                 "samples_inserted_for_lost_clock_frames": a.clock_missing,
                 "samples_cut_before": a.cut_start, "samples_cut_after": a.cut_end, "samples_file": SAMPLES,
+                "complete": a.incomplete is None, **({"missing": a.incomplete} if a.incomplete else {}),
                 "signals": {name: s.as_dict() for name, s in a.stats.items()}}
 
     def summary(self) -> list[str]:
@@ -83,6 +91,8 @@ class BusInput:
         a = self.aligned
         lines = [f"bus: {a.n_samples} samples of {a.clock} every {a.sample_period:.6g} s ({a.period_source}); "
                  f"{a.clock_missing} for lost clock frames, {a.cut_start} cut before and {a.cut_end} after"]
+        if a.incomplete:
+            lines.insert(0, f"warning: {self.source} is incomplete, read partially (--partial-log): {a.incomplete}")
         for name, s in a.stats.items():
             why = [f"{count} {what}" for count, what in ((s.missing, "without a frame"),
                                                          (s.flagged, "flagged not valid"),
@@ -140,16 +150,25 @@ def _bus_map(args: argparse.Namespace, cf: ConfigFile, config_source: str) -> tu
 def check_options(args: argparse.Namespace) -> None:
     """DATA.csv or --can-log, not both; the bus options only with --can-log."""
     if args.can_log is None:
+        signal_mdf = args.data is not None and Path(args.data).suffix.lower() == ".mf4"
         given = [opt for opt, value in (("--dbc", args.dbc), ("--signal", args.signal or None),
-                                        ("--sample-period", args.sample_period), ("--clock", args.clock), ("--counter", args.counter),
-                                        ("--start", args.start), ("--stop", args.stop)) if value is not None]
+                                        ("--sample-period", None if signal_mdf else args.sample_period),
+                                        ("--clock", args.clock), ("--counter", args.counter),
+                                        ("--start", args.start), ("--stop", args.stop),
+                                        ("--partial-log", None if signal_mdf else args.partial_log or None))
+                 if value is not None]
         if given:
-            raise ValueError(f"{given[0]}: only with --can-log (a bus recording)")
+            also = " or a signal MDF4 DATA.mf4" if given[0] in ("--sample-period", "--partial-log") else ""
+            raise ValueError(f"{given[0]}: only with --can-log (a bus recording){also}")
+        if args.channel and not signal_mdf:
+            raise ValueError("--channel: only with a signal MDF4 DATA.mf4")
         if args.data is None:
-            raise ValueError("give DATA.csv, or --can-log RUN.{blf,asc,log} with --dbc FILE")
+            raise ValueError("give DATA.csv, or --can-log RUN.{blf,asc,log,mf4} with --dbc FILE")
         return
     if args.data is not None:
         raise ValueError(f"--can-log: give either DATA.csv ({args.data}) or --can-log, not both")
+    if args.channel:
+        raise ValueError("--channel: only with a signal MDF4 DATA.mf4 (with --can-log, --signal maps the states)")
     if args.dbc is None:
         raise ValueError("--dbc: required with --can-log (the DBC that decodes the log)")
     if Path(args.can_log).suffix.lower() not in LOG_SUFFIXES:
@@ -166,8 +185,9 @@ def read(args: argparse.Namespace, cf: ConfigFile, config_source: str) -> BusInp
     if start is not None and stop is not None and not stop > start:
         raise ValueError(f"--stop {args.stop}: must be after --start {args.start}")
     aligned = read_bus_log(args.can_log, args.dbc, bus, cf.state_names, cf.input_names, start=start, stop=stop,
-                           period_option=period_option, clock_option=clock_option)
+                           partial=bool(args.partial_log), period_option=period_option, clock_option=clock_option)
     K = aligned.n_samples
     data = Data(X=aligned.X, U=aligned.U, valid=aligned.valid, t=aligned.t,
-                lines=np.arange(2, K + 2, dtype=np.int64), ignored=())  # the lines of samples.csv
+                lines=np.arange(2, K + 2, dtype=np.int64), ignored=(),  # the lines of samples.csv
+                lost=aligned.lost if aligned.lost.any() else None)
     return BusInput(source=str(args.can_log), dbc=str(args.dbc), data=data, aligned=aligned)

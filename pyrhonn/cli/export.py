@@ -5,7 +5,7 @@ or as a Functional Mock-up Unit for simulation tools.
 [--data DATA.csv [--fit-rows A:B] [--valid-suffix _valid] [--warm-start]]``
 
 ``pyrhonn export --config CFG --fmu MODEL.fmu [--fmi-version 3|2] [--period T]
-[--units NAME=UNIT,...] [--mode observer|simulator] [--name MODEL] [--dtype ...] [--data ...]``
+[--units NAME=UNIT,...] [--dbc FILE] [--mode observer|simulator] [--name MODEL] [--dtype ...] [--data ...]``
 writes an FMI co-simulation FMU instead (:mod:`pyrhonn.fmu`): one
 communication step of the sample period T (default the config's
 ``bus.sample_period``) is one identifier step.
@@ -34,10 +34,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..buslog import load_dbc
 from ..config import DTYPES
 from ..configfile import ConfigFile, load_named
 from ..datafile import check_suffix, read_data
-from ..export import capacity_path, export_header
+from ..export import Signals, capacity_path, export_header
 from ..fmu import MODES, FmuSettings, check_for, export_fmu
 from ..identifier import Identifier, IdentifierError
 from .options import options_named, real_option, row_range, units_option
@@ -71,10 +72,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     fmu.add_argument("--fmi-version", choices=("3", "2"), default="3", help="FMI 3.0 (default) or 2.0 co-simulation")
     fmu.add_argument("--period", metavar="T", help="sample period in s: the FMU's only communication step size "
                                                    "(default: the config's bus.sample_period)")
-    fmu.add_argument("--units", type=units_option, default={}, metavar="NAME=UNIT[,NAME=UNIT...]",
-                     help="units of states and inputs (their FMU variables and predictions)")
     fmu.add_argument("--mode", choices=MODES, default="observer",
                      help="start value of the FMU's mode parameter (default: observer)")
+    p.add_argument("--units", type=units_option, default={}, metavar="NAME=UNIT[,NAME=UNIT...]",
+                   help="units of the states and inputs (over the DBC's): written beside their names in the "
+                        "header, and the units of the FMU's variables")
+    p.add_argument("--dbc", metavar="FILE",
+                   help="the DBC the config's [bus] signals are in: the header names it and each state's and "
+                        "input's signal, and takes their units from it (so does the FMU)")
     p.set_defaults(func=run)
 
 
@@ -86,10 +91,37 @@ def _fmu_only(args: argparse.Namespace) -> None:
                              "with --data to start it from the trained weights)")
         return
     given = [opt for opt, value, default in (("--fmi-version", args.fmi_version, "3"), ("--period", args.period, None),
-                                             ("--units", args.units, {}), ("--mode", args.mode, "observer"))
+                                             ("--mode", args.mode, "observer"))
              if value != default]
     if given:
         raise ValueError(f"{given[0]}: only with --fmu")
+
+
+def _signals(args: argparse.Namespace, cf: ConfigFile) -> Signals:
+    """The names, units and bus signals the header lists (--units, --dbc with the config's [bus] table)."""
+    names = list(cf.state_names) + list(cf.input_names)
+    units: dict[str, str] = {}
+    bus: dict[str, str] = {}
+    dbc = None
+    if args.dbc is not None:
+        db = load_dbc(args.dbc)
+        if cf.bus is None or not cf.bus.signals:
+            raise ValueError(f"--dbc {args.dbc}: {args.config} has no [bus.signals] table saying which signal each "
+                             "state and input is")
+        for key, ref in cf.bus.signals.items():
+            try:
+                sig = db.get_message_by_name(ref.message).get_signal_by_name(ref.signal)
+            except KeyError:
+                raise ValueError(f"{args.config}: bus.signals.{key}: {ref} is not in --dbc {args.dbc}") from None
+            bus[key] = str(ref)
+            if sig.unit:
+                units[key] = str(sig.unit)
+        dbc = Path(args.dbc).name
+    for key, unit in args.units.items():
+        if key not in names:
+            raise ValueError(f"--units: {key!r} is not a state or input of {args.config} ({', '.join(names)})")
+        units[key] = unit
+    return Signals(states=list(cf.state_names), inputs=list(cf.input_names), units=units, bus=bus, dbc=dbc)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -105,8 +137,9 @@ def run(args: argparse.Namespace) -> int:
     if args.fit_rows is not None and args.data is None:
         raise ValueError("--fit-rows: needs --data (the recording whose rows are learnt)")
     cf = load_named(args.config)
+    signals = _signals(args, cf)
     cfg = cf.config if args.dtype in (None, cf.config.dtype) else cf.config.replace(dtype=args.dtype)
-    settings = _fmu_settings(args, cf, name) if args.fmu is not None else None
+    settings = _fmu_settings(args, cf, name, signals.units) if args.fmu is not None else None
     try:
         ident = Identifier(cfg)
     except ValueError as exc:
@@ -134,18 +167,18 @@ def run(args: argparse.Namespace) -> int:
     if args.data is not None:
         warm = (X, U if cfg.n_inputs else None, valid) if args.warm_start else None
         try:
-            export_header(ident, out, name, warm_start=warm)
+            export_header(ident, out, name, warm_start=warm, signals=signals)
         except ValueError as exc:
             raise ValueError(f"--warm-start: {exc}" if args.warm_start else str(exc)) from None
     else:
-        export_header(cfg, out, name)
+        export_header(cfg, out, name, signals=signals)
     print(f"exported {args.config} as {name} ({cfg.dtype}){trained}"
           + (", with its running state" if args.warm_start else ""))
     print(f"wrote {out}, {capacity_path(out)}")
     return 0
 
 
-def _fmu_settings(args: argparse.Namespace, cf: ConfigFile, name: str) -> FmuSettings:
+def _fmu_settings(args: argparse.Namespace, cf: ConfigFile, name: str, units: dict[str, str]) -> FmuSettings:
     """The FMU's settings from the options, checked before anything is trained or written."""
     if args.period is not None:
         period = real_option("--period", args.period, positive=True)
@@ -156,7 +189,7 @@ def _fmu_settings(args: argparse.Namespace, cf: ConfigFile, name: str) -> FmuSet
                          "period in s)")
     try:
         settings = FmuSettings(period=period, model_identifier=name, fmi_version=int(args.fmi_version),
-                               units=args.units, mode=args.mode)
+                               units=units, mode=args.mode)
     except ValueError as exc:
         field, sep, rest = str(exc).partition(": ")
         if field == "name":

@@ -1,0 +1,152 @@
+"""Gaps in a record: lost samples split it into segments, as the firmware does.
+
+A record (a CSV file or a bus log aligned on its sample clock) has two kinds
+of holes, handled by the same rules as the firmware (``firmware_sim``):
+
+- **A dropout**: the sample arrived (its inputs are known) but a state's
+  measurement did not (flag 0, a lost or late frame of the state's message).
+  The identifier steps with that state not valid: it learns nothing from it
+  and predicts through it with its own output (:meth:`Identifier.run`). The
+  firmware does the same with a Measurement whose ``Valid`` flag is 0.
+- **A lost sample**: no input for it (a Measurement frame that never came,
+  a row marked ``lost`` in a CSV). The identifier cannot step without u(k).
+  The firmware counts ``d - 1`` lost frames on the sequence jump, rejects the
+  frame that reveals the gap and restarts its identifier on the next one
+  (``rhonn_restart``: weights and covariances kept, nothing learnt from that
+  step, the delayed taps refilled). So here: the sample after a gap is not
+  stepped (``rejected``), and the next segment begins with
+  :meth:`Identifier.restart`. Any lost sample is a gap, however short: the
+  firmware's threshold is one frame.
+
+:func:`segments_of` finds the segments; :func:`simulate_segments` runs
+:func:`pyrhonn.simulation.simulate` over each, restarting between them.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .identifier import Identifier, IdentifierError
+from .simulation import Simulation, simulate
+
+__all__ = ["Gap", "Segments", "segments_of", "simulate_segments"]
+
+
+@dataclass(frozen=True)
+class Gap:
+    """``lost`` samples from sample ``first`` on; ``rejected`` the sample after them (not stepped)."""
+
+    first: int
+    lost: int
+    rejected: int
+
+
+@dataclass(frozen=True)
+class Segments:
+    """The stepped runs ``bounds`` ([a, b) sample ranges, in order) and the ``gaps`` between them;
+    ``stepped`` (T,) bool: the samples the identifier steps on."""
+
+    bounds: tuple[tuple[int, int], ...]
+    gaps: tuple[Gap, ...]
+    stepped: np.ndarray
+
+    @property
+    def restarts(self) -> int:
+        return max(len(self.bounds) - 1, 0)
+
+    @property
+    def lost(self) -> int:
+        return sum(g.lost for g in self.gaps)
+
+    def starts(self) -> np.ndarray:
+        """(T,) bool: the first sample of every segment (its prediction was made before the gap, or is x0)."""
+        out = np.zeros(self.stepped.shape, dtype=bool)
+        for a, _ in self.bounds:
+            out[a] = True
+        return out
+
+    def report(self, t: np.ndarray | None, lines: np.ndarray) -> dict[str, Any]:
+        """The ``gaps`` entry of metrics.json: counts as the firmware's counters, and every segment."""
+        def when(k: int) -> dict[str, Any]:
+            return {"sample": k, "line": int(lines[k]), **({"t": float(t[k])} if t is not None else {})}
+
+        return {
+            "rule": "a lost sample (no input) ends a segment; the sample after the gap is not stepped (the "
+                    "firmware rejects the frame that reveals a gap) and the next segment starts with a restart "
+                    "(weights and covariances kept, nothing learnt from its first step); a state without a "
+                    "measurement in a sample that arrived is a dropout: not valid, predicted through",
+            "lost_samples": self.lost, "gaps": len(self.gaps), "rejected_after_gap": len(self.gaps),
+            "restarts": self.restarts,
+            "segments": [{"first": when(a), "last": when(b - 1), "samples": b - a} for a, b in self.bounds],
+            "gap_list": [{"first_lost": when(g.first), "lost": g.lost, "rejected": when(g.rejected)}
+                         for g in self.gaps]}
+
+
+def segments_of(lost: np.ndarray) -> Segments:
+    """The segments of a record whose samples ``lost`` ((T,) bool) never arrived. The first and last
+    samples must have arrived (a reader cuts lost ends off); ValueError otherwise."""
+    if not isinstance(lost, np.ndarray) or lost.dtype != np.bool_ or lost.ndim != 1 or lost.size < 1:
+        raise ValueError("lost: expected a non-empty (T,) bool numpy array")
+    if lost[0] or lost[-1]:
+        raise ValueError(f"lost: sample {0 if lost[0] else lost.size - 1} is lost; a record starts and ends "
+                         "with samples that arrived")
+    T = lost.size
+    stepped = ~lost
+    edges = np.flatnonzero(np.diff(lost.astype(np.int8)))  # k where lost[k] != lost[k + 1]
+    gaps: list[Gap] = []
+    for a, b in zip(edges[::2] + 1, edges[1::2] + 1):  # lost runs [a, b); sample b revealed it
+        gaps.append(Gap(first=int(a), lost=int(b - a), rejected=int(b)))
+        stepped[b] = False
+    runs = np.flatnonzero(np.diff(np.r_[0, stepped.astype(np.int8), 0]))
+    bounds = tuple((int(a), int(b)) for a, b in zip(runs[::2], runs[1::2]))
+    assert T == 0 or bounds
+    return Segments(bounds=bounds, gaps=tuple(gaps), stepped=stepped)
+
+
+def simulate_segments(identifier: Identifier, X: np.ndarray, U: np.ndarray, valid: np.ndarray, segs: Segments, *,
+                      free_run_from: int | None = None, steps: int | None = None) -> tuple[Simulation, np.ndarray,
+                                                                                           np.ndarray | None]:
+    """:func:`simulate` over each segment of ``segs``, :meth:`Identifier.restart` before every one but
+    the first; rows not stepped are NaN. The weights are frozen from ``free_run_from`` on; the free run
+    starts there and ends with its segment (a parallel model has no input across a gap). Returns the
+    simulation and the rows each kind can be scored on: (free run rows, k-step rows) as (T,) bool
+    (None when not asked for). An ``IdentifierError`` names the sample in the whole record."""
+    T, n = X.shape
+    nan = np.full((T, n), np.nan, dtype=X.dtype)
+    one, free, ahead = nan.copy(), None if free_run_from is None else nan.copy(), None if steps is None else nan.copy()
+    free_rows = None if free_run_from is None else np.zeros(T, dtype=bool)
+    ahead_rows = None if steps is None else np.zeros(T, dtype=bool)
+    diverged: int | None = None
+    learning = identifier.learning
+    nxt = identifier.prediction
+    free_started = False  # the free run starts in the first segment that reaches free_run_from
+    try:
+        for i, (a, b) in enumerate(segs.bounds):
+            if i:
+                identifier.restart()
+            K = free_run_from
+            local = None if K is None or K >= b or free_started else max(K - a, 0)
+            free_started = free_started or local is not None
+            try:
+                sim = simulate(identifier, X[a:b], U[a:b], valid[a:b], free_run_from=local, steps=steps)
+            except IdentifierError as exc:
+                text = re.sub(r"at sample (\d+)", lambda m: f"at sample {int(m.group(1)) + a}", str(exc))
+                raise IdentifierError(exc.status, text, None if exc.sample is None else exc.sample + a) from None
+            one[a:b] = sim.one_step
+            if sim.free_run is not None and free is not None and free_rows is not None:
+                free[a:b] = sim.free_run
+                free_rows[a + (local or 0):b] = True
+                if sim.free_run_diverged is not None:
+                    diverged = a + sim.free_run_diverged
+                identifier.learning = False
+            if sim.ahead is not None and ahead is not None and ahead_rows is not None:
+                ahead[a:b] = sim.ahead
+                ahead_rows[min(a + (steps or 0), b):b] = True
+            nxt = sim.next_prediction
+    finally:
+        identifier.learning = learning
+    return (Simulation(one_step=one, next_prediction=nxt, free_run=free, free_run_diverged=diverged, ahead=ahead,
+                       free_run_from=free_run_from, steps=steps), free_rows, ahead_rows)
