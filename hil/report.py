@@ -180,6 +180,10 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
               f"{_label('  rig pick-up')}{_fmt(report.get('rig_pickup_us', {}))}",
               f"{_label('  rig lateness')}{_fmt(report['rig_lateness_us'])}",
               f"{_label('  rig period jitter')}{_fmt(report['rig_period_jitter_us'], ('avg', 'p99', 'p99.9', 'max_abs'))}"]
+    if report.get("_verdicts"):
+        from .verdicts import lines as verdict_lines
+
+        lines += ["", *verdict_lines(*report["_verdicts"])]
     if timing_note:
         lines += ["", f"note: {timing_note}"]
     return "\n".join(ln.rstrip() for ln in lines if ln is not None) + "\n"
