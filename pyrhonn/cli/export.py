@@ -30,6 +30,7 @@ from pathlib import Path
 from ..config import DTYPES
 from ..configfile import load_named
 from ..datafile import check_suffix, read_data
+from ..dbc import export_dbc
 from ..export import capacity_path, export_header
 from ..identifier import Identifier, IdentifierError
 from .options import row_range
@@ -55,6 +56,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="validity columns of --data are named <state><SUFFIX> (default: _valid)")
     p.add_argument("--warm-start", action="store_true",
                    help="with --data: also export the running state, for rhonn_warm_start")
+    p.add_argument("--dbc", metavar="FILE.dbc",
+                   help="with --data: also write the identifier's CAN FD protocol (Measurement, Estimate, "
+                        "Control, Diagnostics, ...), each signal scaled from the data's range (pyrhonn.dbc)")
     p.set_defaults(func=run)
 
 
@@ -67,18 +71,22 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--warm-start: needs --data (the recording whose running state is exported)")
     if args.fit_rows is not None and args.data is None:
         raise ValueError("--fit-rows: needs --data (the recording whose rows are learnt)")
+    if args.dbc is not None and args.data is None:
+        raise ValueError("--dbc: needs --data (each signal is scaled from the data's range)")
     cf = load_named(args.config)
     cfg = cf.config if args.dtype in (None, cf.config.dtype) else cf.config.replace(dtype=args.dtype)
     try:
         ident = Identifier(cfg)
     except ValueError as exc:
         raise ValueError(f"{args.config}: {exc}") from None
-    trained = ""
+    trained, scaled = "", []
     if args.data is not None:
         check_suffix(args.valid_suffix)
         data = read_data(args.data, cf, valid_suffix=args.valid_suffix, config_source=args.config)
         a, b = row_range("--fit-rows", args.fit_rows, data.n_samples)
         X, U = data.in_dtype(cfg.dtype, cf.state_names, cf.input_names, args.data)
+        if args.dbc is not None:   # first: a data file it cannot scale stops the export before the headers
+            scaled = export_dbc(args.dbc, cf, X, U, data.valid, name=name)
         X, U, valid = X[a:b], U[a:b], data.valid[a:b]
         try:
             ident.run(X, U if cfg.n_inputs else None, valid)
@@ -96,5 +104,5 @@ def run(args: argparse.Namespace) -> int:
         export_header(cfg, out, name)
     print(f"exported {args.config} as {name} ({cfg.dtype}){trained}"
           + (", with its running state" if args.warm_start else ""))
-    print(f"wrote {out}, {capacity_path(out)}")
+    print(f"wrote {out}, {capacity_path(out)}" + (f", {args.dbc}:\n" + "\n".join(scaled) if scaled else ""))
     return 0
