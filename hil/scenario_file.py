@@ -46,8 +46,12 @@ class ScenarioFile:
         if both:
             raise ValueError(f"{self.path}: [scenario].{both[0]} is also given on the command line; set it in one "
                              "place")
+        merged = {**fields, **given}
+        if merged.get("trajectory") and "input_start" in merged:
+            where = "--input-start" if "input_start" in given else f"{self.path}: [scenario].input_start"
+            raise ValueError(f"{where}: applies to the simulated plant, not to a trajectory file")
         try:
-            return Scenario.from_dict({**fields, **given})
+            return Scenario.from_dict(merged)
         except ValueError as exc:
             raise ValueError(f"{self.path}: [scenario].{exc}") from None
 

@@ -131,10 +131,12 @@ def test_a_limit_the_run_did_not_measure_fails_instead_of_passing(recorded) -> N
     ("[scenario]\nduration = -1\n", "[scenario].duration"),
     ("[scenario]\nwarp = 9\n", "unknown fields"),
     ("rmse = [", "not valid TOML"),
+    ('[scenario]\ntrajectory = "t.csv"\ninput_start = 1.0\n', "[scenario].input_start"),
 ])
 def test_a_bad_scenario_file_is_refused_naming_the_key(tmp_path, cli_error, text, named) -> None:
     f = tmp_path / "bad.toml"
     f.write_text(text)
+    (tmp_path / "t.csv").write_text("t,q_m,v,lambda_a,lambda_b,i_a,i_b,u_a,u_b\n")
     assert named in cli_error(["hil", "replay", "--transport", "virtual", "--scenario", str(f)])
 
 
