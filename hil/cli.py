@@ -93,6 +93,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--out", type=Path, default=None, help="directory for report.json, report.txt and the PNGs")
     r.add_argument("--log", type=Path, default=None, help="record the run to FILE.blf or FILE.asc (+ FILE.json)")
     r.add_argument("--json", action="store_true", help="print the JSON report instead of the table")
+    _verdict_args(r, "its [scenario] table is the replay's scenario (an option above may not set a field it sets; "
+                     "refused with --from-log)")
     shown = r.add_mutually_exclusive_group()
     shown.add_argument("--progress", dest="progress", action="store_const", const="always", default="auto",
                        help="show the replay's progress on stderr (cycles done, estimates back, losses) even when "
@@ -118,6 +120,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--partial", action="store_true",
                    help="score a partial log (a run stopped by SIGINT/SIGTERM or a lost bus) anyway; its unsent "
                         "cycles then count as unaccounted")
+    _verdict_args(s, "a [scenario] table in it must be the log's own scenario")
     s.set_defaults(func=_score)
 
     b = hs.add_parser("bench", help="cyclictest-style timing of both sides at 0.3 ms")
@@ -131,6 +134,28 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "cyclictest -a; on a 2-CPU host: 0,1), so neither migrates nor shares a CPU")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=_bench)
+
+
+def _verdict_args(p: argparse.ArgumentParser, scenario_table: str) -> None:
+    p.add_argument("--scenario", type=Path, default=None, metavar="FILE.toml",
+                   help="a scenario file: its [thresholds] table sets limits on the run's RMSE per state, dropout "
+                        "bridging ratio, lost frames and latency percentiles, each judged pass/fail in the report "
+                        f"(exit 1 when one fails); {scenario_table}")
+    p.add_argument("--junit", type=Path, default=None, metavar="FILE.xml",
+                   help="write the verdicts as JUnit XML, one testcase per threshold and per check of the run")
+    p.add_argument("--summary", type=Path, default=None, metavar="FILE.json",
+                   help="write the verdicts as a JSON summary (passed, failed, each measured value and limit)")
+
+
+def _check_verdict_outputs(args) -> None:
+    """--junit and --summary, before the run: in an existing folder, not a folder themselves."""
+    for option, path in (("--junit", args.junit), ("--summary", args.summary)):
+        if path is None:
+            continue
+        if path.is_dir():
+            raise ValueError(f"{option}: {path} is a directory")
+        if not path.parent.is_dir():
+            raise ValueError(f"{option}: folder {str(path.parent)!r} of {path.name} does not exist")
 
 
 def _runner_spin(args, bench: bool) -> float:
@@ -203,8 +228,9 @@ SCENARIO_OPTIONS = {"duration": "duration", "start": "start", "seed": "seed", "f
                     "trajectory": "trajectory"}
 
 
-def _scenario(args, recorded=None):
-    """The replay's Scenario: ``recorded``'s (the --from-log run) or the one the options make."""
+def _scenario(args, recorded=None, file=None):
+    """The replay's Scenario: ``recorded``'s (the --from-log run) or the one the options and the
+    scenario ``file``'s [scenario] table make."""
     from .scenario import Scenario
 
     given = [dest for dest in SCENARIO_OPTIONS if getattr(args, dest) is not None]
@@ -212,6 +238,9 @@ def _scenario(args, recorded=None):
         if given:
             raise ValueError(f"--from-log: replays the recorded run's own scenario; drop "
                              f"{', '.join('--' + d.replace('_', '-') for d in given)}")
+        if file is not None and file.scenario:
+            raise ValueError(f"--from-log: replays the recorded run's own scenario; {file.path} has a [scenario] "
+                             "table (keep only its [thresholds])")
         return recorded.scenario
     kw = {SCENARIO_OPTIONS[dest]: getattr(args, dest) for dest in given if dest != "trajectory"}
     if args.trajectory is not None:
@@ -221,6 +250,8 @@ def _scenario(args, recorded=None):
     from pyrhonn.cli.options import options_named
 
     with options_named(**{field: "--" + dest.replace("_", "-") for dest, field in SCENARIO_OPTIONS.items()}):
+        if file is not None and file.scenario:
+            return file.make_scenario(**kw)
         return Scenario(**kw)
 
 
@@ -250,9 +281,13 @@ def _trajectory(args) -> int:
     return 0
 
 
-def _emit(report: dict, args, note: str | None) -> int:
+def _emit(report: dict, args, note: str | None, file=None) -> int:
     from . import report as rep
+    from .verdicts import Thresholds, evaluate, failed, write_outputs
 
+    verdicts = evaluate(report, file.thresholds if file is not None else Thresholds())
+    report["verdicts"] = [v.to_dict() for v in verdicts]
+    report["_verdicts"] = (verdicts, None if file is None else str(file.path))
     if args.json:
         print(rep.to_json(report))
     else:
@@ -260,9 +295,12 @@ def _emit(report: dict, args, note: str | None) -> int:
     if getattr(args, "out", None) is not None:
         paths = rep.write(report, args.out, timing_note=note)
         print(f"wrote {', '.join(str(p) for p in paths)}", file=sys.stderr)
-    ok = (report["frames"]["accounted"] and (report.get("bit_exact") or {"equal": True})["equal"]
-          and (report.get("regression") or {"equal": True})["equal"])
-    return 0 if ok else 1
+    suite = f"pyrhonn hil {args.hil_command}" + ("" if file is None else f" {file.path.stem}")
+    paths = write_outputs(report, verdicts, None if file is None else str(file.path), junit=args.junit,
+                          summary_path=args.summary, suite=suite)
+    if paths:
+        print(f"wrote {', '.join(str(p) for p in paths)}", file=sys.stderr)
+    return 1 if failed(verdicts) else 0
 
 
 def _check_log_path(path: Path | None) -> None:
@@ -372,12 +410,14 @@ def _replay(args) -> int:
     spin = _runner_spin(args, bench=False)
     if args.log is not None and args.log.suffix.lower() not in (".blf", ".asc"):  # a typo: before reading anything
         raise ValueError(f"--log: {args.log.name}: expected a .blf or .asc file name")
+    file = _read_scenario_file(args)
     recorded = read_log(args.from_log) if args.from_log is not None else None
-    sc = _scenario(args, recorded)
+    sc = _scenario(args, recorded, file)
     if recorded is not None and args.log is not None and args.log.resolve() == args.from_log.resolve():
         raise ValueError("--log: would overwrite the --from-log run it is compared with; choose another file")
     _check_out(args.out)  # first: --log may name a file in the --out folder this creates
     _check_log_path(args.log)
+    _check_verdict_outputs(args)
     sc.build()  # the frames before anything is sent (cached for the run): a scenario the DBC cannot carry ends here
     keeps = f"; Ctrl-C stops it and keeps the frames so far in {args.log}" if args.log is not None else ""
     print(f"pyrhonn hil replay: {sc.cycles} cycles over {args.transport}{keeps}", file=sys.stderr, flush=True)
@@ -422,7 +462,7 @@ def _replay(args) -> int:
         report["regression"] = compare_runs(score(recorded), report, str(args.from_log))
     report["firmware_side"] = rec.meta.get("firmware_side")
     _note_fallback(report["firmware_side"])
-    code = _emit(report, args, timing_note(args.transport))
+    code = _emit(report, args, timing_note(args.transport), file)
     if log_error is not None:
         raise log_error  # an OSError: pyrhonn's main reports it, exit 2
     return code
@@ -442,12 +482,31 @@ def _score(args) -> int:
                              f"identify the plant from its signals: pyrhonn identify --can-log {args.log} --dbc "
                              "FILE --config CFG (the config's [bus] table or --signal name each signal)") from None
         raise
+    file = _read_scenario_file(args)
+    if file is not None:
+        file.check_recorded(rec.scenario)
     _check_out(args.out)
+    _check_verdict_outputs(args)
     report = score(rec, reference=lim_config())
     why = partial_reason(rec)
     if why:
         report["partial"] = why
-    return _emit(report, args, f"re-scored from {args.log}")
+    return _emit(report, args, f"re-scored from {args.log}", file)
+
+
+def _read_scenario_file(args):
+    """The --scenario file (hil.scenario_file), its per-state limits checked against the scored states."""
+    from .scenario_file import read_scenario_file
+    from .verdicts import UNITS
+
+    if args.scenario is None:
+        return None
+    file = read_scenario_file(args.scenario)
+    try:
+        file.thresholds.check_states(tuple(UNITS))
+    except ValueError as exc:
+        raise ValueError(f"{args.scenario}: {exc}") from None
+    return file
 
 
 def _fifo_priority(text: str) -> int:

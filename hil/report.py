@@ -1,7 +1,4 @@
-"""A scored run as a terminal table, JSON, and PNG plots (matplotlib Agg):
-position and velocity real vs identified (as the paper's Fig. 19-20), each
-with its error and zooms on the hold and its end, and the latency (a
-histogram with p99 and p99.9, and over the run)."""
+"""A scored run as a terminal table, JSON, and PNG plots (hil.figures)."""
 from __future__ import annotations
 
 import json
@@ -12,6 +9,8 @@ from typing import Any
 import numpy as np
 
 from pyrhonn import atomic
+
+from .figures import figures
 
 __all__ = ["figures", "step_time", "table", "to_json", "write"]
 
@@ -180,141 +179,13 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
               f"{_label('  rig pick-up')}{_fmt(report.get('rig_pickup_us', {}))}",
               f"{_label('  rig lateness')}{_fmt(report['rig_lateness_us'])}",
               f"{_label('  rig period jitter')}{_fmt(report['rig_period_jitter_us'], ('avg', 'p99', 'p99.9', 'max_abs'))}"]
+    if report.get("_verdicts"):
+        from .verdicts import lines as verdict_lines
+
+        lines += ["", *verdict_lines(*report["_verdicts"])]
     if timing_note:
         lines += ["", f"note: {timing_note}"]
     return "\n".join(ln.rstrip() for ln in lines if ln is not None) + "\n"
-
-
-def _hold_window(sc: dict[str, Any], j: int) -> tuple[float, float, str] | None:
-    """(start, end, legend label) of the hold's shading on state ``j``'s plots, or None."""
-    # the velocity differenced from a held position is not valid through the hold either
-    derived = j == 1 and sc.get("velocity_from_position", False) and 0 in sc["hold_states"]
-    if sc["hold_duration"] <= 0 or not (j in sc["hold_states"] or derived):
-        return None
-    label = "measurement held" if j in sc["hold_states"] else "not valid (differenced from the held position)"
-    return sc["hold_start"], sc["hold_start"] + sc["hold_duration"], label
-
-
-def _zooms(sc: dict[str, Any], hold: tuple[float, float, str] | None, t_end: float,
-           t_worst: float) -> list[tuple[str, float, float]]:
-    """The two zoom windows under a state's plot: the hold and its end, where the
-    identifier bridges and then takes the fresh measurements up again; without a
-    hold, the largest error and the end of the run."""
-    if hold is not None:
-        a, b, _ = hold
-        margin = 0.1 * (b - a)
-        return [("the hold", a - margin, b + margin), ("the end of the hold", b - 0.01, b + 0.04)]
-    return [("the largest error", t_worst - 0.015, t_worst + 0.015), ("the end of the run", t_end - 0.03, t_end)]
-
-
-def _state_figure(report: dict[str, Any], j: int, name: str, unit: str, fig_no: int) -> Any:
-    """Real vs identified (top), the error (middle) and two zooms (bottom) of state ``j``."""
-    import matplotlib.pyplot as plt
-
-    s, sc = report["_series"], report["scenario"]
-    T = sc["period"]
-    k, est, truth, t = s["k"], np.asarray(s["est"]), np.asarray(s["truth"]), np.asarray(s["t"])
-    tt, tk = t + T, t[k] + T                    # x(k+1) is due one period after frame k
-    err = est[:, j] - truth[k, j] if len(k) else np.zeros(0)
-    real = "real (trajectory file)" if sc.get("trajectory") else "real (noise-free)"
-    hold = _hold_window(sc, j)
-    fig = plt.figure(figsize=(10, 8.4))
-    grid = fig.add_gridspec(3, 2, height_ratios=(2.2, 1.3, 1.6), hspace=0.5, wspace=0.25)
-    top, mid = fig.add_subplot(grid[0, :]), fig.add_subplot(grid[1, :])
-    worst = float(tk[int(np.argmax(np.abs(err)))]) if err.size else float(tt[len(tt) // 2])
-    zooms = [(fig.add_subplot(grid[2, i]), *w) for i, w in enumerate(_zooms(sc, hold, float(tt[-1]), worst))]
-
-    def traces(ax: Any, lo: float = -np.inf, hi: float = np.inf) -> None:
-        """The identified estimate under the real trace: the noisy one must not hide the real one."""
-        on, onk = (tt >= lo) & (tt <= hi), (tk >= lo) & (tk <= hi)
-        if onk.any():
-            ax.plot(tk[onk], est[onk, j], lw=0.7, color="tab:orange", alpha=0.75,
-                    label="identified (firmware over the bus)", zorder=2)
-        ax.plot(tt[on], truth[on, j], lw=1.4, color="black", label=real, zorder=3)
-
-    def shade(ax: Any, legend: bool) -> None:
-        if hold is not None:
-            ax.axvspan(hold[0], hold[1], color="0.88", zorder=0, label=hold[2] if legend else None)
-
-    traces(top)
-    shade(top, True)
-    top.set_ylabel(f"{name} ({unit})")
-    top.set_xlabel("time (s)")
-    top.set_title(f"LIM {name}: real vs identified (cf. Fig. {fig_no}), {report['transport']}")
-    top.legend(loc="best", fontsize=8)
-
-    mid.plot(tk, err, lw=0.6, color="tab:red", label="identified - real")
-    mid.axhline(0.0, color="0.4", lw=0.6)
-    shade(mid, True)
-    mid.set_ylabel(f"error ({unit})")
-    mid.set_xlabel("time (s)")
-    mid.set_title("error of the identified estimate against the real trace", fontsize=9)
-    mid.legend(loc="best", fontsize=7)
-
-    for ax, what, lo, hi in zooms:
-        traces(ax, lo, hi)
-        shade(ax, False)
-        ax.set_xlim(lo, hi)
-        ax.set_ylabel(f"{name} ({unit})")
-        ax.set_xlabel("time (s)")
-        ax.set_title(f"zoom: {what}", fontsize=9)
-    return fig
-
-
-def _latency_figure(report: dict[str, Any], lat_us: np.ndarray) -> Any:
-    """The latency's histogram with its p99 and p99.9 marked, and the latency over the run
-    (stalls show as bursts in time, not in a histogram)."""
-    import matplotlib.pyplot as plt
-
-    s = report["_series"]
-    T_us = report["scenario"]["period"] * 1e6
-    t = np.asarray(s["t"])[np.asarray(s["k"])]
-    t = t - t[0]
-    p99, p999 = np.percentile(lat_us, [99, 99.9])
-    fig, (hist, over) = plt.subplots(2, 1, figsize=(9, 7.2), gridspec_kw={"hspace": 0.45})
-    marks = ((T_us, "r", "--", f"one period ({T_us:g} us)"), (p99, "tab:purple", ":", f"p99 {p99:.1f} us"),
-             (p999, "tab:green", "-.", f"p99.9 {p999:.1f} us"))
-    hist.hist(lat_us, bins=100, log=True, color="tab:blue")
-    for x, color, ls, label in marks:
-        hist.axvline(x, color=color, ls=ls, lw=1.2, label=label)
-    hist.set_xlabel("latency Measurement sent -> Estimate received (us)")
-    hist.set_ylabel("estimates per bin (count)")
-    hist.set_title(f"latency over {report['transport']} (n = {lat_us.size})")
-    hist.legend(fontsize=8)
-    over.plot(t, lat_us, ".", ms=1.5, color="tab:blue", label="one estimate")
-    for x, color, ls, label in marks:
-        over.axhline(x, color=color, ls=ls, lw=1.0, label=label)
-    over.set_yscale("log")
-    over.set_xlabel("time since the first Measurement (s)")
-    over.set_ylabel("latency (us)")
-    over.set_title("latency over the run: a stall shows as a burst of late estimates", fontsize=9)
-    over.legend(fontsize=7, loc="upper right", markerscale=4)
-    return fig
-
-
-def figures(report: dict[str, Any], out: Path) -> list[Path]:
-    """position.png and velocity.png (real vs identified, the error, zooms on the hold and its end) and
-    latency.png (histogram with p99 and p99.9, the latency over the run) into ``out``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    s = report.get("_series")
-    if s is None:
-        return []
-    out.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for j, (name, unit, fig_no) in enumerate((("position", "m", 19), ("velocity", "m/s", 20))):
-        fig = _state_figure(report, j, name, unit, fig_no)
-        paths.append(atomic.save_figure(fig, out / f"{name}.png", dpi=100))
-        plt.close(fig)
-    lat = np.asarray(s["latency_ns"], dtype=np.float64) / 1e3
-    if lat.size:
-        fig = _latency_figure(report, lat)
-        paths.append(atomic.save_figure(fig, out / "latency.png", dpi=100))
-        plt.close(fig)
-    return paths
 
 
 def write(report: dict[str, Any], out: str | Path, *, timing_note: str | None = None) -> list[Path]:

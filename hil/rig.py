@@ -121,6 +121,14 @@ class BusLost(OSError):
 
 HEALTH_FRAMES = 6  #: one Health frame per neuron of the LIM firmware follows each Diagnostics frame
 PROGRESS_EVERY = 256  #: the replay loop offers its progress every this many cycles (77 ms at 0.3 ms)
+DROP_SAMPLES_MAX = 500  #: the kernel's drop counters are sampled at most about this many times in a run
+
+
+def drop_sampling(cycles: int) -> int:
+    """Every how many cycles the replay samples the kernel's drop counters (udp_multicast): every
+    PROGRESS_EVERY, or a multiple of it so that a long run keeps at most about DROP_SAMPLES_MAX samples
+    (the sidecar keeps them)."""
+    return PROGRESS_EVERY * max(1, -(-cycles // (PROGRESS_EVERY * DROP_SAMPLES_MAX)))
 
 
 def ids() -> dict[str, int]:
@@ -187,7 +195,8 @@ class Rig:
         self.drain = check_seconds("drain", drain, zero=True)
         self.extra_frames = extra_frames  # fault injection: frames sent right after Measurement k
         # udp_multicast: the kernel's count of datagrams dropped on the rig's and the firmware's sockets
-        # (a receive queue that overflowed on a busy host), read before and after the run
+        # (a receive queue that overflowed on a busy host), read before and after the run, and during it every
+        # drop_sampling(cycles) cycles (meta["kernel_drops_series"]: the drops since the start, per side)
         self.kernel_drops = kernel_drops
         # called every PROGRESS_EVERY cycles during the replay with (cycles done, frames sent, estimates
         # received, frames lost by the scenario); hil.progress decides whether to show anything
@@ -202,6 +211,7 @@ class Rig:
         self._kernel_stamps = transport in ("socketcan", "udp_multicast")
         self._ago: dict[int, int] = {}           # id(kernel-stamped frame) -> its pick-up delay, ns
         self._events: list[tuple[int, str, can.Message]] = []
+        self._drop_samples: list[tuple[int, dict[str, int]]] = []   # (cycle, kernel_drops()) during the replay
         self._n_rx = 0
         self._run_start: int | None = None       # perf_counter_ns where the handshake ended
 
@@ -361,12 +371,15 @@ class Rig:
         # a firmware still working through a deep receive queue answers once it is through: while its
         # estimates keep coming it is behind, not gone
         diag_ok = self._control("DiagRequest", 0x5A, self.reply_timeout + DRAIN_CAP * self.drain, progress=True)
-        drops = None
+        drops = series = None
         if drops0 is not None and self.kernel_drops is not None:
             drops1 = self.kernel_drops()
             drops = {side: drops1[side] - drops0[side] for side in drops0}
+            series = {"cycle": [k for k, _ in self._drop_samples],
+                      **{side: [d[side] - drops0[side] for _, d in self._drop_samples] for side in drops0}}
         return self._recording({"wall_start": wall0, "rig_overruns": overruns, "final_diagnostics": diag_ok,
-                                "drain_s": drain_s, "drain_capped": drain_capped, "kernel_drops": drops})
+                                "drain_s": drain_s, "drain_capped": drain_capped, "kernel_drops": drops,
+                                "kernel_drops_series": series})
 
     def _drain_estimates(self) -> tuple[float, bool]:
         """The last estimates: read until the bus has been quiet for ``drain``
@@ -392,6 +405,7 @@ class Rig:
         first_tx = None
         overruns = n_sent = n_lost = 0
         progress = self.progress
+        drops_every = drop_sampling(self.plan.cycles) if self.kernel_drops is not None else 0
         for k in range(self.plan.cycles):
             deadline = t0 + k * T + delay
             if time.perf_counter_ns() > deadline + T:
@@ -404,6 +418,8 @@ class Rig:
             n_sent += 1
             if progress is not None and (k % PROGRESS_EVERY == 0 or k == self.plan.cycles - 1):
                 progress(k + 1, n_sent, self._n_est, n_lost)  # right after a send: the most slack before the next
+            if drops_every and k % drops_every == 0:  # the same slack; a read of /proc/net/udp
+                self._drop_samples.append((k, self.kernel_drops()))
             if first_tx is None:
                 first_tx = sent
             if self.extra_frames is not None:

@@ -46,7 +46,7 @@ from .accounting import kernel_losses, stepped
 from .rig import Recording, ids
 from .scenario import TABLE7
 
-__all__ = ["score", "stats_us"]
+__all__ = ["FATES", "fates", "score", "stats_us"]
 
 
 def stats_us(values_ns: np.ndarray) -> dict[str, float | int]:
@@ -241,12 +241,44 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     out["rig_period_jitter_us"] = jit
     out["rig_overruns"] = rec.meta.get("rig_overruns")
     out["drain"] = {"s": rec.meta.get("drain_s"), "capped": bool(rec.meta.get("drain_capped", False))}
+    steps, unknown_from = stepped(was_sent, answered, resync, expect_reject, f,
+                                  out["firmware"]["measurements"] if out["firmware"] else None)
+    health_series = None
     if reference is not None:
-        steps, unknown_from = stepped(was_sent, answered, resync, expect_reject, f,
-                                      out["firmware"]["measurements"] if out["firmware"] else None)
-        out["bit_exact"] = _reference_check(reference, meas_data, steps, answered, raw, unknown_from)
+        out["bit_exact"], health_series = _reference_check(reference, meas_data, steps, answered, raw, unknown_from)
     out["_series"] = {"k": np.flatnonzero(answered), "est": phys[answered], "truth": np.asarray(plan.truth_next),
-                      "latency_ns": latency, "t": np.asarray(plan.t)}
+                      "latency_ns": latency, "t": np.asarray(plan.t), "X": np.asarray(plan.X),
+                      "valid": np.asarray(plan.valid),
+                      "fate": fates(answered, lost, was_sent, expect_reject, steps, unknown_from, f["missing"] > 0),
+                      "kernel_drops": rec.meta.get("kernel_drops_series"), "health": health_series}
+    return out
+
+
+#: what became of each cycle's Measurement (``_series["fate"]``), by code
+FATES = ("answered", "lost (injected)", "rejected (Seq jump)", "lost to the firmware", "lost from the firmware",
+         "lost, which way not known", "missing", "never sent")
+
+
+def fates(answered: np.ndarray, lost: np.ndarray, was_sent: np.ndarray, expect_reject: np.ndarray,
+          steps: np.ndarray, unknown_from: int | None, unexplained: bool) -> np.ndarray:
+    """Per cycle, the index in :data:`FATES` of what became of its Measurement: answered; lost by the
+    scenario; rejected as a Seq jump; sent but unanswered, then (hil.accounting) lost on the way to the
+    firmware (or rejected after such a loss), its Estimate lost on the way back (the firmware stepped on
+    it), lost one way or the other from ``unknown_from`` on, or missing when the losses are not
+    corroborated (``unexplained``); not sent (an interrupted run)."""
+    out = np.full(answered.shape, FATES.index("never sent"), dtype=np.int8)
+    out[answered] = 0
+    out[lost] = FATES.index("lost (injected)")
+    gone = was_sent & ~answered
+    out[gone & expect_reject] = FATES.index("rejected (Seq jump)")
+    other = gone & ~expect_reject
+    if unexplained:
+        out[other] = FATES.index("missing")
+        return out
+    out[other & steps] = FATES.index("lost from the firmware")
+    out[other & ~steps] = FATES.index("lost to the firmware")
+    if unknown_from is not None:
+        out[unknown_from:][other[unknown_from:]] = FATES.index("lost, which way not known")
     return out
 
 
@@ -387,14 +419,18 @@ def _kernel_losses(f: dict[str, Any], fw: dict[str, Any] | None, n_foreign: int,
             "missing": f["missing"] - counted}
 
 
+HEALTH_SAMPLES_MAX = 400  #: the offline twin's filter health is sampled at most about this many times a run
+
+
 def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndarray, answered: np.ndarray,
-                     raw: np.ndarray, unknown_from: int | None = None) -> dict:
+                     raw: np.ndarray, unknown_from: int | None = None) -> tuple[dict, dict[str, Any] | None]:
     """Identifier.run (float32) on the decoded frames the firmware stepped
     on (``accepted``, hil.accounting.stepped: whether or not their estimate
     reached the rig), restarted at every gap as the firmware does, scaled as
     the DBC, compared on the answered ones before ``unknown_from``, the first
     cycle whose fate the rig cannot tell (``checked`` then stops short of the
-    answered count)."""
+    answered count); and the offline twin's filter health over the run
+    (:func:`_health_series`), None when it stepped on no frame."""
     from pyrhonn import Identifier
     from pyrhonn.firmware import INPUT_SIGNALS, STATE_SIGNALS, VALID_SIGNALS, database
 
@@ -406,7 +442,7 @@ def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndar
     M, E = db.get_message_by_name("Measurement"), db.get_message_by_name("Estimate")
     ks = np.flatnonzero(accepted)
     if ks.size == 0 or not answered.any():
-        return {"checked": 0, "mismatches": 0, "equal": False, "unknown_from": unknown_from}
+        return {"checked": 0, "mismatches": 0, "equal": False, "unknown_from": unknown_from}, None
     X = np.empty((ks.size, 6), dtype=np.float32)
     U = np.empty((ks.size, 2), dtype=np.float32)
     V = np.empty((ks.size, 6), dtype=bool)
@@ -417,10 +453,14 @@ def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndar
         V[i] = [bool(d[s]) for s in VALID_SIGNALS]
     # the firmware restarts its identifier on the first frame it accepts after a gap (no learning across it)
     ident, parts = Identifier(config), []
+    every = max(1, -(-ks.size // HEALTH_SAMPLES_MAX))
+    health: list[tuple[int, list[Any]]] = []
     for i, seg in enumerate(np.split(np.arange(ks.size), np.flatnonzero(np.diff(ks) > 1) + 1)):
         if i:
             ident.restart()
-        parts.append(ident.run(X[seg], U[seg], V[seg]))
+        for chunk in np.array_split(seg, -(-seg.size // every)):   # the same bits as one run (streaming)
+            parts.append(ident.run(X[chunk], U[chunk], V[chunk]))
+            health.append((int(ks[chunk[-1]]), ident.healths))
     xhat = np.concatenate(parts)
     on = answered[ks]
     ks, xhat = ks[on], xhat[on]
@@ -430,6 +470,18 @@ def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndar
         lo, hi = int(sig.scaled_to_raw(sig.minimum)), int(sig.scaled_to_raw(sig.maximum))
         want[:, j] = [min(max(sig.scaled_to_raw(float(v)), lo), hi) for v in xhat[:, j]]
     bad = np.any(want != raw[ks], axis=1)
-    return {"checked": int(ks.size), "mismatches": int(bad.sum()), "equal": bool(not bad.any()),
-            "unknown_from": unknown_from,
-            "first_mismatch_cycle": int(ks[np.argmax(bad)]) if bad.any() else None}
+    return ({"checked": int(ks.size), "mismatches": int(bad.sum()), "equal": bool(not bad.any()),
+             "unknown_from": unknown_from, "first_mismatch_cycle": int(ks[np.argmax(bad)]) if bad.any() else None},
+            _health_series(health))
+
+
+def _health_series(samples: list[tuple[int, list[Any]]]) -> dict[str, Any]:
+    """The offline twin's filter health (Identifier.healths, the firmware's rhonn_get_health bit for bit)
+    after each chunk of frames: ``cycle`` (S,), and per field (S, neurons): ``nis`` (the last update's
+    e^2 / s), ``trace_p``, and the counters ``rejected`` (refused updates), ``resets`` and ``updates``."""
+    cycles = np.array([k for k, _ in samples], dtype=np.int64)
+    out: dict[str, Any] = {"cycle": cycles}
+    for name in ("nis", "trace_p", "rejected", "resets", "updates"):
+        out[name] = np.array([[getattr(h, name) for h in hs] for _, hs in samples],
+                             dtype=np.int64 if name in ("rejected", "resets", "updates") else np.float64)
+    return out

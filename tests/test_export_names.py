@@ -22,7 +22,7 @@ BUS = "\n[bus]\nclock = \"Measurement\"\n\n[bus.signals]\n" + "".join(
 def test_the_header_lists_states_and_inputs_with_units_signals_and_the_dbc(tmp_path: Path) -> None:
     (tmp_path / "lim.toml").write_text(shipped_text("firmware-lim") + BUS)
     assert main(["export", "--config", str(tmp_path / "lim.toml"), "--out", str(tmp_path / "lim_id.h"),
-                 "--dbc", str(ROOT / "firmware_sim" / "rhonn_id.dbc"), "--units", "u_b=V (beta)"]) == 0
+                 "--bus-dbc", str(ROOT / "firmware_sim" / "rhonn_id.dbc"), "--units", "u_b=V (beta)"]) == 0
     text = (tmp_path / "lim_id.h").read_text()
     assert " * Bus signals as in the DBC rhonn_id.dbc." in text
     assert " *   0: q_m [m]  Measurement.Qm" in text and " *   1: v [m/s]  Measurement.V" in text
@@ -69,6 +69,6 @@ def test_names_that_do_not_fit_the_identifier_are_refused_naming_them() -> None:
 def test_export_refuses_a_unit_for_an_unknown_name_and_a_dbc_without_a_bus_table(tmp_path: Path, cli_error) -> None:
     err = cli_error(["export", "--config", "example1", "--out", str(tmp_path / "e.h"), "--units", "x9=m"])
     assert "--units: 'x9' is not a state or input of example1" in err
-    err = cli_error(["export", "--config", "example1", "--out", str(tmp_path / "e.h"), "--dbc",
+    err = cli_error(["export", "--config", "example1", "--out", str(tmp_path / "e.h"), "--bus-dbc",
                      str(ROOT / "firmware_sim" / "rhonn_id.dbc")])
     assert "has no [bus.signals] table" in err and not (tmp_path / "e.h").exists()

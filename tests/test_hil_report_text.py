@@ -172,7 +172,7 @@ def test_state_figures_have_an_error_panel_and_zooms_on_the_hold_and_its_end(sav
     for name, unit in (("position", "m"), ("velocity", "m/s")):
         fig = saved_figures[f"{name}.png"]
         _all_axes_have_units(fig)
-        top, err, zoom_hold, zoom_end = fig.axes
+        top, _frames, err, zoom_hold, zoom_end = fig.axes
         assert err.get_ylabel() == f"error ({unit})"
         assert "zoom: the hold" in zoom_hold.get_title() and "end of the hold" in zoom_end.get_title()
         lo, hi = zoom_end.get_xlim()

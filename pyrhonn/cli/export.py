@@ -38,6 +38,7 @@ from ..buslog import load_dbc
 from ..config import DTYPES
 from ..configfile import ConfigFile, load_named
 from ..datafile import check_suffix, read_data
+from ..dbc import export_dbc
 from ..export import Signals, capacity_path, export_header
 from ..fmu import MODES, FmuSettings, check_for, export_fmu
 from ..identifier import Identifier, IdentifierError
@@ -77,9 +78,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--units", type=units_option, default={}, metavar="NAME=UNIT[,NAME=UNIT...]",
                    help="units of the states and inputs (over the DBC's): written beside their names in the "
                         "header, and the units of the FMU's variables")
-    p.add_argument("--dbc", metavar="FILE",
+    p.add_argument("--bus-dbc", metavar="FILE",
                    help="the DBC the config's [bus] signals are in: the header names it and each state's and "
                         "input's signal, and takes their units from it (so does the FMU)")
+    p.add_argument("--dbc", metavar="FILE.dbc",
+                   help="with --data: also write the identifier's CAN FD protocol (Measurement, Estimate, "
+                        "Control, Diagnostics, ...), each signal scaled from the data's range (pyrhonn.dbc); "
+                        "the header names it")
     p.set_defaults(func=run)
 
 
@@ -98,25 +103,29 @@ def _fmu_only(args: argparse.Namespace) -> None:
 
 
 def _signals(args: argparse.Namespace, cf: ConfigFile) -> Signals:
-    """The names, units and bus signals the header lists (--units, --dbc with the config's [bus] table)."""
+    """The names, units and bus signals the header lists (--units, --bus-dbc with the config's [bus]
+    table; the DBC --dbc writes)."""
     names = list(cf.state_names) + list(cf.input_names)
     units: dict[str, str] = {}
     bus: dict[str, str] = {}
     dbc = None
-    if args.dbc is not None:
-        db = load_dbc(args.dbc)
+    if args.bus_dbc is not None:
+        db = load_dbc(args.bus_dbc, "--bus-dbc")
         if cf.bus is None or not cf.bus.signals:
-            raise ValueError(f"--dbc {args.dbc}: {args.config} has no [bus.signals] table saying which signal each "
-                             "state and input is")
+            raise ValueError(f"--bus-dbc {args.bus_dbc}: {args.config} has no [bus.signals] table saying which "
+                             "signal each state and input is")
         for key, ref in cf.bus.signals.items():
             try:
                 sig = db.get_message_by_name(ref.message).get_signal_by_name(ref.signal)
             except KeyError:
-                raise ValueError(f"{args.config}: bus.signals.{key}: {ref} is not in --dbc {args.dbc}") from None
+                raise ValueError(f"{args.config}: bus.signals.{key}: {ref} is not in --bus-dbc "
+                                 f"{args.bus_dbc}") from None
             bus[key] = str(ref)
             if sig.unit:
                 units[key] = str(sig.unit)
-        dbc = Path(args.dbc).name
+        dbc = Path(args.bus_dbc).name
+    if args.dbc is not None:  # the DBC written beside the header is the one it goes with, its own signals
+        dbc, bus = Path(args.dbc).name, {}
     for key, unit in args.units.items():
         if key not in names:
             raise ValueError(f"--units: {key!r} is not a state or input of {args.config} ({', '.join(names)})")
@@ -136,6 +145,8 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--warm-start: needs --data (the recording whose running state is exported)")
     if args.fit_rows is not None and args.data is None:
         raise ValueError("--fit-rows: needs --data (the recording whose rows are learnt)")
+    if args.dbc is not None and args.data is None:
+        raise ValueError("--dbc: needs --data (each signal is scaled from the data's range)")
     cf = load_named(args.config)
     signals = _signals(args, cf)
     cfg = cf.config if args.dtype in (None, cf.config.dtype) else cf.config.replace(dtype=args.dtype)
@@ -144,12 +155,14 @@ def run(args: argparse.Namespace) -> int:
         ident = Identifier(cfg)
     except ValueError as exc:
         raise ValueError(f"{args.config}: {exc}") from None
-    trained = ""
+    trained, scaled = "", []
     if args.data is not None:
         check_suffix(args.valid_suffix)
         data = read_data(args.data, cf, valid_suffix=args.valid_suffix, config_source=args.config)
         a, b = row_range("--fit-rows", args.fit_rows, data.n_samples)
         X, U = data.in_dtype(cfg.dtype, cf.state_names, cf.input_names, args.data)
+        if args.dbc is not None:   # first: a data file it cannot scale stops the export before the headers
+            scaled = export_dbc(args.dbc, cf, X, U, data.valid, name=name)
         X, U, valid = X[a:b], U[a:b], data.valid[a:b]
         try:
             ident.run(X, U if cfg.n_inputs else None, valid)
@@ -162,7 +175,7 @@ def run(args: argparse.Namespace) -> int:
         export_fmu(cf, out, settings, config=ident.as_config() if args.data is not None else cfg)
         print(f"exported {args.config} as FMI {settings.fmi_version}.0 co-simulation FMU {name} ({cfg.dtype}, "
               f"period {settings.period!r} s, mode {settings.mode}){trained}")
-        print(f"wrote {out}")
+        print(f"wrote {out}" + (f", {args.dbc}:\n" + "\n".join(scaled) if scaled else ""))
         return 0
     if args.data is not None:
         warm = (X, U if cfg.n_inputs else None, valid) if args.warm_start else None
@@ -174,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
         export_header(cfg, out, name, signals=signals)
     print(f"exported {args.config} as {name} ({cfg.dtype}){trained}"
           + (", with its running state" if args.warm_start else ""))
-    print(f"wrote {out}, {capacity_path(out)}")
+    print(f"wrote {out}, {capacity_path(out)}" + (f", {args.dbc}:\n" + "\n".join(scaled) if scaled else ""))
     return 0
 
 
