@@ -72,6 +72,9 @@ test-c-sanitize:
 # - fuzz-frame: the firmware's frame-receive entry for FUZZ_SECONDS; a crash, a
 #   sanitizer report or a rejected frame that changes the filter fails the run
 #   (firmware_sim/fuzz/);
+# - fuzz-xcp: the XCP slave's command entry (firmware_sim/fuzz/fuzz_xcp.c) for
+#   FUZZ_XCP_SECONDS; a command that moves the identifier, a calibration write
+#   without the key, a byte changed outside the two regions fails the run;
 # - fuzz-udp: the runner's udp_multicast codec for FUZZ_UDP_SECONDS, seeded
 #   with python-can's own datagrams; an accepted datagram must re-encode to
 #   itself;
@@ -87,6 +90,7 @@ CLANG ?= clang-14
 FUZZ_CFLAGS = -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all
 FUZZ_SECONDS ?= 45
 FUZZ_UDP_SECONDS ?= 20
+FUZZ_XCP_SECONDS ?= 15
 # the core's public API (csrc/fuzz/fuzz_core.c), per precision; 600 for a real campaign
 FUZZ_CORE_SECONDS ?= 30
 # one identifier's neurons side by side against rhonn_run and rhonn_step, per precision
@@ -95,12 +99,13 @@ FUZZ_POP_SECONDS ?= 20
 FW_FLAGS = -std=c99 -ffp-contract=off -DRHONN_SINGLE -Icsrc/include -Ifirmware_sim/app \
 	-Ifirmware_sim/generated -Ifirmware_sim/config
 FW_SOURCES = firmware_sim/app/fw_app.c firmware_sim/app/fw_protocol.c firmware_sim/app/fw_hal_mem.c \
-	firmware_sim/app/fw_secoc.c firmware_sim/app/fw_aes_cmac.c firmware_sim/generated/rhonn_id.c csrc/src/rhonn.c
+	firmware_sim/app/fw_secoc.c firmware_sim/app/fw_aes_cmac.c firmware_sim/app/fw_xcp.c \
+	firmware_sim/generated/rhonn_id.c csrc/src/rhonn.c
 # The fuzz targets run two at a time (FUZZ_JOBS, one per CPU: each libFuzzer
 # run is one process), every one for its own time; each prints its last lines
 # when it ends (--output-sync keeps them together).
 FUZZ_JOBS ?= 2
-FUZZ_TARGETS = fuzz-frame fuzz-udp fuzz-core-f32 fuzz-core-f64 fuzz-wide-f32 fuzz-wide-f64 fuzz-pop-f32 fuzz-pop-f64
+FUZZ_TARGETS = fuzz-frame fuzz-xcp fuzz-udp fuzz-core-f32 fuzz-core-f64 fuzz-wide-f32 fuzz-wide-f64 fuzz-pop-f32 fuzz-pop-f64
 .PHONY: $(FUZZ_TARGETS)
 test-fuzz:
 	$(MAKE) --no-print-directory --output-sync=target -j $(FUZZ_JOBS) $(FUZZ_TARGETS)
@@ -115,6 +120,16 @@ fuzz-frame:
 	$(BUILD)/fuzz/fuzz_on_frame -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 \
 	  -artifact_prefix=$(BUILD)/fuzz/ $(BUILD)/fuzz/corpus > $(BUILD)/fuzz/log 2>&1; \
 	  rc=$$?; tail -n 8 $(BUILD)/fuzz/log; exit $$rc
+
+fuzz-xcp:
+	mkdir -p $(BUILD)/fuzz/xcp-corpus
+	$(CLANG) $(FUZZ_CFLAGS) $(FW_FLAGS) \
+	  firmware_sim/fuzz/fuzz_xcp.c $(FW_SOURCES) -o $(BUILD)/fuzz/fuzz_xcp
+	printf '\000\002\377\000\370\000\371\000\360\004abcd\003\010\364\004\000\000\000\000\000\000' \
+	  > $(BUILD)/fuzz/xcp-corpus/seed0
+	$(BUILD)/fuzz/fuzz_xcp -max_total_time=$(FUZZ_XCP_SECONDS) -print_final_stats=1 \
+	  -artifact_prefix=$(BUILD)/fuzz/xcp- $(BUILD)/fuzz/xcp-corpus > $(BUILD)/fuzz/xcp-log 2>&1; \
+	  rc=$$?; tail -n 8 $(BUILD)/fuzz/xcp-log; exit $$rc
 
 fuzz-udp:
 	mkdir -p $(BUILD)/fuzz/udp-corpus

@@ -201,6 +201,7 @@ fw_status fw_app_init(fw_app *app, const fw_app_config *cfg, const fw_hal *hal)
         (void)fw_cmac_init(&app->secoc_key, key);
     }
     app->secoc_freshness = 0;
+    memset(&app->hooks, 0, sizeof app->hooks);
     app->magic = FW_APP_MAGIC;
     return reset_identifier(app);
 }
@@ -244,6 +245,9 @@ static fw_status on_measurement(fw_app *app, const uint8_t *data, size_t len, ui
             return reject(app, FW_E_STATE); /* not reached: the app holds an initialised identifier */
         }
         ++c->restarts;
+    }
+    if (app->hooks.before_step != NULL) {
+        app->hooks.before_step(app->hooks.ctx, app);
     }
 
     /* Accepted: exactly one step. */
@@ -291,6 +295,9 @@ static fw_status on_measurement(fw_app *app, const uint8_t *data, size_t len, ui
     } else {
         ++c->hal_errors;
         st = FW_E_HAL;
+    }
+    if (app->hooks.after_step != NULL) {
+        app->hooks.after_step(app->hooks.ctx, app, now_ns);
     }
 
     if (app->diag_period != 0u) {
@@ -374,15 +381,9 @@ static fw_status on_control(fw_app *app, const uint8_t *data, size_t len)
         result = reset_identifier(app);
         break;
     case RHONN_ID_CONTROL_COMMAND_LEARNING_OFF_CHOICE:
-    case RHONN_ID_CONTROL_COMMAND_LEARNING_ON_CHOICE: {
-        int on = f.command == RHONN_ID_CONTROL_COMMAND_LEARNING_ON_CHOICE;
-        if (rhonn_set_learning(&app->net, on) == RHONN_OK) {
-            app->learning = (uint8_t)on;
-        } else {
-            result = FW_E_STATE;
-        }
+    case RHONN_ID_CONTROL_COMMAND_LEARNING_ON_CHOICE:
+        result = fw_app_set_learning(app, f.command == RHONN_ID_CONTROL_COMMAND_LEARNING_ON_CHOICE);
         break;
-    }
     case RHONN_ID_CONTROL_COMMAND_WEIGHTS_BEGIN_CHOICE:
         open_weights(app);
         break;
@@ -689,6 +690,42 @@ fw_status fw_app_set_freshness(fw_app *app, uint64_t freshness)
     }
     app->secoc_freshness = freshness;
     return FW_OK;
+}
+
+fw_status fw_app_set_step_hooks(fw_app *app, const fw_step_hooks *hooks)
+{
+    if (app == NULL) {
+        return FW_E_NULL;
+    }
+    if (!app_ready(app)) {
+        return FW_E_NOT_INIT;
+    }
+    if (hooks == NULL) {
+        memset(&app->hooks, 0, sizeof app->hooks);
+    } else {
+        app->hooks = *hooks;
+    }
+    return FW_OK;
+}
+
+fw_status fw_app_set_learning(fw_app *app, int on)
+{
+    if (app == NULL) {
+        return FW_E_NULL;
+    }
+    if (!app_ready(app)) {
+        return FW_E_NOT_INIT;
+    }
+    if (rhonn_set_learning(&app->net, on != 0) != RHONN_OK) {
+        return FW_E_STATE; /* not reached: the app holds an initialised identifier */
+    }
+    app->learning = (uint8_t)(on != 0);
+    return FW_OK;
+}
+
+int fw_app_learning(const fw_app *app)
+{
+    return app != NULL && app_ready(app) && app->learning;
 }
 
 const char *fw_status_name(fw_status status)

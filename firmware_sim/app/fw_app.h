@@ -137,9 +137,22 @@ typedef struct {
     uint32_t rx_drops;          /* frames the platform's receive queue dropped (fw_app_note_rx_drops) */
 } fw_counters;
 
+struct fw_app;
+
+/* Step hooks (fw_app_set_step_hooks), for a protocol layer beside the CAN
+ * protocol (fw_xcp.h): before_step runs after a Measurement was accepted
+ * and before its rhonn_step, so what it changes takes effect between two
+ * steps; after_step runs once the step's Estimate went out, with the
+ * Measurement's reception time. Either may be NULL. */
+typedef struct {
+    void *ctx;
+    void (*before_step)(void *ctx, struct fw_app *app);
+    void (*after_step)(void *ctx, struct fw_app *app, uint64_t now_ns);
+} fw_step_hooks;
+
 /* The application. Caller-owned (static on a target); treat the fields as
  * private and use the functions below. */
-typedef struct {
+typedef struct fw_app {
     uint32_t magic;
     fw_hal hal;
     uint32_t deadline_ns;
@@ -167,6 +180,7 @@ typedef struct {
     /* command authentication (fw_secoc.h) */
     fw_cmac_key secoc_key;      /* the compiled-in key, expanded at init */
     uint64_t secoc_freshness;   /* the last accepted freshness value */
+    fw_step_hooks hooks;        /* none after fw_app_init */
 } fw_app;
 
 /* Validate the configuration and HAL, set up the identifier. On error the
@@ -210,6 +224,16 @@ fw_status fw_app_get_freshness(const fw_app *app, uint64_t *freshness);
  * fw_app_init), so that frames recorded before it cannot be replayed after
  * it. FW_E_FRESHNESS when it is below the current value (never back). */
 fw_status fw_app_set_freshness(fw_app *app, uint64_t freshness);
+
+/* Install step hooks (NULL: none). FW_E_NULL, FW_E_NOT_INIT. */
+fw_status fw_app_set_step_hooks(fw_app *app, const fw_step_hooks *hooks);
+
+/* Freeze (0) or resume (nonzero) learning, as the LearningOff / LearningOn
+ * commands do (the Estimate's Learning flag follows). */
+fw_status fw_app_set_learning(fw_app *app, int on);
+
+/* Whether learning is on (1) or frozen (0); 0 for a NULL or uninitialised app. */
+int fw_app_learning(const fw_app *app);
 
 /* Human-readable name of a status code (a static string). */
 const char *fw_status_name(fw_status status);

@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[2]
 FW = ROOT / "firmware_sim"
 INCLUDE_DIRS = [ROOT / "csrc" / "include", FW / "app", FW / "generated", FW / "config", FW / "linux"]
 SOURCES = [FW / "linux" / "rhonn_runner.c", FW / "linux" / "udp_can.c", FW / "app" / "fw_app.c",
-           FW / "app" / "fw_protocol.c", FW / "app" / "fw_secoc.c", FW / "app" / "fw_aes_cmac.c",
+           FW / "app" / "fw_protocol.c", FW / "app" / "fw_secoc.c", FW / "app" / "fw_aes_cmac.c", FW / "app" / "fw_xcp.c",
            FW / "generated" / "rhonn_id.c", ROOT / "csrc" / "src" / "rhonn.c"]
 FLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-DRHONN_SINGLE"]
 

@@ -63,6 +63,17 @@
  * inputs as slow sinusoids in the DBC's scaling) and discards its output, so
  * the loop's timing can be measured where there is no CAN at all.
  *
+ * --xcp-udp [ADDR:]PORT: an XCP slave on UDP (fw_xcp.h) beside the bus, for
+ * a calibration and measurement tool (firmware_sim/tools/make_a2l.py writes
+ * its A2L). ADDR defaults to 127.0.0.1 (only this host); PORT 0 takes a free
+ * port, printed as "xcp: udp ADDR:PORT". Framing is XCP on Ethernet: each
+ * packet is preceded by LEN and CTR (2 bytes each, little-endian); a
+ * datagram may hold several. The master is the sender of the datagram that
+ * connected; while it is connected, datagrams from anyone else are dropped
+ * and counted. XCP addresses are offsets from __executable_start, the load
+ * address of this image (a PIE or not): the A2L's addresses are the symbols'
+ * values minus that of __executable_start, as nm shows them.
+ *
  * SCHED_FIFO is requested with --fifo (and memory locked); when the system
  * refuses, the runner says so and keeps the default policy. This file is the
  * platform layer: POSIX and Linux calls live here, never in the app.
@@ -92,6 +103,7 @@
 #include <linux/can/raw.h>
 
 #include "fw_app.h"
+#include "fw_xcp.h"
 #include "lim_identifier.h"
 #include "rhonn_id.h"
 #include "udp_can.h"
@@ -665,12 +677,162 @@ static int parse_count(const char *text, unsigned long long lo, unsigned long lo
     return 0;
 }
 
+/* ------------------------------------------------------------ XCP on UDP */
+
+/* The regions the A2L names (make_a2l.py reads these symbols). */
+fw_xcp_signals rhonn_xcp_signals;
+fw_xcp_calibration rhonn_xcp_calibration;
+extern char __executable_start[]; /* the linker's: where this image is loaded */
+
+#define XCP_HEADER 4u
+#define XCP_RX_BUFFER 2048u
+
+static fw_xcp xcp;
+static struct {
+    int fd;                             /* -1: no XCP */
+    struct sockaddr_in local;
+    struct sockaddr_in peer;            /* the master */
+    int have_peer;
+    uint16_t ctr;                       /* the slave's packet counter (CTR) */
+    uint64_t datagrams, commands, errors, ignored, malformed, foreign, send_errors;
+    uint8_t rx[XCP_RX_BUFFER];
+    uint8_t tx[XCP_HEADER + FW_XCP_MAX_DTO];
+} xu;
+
+static fw_status xcp_udp_send(void *ctx, const uint8_t *packet, size_t len)
+{
+    (void)ctx;
+    if (!xu.have_peer || len > FW_XCP_MAX_DTO) {
+        return FW_E_HAL;
+    }
+    xu.tx[0] = (uint8_t)(len & 0xFFu);
+    xu.tx[1] = (uint8_t)(len >> 8);
+    xu.tx[2] = (uint8_t)(xu.ctr & 0xFFu);
+    xu.tx[3] = (uint8_t)(xu.ctr >> 8);
+    memcpy(xu.tx + XCP_HEADER, packet, len);
+    if (sendto(xu.fd, xu.tx, XCP_HEADER + len, MSG_DONTWAIT, (const struct sockaddr *)&xu.peer, sizeof xu.peer) < 0) {
+        xu.send_errors += 1u;
+        return FW_E_HAL; /* fw_xcp counts a DTO lost */
+    }
+    xu.ctr = (uint16_t)(xu.ctr + 1u);
+    return FW_OK;
+}
+
+/* "[ADDR:]PORT" -> the local address; -1 after printing why. */
+static int parse_xcp_spec(const char *spec)
+{
+    char host[64];
+    const char *colon = strrchr(spec, ':');
+    const char *port = colon != NULL ? colon + 1 : spec;
+    unsigned long long v;
+    memset(&xu.local, 0, sizeof xu.local);
+    xu.local.sin_family = AF_INET;
+    if (parse_count(port, 0u, 65535u, &v) < 0) {
+        fprintf(stderr, "rhonn_runner: --xcp-udp takes [ADDR:]PORT with PORT in 0..65535, got '%s'\n", spec);
+        return -1;
+    }
+    xu.local.sin_port = htons((uint16_t)v);
+    if (colon == NULL) {
+        xu.local.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        return 0;
+    }
+    if ((size_t)(colon - spec) >= sizeof host) {
+        fprintf(stderr, "rhonn_runner: --xcp-udp: address too long in '%s'\n", spec);
+        return -1;
+    }
+    memcpy(host, spec, (size_t)(colon - spec));
+    host[colon - spec] = '\0';
+    if (inet_pton(AF_INET, host, &xu.local.sin_addr) != 1) {
+        fprintf(stderr, "rhonn_runner: --xcp-udp: '%s' is not an IPv4 address\n", host);
+        return -1;
+    }
+    return 0;
+}
+
+static int open_xcp(const char *spec)
+{
+    socklen_t n = sizeof xu.local;
+    fw_xcp_config xc;
+    fw_status st;
+    xu.fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+    if (xu.fd < 0 || bind(xu.fd, (const struct sockaddr *)&xu.local, sizeof xu.local) < 0 ||
+        getsockname(xu.fd, (struct sockaddr *)&xu.local, &n) < 0) {
+        fprintf(stderr, "rhonn_runner: --xcp-udp %s: %s\n", spec, strerror(errno));
+        return -1;
+    }
+    xc.transport.ctx = NULL;
+    xc.transport.send = xcp_udp_send;
+    xc.signals = &rhonn_xcp_signals;
+    xc.calibration = &rhonn_xcp_calibration;
+    xc.address_base = (uintptr_t)__executable_start;
+    st = fw_xcp_init(&xcp, &xc);
+    if (st == FW_OK) {
+        st = fw_xcp_attach(&xcp, &app);
+    }
+    if (st != FW_OK) {
+        fprintf(stderr, "rhonn_runner: XCP slave: %s\n", fw_status_name(st));
+        return -1;
+    }
+    return 0;
+}
+
+static int same_peer(const struct sockaddr_in *a, const struct sockaddr_in *b)
+{
+    return a->sin_addr.s_addr == b->sin_addr.s_addr && a->sin_port == b->sin_port;
+}
+
+/* Take the waiting XCP datagrams (at most a burst) and hand each packet to
+ * the slave. */
+static void take_xcp(void)
+{
+    unsigned burst;
+    if (xu.fd < 0) {
+        return;
+    }
+    for (burst = 0; burst < 64u; ++burst) {
+        struct sockaddr_in from;
+        socklen_t fl = sizeof from;
+        ssize_t n = recvfrom(xu.fd, xu.rx, sizeof xu.rx, MSG_DONTWAIT, (struct sockaddr *)&from, &fl);
+        size_t pos = 0;
+        if (n < 0) {
+            return; /* EAGAIN: nothing more */
+        }
+        xu.datagrams += 1u;
+        if (fl != sizeof from || from.sin_family != AF_INET) {
+            xu.malformed += 1u;
+            continue;
+        }
+        if (xcp.connected && xu.have_peer && !same_peer(&from, &xu.peer)) {
+            xu.foreign += 1u; /* another master while one is connected */
+            continue;
+        }
+        xu.peer = from;
+        xu.have_peer = 1;
+        while ((size_t)n - pos >= XCP_HEADER) {
+            size_t len = (size_t)xu.rx[pos] | ((size_t)xu.rx[pos + 1] << 8);
+            fw_status st;
+            if (len == 0u || len > (size_t)n - pos - XCP_HEADER) {
+                xu.malformed += 1u; /* the rest of the datagram cannot be framed */
+                break;
+            }
+            st = fw_xcp_on_command(&xcp, &app, xu.rx + pos + XCP_HEADER, len, now_ns());
+            pos += XCP_HEADER + len;
+            xu.commands += 1u;
+            xu.errors += st == FW_E_RANGE;
+            xu.ignored += st == FW_E_STATE;
+        }
+        if (pos != (size_t)n && (size_t)n - pos < XCP_HEADER) {
+            xu.malformed += 1u;
+        }
+    }
+}
+
 static void usage(FILE *f)
 {
     fprintf(f, "usage: rhonn_runner (--interface IF | --udp-multicast GROUP:PORT | --bus-less)\n"
                "                    [--period-us US] [--cycles N] [--duration S] [--rx tick|arrival]\n"
                "                    [--spin-us N] [--diag-period N] [--fifo PRIO] [--json FILE] [--quiet]\n"
-               "                    [--rcvbuf BYTES] [--multicast-ttl N]\n");
+               "                    [--rcvbuf BYTES] [--multicast-ttl N] [--xcp-udp [ADDR:]PORT]\n");
 }
 
 static histogram wake_hist = {"wake-up", 0, 0, 0, 0, {0}};
@@ -721,7 +883,7 @@ static int take_frames(uint64_t woke)
 static int serve_until(uint64_t deadline)
 {
     for (;;) {
-        struct pollfd pfd;
+        struct pollfd pfd[2];
         struct timespec rel;
         uint64_t t = now_ns(), wake = deadline;
         int rc, spinning;
@@ -733,10 +895,13 @@ static int serve_until(uint64_t deadline)
             wake = expect_ns - spin_ns;
         }
         rel = to_timespec(spinning ? 0u : wake - t);
-        pfd.fd = plat.fd;
-        pfd.events = POLLIN;
-        pfd.revents = 0;
-        rc = ppoll(&pfd, 1, &rel, NULL);
+        pfd[0].fd = plat.fd;
+        pfd[0].events = POLLIN;
+        pfd[0].revents = 0;
+        pfd[1].fd = xu.fd; /* -1 without XCP: poll skips it */
+        pfd[1].events = POLLIN;
+        pfd[1].revents = 0;
+        rc = ppoll(pfd, 2, &rel, NULL);
         if (rc < 0) {
             if (errno == EINTR) {
                 continue;
@@ -747,7 +912,10 @@ static int serve_until(uint64_t deadline)
         if (spinning) {
             spin_total_ns += now_ns() - t;
         }
-        if (rc > 0 && take_frames(now_ns()) < 0) {
+        if (rc > 0 && (pfd[1].revents & POLLIN)) {
+            take_xcp();
+        }
+        if (rc > 0 && (pfd[0].revents & ~POLLNVAL) && take_frames(now_ns()) < 0) {
             return -1;
         }
     }
@@ -826,7 +994,9 @@ int main(int argc, char **argv)
         {"duration", required_argument, 0, 'd'},  {"fifo", required_argument, 0, 'f'},
         {"json", required_argument, 0, 'j'},      {"quiet", no_argument, 0, 'q'},
         {"rcvbuf", required_argument, 0, 'R'},    {"multicast-ttl", required_argument, 0, 'T'},
-        {"help", no_argument, 0, 'h'},            {0, 0, 0, 0}};
+        {"xcp-udp", required_argument, 0, 'X'},   {"help", no_argument, 0, 'h'},
+        {0, 0, 0, 0}};
+    const char *xcp_spec = NULL;
     const char *ifname = NULL, *udp_spec = NULL, *json_path = NULL, *where = "bus-less", *mode = "bus-less";
     int bus_less = 0, fifo = 0, quiet = 0, opt, rx_arrival = -1;
     long diag_period = 1000;
@@ -849,9 +1019,10 @@ int main(int argc, char **argv)
     unsigned k;
 
     memset(&plat, 0, sizeof plat);
+    xu.fd = -1;
     plat.kind = BUS_NONE;
     plat.fd = -1;
-    while ((opt = getopt_long(argc, argv, "i:bu:r:D:S:p:n:d:f:j:qR:T:h", options, NULL)) != -1) {
+    while ((opt = getopt_long(argc, argv, "i:bu:r:D:S:p:n:d:f:j:qR:T:X:h", options, NULL)) != -1) {
         /* an option given twice is a mistake in a script, not "the last one wins" */
         if (opt > 0 && opt < 128 && opt != '?' && opt != 'h') {
             if (seen[opt]) {
@@ -934,6 +1105,12 @@ int main(int argc, char **argv)
             }
             ttl = (int)count;
             break;
+        case 'X':
+            xcp_spec = optarg;
+            if (parse_xcp_spec(optarg) < 0) {
+                return 2;
+            }
+            break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
@@ -1008,6 +1185,18 @@ int main(int argc, char **argv)
         return 1;
     }
 
+    if (xcp_spec != NULL) {
+        char text[INET_ADDRSTRLEN];
+        if (open_xcp(xcp_spec) < 0) {
+            return 1;
+        }
+        if (!quiet) {
+            printf("xcp: udp %s:%u, A2L %s\n", inet_ntop(AF_INET, &xu.local.sin_addr, text, sizeof text),
+                   (unsigned)ntohs(xu.local.sin_port), FW_XCP_A2L_NAME);
+            fflush(stdout);
+        }
+    }
+
     if (fifo) {
         struct sched_param sp;
         memset(&sp, 0, sizeof sp);
@@ -1071,6 +1260,7 @@ int main(int argc, char **argv)
             woke = now_ns();
             hist_add(&wake_hist, woke > next ? woke - next : 0u);
 
+            take_xcp();
             if (bus_less) {
                 fw_frame f;
                 uint32_t before;
@@ -1145,6 +1335,13 @@ int main(int argc, char **argv)
             }
             printf(", send errors %llu\n", (unsigned long long)plat.send_errors);
         }
+        if (xu.fd >= 0) {
+            printf("xcp: datagrams %llu, commands %llu, errors %llu, ignored %llu, malformed %llu, other masters %llu, "
+                   "step events %u, DAQ packets sent %u, lost %u\n",
+                   (unsigned long long)xu.datagrams, (unsigned long long)xu.commands, (unsigned long long)xu.errors,
+                   (unsigned long long)xu.ignored, (unsigned long long)xu.malformed, (unsigned long long)xu.foreign,
+                   rhonn_xcp_signals.events, rhonn_xcp_signals.daq_dto_sent, rhonn_xcp_signals.daq_dto_lost);
+        }
         if (spin_ns != 0u) {
             printf("spin: %.1f us around each expected measurement, %.1f %% of the time\n", spin_us,
                    elapsed ? 100.0 * (double)spin_total_ns / (double)elapsed : 0.0);
@@ -1188,6 +1385,14 @@ int main(int argc, char **argv)
             }
             fprintf(f, "}}");
         }
+        if (xu.fd >= 0) {
+            fprintf(f, ", \"xcp\": {\"datagrams\": %llu, \"commands\": %llu, \"errors\": %llu, \"ignored\": %llu, "
+                       "\"malformed\": %llu, \"other_masters\": %llu, \"step_events\": %u, \"daq_dto_sent\": %u, "
+                       "\"daq_dto_lost\": %u}",
+                    (unsigned long long)xu.datagrams, (unsigned long long)xu.commands, (unsigned long long)xu.errors,
+                    (unsigned long long)xu.ignored, (unsigned long long)xu.malformed, (unsigned long long)xu.foreign,
+                    rhonn_xcp_signals.events, rhonn_xcp_signals.daq_dto_sent, rhonn_xcp_signals.daq_dto_lost);
+        }
         fprintf(f, "}\n");
         if (ferror(f) | fclose(f)) { /* a full disk or /dev/full: the statistics are not there */
             fprintf(stderr, "rhonn_runner: --json: writing %s failed: %s\n", json_path, strerror(errno));
@@ -1196,6 +1401,9 @@ int main(int argc, char **argv)
     }
     if (plat.fd >= 0) {
         close(plat.fd);
+    }
+    if (xu.fd >= 0) {
+        close(xu.fd);
     }
     return bus_failed || json_failed ? 1 : 0;
 }

@@ -21,24 +21,13 @@
 #include <math.h>
 #include <string.h>
 
-#include "../../csrc/tests/check.h"
+#include "fw_check.h"
 #include "fw_app.h"
 #include "fw_hal_mem.h"
 #include "fw_secoc_key.h"
 #include "lim_identifier.h"
 #include "rhonn_id.h"
 #include "rhonn_id_limits.h"
-
-#define CHECK_FW(expr, want)                                                              \
-    do {                                                                                  \
-        fw_status got_ = (expr);                                                          \
-        ++check_count;                                                                    \
-        if (got_ != (want)) {                                                             \
-            ++check_failures;                                                             \
-            fprintf(stderr, "%s:%d: %s returned %s, expected %s\n", __FILE__, __LINE__, #expr, \
-                    fw_status_name(got_), fw_status_name(want));                          \
-        }                                                                                 \
-    } while (0)
 
 enum { N = FW_N_STATES, M = FW_N_INPUTS }; /* int constants */
 #define T_MAX 400

@@ -1,0 +1,232 @@
+/*
+ * fw_xcp.h - an XCP 1.4 slave for the identifier application: a
+ * calibration and measurement tool (CANape, INCA, pyxcp) watches the
+ * running identifier and tunes it, described by an A2L
+ * (firmware_sim/tools/make_a2l.py).
+ *
+ * The protocol layer only: one command packet (CTO) in, its response out
+ * through the transport's send, and the DAQ packets (DTO) of the step
+ * event. The transport (XCP on UDP in the Linux runner: the LEN/CTR header)
+ * wraps each packet. Caller-owned, no allocation, no stdio; the work per
+ * call is bounded by the compile-time capacities below.
+ *
+ * COMMANDS. CONNECT, DISCONNECT, GET_STATUS, SYNCH, GET_COMM_MODE_INFO,
+ * GET_ID (type 0 and 1: the A2L name, FW_XCP_A2L_NAME, uploaded from the MTA),
+ * SET_MTA, UPLOAD, SHORT_UPLOAD, DOWNLOAD, GET_SEED, UNLOCK, and dynamic
+ * DAQ: GET_DAQ_PROCESSOR_INFO, GET_DAQ_RESOLUTION_INFO, GET_DAQ_CLOCK,
+ * FREE_DAQ, ALLOC_DAQ, ALLOC_ODT, ALLOC_ODT_ENTRY, SET_DAQ_PTR, WRITE_DAQ,
+ * SET_DAQ_LIST_MODE, START_STOP_DAQ_LIST, START_STOP_SYNCH. Anything else is
+ * answered ERR_CMD_UNKNOWN; a malformed packet ERR_CMD_SYNTAX; before
+ * CONNECT only CONNECT is answered (the standard's "not connected": silence).
+ *
+ * MEMORY. An XCP address (32 bits, extension 0) is an offset from the
+ * platform's address_base (fw_xcp_config): the byte at address A is the one
+ * at address_base + A. Only two regions exist: the signals (fw_xcp_signals,
+ * read only) and the calibration page (fw_xcp_calibration, read and
+ * write). Every access must lie wholly inside one of them, else
+ * ERR_ACCESS_DENIED (or ERR_WRITE_PROTECTED for a write to the signals):
+ * no other byte of the image can be read or written. Extension 0xFF is the
+ * GET_ID text, read only.
+ *
+ * PROTECTION. CAL/PAG (DOWNLOAD) and DAQ (the DAQ commands) are locked at
+ * CONNECT. GET_SEED returns a 16-byte seed; UNLOCK must answer it with
+ * key = AES-CMAC(K, seed) (16 bytes), K the firmware's command key
+ * (config/fw_secoc_key.h). A wrong key is answered ERR_ACCESS_LOCKED and
+ * disconnects, as the standard prescribes; UNLOCK without a seed is
+ * ERR_SEQUENCE. Reading (UPLOAD, SHORT_UPLOAD) is not protected.
+ *
+ * CALIBRATION. DOWNLOAD writes the calibration page after checking every
+ * value (learning 0 or 1: else ERR_OUT_OF_RANGE, nothing written). The
+ * identifier takes the page before its next step (the application's
+ * before-step hook), never inside one.
+ *
+ * DAQ. One event channel, FW_XCP_EVENT_STEP: once per identifier step
+ * (every accepted Measurement), after the Estimate went out. The signals
+ * are refreshed from the identifier, then every running DAQ list on the
+ * event (prescaler counted) sends its ODTs: PID = absolute ODT number, a
+ * 4-byte timestamp (1 us, the Measurement's reception time) after the
+ * first ODT's PID, then the entries' bytes. A DTO the transport refuses is
+ * counted in fw_xcp_signals.daq_dto_lost (also readable over XCP).
+ */
+#ifndef FW_XCP_H
+#define FW_XCP_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "fw_aes_cmac.h"
+#include "fw_app.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The A2L's name (PROJECT and MODULE): GET_ID types 0 and 1 return it. */
+#define FW_XCP_A2L_NAME "RHONN_LIM"
+
+#define FW_XCP_MAX_CTO 64u        /* command / response packet: fits a CAN FD frame */
+#define FW_XCP_MAX_DTO 64u        /* DAQ packet */
+#define FW_XCP_MAX_DAQ 4u         /* DAQ lists */
+#define FW_XCP_MAX_ODT 24u        /* ODTs over all lists */
+#define FW_XCP_MAX_ENTRIES 192u   /* ODT entries over all lists */
+#define FW_XCP_MAX_ENTRY_SIZE 59u /* bytes in one ODT entry (MAX_DTO less PID and timestamp) */
+#define FW_XCP_SEED_LEN 16u
+#define FW_XCP_KEY_LEN 16u
+#define FW_XCP_EVENT_STEP 0u      /* the only event channel */
+#define FW_XCP_EXT_ID 0xFFu       /* address extension of the GET_ID text */
+
+/* Terms per neuron in the signals (weights): an identifier with more is
+ * refused by fw_xcp_attach. */
+#define FW_XCP_TERMS 12u
+
+/* The signals, refreshed at every step event: all 4-byte values, in this
+ * fixed layout (the FW_XCP_OFF_* offsets, checked at compile time, are what
+ * make_a2l.py reads). Little-endian on every supported target. */
+typedef struct {
+    float weights[FW_N_STATES][FW_XCP_TERMS]; /* w_i, terms past L_i are 0 */
+    float xhat[FW_N_STATES];                  /* the prediction x_hat(k+1) of the last step */
+    float innovation[FW_N_STATES];            /* rhonn_health: e_i of the last update */
+    float nis[FW_N_STATES];                   /* e_i^2 / s_i */
+    float trace_p[FW_N_STATES];               /* trace P_i */
+    uint32_t updates[FW_N_STATES];
+    uint32_t refused[FW_N_STATES];            /* rhonn_health.rejected */
+    uint32_t bounded[FW_N_STATES];
+    uint32_t gated[FW_N_STATES];
+    uint32_t resets[FW_N_STATES];
+    uint32_t measurements;                    /* fw_counters */
+    uint32_t step_errors;
+    uint32_t lost_frames;
+    uint32_t rejected;
+    uint32_t restarts;
+    uint32_t learning;                        /* 1 learning, 0 frozen */
+    uint32_t step_status;                     /* rhonn_status of the last step */
+    uint32_t events;                          /* step events seen by XCP */
+    uint32_t daq_dto_sent;                    /* DAQ packets the transport took */
+    uint32_t daq_dto_lost;                    /* DAQ packets the transport refused */
+} fw_xcp_signals;
+
+#define FW_XCP_OFF_WEIGHTS 0u
+#define FW_XCP_OFF_XHAT 288u
+#define FW_XCP_OFF_INNOVATION 312u
+#define FW_XCP_OFF_NIS 336u
+#define FW_XCP_OFF_TRACE_P 360u
+#define FW_XCP_OFF_UPDATES 384u
+#define FW_XCP_OFF_REFUSED 408u
+#define FW_XCP_OFF_BOUNDED 432u
+#define FW_XCP_OFF_GATED 456u
+#define FW_XCP_OFF_RESETS 480u
+#define FW_XCP_OFF_MEASUREMENTS 504u
+#define FW_XCP_OFF_STEP_ERRORS 508u
+#define FW_XCP_OFF_LOST_FRAMES 512u
+#define FW_XCP_OFF_REJECTED 516u
+#define FW_XCP_OFF_RESTARTS 520u
+#define FW_XCP_OFF_LEARNING 524u
+#define FW_XCP_OFF_STEP_STATUS 528u
+#define FW_XCP_OFF_EVENTS 532u
+#define FW_XCP_OFF_DAQ_DTO_SENT 536u
+#define FW_XCP_OFF_DAQ_DTO_LOST 540u
+#define FW_XCP_SIGNALS_SIZE 544u
+
+/* The calibration page (RAM). The LIM identifier has neither a trace
+ * ceiling nor an innovation gate, and the core takes them from its
+ * configuration only, so learning is the one calibratable. */
+typedef struct {
+    uint8_t learning;       /* 1 learn, 0 freeze; taken before the next step */
+    uint8_t reserved[3];    /* written as 0 */
+} fw_xcp_calibration;
+
+#define FW_XCP_CAL_OFF_LEARNING 0u
+#define FW_XCP_CALIBRATION_SIZE 4u
+
+/* The transport: send one XCP packet (a response, an error or a DTO),
+ * without the transport's header. FW_OK, or FW_E_HAL when it was not sent. */
+typedef struct {
+    void *ctx;
+    fw_status (*send)(void *ctx, const uint8_t *packet, size_t len);
+} fw_xcp_transport;
+
+typedef struct {
+    fw_xcp_transport transport;
+    fw_xcp_signals *signals;        /* the platform's objects, named in the A2L */
+    fw_xcp_calibration *calibration;
+    uintptr_t address_base;         /* XCP address 0; each region must lie within 4 GiB above it */
+} fw_xcp_config;
+
+typedef struct {
+    uint8_t region;     /* 0 signals, 1 calibration */
+    uint8_t size;
+    uint16_t offset;
+} fw_xcp_entry;
+
+typedef struct {
+    uint8_t first_odt;  /* index into odt[] (the absolute ODT number: the PID) */
+    uint8_t n_odt;
+    uint8_t mode;       /* SET_DAQ_LIST_MODE's mode byte (timestamp bit) */
+    uint8_t prescaler;
+    uint8_t countdown;
+    uint8_t selected;
+    uint8_t running;
+    uint8_t configured; /* SET_DAQ_LIST_MODE seen */
+} fw_xcp_daq;
+
+typedef struct {
+    uint16_t first_entry;
+    uint8_t n_entries;
+    uint8_t bytes;      /* written so far */
+} fw_xcp_odt;
+
+typedef struct {
+    uint32_t magic;
+    fw_xcp_transport transport;
+    fw_xcp_signals *signals;
+    fw_xcp_calibration *calibration;
+    uintptr_t address_base;
+    uint32_t sig_address, cal_address;  /* the regions' XCP addresses */
+    fw_cmac_key key;
+    uint8_t connected;
+    uint8_t protection;                 /* resource bits still locked */
+    uint8_t seed_resource;              /* resource of the outstanding seed (0: none) */
+    uint8_t cal_dirty;                  /* the page changed since the identifier took it */
+    uint8_t seed[FW_XCP_SEED_LEN];
+    uint32_t seed_counter;
+    uint8_t mta_ext;
+    uint32_t mta;
+    /* dynamic DAQ */
+    uint8_t alloc_stage;                /* 0 free, 1 DAQ, 2 ODT, 3 entries allocated */
+    uint8_t n_daq;
+    uint8_t n_odt;
+    uint16_t n_entries;
+    uint8_t ptr_valid;
+    uint8_t ptr_daq, ptr_odt, ptr_entry;
+    fw_xcp_daq daq[FW_XCP_MAX_DAQ];
+    fw_xcp_odt odt[FW_XCP_MAX_ODT];
+    fw_xcp_entry entry[FW_XCP_MAX_ENTRIES];
+    uint8_t last_error;                 /* XCP code of the last error packet (0: none) */
+    uint8_t pkt[FW_XCP_MAX_DTO];        /* the packet being built (response or DTO) */
+} fw_xcp;
+
+/* Set up the slave (not connected, everything locked, no DAQ). FW_E_NULL,
+ * FW_E_CONFIG when a region does not lie within 4 GiB above address_base or
+ * the transport has no send. */
+fw_status fw_xcp_init(fw_xcp *x, const fw_xcp_config *cfg);
+
+/* Hook the slave into the application: its step event and the calibration
+ * hand-over (fw_app_set_step_hooks), and fill the signals once. FW_E_CONFIG
+ * when a neuron has more than FW_XCP_TERMS terms. */
+fw_status fw_xcp_attach(fw_xcp *x, fw_app *app);
+
+/* Handle one command packet (CTO, without the transport header), sent at
+ * now_ns on the application's clock; the response goes out through the
+ * transport. FW_OK when answered positively, FW_E_RANGE when answered with
+ * an error packet, FW_E_STATE when ignored (not connected), FW_E_HAL when
+ * the response could not be sent, FW_E_NULL, FW_E_NOT_INIT. */
+fw_status fw_xcp_on_command(fw_xcp *x, fw_app *app, const uint8_t *cto, size_t len, uint64_t now_ns);
+
+/* The XCP error code of the last error packet sent (0 when none). */
+uint8_t fw_xcp_last_error(const fw_xcp *x);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* FW_XCP_H */

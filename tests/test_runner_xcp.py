@@ -1,0 +1,283 @@
+"""The Linux runner's XCP slave (firmware_sim/app/fw_xcp.c, --xcp-udp) with
+the A2L that firmware_sim/tools/make_a2l.py writes, read by pya2ldb and
+driven by pyxcp as the master while the HIL rig's frames replay over
+udp_multicast.
+
+- The A2L is parsed by pya2ldb: its measurements and characteristic sit at
+  the runner's symbols (nm) relative to __executable_start, and its
+  IF_DATA XCP names XCP on UDP, the step event and the timestamps.
+- pyxcp connects; GET_ID is the A2L's name; a wrong key is refused and
+  disconnects; DAQ on the step event carries the weights and the health,
+  and every step's sample arrives or is counted lost with its reason (the
+  slave's transport refused it, or the master's receive queue dropped it);
+  DOWNLOAD of learning off freezes the weights in the DAQ stream from the
+  next step on.
+"""
+from __future__ import annotations
+
+import importlib.util
+import re
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+can = pytest.importorskip("can")
+pya2l = pytest.importorskip("pya2l")
+pytest.importorskip("pyxcp")
+cmac_mod = pytest.importorskip("cryptography.hazmat.primitives.cmac")
+
+from cryptography.hazmat.primitives.ciphers import algorithms  # noqa: E402
+from pya2l import model  # noqa: E402
+from pyxcp import Master  # noqa: E402
+from pyxcp.config import create_application_from_config, set_application  # noqa: E402
+from pyxcp.daq_stim import DaqList, DaqOnlinePolicy  # noqa: E402
+from pyxcp.types import XcpResponseError  # noqa: E402
+
+from pyrhonn.firmware import TEST_KEY, database  # noqa: E402
+
+from hil.scenario import Scenario  # noqa: E402
+from hil.transport import UDP_GROUP, free_port  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+FW = ROOT / "firmware_sim"
+ESTIMATE = database().get_message_by_name("Estimate").frame_id
+WEIGHTS = [(0, t) for t in range(2)] + [(i, t) for i in (1, 2, 3) for t in range(5)] + \
+    [(i, t) for i in (4, 5) for t in range(6)]
+
+
+def _module(name: str, path: Path) -> Any:
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    assert spec.loader is not None
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def runner_exe(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    if shutil.which("cc") is None and shutil.which("gcc") is None:
+        pytest.skip("no C compiler to build rhonn_runner")
+    build = _module("_build_runner_xcp", FW / "linux" / "build_runner.py")
+    return build.cached(tmp_path_factory.getbasetemp() / "runner-cache")
+
+
+@pytest.fixture(scope="module")
+def make_a2l() -> Any:
+    return _module("_make_a2l", FW / "tools" / "make_a2l.py")
+
+
+@pytest.fixture(scope="module")
+def a2l(runner_exe: Path, make_a2l: Any, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """The A2L of the runner, parsed by pya2ldb: name, addresses, IF_DATA."""
+    out = tmp_path_factory.mktemp("a2l") / "rhonn_lim.a2l"
+    assert make_a2l.main([str(runner_exe), str(out), "--port", "5555"]) == 0
+    session = pya2l.import_a2l(str(out), in_memory=True, progress_bar=False, loglevel="ERROR")
+    try:
+        measurements = {m.name: (m.ecu_address.address, m.datatype) for m in session.query(model.Measurement)}
+        characteristics = {c.name: c.address for c in session.query(model.Characteristic)}
+        units = {c.name: c.unit for c in session.query(model.CompuMethod)}
+        project = session.query(model.Project).one().name
+        module = session.query(model.Module).one()
+        from pya2l.aml.ifdata_parser import IfDataParser
+
+        if_data = IfDataParser(session).parse(module.if_data[0].raw)
+    finally:
+        session.close()
+    return {"path": out, "measurements": measurements, "characteristics": characteristics, "units": units,
+            "project": project, "if_data": if_data}
+
+
+def _nm(exe: Path) -> dict[str, int]:
+    out = subprocess.run(["nm", "--defined-only", str(exe)], check=True, capture_output=True, text=True).stdout
+    return {p[2]: int(p[0], 16) for p in (ln.split() for ln in out.splitlines()) if len(p) == 3}
+
+
+def test_the_a2l_places_every_signal_at_the_runners_symbols_and_pya2ldb_reads_it(a2l, runner_exe) -> None:
+    syms = _nm(runner_exe)
+    sig = syms["rhonn_xcp_signals"] - syms["__executable_start"]
+    cal = syms["rhonn_xcp_calibration"] - syms["__executable_start"]
+    m = a2l["measurements"]
+    assert a2l["project"] == "RHONN_LIM"
+    assert [k for k in m if k.startswith("w")] == [f"w{i}_{t}" for i, t in WEIGHTS]
+    assert m["w0_0"] == (sig, "FLOAT32_IEEE") and m["w4_5"] == (sig + 4 * (4 * 12 + 5), "FLOAT32_IEEE")
+    assert m["xhat_ia"][0] == sig + 288 + 16 and m["measurements"] == (sig + 504, "ULONG")
+    assert {"nis_5", "trace_p_0", "innovation_qm", "updates_3", "gated_2", "daq_dto_lost"} <= set(m)
+    assert a2l["characteristics"] == {"learning": cal}
+    assert a2l["units"]["CM_IA"] == "A" and a2l["units"]["CM_QM"] == "m"
+    xcp = a2l["if_data"]["XCP"][0]
+    assert xcp["XCP_ON_UDP_IP"] == [0x0104, 5555, {"ADDRESS": "127.0.0.1"}]
+    daq = xcp["DAQ"]
+    assert daq[0] == "DYNAMIC" and daq[-1]["EVENT"] == [["step", "step", 0, "DAQ", 255, 0, 0, 0]]
+    assert daq[-1]["TIMESTAMP_SUPPORTED"][:3] == [1, "SIZE_DWORD", "UNIT_1US"]
+
+
+def test_make_a2l_refuses_an_image_without_the_slave_and_bad_arguments(make_a2l, tmp_path, capsys) -> None:
+    out = tmp_path / "x.a2l"
+    assert make_a2l.main([shutil.which("true") or "/bin/true", str(out)]) == 1
+    assert "defines no" in capsys.readouterr().err and not out.exists()
+    assert make_a2l.main([str(tmp_path / "missing"), str(out)]) == 1
+    assert "runner: no such file" in capsys.readouterr().err
+    layout = make_a2l.read_layout()
+    with pytest.raises(ValueError, match="port"):
+        make_a2l.a2l_text(layout, {"rhonn_xcp_signals": 0, "rhonn_xcp_calibration": 600}, "127.0.0.1", 70000)
+    with pytest.raises(ValueError, match="host"):
+        make_a2l.a2l_text(layout, {"rhonn_xcp_signals": 0, "rhonn_xcp_calibration": 600}, "localhost", 5555)
+
+
+# -- pyxcp against the runner during a replay ----------------------------------------------------------
+
+
+def _key(resource: int, seed: bytes) -> bytes:
+    mac = cmac_mod.CMAC(algorithms.AES(TEST_KEY))
+    mac.update(seed)
+    return mac.finalize()
+
+
+def _wrong_key(resource: int, seed: bytes) -> bytes:
+    key = bytearray(_key(resource, seed))
+    key[0] ^= 1
+    return bytes(key)
+
+
+class _Samples(DaqOnlinePolicy):
+    """Every DAQ sample: (list, slave timestamp in ns, {measurement: value}). pyxcp packs the ODTs by
+    address, so the payload follows the list's headers, not the order the measurements were given in."""
+
+    def __init__(self, lists: list[DaqList]) -> None:
+        super().__init__(lists)
+        self.rows: list[tuple[int, int, dict[str, float]]] = []
+
+    def on_daq_list(self, daq_list: int, timestamp0: int, timestamp1: int, payload: list) -> None:
+        names = [h[0] for h in self.daq_lists[daq_list].headers]
+        self.rows.append((daq_list, timestamp1, dict(zip(names, payload))))
+
+
+def _udp_drops(port: int) -> int:
+    """The kernel's count of datagrams the socket bound to 127.0.0.1:port dropped (/proc/net/udp)."""
+    want = f"0100007F:{port:04X}"
+    for line in Path("/proc/net/udp").read_text().splitlines()[1:]:
+        f = line.split()
+        if f[1] == want:
+            return int(f[-1])
+    return 0
+
+
+@pytest.fixture()
+def runner(runner_exe: Path) -> Iterator[tuple[subprocess.Popen, int, int]]:
+    """The runner on udp_multicast with --xcp-udp on a free port: (process, group port, XCP port)."""
+    port = free_port()
+    proc = subprocess.Popen([str(runner_exe), "--udp-multicast", f"{UDP_GROUP}:{port}", "--duration", "120",
+                             "--diag-period", "0", "--xcp-udp", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        first = proc.stdout.readline()
+        match = re.match(r"xcp: udp 127\.0\.0\.1:(\d+), A2L RHONN_LIM", first)
+        assert match, (first, proc.stderr.read() if proc.poll() is not None else "")
+        assert proc.stdout.readline().startswith("rhonn_runner: listening on udp_multicast")
+        yield proc, port, int(match.group(1))
+    finally:
+        proc.terminate()
+        out, err = proc.communicate(timeout=10)
+        print(out, err)  # the runner's statistics, shown when the test fails
+
+
+def _replay(bus: can.BusABC, frames: list[can.Message]) -> int:
+    """Send the rig's Measurements one by one, each once its Estimate came back; the number answered."""
+    answered = 0
+    for f in frames:
+        bus.send(f)
+        deadline = time.monotonic() + 2.0
+        while time.monotonic() < deadline:
+            msg = bus.recv(timeout=0.5)
+            if msg is not None and msg.arbitration_id == ESTIMATE:
+                answered += 1
+                break
+    return answered
+
+
+def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None:
+    proc, group_port, xcp_port = runner
+    m = a2l["measurements"]
+    app = create_application_from_config({"Transport": {"Eth": {"host": "127.0.0.1", "port": xcp_port,
+                                                                "protocol": "UDP"}}})
+    app.general.seed_n_key_function = _wrong_key
+    app.general.disable_error_handling = True  # an error response raises, instead of pyxcp's retry policy
+    app.transport.timeout = 10.0                # a loaded CI machine may answer late; never a lost answer
+    set_application(app)
+    weights = [(f"w{i}_{t}", m[f"w{i}_{t}"][0], 0, "F32") for i, t in WEIGHTS]
+    health = [(f"{k}_{i}", m[f"{k}_{i}"][0], 0, "F32") for k in ("nis", "trace_p") for i in range(6)]
+    meas = ("measurements", m["measurements"][0], 0, "U32")
+    policy = _Samples([DaqList(name="weights", event_num=0, stim=False, enable_timestamps=True,
+                               measurements=[meas, *weights], priority=0, prescaler=1),
+                       DaqList(name="health", event_num=0, stim=False, enable_timestamps=True,
+                               measurements=[meas, *health], priority=0, prescaler=1)])
+    frames = Scenario(duration=1600 * 3e-4, start=2.0, frame_loss=0.0, seed=5).build().frames()[:1600]
+    bus = can.Bus(interface="udp_multicast", channel=UDP_GROUP, port=group_port, receive_own_messages=False)
+    try:
+        with Master("eth", config=app, policy=policy) as x:
+            x.connect()
+            assert x.identifier(1) == a2l["project"]
+            # a wrong key: refused, and the slave disconnects (CONNECT again)
+            with pytest.raises(XcpResponseError, match="ACCESS_LOCKED"):
+                x.cond_unlock("calpag")
+            x.connect()
+            x.setMta(a2l["characteristics"]["learning"])
+            with pytest.raises(XcpResponseError, match="ACCESS_LOCKED"):
+                x.download(b"\x00")
+            x.seed_n_key_function = _key
+            x.cond_unlock()
+            assert not any(x.getCurrentProtectionStatus().values())
+            local_port = x.transport.sock.getsockname()[1]
+            drops0 = _udp_drops(local_port)
+
+            policy.setup()
+            policy.start()
+            answered = _replay(bus, frames[:800])
+            stepped_on = int.from_bytes(x.shortUpload(4, m["measurements"][0]), "little")
+            x.setMta(a2l["characteristics"]["learning"])
+            x.download(b"\x00")                            # learning off: taken before the next step
+            answered += _replay(bus, frames[800:])
+            time.sleep(0.3)
+            policy.stop()
+            counters = {k: int.from_bytes(x.shortUpload(4, m[k][0]), "little")
+                        for k in ("measurements", "events", "daq_dto_sent", "daq_dto_lost", "learning_state")}
+            x.setMta(a2l["characteristics"]["learning"])
+            assert x.upload(1) == b"\x00"
+            drops = _udp_drops(local_port) - drops0
+            x.disconnect()
+    finally:
+        bus.shutdown()
+
+    assert answered == len(frames) == counters["measurements"] == counters["events"]
+    assert counters["learning_state"] == 0
+    w_names = [w[0] for w in weights]
+    h_names = [h[0] for h in health]
+    by_list: dict[int, list[tuple[int, int, list[float]]]] = {0: [], 1: []}
+    for daq_list, ts, values in policy.rows:
+        names = w_names if daq_list == 0 else h_names
+        by_list[daq_list].append((int(values["measurements"]), ts, [values[k] for k in names]))
+    lost_reasons = counters["daq_dto_lost"] + drops
+    for rows in by_list.values():
+        steps = [r[0] for r in rows]
+        assert steps == sorted(set(steps))                    # once each, in order
+        missing = (steps[-1] - steps[0] + 1) - len(steps)     # steps between the first and last sample
+        assert missing <= lost_reasons                        # each lost sample lost a packet, counted
+        assert steps[0] <= 2 and steps[-1] == len(frames)
+        stamps = [r[1] for r in rows]
+        assert all(b > a for a, b in zip(stamps, stamps[1:]))  # the slave's 1 us step timestamps
+    if lost_reasons == 0:
+        assert [r[0] for r in by_list[0]] == list(range(by_list[0][0][0], len(frames) + 1))
+    # learning on: the weights move; learning off from step stepped_on + 1: frozen
+    before = [r[2] for r in by_list[0] if r[0] <= stepped_on]
+    after = [r[2] for r in by_list[0] if r[0] >= stepped_on]
+    assert len({tuple(w) for w in before}) > 100
+    assert len(after) > 700 and all(w == after[0] for w in after)
+    # the health list: trace P of every neuron positive
+    assert all(all(v > 0 for v in r[2][6:]) for r in by_list[1])
