@@ -11,7 +11,11 @@ that are never written by hand, so they cannot go stale:
 - ``reference/c-api.md``: every declaration of the C headers with the comment
   above it, then each header whole;
 - ``firmware_sim/index.md`` and ``hil/index.md``: those folders' READMEs (and
-  their figures), with links into ``docs/`` pointing into the site.
+  their figures), with links into ``docs/`` pointing into the site;
+- ``changelog.md`` from ``CHANGELOG.md``, when there is one.
+
+:func:`on_config` adds the pages of :data:`OPTIONAL_PAGES` to the navigation
+once they exist.
 
 :func:`on_page_markdown` replaces each ``{{ NAME }}`` of a page with a figure
 measured as the site is built (:func:`_measured`: ``sizeof(rhonn_t)`` for the
@@ -37,19 +41,29 @@ def _cli_page() -> str:
            "Generated from the `pyrhonn` argument parser when the site is built: every command, "
            "every option, with its help text. `pyrhonn COMMAND --help` prints the same.", ""]
 
-    def walk(parser: argparse.ArgumentParser, path: list[str], level: int) -> None:
+    def walk(parser: argparse.ArgumentParser, path: list[str], level: int, summary: str | None) -> None:
         sub = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
         helps = {c.dest: c.help for a in sub for c in a._choices_actions}
         if path:
             out.extend([f"{'#' * level} `{' '.join(path)}`", ""])
+            if summary:
+                out.extend([summary[0].upper() + summary[1:] + ".", ""])
         out.extend(["```text", parser.format_help().rstrip(), "```", ""])
         for action in sub:
             for name, child in action.choices.items():
-                if helps.get(name):
-                    out.extend([f"<!-- {name}: {helps[name]} -->"])
-                walk(child, [*path, name] if path else ["pyrhonn", name], min(level + 1, 4))
+                walk(child, [*path, name] if path else ["pyrhonn", name], min(level + 1, 4), helps.get(name))
 
-    walk(build_parser(), [], 2)
+    import os
+
+    width = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = "100"  # argparse wraps to the terminal: the page must not depend on it
+    try:
+        walk(build_parser(), [], 1, None)
+    finally:
+        if width is None:
+            del os.environ["COLUMNS"]
+        else:
+            os.environ["COLUMNS"] = width
     return "\n".join(out) + "\n"
 
 
@@ -150,12 +164,58 @@ def _measured() -> dict[str, str]:
     }
 
 
+# Pages other parts of the project add: each joins its section of the navigation once it exists
+# (a nav entry for a missing page would fail the strict build). CHANGELOG.md at the top of the
+# repository becomes the site's changelog.md.
+OPTIONAL_PAGES = (
+    ("How-to guides", "Run the identifier as an FMU", "fmu.md"),
+    ("How-to guides", "Calibrate and measure over XCP", "xcp.md"),
+    ("How-to guides", "Work with recordings", "recordings.md"),
+    ("How-to guides", "Read HIL verdicts", "hil-verdicts.md"),
+    ("Contributing", "Development", "development.md"),
+    ("Contributing", "Changelog", "changelog.md"),
+)
+
+
+def on_config(config: Any) -> Any:
+    docs = Path(config["docs_dir"])
+    present = {page for _, _, page in OPTIONAL_PAGES if (docs / page).is_file()}
+    if (ROOT / "CHANGELOG.md").is_file() and not (docs / "changelog.md").exists():
+        present.add("changelog.md")
+    listed = set(_walk(config["nav"] or []))
+    for section, title, page in OPTIONAL_PAGES:
+        if page not in present or page in listed:
+            continue
+        for entry in config["nav"]:
+            if isinstance(entry, dict) and section in entry:
+                entry[section].append({title: page})
+                break
+        else:
+            config["nav"].append({section: [{title: page}]})
+    return config
+
+
+def _walk(nav: list[Any]) -> list[str]:
+    """Every page file named in a nav (sub)tree."""
+    out: list[str] = []
+    for entry in nav:
+        if isinstance(entry, str):
+            out.append(entry)
+        elif isinstance(entry, dict):
+            for value in entry.values():
+                out.extend(_walk(value) if isinstance(value, list) else [value])
+    return out
+
+
 def on_files(files: Files, config: Any) -> Files:
     pages = {"reference/cli.md": _cli_page(), "reference/config.md": _config_page(),
              "reference/c-api.md": _c_page(), "firmware_sim/index.md": _readme_page("firmware_sim"),
              "hil/index.md": _readme_page("hil")}
     for uri, content in pages.items():
         files.append(File.generated(config, uri, content=content))
+    if (ROOT / "CHANGELOG.md").is_file() and files.get_file_from_path("changelog.md") is None:
+        text = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")  # its links are relative to the top
+        files.append(File.generated(config, "changelog.md", content=re.sub(r"\]\(docs/", "](", text)))
     for png in sorted((ROOT / "hil" / "docs").glob("*.png")):
         files.append(File.generated(config, f"hil/docs/{png.name}", abs_src_path=str(png)))
     return files
