@@ -2,7 +2,9 @@
 #   make reproduce  set up .venv, build and install pyrhonn, reproduce the
 #                   paper's Tables 1-6 (pyrhonn reproduce all) into reproduce-out/
 #   make bench   set up .venv, build and install pyrhonn, run the benchmarks
-#   make test    set up .venv, run the Python tests, then again with every
+#   make docs    set up .venv, build the documentation site into site/ (mkdocs
+#                --strict: a warning or a broken link fails it)
+#   make test    set up .venv, build the docs, run the Python tests, then again with every
 #                CPU busy (stress-ng; SKIP_LOADED=1 skips it), then the C tests
 #                under CTest (plain, then with AddressSanitizer + UBSan), then
 #                the SocketCAN tests inside a VM with vcan0 (SKIP_VM=1 skips it)
@@ -11,7 +13,7 @@ VENV   ?= .venv
 BUILD  ?= build
 JOBS   ?= 2
 
-.PHONY: venv reproduce bench test test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm clean
+.PHONY: venv reproduce bench docs test test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm clean
 
 venv:
 	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
@@ -30,7 +32,12 @@ bench: venv
 	$(VENV)/bin/python bench/bench_core_vs_dense.py
 	$(VENV)/bin/python bench/bench_real_data.py
 
-test: venv test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm
+test: venv docs test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm
+
+# The site's reference pages are generated from the installed package
+# (docs_hooks.py): the CLI from its parser, the config keys, the C headers.
+docs: venv
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet --site-dir site
 
 # Run from tests/ so the source tree's pyrhonn/ (without compiled
 # extensions) cannot shadow the installed package.

@@ -137,3 +137,135 @@ def test_plants_md_lim_constants_match_the_code():
     for name, value in stated.items():
         digits = len(value.lstrip("-").split("e")[0].replace(".", "").lstrip("0"))
         assert getattr(k, name) == pytest.approx(float(value), rel=0.6 * 10.0 ** (1 - digits)), name
+
+
+# -- every code example of the README and the docs site runs ----------------------------------------
+#
+# The convention (stated in docs/contributing-docs.md):
+# - ```python blocks are executed, ```bash blocks run with `bash -e`, ```c blocks compiled against the
+#   core (csrc/include); a page's blocks run in order in one fresh folder (a later block may use a file
+#   an earlier one wrote), with `csrc` linked into it and the installed `pyrhonn` on PATH.
+# - `<!-- docs-test: file NAME -->` on the line before a block writes the block to NAME instead (a C
+#   file a later ```bash block builds, a CSV a command reads); an unnamed ```c block is compiled alone.
+# - `<!-- docs-test: skip REASON -->` before a block leaves it out; a REASON is required.
+# - `<!-- docs-test: transcript -->` before a ```console block runs each `$ ` command in it and
+#   requires the lines after it, up to the next `$ ` line, to be exactly what the command prints.
+# - ```console (a transcript: a `$ ` command and its output), ```sh (a command that needs what a test
+#   does not have: your own recordings, a CAN interface, a database, a long run), ```toml and ```csv
+#   are shown, not run.
+
+import os
+import shlex
+import shutil
+import sys
+
+PAGES = sorted([ROOT / "README.md", *(ROOT / "docs").glob("*.md")])
+RUNNABLE = ("python", "bash", "c")
+BLOCK = re.compile(r"(?:^<!-- docs-test: (?P<marker>[a-z]+)(?: (?P<arg>[^\n]*?))? -->\n)?"
+                   r"^```(?P<lang>[A-Za-z0-9_+-]*)[^\n]*\n(?P<body>.*?)^```[ \t]*$", re.M | re.S)
+CC = shutil.which("cc") or shutil.which("gcc")
+
+
+def code_blocks(markdown: str) -> list[tuple[str, str, str | None, str | None]]:
+    """``(lang, body, marker, arg)`` of every fenced block of a page, in order."""
+    return [(m["lang"], m["body"], m["marker"], m["arg"]) for m in BLOCK.finditer(markdown)]
+
+
+def test_code_block_reader_reads_languages_markers_and_bodies():
+    text = ("intro\n```python\nprint(1)\n```\n<!-- docs-test: skip needs a CAN bus -->\n```bash\ncandump x\n```\n"
+            "<!-- docs-test: file app.c -->\n```c\nint main(void) { return 0; }\n```\n```console\n$ ls\n```\n")
+    assert code_blocks(text) == [("python", "print(1)\n", None, None), ("bash", "candump x\n", "skip", "needs a CAN bus"),
+                                 ("c", "int main(void) { return 0; }\n", "file", "app.c"),
+                                 ("console", "$ ls\n", None, None)]
+
+
+def _runnable_pages() -> list[Path]:
+    return [p for p in PAGES if any((lang in RUNNABLE and marker != "skip") or marker == "transcript"
+                                    for lang, _, marker, _ in code_blocks(p.read_text(encoding="utf-8")))]
+
+
+def transcript_steps(body: str) -> list[tuple[str, str]]:
+    """``(command, expected output)`` of each `$ ` line of a console transcript."""
+    steps: list[tuple[str, list[str]]] = []
+    for line in body.splitlines():
+        if line.startswith("$ "):
+            steps.append((line[2:], []))
+        else:
+            steps[-1][1].append(line.rstrip())
+    return [(cmd, "\n".join(out).strip("\n")) for cmd, out in steps]
+
+
+def test_transcript_reader_pairs_commands_with_their_output():
+    assert transcript_steps("$ a x\none\ntwo  \n$ b\n") == [("a x", "one\ntwo"), ("b", "")]
+
+
+def test_markers_name_a_known_action_with_its_argument():
+    for page in PAGES:
+        for lang, body, marker, arg in code_blocks(page.read_text(encoding="utf-8")):
+            where = f"{page.relative_to(ROOT)}: a ```{lang} block"
+            assert marker in (None, "skip", "file", "transcript"), f"{where}: unknown marker {marker!r}"
+            assert (marker in (None, "transcript")) == (not arg), \
+                f"{where}: `docs-test: {marker}` takes {'no argument' if marker == 'transcript' else 'a reason or file name'}"
+            if marker == "transcript":
+                assert lang == "console" and body.startswith("$ "), f"{where}: a transcript is a ```console block of `$ ` lines"
+            if marker == "file":
+                assert "/" not in arg and not arg.startswith("."), f"{where}: file {arg!r} must be a plain name"
+
+
+def test_readme_and_docs_hold_runnable_examples():
+    # the README's three journeys at least: a change of fence or marker must not make them vanish
+    langs = [lang for lang, _, marker, _ in code_blocks((ROOT / "README.md").read_text(encoding="utf-8"))
+             if marker != "skip"]
+    assert {"python", "bash", "c"} <= set(langs), langs
+    assert len(_runnable_pages()) >= 3
+
+
+def _run(cmd: list[str], cwd: Path, what: str) -> str:
+    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}",
+               MPLBACKEND="Agg")
+    env.pop("PYTHONPATH", None)
+    res = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=300, check=False)
+    assert res.returncode == 0, f"{what} failed (exit {res.returncode}):\n{res.stdout[-3000:]}\n{res.stderr[-3000:]}"
+    return res.stdout + res.stderr
+
+
+@pytest.mark.parametrize("page", _runnable_pages(), ids=lambda p: p.relative_to(ROOT).as_posix())
+def test_code_examples_run_as_written(page: Path, tmp_path: Path, checkout) -> None:
+    if CC is None:
+        pytest.skip("no C compiler (cc) on PATH")
+    (tmp_path / "csrc").symlink_to(ROOT / "csrc", target_is_directory=True)
+    for n, (lang, body, marker, arg) in enumerate(code_blocks(page.read_text(encoding="utf-8"))):
+        what = f"{page.relative_to(ROOT)}, block {n + 1} (```{lang})"
+        if marker == "skip":
+            continue
+        if marker == "file":
+            (tmp_path / arg).write_text(body, encoding="utf-8")
+            continue
+        if marker == "transcript":
+            for cmd, expected in transcript_steps(body):
+                printed = "\n".join(line.rstrip() for line in _run(["bash", "-ec", cmd], tmp_path, what).splitlines())
+                assert printed.strip("\n") == expected, f"{what}: `{cmd}` prints\n{printed}\nnot\n{expected}"
+            continue
+        if lang == "python":
+            script = tmp_path / f"block{n + 1}.py"
+            script.write_text(body, encoding="utf-8")
+            _run([sys.executable, script.name], tmp_path, what)
+        elif lang == "bash":
+            script = tmp_path / f"block{n + 1}.sh"
+            script.write_text(body, encoding="utf-8")
+            _run(["bash", "-e", script.name], tmp_path, what)
+        elif lang == "c":
+            source = tmp_path / f"block{n + 1}.c"
+            source.write_text(body, encoding="utf-8")
+            _run([*shlex.split(CC), "-std=c99", "-Wall", "-Werror", "-fsyntax-only", f"-I{ROOT / 'csrc' / 'include'}",
+                  "-I.", source.name], tmp_path, what)
+
+
+def test_readme_links_point_to_files_of_the_repository():
+    # on a code host the README is read as it is: its links must reach files that exist, not pages
+    # the site generates when it is built
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    targets = [t.split("#")[0] for t in re.findall(r"\]\(([^)\s]+)\)", text) if "://" not in t and not t.startswith("#")]
+    assert targets, "the README links to nothing"
+    missing = [t for t in targets if not (ROOT / t).exists()]
+    assert not missing, f"README.md links to missing files: {missing}"

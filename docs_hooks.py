@@ -1,0 +1,238 @@
+"""MkDocs hooks: the reference pages generated from the code at build time.
+
+``mkdocs build`` (see ``mkdocs.yml``) calls :func:`on_files`, which adds pages
+that are never written by hand, so they cannot go stale:
+
+- ``reference/cli.md``: every ``pyrhonn`` command and option, walked from the
+  argparse parser the command line itself builds (``hil`` included, through
+  its entry point);
+- ``reference/config.md``: the config file format from :mod:`pyrhonn.configfile`
+  (its documented example and rules) and the keys it accepts;
+- ``reference/c-api.md``: every declaration of the C headers with the comment
+  above it, then each header whole;
+- ``firmware_sim/index.md`` and ``hil/index.md``: those folders' READMEs (and
+  their figures), with links into ``docs/`` pointing into the site;
+- ``changelog.md`` from ``CHANGELOG.md``, when there is one.
+
+:func:`on_config` adds the pages of :data:`OPTIONAL_PAGES` to the navigation
+once they exist.
+
+:func:`on_page_markdown` replaces each ``{{ NAME }}`` of a page with a figure
+measured as the site is built (:func:`_measured`: ``sizeof(rhonn_t)`` for the
+capacities the pages discuss), so no page quotes a stale size.
+"""
+from __future__ import annotations
+
+import argparse
+import re
+from pathlib import Path
+from typing import Any
+
+from mkdocs.structure.files import File, Files
+
+ROOT = Path(__file__).resolve().parent
+HEADERS = ("rhonn.h", "rhonn_capacity.h", "rhonn_warm.h", "rhonn_population.h")
+
+
+def _cli_page() -> str:
+    from pyrhonn.cli import build_parser
+
+    out = ["# Command line reference", "",
+           "Generated from the `pyrhonn` argument parser when the site is built: every command, "
+           "every option, with its help text. `pyrhonn COMMAND --help` prints the same.", ""]
+
+    def walk(parser: argparse.ArgumentParser, path: list[str], level: int, summary: str | None) -> None:
+        sub = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+        helps = {c.dest: c.help for a in sub for c in a._choices_actions}
+        if path:
+            out.extend([f"{'#' * level} `{' '.join(path)}`", ""])
+            if summary:
+                out.extend([summary[0].upper() + summary[1:] + ".", ""])
+        out.extend(["```text", parser.format_help().rstrip(), "```", ""])
+        for action in sub:
+            for name, child in action.choices.items():
+                walk(child, [*path, name] if path else ["pyrhonn", name], min(level + 1, 4), helps.get(name))
+
+    import os
+
+    width = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = "100"  # argparse wraps to the terminal: the page must not depend on it
+    try:
+        walk(build_parser(), [], 1, None)
+    finally:
+        if width is None:
+            del os.environ["COLUMNS"]
+        else:
+            os.environ["COLUMNS"] = width
+    return "\n".join(out) + "\n"
+
+
+def _config_page() -> str:
+    from pyrhonn import configfile
+
+    doc = configfile.__doc__ or ""
+    title, _, body = doc.strip().partition("\n")
+    example, _, rules = body.partition("Rules\n-----")
+    example = re.sub(r"::\n\n((?:    .*\n|\n)+)", lambda m: ":\n\n```toml\n"
+                     + re.sub(r"^    ", "", m.group(1), flags=re.M).strip("\n") + "\n```\n\n", example + "\n")
+    rst_role = re.compile(r":(?:class|func|mod|meth|data|attr):`~?([^`]+)`")
+    keys = [
+        ("top level", configfile._TOP_KEYS),
+        ("`[defaults]` (inherited by every neuron)", configfile.TUNING_KEYS + configfile.PROTECTION_KEYS),
+        ("each `[[neurons]]` table", configfile._NEURON_KEYS),
+    ]
+    out = ["# Config file reference", "", "Generated from `pyrhonn/configfile.py` when the site is built.", "",
+           rst_role.sub(r"`\1`", title.replace("``", "`")), "", "## Keys", "", "| table | keys accepted |",
+           "| --- | --- |"]
+    out += [f"| {where} | {', '.join(f'`{k}`' for k in ks)} |" for where, ks in keys]
+    out += ["", "Any other key is an error that names it.", "", "## Example", "",
+            rst_role.sub(r"`\1`", example.replace("``", "`")).strip(), "", "## Rules", "",
+            rst_role.sub(r"`\1`", rules.replace("``", "`")).strip(), ""]
+    return "\n".join(out)
+
+
+_DECL = re.compile(r"/\*((?:(?!\*/).)*)\*/\s*\n((?:typedef |rhonn_|const char|void |int |size_t |uint)[^;{]*(?:;|\{))",
+                   re.S)
+
+
+def _c_page() -> str:
+    out = ["# C API reference", "",
+           "Generated from the headers in `csrc/include/` when the site is built: first every "
+           "function with the comment that documents it, then each header whole (its opening "
+           "comment explains the step's order, the errors and the precision).", ""]
+    for name in HEADERS:
+        text = (ROOT / "csrc" / "include" / name).read_text(encoding="utf-8")
+        decls = []
+        for comment, decl in _DECL.findall(text):
+            decl = " ".join(decl.split()).rstrip("{").strip()
+            if "(" not in decl or decl.startswith("typedef"):
+                continue
+            fn = re.search(r"(\w+)\s*\(", decl)
+            lines = [re.sub(r"^\s*\* ?", "", ln).rstrip() for ln in comment.strip("*\n ").splitlines()]
+            decls.append((fn.group(1) if fn else decl, decl, "\n".join(lines).strip()))
+        out.extend([f"## `{name}`", ""])
+        for fn, decl, comment in decls:
+            out.extend([f"### `{fn}`", "", "```c", decl, "```", "", "```text", comment, "```", ""])
+        out.extend([f"### `{name}` in full", "", "```c", text.rstrip(), "```", ""])
+    return "\n".join(out)
+
+
+def _readme_page(folder: str) -> str:
+    text = (ROOT / folder / "README.md").read_text(encoding="utf-8")
+    return re.sub(r"\]\(\.\./docs/", "](../", text)
+
+
+# Capacities whose sizeof(rhonn_t) the pages quote: the defaults of rhonn_capacity.h, those the
+# Cortex-M4F image is built with (firmware_sim/cortex_m4/run_m4.py) and the smallest that hold the
+# shipped firmware-lim identifier (what `pyrhonn export` writes).
+_M4_CAPACITIES = {"RHONN_MAX_STATES": 6, "RHONN_MAX_INPUTS": 2, "RHONN_MAX_TERMS": 8, "RHONN_MAX_FACTORS": 2,
+                  "RHONN_MAX_DELAY": 1, "RHONN_MAX_POWER": 2}
+
+
+def _sizeof(defines: dict[str, int], *flags: str) -> str:
+    """sizeof(rhonn_t) with these capacities and flags, from a probe compiled with the host's cc
+    against csrc/include (x86-64, AArch64 and Arm EABI lay rhonn_t out alike)."""
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="pyrhonn-docs-") as tmp:
+        probe = Path(tmp) / "probe.c"
+        probe.write_text('#include <stdio.h>\n#include "rhonn.h"\n'
+                         'int main(void) { printf("%lu", (unsigned long)sizeof(rhonn_t)); return 0; }\n')
+        subprocess.run(["cc", "-std=c99", *flags, *(f"-D{k}={v}" for k, v in defines.items()),
+                        f"-I{ROOT / 'csrc' / 'include'}", str(probe), "-o", str(probe.with_suffix(""))],
+                       check=True, capture_output=True)
+        out = subprocess.run([str(probe.with_suffix(""))], check=True, capture_output=True, text=True).stdout
+    return f"{int(out):,}"
+
+
+def _measured() -> dict[str, str]:
+    from pyrhonn.configfile import load_named
+    from pyrhonn.export import min_capacities
+
+    lim = min_capacities(load_named("firmware-lim").config)
+    single, const = "-DRHONN_SINGLE", "-DRHONN_CONST_CONFIG=1"
+    return {
+        "sizeof_rhonn_t.float64": _sizeof({}),
+        "sizeof_rhonn_t.float32": _sizeof({}, single),
+        "sizeof_rhonn_t.float32.const": _sizeof({}, single, const),
+        "sizeof_rhonn_t.m4": _sizeof(_M4_CAPACITIES, single),
+        "sizeof_rhonn_t.m4.const": _sizeof(_M4_CAPACITIES, single, const),
+        "sizeof_rhonn_t.firmware_lim.float32": _sizeof(lim, single),
+        "sizeof_rhonn_t.firmware_lim.float64": _sizeof(lim),
+        "firmware_lim.capacities": ", ".join(f"`{k} {v}`" for k, v in lim.items()),
+    }
+
+
+# Pages other parts of the project add: each joins its section of the navigation once it exists
+# (a nav entry for a missing page would fail the strict build). CHANGELOG.md at the top of the
+# repository becomes the site's changelog.md.
+OPTIONAL_PAGES = (
+    ("How-to guides", "Run the identifier as an FMU", "fmu.md"),
+    ("How-to guides", "Calibrate and measure over XCP", "xcp.md"),
+    ("How-to guides", "Work with recordings", "recordings.md"),
+    ("How-to guides", "Read HIL verdicts", "hil-verdicts.md"),
+    ("Contributing", "Development", "development.md"),
+    ("Contributing", "Changelog", "changelog.md"),
+)
+
+
+def on_config(config: Any) -> Any:
+    docs = Path(config["docs_dir"])
+    present = {page for _, _, page in OPTIONAL_PAGES if (docs / page).is_file()}
+    if (ROOT / "CHANGELOG.md").is_file() and not (docs / "changelog.md").exists():
+        present.add("changelog.md")
+    listed = set(_walk(config["nav"] or []))
+    for section, title, page in OPTIONAL_PAGES:
+        if page not in present or page in listed:
+            continue
+        for entry in config["nav"]:
+            if isinstance(entry, dict) and section in entry:
+                entry[section].append({title: page})
+                break
+        else:
+            config["nav"].append({section: [{title: page}]})
+    return config
+
+
+def _walk(nav: list[Any]) -> list[str]:
+    """Every page file named in a nav (sub)tree."""
+    out: list[str] = []
+    for entry in nav:
+        if isinstance(entry, str):
+            out.append(entry)
+        elif isinstance(entry, dict):
+            for value in entry.values():
+                out.extend(_walk(value) if isinstance(value, list) else [value])
+    return out
+
+
+def on_files(files: Files, config: Any) -> Files:
+    pages = {"reference/cli.md": _cli_page(), "reference/config.md": _config_page(),
+             "reference/c-api.md": _c_page(), "firmware_sim/index.md": _readme_page("firmware_sim"),
+             "hil/index.md": _readme_page("hil")}
+    for uri, content in pages.items():
+        files.append(File.generated(config, uri, content=content))
+    if (ROOT / "CHANGELOG.md").is_file() and files.get_file_from_path("changelog.md") is None:
+        text = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")  # its links are relative to the top
+        files.append(File.generated(config, "changelog.md", content=re.sub(r"\]\(docs/", "](", text)))
+    for png in sorted((ROOT / "hil" / "docs").glob("*.png")):
+        files.append(File.generated(config, f"hil/docs/{png.name}", abs_src_path=str(png)))
+    return files
+
+
+def on_page_markdown(markdown: str, page: Any, config: Any, files: Files) -> str:
+    if "{{ " not in markdown:
+        return markdown
+    global _MEASURED
+    if _MEASURED is None:
+        _MEASURED = _measured()
+    for key, value in _MEASURED.items():
+        markdown = markdown.replace("{{ " + key + " }}", value)
+    left = re.findall(r"\{\{ [\w.]+ \}\}", markdown)
+    if left:
+        raise ValueError(f"{page.file.src_uri}: no measured figure for {', '.join(left)}")
+    return markdown
+
+
+_MEASURED: dict[str, str] | None = None
