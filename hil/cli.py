@@ -427,7 +427,8 @@ def _replay(args) -> int:
             try:
                 rec = run_replay(sc, args.transport, args.channel, port=args.port, runner=args.runner,
                                  firmware=args.firmware or True, runner_spin_us=spin,
-                                 reply_timeout=args.timeout, drain=args.drain, progress=progress)
+                                 reply_timeout=args.timeout, drain=args.drain, progress=progress,
+                                 sample_drops=True)
             finally:
                 if progress is not None:
                     progress.close()

@@ -121,14 +121,16 @@ class BusLost(OSError):
 
 HEALTH_FRAMES = 6  #: one Health frame per neuron of the LIM firmware follows each Diagnostics frame
 PROGRESS_EVERY = 256  #: the replay loop offers its progress every this many cycles (77 ms at 0.3 ms)
-DROP_SAMPLES_MAX = 500  #: the kernel's drop counters are sampled at most about this many times in a run
+DROP_SAMPLES_EVERY = 2 * PROGRESS_EVERY  #: a replay reads the kernel's drop counters every this many cycles
+DROP_SAMPLES_MAX = 500  #: ... or less often, to keep at most about this many samples in a run
 
 
 def drop_sampling(cycles: int) -> int:
-    """Every how many cycles the replay samples the kernel's drop counters (udp_multicast): every
-    PROGRESS_EVERY, or a multiple of it so that a long run keeps at most about DROP_SAMPLES_MAX samples
-    (the sidecar keeps them)."""
-    return PROGRESS_EVERY * max(1, -(-cycles // (PROGRESS_EVERY * DROP_SAMPLES_MAX)))
+    """Every how many cycles a replay samples the kernel's drop counters (udp_multicast): every
+    DROP_SAMPLES_EVERY (154 ms at 0.3 ms; a read of /proc/net/udp and udp6 takes about 130 us in Python,
+    within the slack after a send), or a multiple of it so that a long run keeps at most about
+    DROP_SAMPLES_MAX samples (the sidecar keeps them)."""
+    return DROP_SAMPLES_EVERY * max(1, -(-cycles // (DROP_SAMPLES_EVERY * DROP_SAMPLES_MAX)))
 
 
 def ids() -> dict[str, int]:
@@ -185,7 +187,7 @@ class Rig:
                  spin_ns: int = 100_000, reply_timeout: float = 1.0, drain: float = 0.5,
                  extra_frames: Callable[[int], list[can.Message]] | None = None,
                  kernel_drops: Callable[[], dict[str, int]] | None = None,
-                 progress: "Callable[[int, int, int, int], None] | None" = None) -> None:
+                 progress: "Callable[[int, int, int, int], None] | None" = None, sample_drops: bool = False) -> None:
         self.bus = bus
         self.plan = plan
         self.transport = transport
@@ -195,9 +197,11 @@ class Rig:
         self.drain = check_seconds("drain", drain, zero=True)
         self.extra_frames = extra_frames  # fault injection: frames sent right after Measurement k
         # udp_multicast: the kernel's count of datagrams dropped on the rig's and the firmware's sockets
-        # (a receive queue that overflowed on a busy host), read before and after the run, and during it every
-        # drop_sampling(cycles) cycles (meta["kernel_drops_series"]: the drops since the start, per side)
+        # (a receive queue that overflowed on a busy host), read before and after the run, and with
+        # ``sample_drops`` during it every drop_sampling(cycles) cycles (meta["kernel_drops_series"]: the drops
+        # since the start, per side; off for timing runs: each read costs some 130 us)
         self.kernel_drops = kernel_drops
+        self.sample_drops = bool(sample_drops)
         # called every PROGRESS_EVERY cycles during the replay with (cycles done, frames sent, estimates
         # received, frames lost by the scenario); hil.progress decides whether to show anything
         self.progress = progress
@@ -405,7 +409,7 @@ class Rig:
         first_tx = None
         overruns = n_sent = n_lost = 0
         progress = self.progress
-        drops_every = drop_sampling(self.plan.cycles) if self.kernel_drops is not None else 0
+        drops_every = drop_sampling(self.plan.cycles) if self.kernel_drops is not None and self.sample_drops else 0
         for k in range(self.plan.cycles):
             deadline = t0 + k * T + delay
             if time.perf_counter_ns() > deadline + T:

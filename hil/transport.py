@@ -480,12 +480,14 @@ def run_replay(scenario: Scenario, transport: str = "virtual", channel: str | No
                firmware_cpu: int | None = None, runner_spin_us: float = RUNNER_SPIN_US,
                spin_ns: int | None = None, reply_timeout: float = 1.0, drain: float = 0.3,
                extra_frames: Callable[[int], list[can.Message]] | None = None,
-               progress: Callable[[int, int, int, int], None] | None = None) -> Recording:
+               progress: Callable[[int, int, int, int], None] | None = None,
+               sample_drops: bool = False) -> Recording:
     """Replay ``scenario`` over ``transport`` against the firmware; the Recording
     (its meta holds the firmware side's own report). ``firmware``, ``runner``,
     ``firmware_cpu``, ``runner_spin_us``: see :func:`open_transport`
     (udp_multicast: the C runner by default). ``progress``: the rig's progress
-    hook (hil.progress.Progress)."""
+    hook (hil.progress.Progress). ``sample_drops``: read the kernel's drop
+    counters during the run too (hil.rig.Rig; not for timing runs)."""
     if not isinstance(scenario, Scenario):
         raise ValueError(f"scenario: expected a Scenario, got {type(scenario).__name__}")
     plan = scenario.build()
@@ -495,7 +497,7 @@ def run_replay(scenario: Scenario, transport: str = "virtual", channel: str | No
                         firmware_cpu=firmware_cpu, runner_spin_us=runner_spin_us) as (bus, where, side):
         rig = Rig(bus, plan, transport=transport, channel=where, spin_ns=spin_ns, reply_timeout=reply_timeout,
                   drain=drain, extra_frames=extra_frames, kernel_drops=getattr(bus, "hil_kernel_drops", None),
-                  progress=progress)
+                  progress=progress, sample_drops=sample_drops)
         rec = rig.run()
         try:
             rec.meta["firmware_side"] = side()

@@ -27,6 +27,7 @@ the accepted range, and :func:`scalings` returns them.
 """
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 from decimal import Decimal
@@ -171,7 +172,7 @@ def database_text(state_names: Sequence[str], input_names: Sequence[str], X: np.
 
     sig = scalings(state_names, input_names, X, U, headroom)
     n = len(state_names)
-    protocol = database()
+    protocol = copy.deepcopy(database())   # database() is the process's own protocol, cached: not changed here
     protocol_version = protocol.version
     version = f"{protocol_version} {name}"
     frames = cantools.database.load_string(_frames_text(state_names, sig, version), database_format="dbc")

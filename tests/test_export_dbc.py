@@ -58,6 +58,15 @@ def test_export_writes_a_dbc_whose_signals_carry_the_data_at_the_stated_resoluti
             assert abs(back[n] - values[n]) <= meas.get_signal_by_name(n).scale / 2 + 1e-12
 
 
+def test_writing_a_dbc_leaves_the_firmware_protocol_of_this_process_as_it_was() -> None:
+    from pyrhonn import firmware
+
+    before = firmware.database().as_dbc_string()
+    dbc.database_text(("a", "b"), ("u",), np.ones((3, 2)), np.ones((3, 1)), name="two")
+    assert firmware.database().as_dbc_string() == before
+    assert firmware.measurement_message(0, np.zeros(6), np.zeros(2), np.ones(6, dtype=bool)).data
+
+
 def test_dbc_needs_data_to_scale_from(tmp_path, cli_error) -> None:
     err = cli_error(["export", "--config", "example1", "--out", str(tmp_path / "x.h"), "--dbc",
                      str(tmp_path / "x.dbc")])

@@ -13,7 +13,7 @@ pytest.importorskip("can")
 pytest.importorskip("cantools")
 
 from hil import figures as hil_figures  # noqa: E402
-from hil.rig import PROGRESS_EVERY, Rig  # noqa: E402
+from hil.rig import DROP_SAMPLES_EVERY, Rig  # noqa: E402
 from hil.scenario import Scenario  # noqa: E402
 from hil.score import FATES, score  # noqa: E402
 from hil.transport import lim_config, open_transport, run_replay  # noqa: E402
@@ -135,11 +135,15 @@ def test_the_kernel_drop_counters_are_sampled_during_the_run_and_plotted_over_ti
         return {"rig": n, "firmware": 2 * n}
 
     with open_transport("virtual") as (bus, where, _side):
-        rec = Rig(bus, sc.build(), transport="virtual", channel=where, spin_ns=0, kernel_drops=drops).run()
+        rec = Rig(bus, sc.build(), transport="virtual", channel=where, spin_ns=0, kernel_drops=drops,
+                  sample_drops=True).run()
     series = rec.meta["kernel_drops_series"]
-    assert series["cycle"] == list(range(0, sc.cycles, PROGRESS_EVERY))
+    assert series["cycle"] == list(range(0, sc.cycles, DROP_SAMPLES_EVERY))
     assert series["rig"] == list(range(1, len(series["cycle"]) + 1))      # since the read before the run
     assert series["firmware"] == [2 * n for n in series["rig"]]
+    with open_transport("virtual") as (bus, where, _side):   # a timing run (hil bench) reads them before and after
+        quiet = Rig(bus, sc.build(), transport="virtual", channel=where, spin_ns=0, kernel_drops=drops).run()
+    assert quiet.meta["kernel_drops_series"] == {"cycle": [], "rig": [], "firmware": []}
     r = score(rec)
     fig = hil_figures.build_figures(r)["losses.png"]
     try:
