@@ -106,7 +106,9 @@ ALLOWED = {("pyrhonn/statefile.py", "np.savez(fh"), ("pyrhonn/reproduce.py", "pr
            ("hil/rig.py", "_LogWriter(path, tmp"),  # tmp: the temporary file of atomic.replacing_path
            ("hil/rig.py", "class _ASCWriter(can.ASCWriter)"),  # a class line, not a write
            # scratch files of the size probe, in a TemporaryDirectory
-           ("pyrhonn/export.py", '(t / "capacity.h").write_text'), ("pyrhonn/export.py", '(t / "probe.c").write_text')}
+           ("pyrhonn/export.py", '(t / "capacity.h").write_text'), ("pyrhonn/export.py", '(t / "probe.c").write_text'),
+           # the FMU's sources compiled in a TemporaryDirectory; the .fmu itself goes through atomic.replacing
+           ("pyrhonn/fmu.py", "(tmp / name).write_bytes")}
 WRITES = re.compile(r"\.write_text\(|\.write_bytes\(|\bopen\([^)]*,\s*(mode=)?[\"'][wax]|\.open\(\s*[\"'][wax]|"
                     r"savefig\(|np\.save|json\.dump\(|Writer\(|tofile\(")
 
