@@ -364,12 +364,18 @@ def _write_config(tmp_path: Path, text: str = CONFIG, name: str = "plant.toml") 
     return path
 
 
-def test_cli_exports_an_fmu_trained_on_a_recording(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    X, U, valid = _samples()
+def _write_recording(tmp_path: Path, X: np.ndarray, U: np.ndarray, valid: np.ndarray) -> Path:
     data = tmp_path / "rec.csv"
     rows = ["pos,vel,force,pos_valid,vel_valid"] + [
-        f"{float(x[0])!r},{float(x[1])!r},{float(u[0])!r},{int(v[0])},{int(v[1])}" for x, u, v in zip(np.where(valid, X, 0.0), U, valid)]
+        f"{float(x[0])!r},{float(x[1])!r},{float(u[0])!r},{int(v[0])},{int(v[1])}"
+        for x, u, v in zip(np.where(valid, X, 0.0), U, valid)]
     data.write_text("\n".join(rows) + "\n")
+    return data
+
+
+def test_cli_exports_an_fmu_trained_on_a_recording(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    X, U, valid = _samples()
+    data = _write_recording(tmp_path, X, U, valid)
     out = tmp_path / "plant.fmu"
     assert main(["export", "--config", str(_write_config(tmp_path)), "--fmu", str(out), "--period", "0.01",
                  "--data", str(data), "--fit-rows", ":60", "--units", "pos=m"]) == 0
@@ -380,6 +386,35 @@ def test_cli_exports_an_fmu_trained_on_a_recording(tmp_path: Path, capsys: pytes
     ident = Identifier(trained.as_config())
     result = _simulate(out, _table(X, U, valid))
     assert _bits(_predictions(result)[1:]) == _bits(ident.run(X, U, valid))
+
+
+@pytest.mark.parametrize("version", [3, 2])
+def test_a_warm_started_fmu_continues_the_recordings_run(tmp_path: Path, version: int) -> None:
+    """--warm-start: the FMU starts from the running state the recording left,
+    and after a reset starts from it again."""
+    X, U, valid = _samples()
+    data = _write_recording(tmp_path, X, U, valid)
+    out = tmp_path / "plant.fmu"
+    assert main(["export", "--config", str(_write_config(tmp_path)), "--fmu", str(out), "--period", "0.01",
+                 "--data", str(data), "--fit-rows", ":60", "--warm-start", "--fmi-version", str(version)]) == 0
+    assert "sources/rhonn_warm.c" in zipfile.ZipFile(out).namelist()
+    ident = Identifier(_cf().config)
+    ident.run(np.where(valid, X, 0.0)[:60], U[:60], valid[:60])
+    now = ident.prediction
+    rows = ident.run(X[60:], U[60:], valid[60:])
+    unzipped = extract(str(out), unzipdir=str(tmp_path / "fmu"))
+    md = read_model_description(unzipped)
+    fmu = instantiate_fmu(unzipped, md, fmi_type="CoSimulation")
+    table = _table(np.vstack([X[60:], X[:60]]), np.vstack([U[60:], U[:60]]), np.vstack([valid[60:], valid[:60]]))
+    try:
+        for _ in range(2):  # the second time after a reset
+            result = simulate_fmu(unzipped, start_time=0.0, stop_time=(N - 60) * T, output_interval=T, input=table,
+                                  output=OUTPUTS, model_description=md, fmu_instance=fmu)
+            assert _bits(_predictions(result)[0]) == _bits(now)
+            assert _bits(_predictions(result)[1:]) == _bits(rows)
+            fmu.reset()
+    finally:
+        fmu.freeInstance()
 
 
 def test_cli_fmi2_from_the_shipped_name(tmp_path: Path) -> None:
@@ -400,7 +435,7 @@ def test_cli_refuses_bad_exports_and_keeps_the_previous_file(tmp_path: Path, cli
     assert "--period: must be > 0" in cli_error(base + ["--period", "-1"])
     assert "--fmi-version" in cli_error(base + ["--period", "0.01", "--fmi-version", "4"])
     assert "--units" in cli_error(base + ["--period", "0.01", "--units", "speed=m"])
-    assert "--warm-start: not with --fmu" in cli_error(base + ["--period", "0.01", "--warm-start", "--data", cfg])
+    assert "--warm-start: needs --data" in cli_error(base + ["--period", "0.01", "--warm-start"])
     assert "--period: only with --fmu" in cli_error(["export", "--config", cfg, "--out", str(tmp_path / "a.h"),
                                                      "--period", "0.01"])
     assert "expected a file name ending in .fmu" in cli_error(["export", "--config", cfg, "--fmu",
