@@ -305,16 +305,25 @@ STRICT = ["-std=c99", "-fsyntax-only", "-Wall", "-Wextra", "-Wpedantic", "-Wconv
           "-Wdouble-promotion", "-Werror"]
 
 
+@pytest.fixture(scope="module")
+def tanks(tmp_path_factory: pytest.TempPathFactory) -> dict[int, Path]:
+    """A plant without inputs, per FMI version."""
+    folder = tmp_path_factory.mktemp("tanks")
+    for version in (3, 2):
+        export_fmu(loads(NO_INPUTS, source="tank.toml"), folder / f"tank{version}.fmu",
+                   FmuSettings(period=0.5, model_identifier="tank", fmi_version=version))
+    return {version: folder / f"tank{version}.fmu" for version in (3, 2)}
+
+
 @pytest.mark.parametrize("version", [3, 2])
-def test_sources_compile_without_warnings_under_the_projects_flags(fmus: dict, version: int, tmp_path: Path) -> None:
+def test_sources_compile_without_warnings_under_the_projects_flags(fmus: dict, tanks: dict, version: int,
+                                                                   tmp_path: Path) -> None:
     """The FMU's own sources (sources/MODEL_fmu.c with what it includes), both
     precisions, and a plant without inputs too."""
     from pyrhonn.fmu import fmi_headers
 
-    no_inputs = tmp_path / "tank.fmu"
-    export_fmu(loads(NO_INPUTS, source="tank.toml"), no_inputs,
-               FmuSettings(period=0.5, model_identifier="tank", fmi_version=version))
-    for path, ident in ((fmus[version, "float64"], "plant"), (fmus[version, "float32"], "plant"), (no_inputs, "tank")):
+    for path, ident in ((fmus[version, "float64"], "plant"), (fmus[version, "float32"], "plant"),
+                        (tanks[version], "tank")):
         folder = tmp_path / path.stem
         zipfile.ZipFile(path).extractall(folder)
         build = subprocess.run(["cc", *STRICT, f"-I{folder / 'sources'}", f"-I{fmi_headers(version)}",
@@ -322,10 +331,9 @@ def test_sources_compile_without_warnings_under_the_projects_flags(fmus: dict, v
         assert build.returncode == 0, build.stderr
 
 
-def test_a_plant_without_inputs_simulates_as_the_identifier(tmp_path: Path) -> None:
-    path = tmp_path / "tank.fmu"
+def test_a_plant_without_inputs_simulates_as_the_identifier(tanks: dict) -> None:
+    path = tanks[3]
     cf = loads(NO_INPUTS, source="tank.toml")
-    export_fmu(cf, path, FmuSettings(period=0.5, model_identifier="tank"))
     level = 1.0 + 0.5 * np.sin(0.2 * np.arange(40))
     valid = np.arange(40) % 9 != 4
     table = np.zeros(40, dtype=[("time", np.float64), ("level", np.float64), ("level_valid", np.bool_)])
@@ -388,15 +396,14 @@ def test_cli_exports_an_fmu_trained_on_a_recording(tmp_path: Path, capsys: pytes
     assert _bits(_predictions(result)[1:]) == _bits(ident.run(X, U, valid))
 
 
-@pytest.mark.parametrize("version", [3, 2])
-def test_a_warm_started_fmu_continues_the_recordings_run(tmp_path: Path, version: int) -> None:
+def test_a_warm_started_fmu_continues_the_recordings_run(tmp_path: Path) -> None:
     """--warm-start: the FMU starts from the running state the recording left,
     and after a reset starts from it again."""
     X, U, valid = _samples()
     data = _write_recording(tmp_path, X, U, valid)
     out = tmp_path / "plant.fmu"
     assert main(["export", "--config", str(_write_config(tmp_path)), "--fmu", str(out), "--period", "0.01",
-                 "--data", str(data), "--fit-rows", ":60", "--warm-start", "--fmi-version", str(version)]) == 0
+                 "--data", str(data), "--fit-rows", ":60", "--warm-start"]) == 0
     assert "sources/rhonn_warm.c" in zipfile.ZipFile(out).namelist()
     ident = Identifier(_cf().config)
     ident.run(np.where(valid, X, 0.0)[:60], U[:60], valid[:60])
