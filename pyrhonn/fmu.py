@@ -130,6 +130,8 @@ class FmuSettings:
         if not isinstance(self.units, Mapping):
             raise ValueError(f"units: expected a mapping of names to units, got {type(self.units).__name__}")
         for name, unit in self.units.items():
+            if not isinstance(name, str):
+                raise ValueError(f"units: expected state or input names as keys, got {name!r}")
             if not isinstance(unit, str) or not unit.strip() or not unit.isprintable():
                 raise ValueError(f"units[{name!r}]: expected a non-empty printable unit, got {unit!r}")
 
@@ -279,7 +281,8 @@ def _log_categories(root: ET.Element) -> None:
 def _model_description(cf: ConfigFile, cfg: IdentifierConfig, s: FmuSettings, variables: list[_Variable],
                        token: str, sources: list[str]) -> bytes:
     common = {"modelName": s.model_identifier,
-              "description": f"pyrhonn identifier: {cfg.n_states} states, {cfg.n_inputs} inputs, {cfg.dtype}, "
+              "description": f"pyrhonn identifier: {cfg.n_states} state{'s' * (cfg.n_states != 1)}, "
+                             f"{cfg.n_inputs} input{'s' * (cfg.n_inputs != 1)}, {cfg.dtype}, "
                              f"sample period {s.period!r} s",
               "generationTool": f"pyrhonn {__version__}", "variableNamingConvention": "flat"}
     if s.fmi_version == 3:
