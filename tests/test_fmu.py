@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 fmpy = pytest.importorskip("fmpy")
 
@@ -26,6 +28,8 @@ from pyrhonn import Identifier, IdentifierError  # noqa: E402
 from pyrhonn.cli import main  # noqa: E402
 from pyrhonn.configfile import ConfigFile, loads  # noqa: E402
 from pyrhonn.fmu import FmuSettings, export_fmu  # noqa: E402
+
+from strategies import trajectory  # noqa: E402
 
 T = 0.01
 N = 120
@@ -209,6 +213,23 @@ def test_a_refused_learning_update_steps_the_sample_frozen_and_is_counted(tmp_pa
     assert [result["pos_refused"][-1], result["vel_refused"][-1]] == refused
     assert _bits(_predictions(result)[1:]) == _bits(np.array(rows))
     assert sum("learning update was refused" in m for m in messages) == sum(refused)
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(seed=st.integers(0, 2**16), dropout=st.sampled_from([0.0, 0.1, 0.4]), free_from=st.integers(0, N),
+       learning=st.booleans(), dtype=st.sampled_from(["float32", "float64"]))
+def test_any_trajectory_dropouts_and_free_run_match_the_identifier(fmus: dict, seed: int, dropout: float,
+                                                                   free_from: int, learning: bool,
+                                                                   dtype: str) -> None:
+    X, U, valid = trajectory(seed, N, 2, 1, dropout)
+    mode = (np.arange(N) >= free_from).astype(np.int32)
+    result = _simulate(fmus[3, dtype], _table(X, U, valid, mode), start_values={"learning": learning})
+    ident = Identifier(_cf(dtype).config)
+    ident.learning = learning
+    Xd, Ud, K = X.astype(dtype), U.astype(dtype), free_from
+    parts = [ident.run(Xd[:K], Ud[:K], valid[:K]) if K else np.zeros((0, 2), dtype),
+             ident.run(Xd[K:], Ud[K:], np.zeros((N - K, 2), dtype=bool)) if K < N else np.zeros((0, 2), dtype)]
+    assert _bits(_predictions(result)[1:]) == _bits(np.vstack(parts))
 
 
 def test_simulator_from_the_start_needs_no_measurements(fmus: dict) -> None:
