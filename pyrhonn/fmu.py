@@ -121,6 +121,9 @@ class FmuSettings:
                 not math.isfinite(self.period) or self.period <= 0:
             raise ValueError(f"period: expected a positive finite number of seconds, got {self.period!r}")
         _check_name(self.model_identifier)
+        if self.model_identifier == "rhonn" or self.model_identifier.lower().startswith(("fmi", "fmu_", "pyrhonn_")):
+            raise ValueError(f"name: {self.model_identifier!r} would clash with the FMU's own sources (the core's "
+                             "rhonn.h, the FMI functions fmi*, the glue's fmu_* and pyrhonn_*); choose another")
         if self.fmi_version not in FMI_VERSIONS or isinstance(self.fmi_version, bool):
             raise ValueError(f"fmi_version: expected 3 or 2, got {self.fmi_version!r}")
         if self.mode not in MODES:

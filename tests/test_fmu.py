@@ -495,6 +495,9 @@ def test_settings_refuse_what_an_fmu_cannot_express() -> None:
         FmuSettings(period=T, model_identifier="plant", mode="replay")
     with pytest.raises(ValueError, match="name"):
         FmuSettings(period=T, model_identifier="int")
+    for clash in ("rhonn", "fmi3Functions", "fmi3DoStep", "fmu_start", "pyrhonn_fmu"):
+        with pytest.raises(ValueError, match="would clash with the FMU's own sources"):
+            FmuSettings(period=T, model_identifier=clash)
 
 
 def test_the_docs_example_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
