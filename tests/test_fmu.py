@@ -384,6 +384,22 @@ def test_fmi2_refuses_a_step_other_than_the_period(fmus: dict, tmp_path: Path) -
         fmu.freeInstance()
 
 
+def test_a_float32_fmu_refuses_a_measurement_beyond_float32(fmus: dict, tmp_path: Path) -> None:
+    messages: list[str] = []
+    fmu, md = _stepper(fmus[3, "float32"], tmp_path, messages)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    try:
+        fmu.setFloat64([vr["vel"], vr["force"]], [1e300, 0.5])
+        with pytest.raises(FMICallException):
+            fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=T)
+        assert "vel = 1e+300" in messages[-1] and "finite in the FMU's precision" in messages[-1]
+        fmu.setBoolean([vr["vel_valid"]], [False])  # not measured: its value is not read
+        fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=T)
+    finally:
+        fmu.terminate()
+        fmu.freeInstance()
+
+
 # -- the command line ------------------------------------------------------------------------------
 
 
