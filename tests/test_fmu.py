@@ -518,10 +518,10 @@ def test_settings_refuse_what_an_fmu_cannot_express() -> None:
 
 def test_the_docs_example_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                capsys: pytest.CaptureFixture) -> None:
-    """docs/fmu.md: its export command, then its Python example, in one folder."""
+    """docs/fmu.md: its export command, then its Python examples in order, in one folder."""
     text = (Path(__file__).resolve().parent.parent / "docs" / "fmu.md").read_text()
     command = next(line for line in text.splitlines() if line.startswith("pyrhonn export --config example1"))
-    example = text.split("```python\n", 1)[1].split("```", 1)[0]
+    example = "".join(block.split("```", 1)[0] for block in text.split("```python\n")[1:])
     monkeypatch.chdir(tmp_path)
     assert main(command.split()[1:]) == 0
     exec(compile(example, "docs/fmu.md", "exec"), {})
