@@ -20,13 +20,14 @@ from setuptools.command.build_py import build_py
 
 
 class BuildPyWithCoreHeaders(build_py):
-    """build_py, then csrc/include/*.h and the core's source (rhonn.c and its
-    private header) copied into the built package."""
+    """build_py, then csrc/include/*.h and the core's sources (rhonn.c with its
+    private header, rhonn_warm.c) copied into the built package."""
 
     def run(self) -> None:
         super().run()
         copies = {"core_include": sorted(Path("csrc/include").glob("*.h")),
-                  "core_src": [Path("csrc/src/rhonn.c"), Path("csrc/src/rhonn_internal.h")]}
+                  "core_src": [Path("csrc/src/rhonn.c"), Path("csrc/src/rhonn_internal.h"),
+                               Path("csrc/src/rhonn_warm.c")]}
         for folder, files in copies.items():
             dst = Path(self.build_lib) / "pyrhonn" / folder
             dst.mkdir(parents=True, exist_ok=True)

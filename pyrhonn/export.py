@@ -61,7 +61,8 @@ from . import atomic
 from .config import FactorKind, IdentifierConfig
 from .identifier import Identifier
 
-__all__ = ["Signals", "export_header", "header_text", "capacity_text", "capacity_path", "min_capacities",
+__all__ = ["Signals", "export_header", "header_config", "header_text", "capacity_text", "capacity_path",
+           "min_capacities",
            "measure_rhonn_t_size", "LAYOUT_VERSION"]
 
 #: The rhonn.h API version (RHONN_VERSION_MAJOR, _MINOR) whose rhonn_config and
@@ -449,15 +450,27 @@ def _text(cfg: IdentifierConfig, name: str, warm: _WarmState | None, signals: Si
     return "\n".join(lines)
 
 
-def header_text(source: Identifier | IdentifierConfig, name: str, signals: Signals | None = None) -> str:
+def header_text(source: Identifier | IdentifierConfig, name: str, signals: Signals | None = None, *,
+                warm_start: WarmSamples | None = None) -> str:
     """The header as a string; ``source`` is an Identifier (its current
     weights and covariances become w0 and p0) or a config (exported as is);
-    ``signals`` names the states and inputs in it."""
+    ``signals`` names the states and inputs in it. ``warm_start``: the
+    samples (X, U, valid) an Identifier ``source`` last stepped on, to write
+    its own configuration and its running state (see the module docs)."""
     name = _check_name(name)
-    cfg = _config_of(source)
     if signals is not None:
-        signals.check(cfg)
-    return _text(cfg, name, None, signals)
+        signals.check(_config_of(source))
+    if warm_start is None:
+        return _text(_config_of(source), name, None, signals)
+    if not isinstance(source, Identifier):
+        raise ValueError(f"source: a warm start exports an Identifier's running state, got {type(source).__name__}")
+    return _text(source.config, name, _warm_state(source, warm_start), signals)
+
+
+def header_config(source: Identifier | IdentifierConfig, warm_start: bool) -> IdentifierConfig:
+    """The configuration :func:`header_text` writes for ``source``: with a
+    warm start the identifier's own (its w0 and P0), else the trained one."""
+    return source.config if warm_start and isinstance(source, Identifier) else _config_of(source)
 
 
 # -- warm start ------------------------------------------------------------------------------------
@@ -537,18 +550,9 @@ def export_header(source: Identifier | IdentifierConfig, path: str | Path, name:
     the capacity header says why. Each file is replaced whole (an
     interrupted export leaves the previous file or none, see
     :mod:`pyrhonn.atomic`). ``signals`` names the states and inputs in the header."""
-    name = _check_name(name)
     path = Path(path)
-    if signals is not None:
-        signals.check(_config_of(source))
-    if warm_start is not None:
-        if not isinstance(source, Identifier):
-            raise ValueError(f"source: a warm start exports an Identifier's running state, got {type(source).__name__}")
-        text = _text(source.config, name, _warm_state(source, warm_start), signals)
-        cfg = source.config
-    else:
-        cfg = _config_of(source)
-        text = _text(cfg, name, None, signals)
+    text = header_text(source, name, signals, warm_start=warm_start)
+    cfg = header_config(source, warm_start is not None)
     caps = capacity_text(cfg, name)
     size: int | str
     try:

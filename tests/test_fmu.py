@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 fmpy = pytest.importorskip("fmpy")
 
@@ -26,6 +28,8 @@ from pyrhonn import Identifier, IdentifierError  # noqa: E402
 from pyrhonn.cli import main  # noqa: E402
 from pyrhonn.configfile import ConfigFile, loads  # noqa: E402
 from pyrhonn.fmu import FmuSettings, export_fmu  # noqa: E402
+
+from strategies import trajectory  # noqa: E402
 
 T = 0.01
 N = 120
@@ -211,6 +215,23 @@ def test_a_refused_learning_update_steps_the_sample_frozen_and_is_counted(tmp_pa
     assert sum("learning update was refused" in m for m in messages) == sum(refused)
 
 
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(seed=st.integers(0, 2**16), dropout=st.sampled_from([0.0, 0.1, 0.4]), free_from=st.integers(0, N),
+       learning=st.booleans(), dtype=st.sampled_from(["float32", "float64"]))
+def test_any_trajectory_dropouts_and_free_run_match_the_identifier(fmus: dict, seed: int, dropout: float,
+                                                                   free_from: int, learning: bool,
+                                                                   dtype: str) -> None:
+    X, U, valid = trajectory(seed, N, 2, 1, dropout)
+    mode = (np.arange(N) >= free_from).astype(np.int32)
+    result = _simulate(fmus[3, dtype], _table(X, U, valid, mode), start_values={"learning": learning})
+    ident = Identifier(_cf(dtype).config)
+    ident.learning = learning
+    Xd, Ud, K = X.astype(dtype), U.astype(dtype), free_from
+    parts = [ident.run(Xd[:K], Ud[:K], valid[:K]) if K else np.zeros((0, 2), dtype),
+             ident.run(Xd[K:], Ud[K:], np.zeros((N - K, 2), dtype=bool)) if K < N else np.zeros((0, 2), dtype)]
+    assert _bits(_predictions(result)[1:]) == _bits(np.vstack(parts))
+
+
 def test_simulator_from_the_start_needs_no_measurements(fmus: dict) -> None:
     X, U, valid = _samples()
     result = _simulate(fmus[3, "float64"], _table(np.full_like(X, np.nan), U, valid), start_values={"mode": 1})
@@ -305,16 +326,25 @@ STRICT = ["-std=c99", "-fsyntax-only", "-Wall", "-Wextra", "-Wpedantic", "-Wconv
           "-Wdouble-promotion", "-Werror"]
 
 
+@pytest.fixture(scope="module")
+def tanks(tmp_path_factory: pytest.TempPathFactory) -> dict[int, Path]:
+    """A plant without inputs, per FMI version."""
+    folder = tmp_path_factory.mktemp("tanks")
+    for version in (3, 2):
+        export_fmu(loads(NO_INPUTS, source="tank.toml"), folder / f"tank{version}.fmu",
+                   FmuSettings(period=0.5, model_identifier="tank", fmi_version=version))
+    return {version: folder / f"tank{version}.fmu" for version in (3, 2)}
+
+
 @pytest.mark.parametrize("version", [3, 2])
-def test_sources_compile_without_warnings_under_the_projects_flags(fmus: dict, version: int, tmp_path: Path) -> None:
+def test_sources_compile_without_warnings_under_the_projects_flags(fmus: dict, tanks: dict, version: int,
+                                                                   tmp_path: Path) -> None:
     """The FMU's own sources (sources/MODEL_fmu.c with what it includes), both
     precisions, and a plant without inputs too."""
     from pyrhonn.fmu import fmi_headers
 
-    no_inputs = tmp_path / "tank.fmu"
-    export_fmu(loads(NO_INPUTS, source="tank.toml"), no_inputs,
-               FmuSettings(period=0.5, model_identifier="tank", fmi_version=version))
-    for path, ident in ((fmus[version, "float64"], "plant"), (fmus[version, "float32"], "plant"), (no_inputs, "tank")):
+    for path, ident in ((fmus[version, "float64"], "plant"), (fmus[version, "float32"], "plant"),
+                        (tanks[version], "tank")):
         folder = tmp_path / path.stem
         zipfile.ZipFile(path).extractall(folder)
         build = subprocess.run(["cc", *STRICT, f"-I{folder / 'sources'}", f"-I{fmi_headers(version)}",
@@ -322,10 +352,9 @@ def test_sources_compile_without_warnings_under_the_projects_flags(fmus: dict, v
         assert build.returncode == 0, build.stderr
 
 
-def test_a_plant_without_inputs_simulates_as_the_identifier(tmp_path: Path) -> None:
-    path = tmp_path / "tank.fmu"
+def test_a_plant_without_inputs_simulates_as_the_identifier(tanks: dict) -> None:
+    path = tanks[3]
     cf = loads(NO_INPUTS, source="tank.toml")
-    export_fmu(cf, path, FmuSettings(period=0.5, model_identifier="tank"))
     level = 1.0 + 0.5 * np.sin(0.2 * np.arange(40))
     valid = np.arange(40) % 9 != 4
     table = np.zeros(40, dtype=[("time", np.float64), ("level", np.float64), ("level_valid", np.bool_)])
@@ -355,6 +384,22 @@ def test_fmi2_refuses_a_step_other_than_the_period(fmus: dict, tmp_path: Path) -
         fmu.freeInstance()
 
 
+def test_a_float32_fmu_refuses_a_measurement_beyond_float32(fmus: dict, tmp_path: Path) -> None:
+    messages: list[str] = []
+    fmu, md = _stepper(fmus[3, "float32"], tmp_path, messages)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    try:
+        fmu.setFloat64([vr["vel"], vr["force"]], [1e300, 0.5])
+        with pytest.raises(FMICallException):
+            fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=T)
+        assert "vel = 1e+300" in messages[-1] and "finite in the FMU's precision" in messages[-1]
+        fmu.setBoolean([vr["vel_valid"]], [False])  # not measured: its value is not read
+        fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=T)
+    finally:
+        fmu.terminate()
+        fmu.freeInstance()
+
+
 # -- the command line ------------------------------------------------------------------------------
 
 
@@ -364,12 +409,18 @@ def _write_config(tmp_path: Path, text: str = CONFIG, name: str = "plant.toml") 
     return path
 
 
-def test_cli_exports_an_fmu_trained_on_a_recording(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    X, U, valid = _samples()
+def _write_recording(tmp_path: Path, X: np.ndarray, U: np.ndarray, valid: np.ndarray) -> Path:
     data = tmp_path / "rec.csv"
     rows = ["pos,vel,force,pos_valid,vel_valid"] + [
-        f"{float(x[0])!r},{float(x[1])!r},{float(u[0])!r},{int(v[0])},{int(v[1])}" for x, u, v in zip(np.where(valid, X, 0.0), U, valid)]
+        f"{float(x[0])!r},{float(x[1])!r},{float(u[0])!r},{int(v[0])},{int(v[1])}"
+        for x, u, v in zip(np.where(valid, X, 0.0), U, valid)]
     data.write_text("\n".join(rows) + "\n")
+    return data
+
+
+def test_cli_exports_an_fmu_trained_on_a_recording(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    X, U, valid = _samples()
+    data = _write_recording(tmp_path, X, U, valid)
     out = tmp_path / "plant.fmu"
     assert main(["export", "--config", str(_write_config(tmp_path)), "--fmu", str(out), "--period", "0.01",
                  "--data", str(data), "--fit-rows", ":60", "--units", "pos=m"]) == 0
@@ -380,6 +431,34 @@ def test_cli_exports_an_fmu_trained_on_a_recording(tmp_path: Path, capsys: pytes
     ident = Identifier(trained.as_config())
     result = _simulate(out, _table(X, U, valid))
     assert _bits(_predictions(result)[1:]) == _bits(ident.run(X, U, valid))
+
+
+def test_a_warm_started_fmu_continues_the_recordings_run(tmp_path: Path) -> None:
+    """--warm-start: the FMU starts from the running state the recording left,
+    and after a reset starts from it again."""
+    X, U, valid = _samples()
+    data = _write_recording(tmp_path, X, U, valid)
+    out = tmp_path / "plant.fmu"
+    assert main(["export", "--config", str(_write_config(tmp_path)), "--fmu", str(out), "--period", "0.01",
+                 "--data", str(data), "--fit-rows", ":60", "--warm-start"]) == 0
+    assert "sources/rhonn_warm.c" in zipfile.ZipFile(out).namelist()
+    ident = Identifier(_cf().config)
+    ident.run(np.where(valid, X, 0.0)[:60], U[:60], valid[:60])
+    now = ident.prediction
+    rows = ident.run(X[60:], U[60:], valid[60:])
+    unzipped = extract(str(out), unzipdir=str(tmp_path / "fmu"))
+    md = read_model_description(unzipped)
+    fmu = instantiate_fmu(unzipped, md, fmi_type="CoSimulation")
+    table = _table(np.vstack([X[60:], X[:60]]), np.vstack([U[60:], U[:60]]), np.vstack([valid[60:], valid[:60]]))
+    try:
+        for _ in range(2):  # the second time after a reset
+            result = simulate_fmu(unzipped, start_time=0.0, stop_time=(N - 60) * T, output_interval=T, input=table,
+                                  output=OUTPUTS, model_description=md, fmu_instance=fmu)
+            assert _bits(_predictions(result)[0]) == _bits(now)
+            assert _bits(_predictions(result)[1:]) == _bits(rows)
+            fmu.reset()
+    finally:
+        fmu.freeInstance()
 
 
 def test_cli_fmi2_from_the_shipped_name(tmp_path: Path) -> None:
@@ -400,7 +479,7 @@ def test_cli_refuses_bad_exports_and_keeps_the_previous_file(tmp_path: Path, cli
     assert "--period: must be > 0" in cli_error(base + ["--period", "-1"])
     assert "--fmi-version" in cli_error(base + ["--period", "0.01", "--fmi-version", "4"])
     assert "--units" in cli_error(base + ["--period", "0.01", "--units", "speed=m"])
-    assert "--warm-start: not with --fmu" in cli_error(base + ["--period", "0.01", "--warm-start", "--data", cfg])
+    assert "--warm-start: needs --data" in cli_error(base + ["--period", "0.01", "--warm-start"])
     assert "--period: only with --fmu" in cli_error(["export", "--config", cfg, "--out", str(tmp_path / "a.h"),
                                                      "--period", "0.01"])
     assert "expected a file name ending in .fmu" in cli_error(["export", "--config", cfg, "--fmu",
@@ -432,14 +511,17 @@ def test_settings_refuse_what_an_fmu_cannot_express() -> None:
         FmuSettings(period=T, model_identifier="plant", mode="replay")
     with pytest.raises(ValueError, match="name"):
         FmuSettings(period=T, model_identifier="int")
+    for clash in ("rhonn", "fmi3Functions", "fmi3DoStep", "fmu_start", "pyrhonn_fmu"):
+        with pytest.raises(ValueError, match="would clash with the FMU's own sources"):
+            FmuSettings(period=T, model_identifier=clash)
 
 
 def test_the_docs_example_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                capsys: pytest.CaptureFixture) -> None:
-    """docs/fmu.md: its export command, then its Python example, in one folder."""
+    """docs/fmu.md: its export command, then its Python examples in order, in one folder."""
     text = (Path(__file__).resolve().parent.parent / "docs" / "fmu.md").read_text()
     command = next(line for line in text.splitlines() if line.startswith("pyrhonn export --config example1"))
-    example = text.split("```python\n", 1)[1].split("```", 1)[0]
+    example = "".join(block.split("```", 1)[0] for block in text.split("```python\n")[1:])
     monkeypatch.chdir(tmp_path)
     assert main(command.split()[1:]) == 0
     exec(compile(example, "docs/fmu.md", "exec"), {})

@@ -5,10 +5,11 @@ or as a Functional Mock-up Unit for simulation tools.
 [--data DATA.csv [--fit-rows A:B] [--valid-suffix _valid] [--warm-start]]``
 
 ``pyrhonn export --config CFG --fmu MODEL.fmu [--fmi-version 3|2] [--period T]
-[--units NAME=UNIT,...] [--dbc FILE] [--mode observer|simulator] [--name MODEL] [--dtype ...] [--data ...]``
-writes an FMI co-simulation FMU instead (:mod:`pyrhonn.fmu`): one
-communication step of the sample period T (default the config's
-``bus.sample_period``) is one identifier step.
+[--units NAME=UNIT,...] [--dbc FILE] [--mode observer|simulator] [--name MODEL] [--dtype ...] [--data ...
+[--warm-start]]`` writes an FMI co-simulation FMU instead (:mod:`pyrhonn.fmu`):
+one communication step of the sample period T (default the config's
+``bus.sample_period``) is one identifier step; ``--warm-start`` starts it
+from the running state the recording left.
 
 Writes ``tuned.h`` (``static const rhonn_config tuned``) and ``tuned_capacity.h``
 (the smallest capacities that hold it, with ``sizeof(rhonn_t)``): see
@@ -89,11 +90,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _fmu_only(args: argparse.Namespace) -> None:
-    """The FMU options given without --fmu (or --warm-start with it): a ValueError naming the option."""
+    """The FMU options given without --fmu: a ValueError naming the option."""
     if args.fmu is not None:
-        if args.warm_start:
-            raise ValueError("--warm-start: not with --fmu (an FMU starts from the exported configuration; export "
-                             "with --data to start it from the trained weights)")
         return
     given = [opt for opt, value, default in (("--fmi-version", args.fmi_version, "3"), ("--period", args.period, None),
                                              ("--mode", args.mode, "observer"))
@@ -171,23 +169,23 @@ def run(args: argparse.Namespace) -> int:
         rows = f"samples {a}..{b - 1} of {data.n_samples}" if (a, b) != (0, data.n_samples) else \
             f"{data.n_samples} samples"
         trained = f", trained online on {args.data} ({rows})"
+    warm = (X, U if cfg.n_inputs else None, valid) if args.warm_start else None
+    try:
+        if settings is not None:
+            export_fmu(cf, out, settings, source=ident if args.data is not None else cfg, warm_start=warm)
+        else:
+            export_header(ident if args.data is not None else cfg, out, name, warm_start=warm, signals=signals)
+    except ValueError as exc:
+        raise ValueError(f"--warm-start: {exc}" if args.warm_start and str(exc).startswith("warm_start") else
+                         str(exc)) from None
+    with_state = ", with its running state" if args.warm_start else ""
     if settings is not None:
-        export_fmu(cf, out, settings, config=ident.as_config() if args.data is not None else cfg)
         print(f"exported {args.config} as FMI {settings.fmi_version}.0 co-simulation FMU {name} ({cfg.dtype}, "
-              f"period {settings.period!r} s, mode {settings.mode}){trained}")
+              f"period {settings.period!r} s, mode {settings.mode}){trained}{with_state}")
         print(f"wrote {out}" + (f", {args.dbc}:\n" + "\n".join(scaled) if scaled else ""))
-        return 0
-    if args.data is not None:
-        warm = (X, U if cfg.n_inputs else None, valid) if args.warm_start else None
-        try:
-            export_header(ident, out, name, warm_start=warm, signals=signals)
-        except ValueError as exc:
-            raise ValueError(f"--warm-start: {exc}" if args.warm_start else str(exc)) from None
     else:
-        export_header(cfg, out, name, signals=signals)
-    print(f"exported {args.config} as {name} ({cfg.dtype}){trained}"
-          + (", with its running state" if args.warm_start else ""))
-    print(f"wrote {out}, {capacity_path(out)}" + (f", {args.dbc}:\n" + "\n".join(scaled) if scaled else ""))
+        print(f"exported {args.config} as {name} ({cfg.dtype}){trained}{with_state}")
+        print(f"wrote {out}, {capacity_path(out)}" + (f", {args.dbc}:\n" + "\n".join(scaled) if scaled else ""))
     return 0
 
 

@@ -7,6 +7,8 @@
  * includes rhonn.c, the exported configuration, the generated model header,
  * this file and one interface). The model header defines:
  *   FMU_CONFIG      the exported static const rhonn_config
+ *   FMU_WARM        (optional) its exported running state: the model starts,
+ *                   and a reset returns, there (rhonn_warm_start)
  *   FMU_N, FMU_M    states and inputs
  *   FMU_PERIOD      the sample period: the only communication step size
  *   FMU_LEARNING0, FMU_MODE0   the parameters' start values
@@ -106,16 +108,21 @@ static fmu_result fmu_read_outputs(fmu_model *m)
     return FMU_RESULT_OK;
 }
 
-/* As instantiated: the configuration's starting point, health counters at
- * zero, every variable at its start value. */
+/* As instantiated: the configuration's starting point (or the exported
+ * running state), health counters at zero, every variable at its start
+ * value. */
 static fmu_result fmu_start(fmu_model *m)
 {
     size_t j;
-    rhonn_config_error where;
+    rhonn_config_error where = {0, 0, 0, 0};
+#ifdef FMU_WARM
+    rhonn_status st = rhonn_warm_start(&m->net, &FMU_CONFIG, &FMU_WARM, &where);
+#else
     rhonn_status st = rhonn_init(&m->net, &FMU_CONFIG, &where);
+#endif
     if (st != RHONN_OK) {
-        fmu_logf(m, FMU_RESULT_ERROR, "the exported configuration was refused by the core (%s, field %u of "
-                 "neuron %u)", rhonn_status_name(st), (unsigned)where.field, (unsigned)where.neuron);
+        fmu_logf(m, FMU_RESULT_ERROR, "the exported configuration or running state was refused by the core (%s, "
+                 "field %u of neuron %u)", rhonn_status_name(st), (unsigned)where.field, (unsigned)where.neuron);
         return FMU_RESULT_ERROR;
     }
     for (j = 0; j < FMU_N; ++j) {
