@@ -56,7 +56,7 @@ def _cli_page() -> str:
     import os
 
     width = os.environ.get("COLUMNS")
-    os.environ["COLUMNS"] = "100"  # argparse wraps to the terminal: the page must not depend on it
+    os.environ["COLUMNS"] = "80"  # argparse wraps to the terminal: the page must not depend on it
     try:
         walk(build_parser(), [], 1, None)
     finally:
