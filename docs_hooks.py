@@ -91,8 +91,35 @@ def _config_page() -> str:
     return "\n".join(out)
 
 
-_DECL = re.compile(r"/\*((?:(?!\*/).)*)\*/\s*\n((?:typedef |rhonn_|const char|void |int |size_t |uint)[^;{]*(?:;|\{))",
-                   re.S)
+_PROTOTYPE = re.compile(r"^(?:const )?\w+[ *]+(rhonn_\w+)\s*\(")
+
+
+def _functions(text: str) -> list[tuple[str, str, str]]:
+    """``(name, prototype, comment)`` of every function a header declares, in order. A comment
+    documents the prototypes that follow it directly (a getter and its setter share one)."""
+    out: list[tuple[str, str, str]] = []
+    lines = text.splitlines()
+    comment, i = "", 0
+    while i < len(lines):
+        line = lines[i]
+        if line.lstrip().startswith("/*"):
+            block = [line]
+            while "*/" not in block[-1] and i + 1 < len(lines):
+                i += 1
+                block.append(lines[i])
+            body = "\n".join(block).strip()[2:-2]
+            comment = "\n".join(re.sub(r"^\s*\* ?", "", ln).rstrip() for ln in body.strip("*\n ").splitlines())
+        elif _PROTOTYPE.match(line):
+            decl = [line]
+            while ";" not in decl[-1] and i + 1 < len(lines):
+                i += 1
+                decl.append(lines[i])
+            name = _PROTOTYPE.match(line).group(1)
+            out.append((name, " ".join(" ".join(decl).split()), comment.strip()))
+        elif line.strip():
+            comment = ""  # anything else between a comment and a prototype: the comment is not its
+        i += 1
+    return out
 
 
 def _c_page() -> str:
@@ -102,17 +129,11 @@ def _c_page() -> str:
            "comment explains the step's order, the errors and the precision).", ""]
     for name in HEADERS:
         text = (ROOT / "csrc" / "include" / name).read_text(encoding="utf-8")
-        decls = []
-        for comment, decl in _DECL.findall(text):
-            decl = " ".join(decl.split()).rstrip("{").strip()
-            if "(" not in decl or decl.startswith("typedef"):
-                continue
-            fn = re.search(r"(\w+)\s*\(", decl)
-            lines = [re.sub(r"^\s*\* ?", "", ln).rstrip() for ln in comment.strip("*\n ").splitlines()]
-            decls.append((fn.group(1) if fn else decl, decl, "\n".join(lines).strip()))
         out.extend([f"## `{name}`", ""])
-        for fn, decl, comment in decls:
-            out.extend([f"### `{fn}`", "", "```c", decl, "```", "", "```text", comment, "```", ""])
+        for fn, decl, comment in _functions(text):
+            out.extend([f"### `{fn}`", "", "```c", decl, "```", ""])
+            if comment:
+                out.extend(["```text", comment, "```", ""])
         out.extend([f"### `{name}` in full", "", "```c", text.rstrip(), "```", ""])
     return "\n".join(out)
 
