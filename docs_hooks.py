@@ -70,24 +70,23 @@ def _cli_page() -> str:
 def _config_page() -> str:
     from pyrhonn import configfile
 
-    doc = configfile.__doc__ or ""
+    rst_role = re.compile(r":(?:class|func|mod|meth|data|attr):`~?([^`]+)`")
+    doc = rst_role.sub(r"`\1`", (configfile.__doc__ or "").replace("``", "`"))  # reST to Markdown
     title, _, body = doc.strip().partition("\n")
     example, _, rules = body.partition("Rules\n-----")
     example = re.sub(r"::\n\n((?:    .*\n|\n)+)", lambda m: ":\n\n```toml\n"
                      + re.sub(r"^    ", "", m.group(1), flags=re.M).strip("\n") + "\n```\n\n", example + "\n")
-    rst_role = re.compile(r":(?:class|func|mod|meth|data|attr):`~?([^`]+)`")
     keys = [
         ("top level", configfile._TOP_KEYS),
         ("`[defaults]` (inherited by every neuron)", configfile.TUNING_KEYS + configfile.PROTECTION_KEYS),
         ("each `[[neurons]]` table", configfile._NEURON_KEYS),
     ]
     out = ["# Config file reference", "", "Generated from `pyrhonn/configfile.py` when the site is built.", "",
-           rst_role.sub(r"`\1`", title.replace("``", "`")), "", "## Keys", "", "| table | keys accepted |",
+           title, "", "## Keys", "", "| table | keys accepted |",
            "| --- | --- |"]
     out += [f"| {where} | {', '.join(f'`{k}`' for k in ks)} |" for where, ks in keys]
     out += ["", "Any other key is an error that names it.", "", "## Example", "",
-            rst_role.sub(r"`\1`", example.replace("``", "`")).strip(), "", "## Rules", "",
-            rst_role.sub(r"`\1`", rules.replace("``", "`")).strip(), ""]
+            example.strip(), "", "## Rules", "", rules.strip(), ""]
     return "\n".join(out)
 
 
