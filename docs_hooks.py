@@ -67,15 +67,29 @@ def _cli_page() -> str:
     return "\n".join(out) + "\n"
 
 
+_LITERAL = re.compile(r"::\n\n((?:    .*\n|\n)+)")  # a reST literal block, indented by four
+
+
+def _toml(literal: re.Match[str]) -> str:
+    return "```toml\n" + re.sub(r"^    ", "", literal.group(1), flags=re.M).strip("\n") + "\n```"
+
+
+def _bus_example(doc: str) -> str:
+    """The ``[bus]`` example of pyrhonn/buslog.py's docstring as a TOML block."""
+    block = _LITERAL.search(doc)
+    if block is None:
+        raise ValueError("pyrhonn/buslog.py: its docstring has no [bus] example to show")
+    return _toml(block)
+
+
 def _config_page() -> str:
-    from pyrhonn import configfile
+    from pyrhonn import buslog, configfile
 
     rst_role = re.compile(r":(?:class|func|mod|meth|data|attr):`~?([^`]+)`")
     doc = rst_role.sub(r"`\1`", (configfile.__doc__ or "").replace("``", "`"))  # reST to Markdown
     title, _, body = doc.strip().partition("\n")
     example, _, rules = body.partition("Rules\n-----")
-    example = re.sub(r"::\n\n((?:    .*\n|\n)+)", lambda m: ":\n\n```toml\n"
-                     + re.sub(r"^    ", "", m.group(1), flags=re.M).strip("\n") + "\n```\n\n", example + "\n")
+    example = _LITERAL.sub(lambda m: ":\n\n" + _toml(m) + "\n\n", example + "\n")
     keys = [
         ("top level", configfile._TOP_KEYS),
         ("`[defaults]` (inherited by every neuron)", configfile.TUNING_KEYS + configfile.PROTECTION_KEYS),
@@ -84,9 +98,12 @@ def _config_page() -> str:
     out = ["# Config file reference", "", "Generated from `pyrhonn/configfile.py` when the site is built.", "",
            title, "", "## Keys", "", "| table | keys accepted |",
            "| --- | --- |"]
+    keys.append(("`[bus]` (for `pyrhonn identify --can-log`)", buslog._KEYS))
     out += [f"| {where} | {', '.join(f'`{k}`' for k in ks)} |" for where, ks in keys]
     out += ["", "Any other key is an error that names it.", "", "## Example", "",
-            example.strip(), "", "## Rules", "", rules.strip(), ""]
+            example.strip(), "", "## Rules", "", rules.strip(), "", "## The `[bus]` table", "",
+            "From `pyrhonn/buslog.py`, which has the rules for lost, late and flagged frames "
+            "([a bus recording](../can-log.md) walks through them):", "", _bus_example(buslog.__doc__ or ""), ""]
     return "\n".join(out)
 
 
