@@ -17,6 +17,7 @@ that are never written by hand, so they cannot go stale:
 :func:`on_config` adds the pages of :data:`OPTIONAL_PAGES` to the navigation
 once they exist.
 
+:func:`on_page_content` shows the docstrings' reST roles as plain code, and
 :func:`on_page_markdown` replaces each ``{{ NAME }}`` of a page with a figure
 measured as the site is built (:func:`_measured`: ``sizeof(rhonn_t)`` for the
 capacities the pages discuss), so no page quotes a stale size.
@@ -273,3 +274,11 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Files) -> str
 
 
 _MEASURED: dict[str, str] | None = None
+
+
+_ROLE_HTML = re.compile(r":(?:class|func|meth|mod|attr|data|exc|obj):(<code>)~?")
+
+
+def on_page_content(html: str, page: Any, config: Any, files: Files) -> str:
+    """The docstrings' reST roles (``:class:`~pyrhonn.x```) as plain code in the API pages."""
+    return _ROLE_HTML.sub(r"\1", html)
