@@ -17,6 +17,7 @@ that are never written by hand, so they cannot go stale:
 :func:`on_config` adds the pages of :data:`OPTIONAL_PAGES` to the navigation
 once they exist.
 
+:func:`on_page_content` shows the docstrings' reST roles as plain code, and
 :func:`on_page_markdown` replaces each ``{{ NAME }}`` of a page with a figure
 measured as the site is built (:func:`_measured`: ``sizeof(rhonn_t)`` for the
 capacities the pages discuss), so no page quotes a stale size.
@@ -56,7 +57,7 @@ def _cli_page() -> str:
     import os
 
     width = os.environ.get("COLUMNS")
-    os.environ["COLUMNS"] = "100"  # argparse wraps to the terminal: the page must not depend on it
+    os.environ["COLUMNS"] = "80"  # argparse wraps to the terminal: the page must not depend on it
     try:
         walk(build_parser(), [], 1, None)
     finally:
@@ -67,32 +68,75 @@ def _cli_page() -> str:
     return "\n".join(out) + "\n"
 
 
-def _config_page() -> str:
-    from pyrhonn import configfile
+_LITERAL = re.compile(r"::\n\n((?:    .*\n|\n)+)")  # a reST literal block, indented by four
 
-    doc = configfile.__doc__ or ""
+
+def _toml(literal: re.Match[str]) -> str:
+    return "```toml\n" + re.sub(r"^    ", "", literal.group(1), flags=re.M).strip("\n") + "\n```"
+
+
+def _bus_example(doc: str) -> str:
+    """The ``[bus]`` example of pyrhonn/buslog.py's docstring as a TOML block."""
+    block = _LITERAL.search(doc)
+    if block is None:
+        raise ValueError("pyrhonn/buslog.py: its docstring has no [bus] example to show")
+    return _toml(block)
+
+
+def _config_page() -> str:
+    from pyrhonn import buslog, configfile
+
+    rst_role = re.compile(r":(?:class|func|mod|meth|data|attr):`~?([^`]+)`")
+    doc = rst_role.sub(r"`\1`", (configfile.__doc__ or "").replace("``", "`"))  # reST to Markdown
     title, _, body = doc.strip().partition("\n")
     example, _, rules = body.partition("Rules\n-----")
-    example = re.sub(r"::\n\n((?:    .*\n|\n)+)", lambda m: ":\n\n```toml\n"
-                     + re.sub(r"^    ", "", m.group(1), flags=re.M).strip("\n") + "\n```\n\n", example + "\n")
-    rst_role = re.compile(r":(?:class|func|mod|meth|data|attr):`~?([^`]+)`")
+    example = _LITERAL.sub(lambda m: ":\n\n" + _toml(m) + "\n\n", example + "\n")
     keys = [
         ("top level", configfile._TOP_KEYS),
         ("`[defaults]` (inherited by every neuron)", configfile.TUNING_KEYS + configfile.PROTECTION_KEYS),
         ("each `[[neurons]]` table", configfile._NEURON_KEYS),
     ]
     out = ["# Config file reference", "", "Generated from `pyrhonn/configfile.py` when the site is built.", "",
-           rst_role.sub(r"`\1`", title.replace("``", "`")), "", "## Keys", "", "| table | keys accepted |",
+           title, "", "## Keys", "", "| table | keys accepted |",
            "| --- | --- |"]
+    keys.append(("`[bus]` (for `pyrhonn identify --can-log`)", buslog._KEYS))
     out += [f"| {where} | {', '.join(f'`{k}`' for k in ks)} |" for where, ks in keys]
     out += ["", "Any other key is an error that names it.", "", "## Example", "",
-            rst_role.sub(r"`\1`", example.replace("``", "`")).strip(), "", "## Rules", "",
-            rst_role.sub(r"`\1`", rules.replace("``", "`")).strip(), ""]
+            example.strip(), "", "## Rules", "", rules.strip(), "", "## The `[bus]` table", "",
+            "From `pyrhonn/buslog.py`, which has the rules for lost, late and flagged frames "
+            "([a bus recording](../can-log.md) walks through them):", "", _bus_example(buslog.__doc__ or ""), ""]
     return "\n".join(out)
 
 
-_DECL = re.compile(r"/\*((?:(?!\*/).)*)\*/\s*\n((?:typedef |rhonn_|const char|void |int |size_t |uint)[^;{]*(?:;|\{))",
-                   re.S)
+_PROTOTYPE = re.compile(r"^(?:const )?\w+[ *]+(rhonn_\w+)\s*\(")
+
+
+def _functions(text: str) -> list[tuple[str, str, str]]:
+    """``(name, prototype, comment)`` of every function a header declares, in order. A comment
+    documents the prototypes that follow it directly (a getter and its setter share one)."""
+    out: list[tuple[str, str, str]] = []
+    lines = text.splitlines()
+    comment, i = "", 0
+    while i < len(lines):
+        line = lines[i]
+        if line.lstrip().startswith("/*"):
+            block = [line]
+            while "*/" not in block[-1] and i + 1 < len(lines):
+                i += 1
+                block.append(lines[i])
+            body = "\n".join(block).strip()[2:-2]
+            comment = "\n".join(re.sub(r"^\s*\* ?", "", ln).rstrip() for ln in body.strip("*\n ").splitlines())
+        elif _PROTOTYPE.match(line):
+            decl = [line]
+            while ";" not in decl[-1] and i + 1 < len(lines):
+                i += 1
+                decl.append(lines[i])
+            name = _PROTOTYPE.match(line).group(1)
+            out.append((name, " ".join(" ".join(decl).split()), comment.strip()))
+        elif line.strip():
+            comment = ""  # anything else between a comment and a prototype: the comment is not its
+        i += 1
+    return out
 
 
 def _c_page() -> str:
@@ -102,17 +146,11 @@ def _c_page() -> str:
            "comment explains the step's order, the errors and the precision).", ""]
     for name in HEADERS:
         text = (ROOT / "csrc" / "include" / name).read_text(encoding="utf-8")
-        decls = []
-        for comment, decl in _DECL.findall(text):
-            decl = " ".join(decl.split()).rstrip("{").strip()
-            if "(" not in decl or decl.startswith("typedef"):
-                continue
-            fn = re.search(r"(\w+)\s*\(", decl)
-            lines = [re.sub(r"^\s*\* ?", "", ln).rstrip() for ln in comment.strip("*\n ").splitlines()]
-            decls.append((fn.group(1) if fn else decl, decl, "\n".join(lines).strip()))
         out.extend([f"## `{name}`", ""])
-        for fn, decl, comment in decls:
-            out.extend([f"### `{fn}`", "", "```c", decl, "```", "", "```text", comment, "```", ""])
+        for fn, decl, comment in _functions(text):
+            out.extend([f"### `{fn}`", "", "```c", decl, "```", ""])
+            if comment:
+                out.extend(["```text", comment, "```", ""])
         out.extend([f"### `{name}` in full", "", "```c", text.rstrip(), "```", ""])
     return "\n".join(out)
 
@@ -236,3 +274,11 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Files) -> str
 
 
 _MEASURED: dict[str, str] | None = None
+
+
+_ROLE_HTML = re.compile(r":(?:class|func|meth|mod|attr|data|exc|obj):(<code>)~?")
+
+
+def on_page_content(html: str, page: Any, config: Any, files: Files) -> str:
+    """The docstrings' reST roles (``:class:`~pyrhonn.x```) as plain code in the API pages."""
+    return _ROLE_HTML.sub(r"\1", html)

@@ -1,6 +1,8 @@
 """The project stands on its own: no pointers to files outside it, no issue
 numbers, every docs/plants.md section that code or docs link to exists, and
-docs/plants.md states the numbers the code uses."""
+docs/plants.md states the numbers the code uses. Every code example of the
+README and the docs runs as written, and the README links only to files that
+exist."""
 from __future__ import annotations
 
 import re
@@ -230,7 +232,7 @@ def _run(cmd: list[str], cwd: Path, what: str) -> str:
 
 
 @pytest.mark.parametrize("page", _runnable_pages(), ids=lambda p: p.relative_to(ROOT).as_posix())
-def test_code_examples_run_as_written(page: Path, tmp_path: Path, checkout) -> None:
+def test_code_examples_run_as_written(page: Path, tmp_path: Path) -> None:
     if CC is None:
         pytest.skip("no C compiler (cc) on PATH")
     (tmp_path / "csrc").symlink_to(ROOT / "csrc", target_is_directory=True)
@@ -269,3 +271,42 @@ def test_readme_links_point_to_files_of_the_repository():
     assert targets, "the README links to nothing"
     missing = [t for t in targets if not (ROOT / t).exists()]
     assert not missing, f"README.md links to missing files: {missing}"
+
+
+def _docs_hooks():
+    """docs_hooks.py, the MkDocs hook that generates the reference pages (loaded from its file: it is
+    not part of the package)."""
+    import importlib.util
+
+    pytest.importorskip("mkdocs")
+    spec = importlib.util.spec_from_file_location("docs_hooks", ROOT / "docs_hooks.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_c_api_reference_documents_every_function_of_the_headers():
+    hooks = _docs_hooks()
+    page = hooks._c_page()
+    for header in (ROOT / "csrc" / "include").glob("*.h"):
+        assert header.name in hooks.HEADERS, f"{header.name} is missing from the C API reference"
+        declared = set(re.findall(r"^(?:const )?\w+[ *]+(rhonn_\w+)\s*\(", header.read_text(encoding="utf-8"), re.M))
+        for name in declared:
+            assert f"### `{name}`" in page, f"{header.name}: {name} has no entry in the C API reference"
+    # a getter and its setter under one comment both carry it
+    weights = page.split("### `rhonn_set_weights`", 1)[1].split("###", 1)[0]
+    assert "ROUND TRIP" in weights
+
+
+def test_cli_reference_holds_every_command_and_option():
+    from pyrhonn.cli import build_parser
+
+    page = _docs_hooks()._cli_page()
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    for name, child in sub.choices.items():
+        assert f"`pyrhonn {name}`" in page, name
+        for action in child._actions:
+            for option in action.option_strings:
+                assert option in page, f"pyrhonn {name} {option}"
