@@ -332,7 +332,7 @@ def test_load_config_names_the_file(tmp_path) -> None:
     path.write_bytes(b"\x89PNG\r\n\x1a\n")
     with pytest.raises(ValueError, match=re.escape(f"{path}:")):
         load_config(path)
-    with pytest.raises(OSError):
+    with pytest.raises(ValueError, match=re.escape(f"{tmp_path / 'missing.toml'}: No such file or directory")):
         load_config(tmp_path / "missing.toml")
 
 
