@@ -30,16 +30,15 @@ import pytest
 can = pytest.importorskip("can")
 pya2l = pytest.importorskip("pya2l")
 pytest.importorskip("pyxcp")
-cmac_mod = pytest.importorskip("cryptography.hazmat.primitives.cmac")
+pytest.importorskip("cryptography")
 
-from cryptography.hazmat.primitives.ciphers import algorithms  # noqa: E402
 from pya2l import model  # noqa: E402
 from pyxcp import Master  # noqa: E402
 from pyxcp.config import create_application_from_config, set_application  # noqa: E402
-from pyxcp.daq_stim import DaqList, DaqOnlinePolicy  # noqa: E402
+from pyxcp.daq_stim import DaqList  # noqa: E402
 from pyxcp.types import XcpResponseError  # noqa: E402
 
-from pyrhonn.firmware import TEST_KEY, database  # noqa: E402
+from pyrhonn.firmware import database  # noqa: E402
 
 from hil.scenario import Scenario  # noqa: E402
 from hil.transport import UDP_GROUP, free_port  # noqa: E402
@@ -58,6 +57,9 @@ def _module(name: str, path: Path) -> Any:
     sys.modules[name] = module
     spec.loader.exec_module(module)
     return module
+
+
+xcp_master = _module("_xcp_master", FW / "tools" / "xcp_master.py")
 
 
 @pytest.fixture(scope="module")
@@ -134,39 +136,10 @@ def test_make_a2l_refuses_an_image_without_the_slave_and_bad_arguments(make_a2l,
 # -- pyxcp against the runner during a replay ----------------------------------------------------------
 
 
-def _key(resource: int, seed: bytes) -> bytes:
-    mac = cmac_mod.CMAC(algorithms.AES(TEST_KEY))
-    mac.update(seed)
-    return mac.finalize()
-
-
 def _wrong_key(resource: int, seed: bytes) -> bytes:
-    key = bytearray(_key(resource, seed))
+    key = bytearray(xcp_master.key(resource, seed))
     key[0] ^= 1
     return bytes(key)
-
-
-class _Samples(DaqOnlinePolicy):
-    """Every DAQ sample: (list, slave timestamp in ns, {measurement: value}). pyxcp packs the ODTs by
-    address, so the payload follows the list's headers, not the order the measurements were given in."""
-
-    def __init__(self, lists: list[DaqList]) -> None:
-        super().__init__(lists)
-        self.rows: list[tuple[int, int, dict[str, float]]] = []
-
-    def on_daq_list(self, daq_list: int, timestamp0: int, timestamp1: int, payload: list) -> None:
-        names = [h[0] for h in self.daq_lists[daq_list].headers]
-        self.rows.append((daq_list, timestamp1, dict(zip(names, payload))))
-
-
-def _udp_drops(port: int) -> int:
-    """The kernel's count of datagrams the socket bound to 127.0.0.1:port dropped (/proc/net/udp)."""
-    want = f"0100007F:{port:04X}"
-    for line in Path("/proc/net/udp").read_text().splitlines()[1:]:
-        f = line.split()
-        if f[1] == want:
-            return int(f[-1])
-    return 0
 
 
 @pytest.fixture()
@@ -214,7 +187,7 @@ def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None
     weights = [(f"w{i}_{t}", m[f"w{i}_{t}"][0], 0, "F32") for i, t in WEIGHTS]
     health = [(f"{k}_{i}", m[f"{k}_{i}"][0], 0, "F32") for k in ("nis", "trace_p") for i in range(6)]
     meas = ("measurements", m["measurements"][0], 0, "U32")
-    policy = _Samples([DaqList(name="weights", event_num=0, stim=False, enable_timestamps=True,
+    policy = xcp_master.Samples([DaqList(name="weights", event_num=0, stim=False, enable_timestamps=True,
                                measurements=[meas, *weights], priority=0, prescaler=1),
                        DaqList(name="health", event_num=0, stim=False, enable_timestamps=True,
                                measurements=[meas, *health], priority=0, prescaler=1)])
@@ -231,11 +204,11 @@ def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None
             x.setMta(a2l["characteristics"]["learning"])
             with pytest.raises(XcpResponseError, match="ACCESS_LOCKED"):
                 x.download(b"\x00")
-            x.seed_n_key_function = _key
+            x.seed_n_key_function = xcp_master.key
             x.cond_unlock()
             assert not any(x.getCurrentProtectionStatus().values())
             local_port = x.transport.sock.getsockname()[1]
-            drops0 = _udp_drops(local_port)
+            drops0 = xcp_master.udp_drops(local_port)
 
             policy.setup()
             policy.start()
@@ -250,7 +223,7 @@ def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None
                         for k in ("measurements", "events", "daq_dto_sent", "daq_dto_lost", "learning_state")}
             x.setMta(a2l["characteristics"]["learning"])
             assert x.upload(1) == b"\x00"
-            drops = _udp_drops(local_port) - drops0
+            drops = xcp_master.udp_drops(local_port) - drops0
             x.disconnect()
     finally:
         bus.shutdown()
