@@ -16,8 +16,12 @@ udp_multicast.
 from __future__ import annotations
 
 import importlib.util
+import json
 import re
 import shutil
+import signal
+import socket
+import struct
 import subprocess
 import sys
 import time
@@ -143,20 +147,23 @@ def _wrong_key(resource: int, seed: bytes) -> bytes:
 
 
 @pytest.fixture()
-def runner(runner_exe: Path) -> Iterator[tuple[subprocess.Popen, int, int]]:
-    """The runner on udp_multicast with --xcp-udp on a free port: (process, group port, XCP port)."""
+def runner(runner_exe: Path, tmp_path: Path) -> Iterator[tuple[subprocess.Popen, int, int, Path]]:
+    """The runner on udp_multicast with --xcp-udp on a free port: (process, group port, XCP port, the
+    --json report it writes when stopped)."""
     port = free_port()
+    report = tmp_path / "runner.json"
     proc = subprocess.Popen([str(runner_exe), "--udp-multicast", f"{UDP_GROUP}:{port}", "--duration", "120",
-                             "--diag-period", "0", "--xcp-udp", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                             "--diag-period", "0", "--xcp-udp", "0", "--json", str(report)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         first = proc.stdout.readline()
         match = re.match(r"xcp: udp 127\.0\.0\.1:(\d+), A2L RHONN_LIM", first)
         assert match, (first, proc.stderr.read() if proc.poll() is not None else "")
         assert proc.stdout.readline().startswith("rhonn_runner: listening on udp_multicast")
-        yield proc, port, int(match.group(1))
+        yield proc, port, int(match.group(1)), report
     finally:
-        proc.terminate()
+        if proc.poll() is None:
+            proc.terminate()
         out, err = proc.communicate(timeout=10)
         print(out, err)  # the runner's statistics, shown when the test fails
 
@@ -176,7 +183,7 @@ def _replay(bus: can.BusABC, frames: list[can.Message]) -> int:
 
 
 def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None:
-    proc, group_port, xcp_port = runner
+    proc, group_port, xcp_port, report = runner
     m = a2l["measurements"]
     app = create_application_from_config({"Transport": {"Eth": {"host": "127.0.0.1", "port": xcp_port,
                                                                 "protocol": "UDP"}}})
@@ -224,10 +231,21 @@ def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None
             x.setMta(a2l["characteristics"]["learning"])
             assert x.upload(1) == b"\x00"
             drops = xcp_master.udp_drops(local_port) - drops0
+            # another master, while this one is connected: not answered, counted
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as other:
+                other.settimeout(0.5)
+                other.sendto(struct.pack("<HHB", 1, 0, 0xFD), ("127.0.0.1", xcp_port))
+                with pytest.raises(socket.timeout):
+                    other.recvfrom(64)
             x.disconnect()
     finally:
         bus.shutdown()
 
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=10) == 0
+    side = json.loads(report.read_text())["xcp"]
+    assert side["other_masters"] == 1 and side["step_events"] == len(frames) and side["malformed"] == 0
+    assert side["daq_dto_sent"] == counters["daq_dto_sent"]
     assert answered == len(frames) == counters["measurements"] == counters["events"]
     assert counters["learning_state"] == 0
     w_names = [w[0] for w in weights]

@@ -467,6 +467,23 @@ static void test_init_refuses_bad_arguments(void)
     memset(&other, 0, sizeof other);
     CHECK_FW(fw_xcp_on_command(&other, &app, (const uint8_t *)"\xFF\x00", 2, 0), FW_E_NOT_INIT);
     CHECK_FW(fw_xcp_attach(&other, &app), FW_E_NOT_INIT);
+    CHECK_FW(fw_xcp_on_command(NULL, &app, NULL, 0, 0), FW_E_NULL);
+    CHECK_FW(fw_xcp_attach(&xcp, NULL), FW_E_NULL);
+    /* the application's side of the hooks */
+    {
+        fw_app blank;
+        memset(&blank, 0, sizeof blank);
+        CHECK_FW(fw_app_set_step_hooks(NULL, NULL), FW_E_NULL);
+        CHECK_FW(fw_app_set_step_hooks(&blank, NULL), FW_E_NOT_INIT);
+        CHECK_FW(fw_app_set_learning(&blank, 0), FW_E_NOT_INIT);
+        CHECK(fw_app_learning(&blank) == 0 && fw_app_learning(NULL) == 0);
+        CHECK_FW(fw_xcp_attach(&xcp, &blank), FW_E_NOT_INIT);
+    }
+    /* hooks removed: the slave sees no more steps */
+    setup();
+    CHECK(step() == FW_OK && img.signals.events == 1u);
+    CHECK_FW(fw_app_set_step_hooks(&app, NULL), FW_OK);
+    CHECK(step() == FW_OK && img.signals.events == 1u);
 }
 
 int main(void)
