@@ -215,6 +215,8 @@ def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None
             x.cond_unlock()
             assert not any(x.getCurrentProtectionStatus().values())
             local_port = x.transport.sock.getsockname()[1]
+            # room for the DAQ stream while a loaded machine starves pyxcp's reader (capped by rmem_max)
+            x.transport.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 << 20)
             drops0 = xcp_master.udp_drops(local_port)
 
             policy.setup()
@@ -258,17 +260,18 @@ def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None
     for rows in by_list.values():
         steps = [r[0] for r in rows]
         assert steps == sorted(set(steps))                    # once each, in order
-        missing = (steps[-1] - steps[0] + 1) - len(steps)     # steps between the first and last sample
-        assert missing <= lost_reasons                        # each lost sample lost a packet, counted
-        assert steps[0] <= 2 and steps[-1] == len(frames)
+        # every step's sample arrived, or a packet of it was lost and counted (by the slave or the
+        # master's receive queue; each missing sample lost at least one)
+        missing = len(frames) - len(steps)
+        assert missing <= lost_reasons
+        if lost_reasons == 0:
+            assert steps == list(range(1, len(frames) + 1))  # DAQ ran from the first step to the last
         stamps = [r[1] for r in rows]
         assert all(b > a for a, b in zip(stamps, stamps[1:]))  # the slave's 1 us step timestamps
-    if lost_reasons == 0:
-        assert [r[0] for r in by_list[0]] == list(range(by_list[0][0][0], len(frames) + 1))
     # learning on: the weights move; learning off from step stepped_on + 1: frozen
     before = [r[2] for r in by_list[0] if r[0] <= stepped_on]
     after = [r[2] for r in by_list[0] if r[0] >= stepped_on]
     assert len({tuple(w) for w in before}) > 100
-    assert len(after) > 700 and all(w == after[0] for w in after)
+    assert len(after) > 400 and all(w == after[0] for w in after)
     # the health list: trace P of every neuron positive
     assert all(all(v > 0 for v in r[2][6:]) for r in by_list[1])
