@@ -65,9 +65,11 @@ def _m4(frames: int) -> dict:
         n_cmd = 500
         est = cycles.estimate(elf, counted, "fw_xcp_on_command", harness=harness, args=["commands", str(n_cmd)])
         each = est["cycles_each"][-n_cmd:]  # the set-up's commands (CONNECT, seed & key, DAQ lists) come first
+        ins = est["instructions_each"][-n_cmd:]
         kinds = ("SHORT_UPLOAD 4 B", "SHORT_UPLOAD 56 B", "SET_MTA", "DOWNLOAD 1 B (learning)", "GET_STATUS")
         report["commands"] = {k: {"calls": len(each[i::5]), "cycles_mean": sum(each[i::5]) / len(each[i::5]),
-                                  "cycles_max": max(each[i::5])} for i, k in enumerate(kinds)}
+                                  "cycles_max": max(each[i::5]),
+                                  "instructions_mean": sum(ins[i::5]) / len(ins[i::5])} for i, k in enumerate(kinds)}
         setup = est["cycles_each"][:-n_cmd]
         report["set_up_commands"] = {"calls": len(setup), "cycles_max": max(setup)}
         text = run_m4.run([*run_m4.QEMU, "-kernel", str(elf)], timeout=300).stdout
@@ -173,7 +175,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  the step event (the difference)    {ev['cycles_mean']:8.0f}, {ev['instructions_mean']:.0f} "
               f"instructions, {100 * ev['cycles_mean'] / BUDGET:.1f} %: {ev['by_function']}")
         for k, v in m4["commands"].items():
-            print(f"  command {k:27} {v['cycles_mean']:8.0f} (max {v['cycles_max']:.0f})")
+            print(f"  command {k:27} {v['cycles_mean']:8.0f} (max {v['cycles_max']:.0f}), "
+                  f"{v['instructions_mean']:.0f} instructions")
         print(f"  fw_xcp in the image: {m4['fw_xcp_object']}; object file {m4['fw_xcp_object_file']}")
         print(f"  RAM: {m4['sizeof']}")
     if not args.skip_linux:
