@@ -49,7 +49,7 @@ def _m4(frames: int) -> dict:
         counted = [*objs.values(), xcp_obj]
         harness = ("main", "feed", "command")
         report: dict = {}
-        for mode in ("plain", "daq"):
+        for mode in ("plain", "connected", "daq"):
             est = cycles.estimate(elf, counted, "fw_app_on_frame", harness=harness, args=[mode, str(frames)])
             report[mode] = {"frames": est["calls"], "cycles_mean": est["estimated_cycles_per_call"],
                             "cycles_max": est["estimated_cycles_max"],
@@ -170,6 +170,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"Cortex-M4F, estimated cycles (share of 0.3 ms at 168 MHz = {BUDGET} cycles):")
         print(f"  Measurement frame without XCP       {plain['cycles_mean']:8.0f} (max {plain['cycles_max']:.0f}), "
               f"{plain['instructions_mean']:.0f} instructions")
+        con = m4["connected"]
+        print(f"  with XCP, a master connected, no DAQ {con['cycles_mean']:6.0f} (max {con['cycles_max']:.0f}), "
+              f"{con['instructions_mean']:.0f} instructions")
         print(f"  with XCP, 2 DAQ lists (4 ODTs)      {daq['cycles_mean']:8.0f} (max {daq['cycles_max']:.0f}), "
               f"{daq['instructions_mean']:.0f} instructions, {100 * daq['cycles_mean'] / BUDGET:.1f} %")
         print(f"  the step event (the difference)    {ev['cycles_mean']:8.0f}, {ev['instructions_mean']:.0f} "

@@ -271,8 +271,8 @@ static void after_step(void *ctx, fw_app *app, uint64_t now_ns)
     uint16_t e;
 
     ++x->signals->events;
-    if (!x->connected) {
-        return;
+    if (!x->connected || !daq_running(x)) {
+        return; /* a read refreshes the signals itself (fw_xcp_on_command) */
     }
     refresh(x, app);
     stamp = (uint32_t)(now_ns / 1000u); /* one 64-bit division an event */
@@ -822,9 +822,13 @@ fw_status fw_xcp_on_command(fw_xcp *x, fw_app *app, const uint8_t *c, size_t len
         x->mta = rd32(c + 4);
         return respond(x, 1u);
     case CC_UPLOAD:
-        return cmd_upload(x, c, len);
     case CC_SHORT_UPLOAD:
-        return cmd_short_upload(x, c, len);
+        /* Without DAQ the step event leaves the signals alone: they are
+         * refreshed here, between steps, from the same identifier state. */
+        if (!daq_running(x)) {
+            refresh(x, app);
+        }
+        return c[0] == CC_UPLOAD ? cmd_upload(x, c, len) : cmd_short_upload(x, c, len);
     case CC_DOWNLOAD:
         return cmd_download(x, c, len);
     default:

@@ -5,6 +5,7 @@
  *   xcp_m4.elf plain N     the Measurements among the first N frames of the
  *                          recorded stream (frames.h, make_frames.py: the
  *                          LIM at the rig's period), the application alone
+ *   xcp_m4.elf connected N the slave attached and a master connected, no DAQ
  *   xcp_m4.elf daq N       the slave attached, connected, unlocked, two DAQ
  *                          lists running on the step event (the 29 weights
  *                          and the measurement counter: 3 ODTs; NIS and
@@ -184,7 +185,9 @@ int main(int argc, char **argv)
     xc.calibration = &calibration;
     xc.address_base = 0u; /* absolute addresses, as on a microcontroller */
     if (strcmp(mode, "plain") != 0) {
-        if (fw_xcp_init(&xcp, &xc) != FW_OK || fw_xcp_attach(&xcp, &app) != FW_OK || program_daq() < 0) {
+        static const uint8_t connect[] = {0xFF, 0x00};
+        if (fw_xcp_init(&xcp, &xc) != FW_OK || fw_xcp_attach(&xcp, &app) != FW_OK ||
+            (strcmp(mode, "connected") == 0 ? expect_ok(connect, sizeof connect) : program_daq()) < 0) {
             printf("error xcp\n");
             return 1;
         }

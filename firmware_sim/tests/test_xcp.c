@@ -304,14 +304,18 @@ static void test_learning_off_takes_effect_at_the_next_step(void)
     CHECK(fw_app_learning(&app) == 1); /* written, not yet taken: no step ran */
     CHECK_FW(fw_app_get_identifier(&app, &net), FW_OK);
     CHECK(step() == FW_OK);
-    CHECK(fw_app_learning(&app) == 0 && img.signals.learning == 0u);
+    CHECK(fw_app_learning(&app) == 0);
+    CHECK_FW(short_upload(4, 0, sig_addr + FW_XCP_OFF_LEARNING), FW_OK); /* a read refreshes the signals */
+    CHECK(pkts[0][1] == 0u && img.signals.learning == 0u);
     CHECK_STATUS(rhonn_get_weights(net, 4, w0, LIM_IDENTIFIER.neurons[4].n_terms), RHONN_OK);
     for (k = 0; k < 5; ++k) {
         CHECK(step() == FW_OK);
     }
     CHECK_STATUS(rhonn_get_weights(net, 4, w1, LIM_IDENTIFIER.neurons[4].n_terms), RHONN_OK);
     CHECK(memcmp(w0, w1, sizeof(rhonn_real) * LIM_IDENTIFIER.neurons[4].n_terms) == 0);
-    CHECK_FW(download1(1), FW_E_RANGE); /* the MTA moved past the byte: a reserved one now */
+    CHECK_FW(set_mta(cal_addr + 1u), FW_OK);
+    CHECK_FW(download1(1), FW_E_RANGE); /* a reserved byte */
+    CHECK(answered_error(0x22));
     CHECK_FW(set_mta(cal_addr), FW_OK);
     CHECK_FW(download1(1), FW_OK);
     CHECK(step() == FW_OK && fw_app_learning(&app) == 1);
