@@ -233,20 +233,31 @@ def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None
             x.setMta(a2l["characteristics"]["learning"])
             assert x.upload(1) == b"\x00"
             drops = xcp_master.udp_drops(local_port) - drops0
-            # another master, while this one is connected: not answered, counted
-            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as other:
-                other.settimeout(0.5)
-                other.sendto(struct.pack("<HHB", 1, 0, 0xFD), ("127.0.0.1", xcp_port))
-                with pytest.raises(socket.timeout):
-                    other.recvfrom(64)
             x.disconnect()
     finally:
         bus.shutdown()
+    # two more masters: while one is connected the other is not answered (counted), but its
+    # CONNECT takes the session over, so a vanished master cannot lock everyone out
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as a, socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as b:
+        def ask(sock: socket.socket, cmd: bytes) -> bytes | None:
+            sock.settimeout(0.5)
+            sock.sendto(struct.pack("<HH", len(cmd), 0) + cmd, ("127.0.0.1", xcp_port))
+            try:
+                return sock.recvfrom(64)[0][4:]
+            except socket.timeout:
+                return None
+
+        assert ask(a, b"\xff\x00")[:1] == b"\xff"
+        assert ask(b, b"\xfd") is None
+        assert ask(b, b"\xff\x00")[:1] == b"\xff"
+        assert ask(a, b"\xfd") is None
+        assert ask(b, b"\xfd")[:3] == b"\xff\x00\x05"   # b's session: locked again
 
     proc.send_signal(signal.SIGINT)
     assert proc.wait(timeout=10) == 0
     side = json.loads(report.read_text())["xcp"]
-    assert side["other_masters"] == 1 and side["step_events"] == len(frames) and side["malformed"] == 0
+    assert side["other_masters"] == 2 and side["takeovers"] == 1
+    assert side["step_events"] == len(frames) and side["malformed"] == 0
     assert side["daq_dto_sent"] == counters["daq_dto_sent"]
     assert answered == len(frames) == counters["measurements"] == counters["events"]
     assert counters["learning_state"] == 0

@@ -170,7 +170,10 @@ static uint8_t read_mta(fw_xcp *x, uint8_t *out, size_t n)
     return 0;
 }
 
-/* The signals from the identifier and the application's counters. */
+/* The signals from the identifier and the application's counters. The
+ * slave is a protocol layer of the application, as fw_app.c's CAN protocol
+ * is: it reads the application's fields in place (no copy of the counters
+ * per step event) and changes nothing but through fw_app_set_learning. */
 static void refresh(fw_xcp *x, const fw_app *app)
 {
     fw_xcp_signals *s = x->signals;
