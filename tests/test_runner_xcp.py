@@ -16,8 +16,12 @@ udp_multicast.
 from __future__ import annotations
 
 import importlib.util
+import json
 import re
 import shutil
+import signal
+import socket
+import struct
 import subprocess
 import sys
 import time
@@ -30,16 +34,15 @@ import pytest
 can = pytest.importorskip("can")
 pya2l = pytest.importorskip("pya2l")
 pytest.importorskip("pyxcp")
-cmac_mod = pytest.importorskip("cryptography.hazmat.primitives.cmac")
+pytest.importorskip("cryptography")
 
-from cryptography.hazmat.primitives.ciphers import algorithms  # noqa: E402
 from pya2l import model  # noqa: E402
 from pyxcp import Master  # noqa: E402
 from pyxcp.config import create_application_from_config, set_application  # noqa: E402
-from pyxcp.daq_stim import DaqList, DaqOnlinePolicy  # noqa: E402
+from pyxcp.daq_stim import DaqList  # noqa: E402
 from pyxcp.types import XcpResponseError  # noqa: E402
 
-from pyrhonn.firmware import TEST_KEY, database  # noqa: E402
+from pyrhonn.firmware import database  # noqa: E402
 
 from hil.scenario import Scenario  # noqa: E402
 from hil.transport import UDP_GROUP, free_port  # noqa: E402
@@ -58,6 +61,9 @@ def _module(name: str, path: Path) -> Any:
     sys.modules[name] = module
     spec.loader.exec_module(module)
     return module
+
+
+xcp_master = _module("_xcp_master", FW / "tools" / "xcp_master.py")
 
 
 @pytest.fixture(scope="module")
@@ -134,56 +140,30 @@ def test_make_a2l_refuses_an_image_without_the_slave_and_bad_arguments(make_a2l,
 # -- pyxcp against the runner during a replay ----------------------------------------------------------
 
 
-def _key(resource: int, seed: bytes) -> bytes:
-    mac = cmac_mod.CMAC(algorithms.AES(TEST_KEY))
-    mac.update(seed)
-    return mac.finalize()
-
-
 def _wrong_key(resource: int, seed: bytes) -> bytes:
-    key = bytearray(_key(resource, seed))
+    key = bytearray(xcp_master.key(resource, seed))
     key[0] ^= 1
     return bytes(key)
 
 
-class _Samples(DaqOnlinePolicy):
-    """Every DAQ sample: (list, slave timestamp in ns, {measurement: value}). pyxcp packs the ODTs by
-    address, so the payload follows the list's headers, not the order the measurements were given in."""
-
-    def __init__(self, lists: list[DaqList]) -> None:
-        super().__init__(lists)
-        self.rows: list[tuple[int, int, dict[str, float]]] = []
-
-    def on_daq_list(self, daq_list: int, timestamp0: int, timestamp1: int, payload: list) -> None:
-        names = [h[0] for h in self.daq_lists[daq_list].headers]
-        self.rows.append((daq_list, timestamp1, dict(zip(names, payload))))
-
-
-def _udp_drops(port: int) -> int:
-    """The kernel's count of datagrams the socket bound to 127.0.0.1:port dropped (/proc/net/udp)."""
-    want = f"0100007F:{port:04X}"
-    for line in Path("/proc/net/udp").read_text().splitlines()[1:]:
-        f = line.split()
-        if f[1] == want:
-            return int(f[-1])
-    return 0
-
-
 @pytest.fixture()
-def runner(runner_exe: Path) -> Iterator[tuple[subprocess.Popen, int, int]]:
-    """The runner on udp_multicast with --xcp-udp on a free port: (process, group port, XCP port)."""
+def runner(runner_exe: Path, tmp_path: Path) -> Iterator[tuple[subprocess.Popen, int, int, Path]]:
+    """The runner on udp_multicast with --xcp-udp on a free port: (process, group port, XCP port, the
+    --json report it writes when stopped)."""
     port = free_port()
+    report = tmp_path / "runner.json"
     proc = subprocess.Popen([str(runner_exe), "--udp-multicast", f"{UDP_GROUP}:{port}", "--duration", "120",
-                             "--diag-period", "0", "--xcp-udp", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                             "--diag-period", "0", "--xcp-udp", "0", "--json", str(report)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         first = proc.stdout.readline()
         match = re.match(r"xcp: udp 127\.0\.0\.1:(\d+), A2L RHONN_LIM", first)
         assert match, (first, proc.stderr.read() if proc.poll() is not None else "")
         assert proc.stdout.readline().startswith("rhonn_runner: listening on udp_multicast")
-        yield proc, port, int(match.group(1))
+        yield proc, port, int(match.group(1)), report
     finally:
-        proc.terminate()
+        if proc.poll() is None:
+            proc.terminate()
         out, err = proc.communicate(timeout=10)
         print(out, err)  # the runner's statistics, shown when the test fails
 
@@ -203,7 +183,7 @@ def _replay(bus: can.BusABC, frames: list[can.Message]) -> int:
 
 
 def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None:
-    proc, group_port, xcp_port = runner
+    proc, group_port, xcp_port, report = runner
     m = a2l["measurements"]
     app = create_application_from_config({"Transport": {"Eth": {"host": "127.0.0.1", "port": xcp_port,
                                                                 "protocol": "UDP"}}})
@@ -214,7 +194,7 @@ def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None
     weights = [(f"w{i}_{t}", m[f"w{i}_{t}"][0], 0, "F32") for i, t in WEIGHTS]
     health = [(f"{k}_{i}", m[f"{k}_{i}"][0], 0, "F32") for k in ("nis", "trace_p") for i in range(6)]
     meas = ("measurements", m["measurements"][0], 0, "U32")
-    policy = _Samples([DaqList(name="weights", event_num=0, stim=False, enable_timestamps=True,
+    policy = xcp_master.Samples([DaqList(name="weights", event_num=0, stim=False, enable_timestamps=True,
                                measurements=[meas, *weights], priority=0, prescaler=1),
                        DaqList(name="health", event_num=0, stim=False, enable_timestamps=True,
                                measurements=[meas, *health], priority=0, prescaler=1)])
@@ -231,11 +211,13 @@ def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None
             x.setMta(a2l["characteristics"]["learning"])
             with pytest.raises(XcpResponseError, match="ACCESS_LOCKED"):
                 x.download(b"\x00")
-            x.seed_n_key_function = _key
+            x.seed_n_key_function = xcp_master.key
             x.cond_unlock()
             assert not any(x.getCurrentProtectionStatus().values())
             local_port = x.transport.sock.getsockname()[1]
-            drops0 = _udp_drops(local_port)
+            # room for the DAQ stream while a loaded machine starves pyxcp's reader (capped by rmem_max)
+            x.transport.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 << 20)
+            drops0 = xcp_master.udp_drops(local_port)
 
             policy.setup()
             policy.start()
@@ -250,11 +232,33 @@ def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None
                         for k in ("measurements", "events", "daq_dto_sent", "daq_dto_lost", "learning_state")}
             x.setMta(a2l["characteristics"]["learning"])
             assert x.upload(1) == b"\x00"
-            drops = _udp_drops(local_port) - drops0
+            drops = xcp_master.udp_drops(local_port) - drops0
             x.disconnect()
     finally:
         bus.shutdown()
+    # two more masters: while one is connected the other is not answered (counted), but its
+    # CONNECT takes the session over, so a vanished master cannot lock everyone out
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as a, socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as b:
+        def ask(sock: socket.socket, cmd: bytes) -> bytes | None:
+            sock.settimeout(0.5)
+            sock.sendto(struct.pack("<HH", len(cmd), 0) + cmd, ("127.0.0.1", xcp_port))
+            try:
+                return sock.recvfrom(64)[0][4:]
+            except socket.timeout:
+                return None
 
+        assert ask(a, b"\xff\x00")[:1] == b"\xff"
+        assert ask(b, b"\xfd") is None
+        assert ask(b, b"\xff\x00")[:1] == b"\xff"
+        assert ask(a, b"\xfd") is None
+        assert ask(b, b"\xfd")[:3] == b"\xff\x00\x05"   # b's session: locked again
+
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=10) == 0
+    side = json.loads(report.read_text())["xcp"]
+    assert side["other_masters"] == 2 and side["takeovers"] == 1
+    assert side["step_events"] == len(frames) and side["malformed"] == 0
+    assert side["daq_dto_sent"] == counters["daq_dto_sent"]
     assert answered == len(frames) == counters["measurements"] == counters["events"]
     assert counters["learning_state"] == 0
     w_names = [w[0] for w in weights]
@@ -267,17 +271,18 @@ def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None
     for rows in by_list.values():
         steps = [r[0] for r in rows]
         assert steps == sorted(set(steps))                    # once each, in order
-        missing = (steps[-1] - steps[0] + 1) - len(steps)     # steps between the first and last sample
-        assert missing <= lost_reasons                        # each lost sample lost a packet, counted
-        assert steps[0] <= 2 and steps[-1] == len(frames)
+        # every step's sample arrived, or a packet of it was lost and counted (by the slave or the
+        # master's receive queue; each missing sample lost at least one)
+        missing = len(frames) - len(steps)
+        assert missing <= lost_reasons
+        if lost_reasons == 0:
+            assert steps == list(range(1, len(frames) + 1))  # DAQ ran from the first step to the last
         stamps = [r[1] for r in rows]
         assert all(b > a for a, b in zip(stamps, stamps[1:]))  # the slave's 1 us step timestamps
-    if lost_reasons == 0:
-        assert [r[0] for r in by_list[0]] == list(range(by_list[0][0][0], len(frames) + 1))
     # learning on: the weights move; learning off from step stepped_on + 1: frozen
     before = [r[2] for r in by_list[0] if r[0] <= stepped_on]
     after = [r[2] for r in by_list[0] if r[0] >= stepped_on]
     assert len({tuple(w) for w in before}) > 100
-    assert len(after) > 700 and all(w == after[0] for w in after)
+    assert len(after) > 400 and all(w == after[0] for w in after)
     # the health list: trace P of every neuron positive
     assert all(all(v > 0 for v in r[2][6:]) for r in by_list[1])

@@ -170,7 +170,10 @@ static uint8_t read_mta(fw_xcp *x, uint8_t *out, size_t n)
     return 0;
 }
 
-/* The signals from the identifier and the application's counters. */
+/* The signals from the identifier and the application's counters. The
+ * slave is a protocol layer of the application, as fw_app.c's CAN protocol
+ * is: it reads the application's fields in place (no copy of the counters
+ * per step event) and changes nothing but through fw_app_set_learning. */
 static void refresh(fw_xcp *x, const fw_app *app)
 {
     fw_xcp_signals *s = x->signals;
@@ -266,14 +269,16 @@ static void before_step(void *ctx, fw_app *app)
 static void after_step(void *ctx, fw_app *app, uint64_t now_ns)
 {
     fw_xcp *x = (fw_xcp *)ctx;
-    uint8_t d, o;
+    uint32_t stamp;
+    uint8_t d, o, b;
     uint16_t e;
 
     ++x->signals->events;
-    if (!x->connected) {
-        return;
+    if (!x->connected || !daq_running(x)) {
+        return; /* a read refreshes the signals itself (fw_xcp_on_command) */
     }
     refresh(x, app);
+    stamp = (uint32_t)(now_ns / 1000u); /* one 64-bit division an event */
     for (d = 0; d < x->n_daq; ++d) {
         fw_xcp_daq *q = &x->daq[d];
         if (!q->running) {
@@ -289,12 +294,20 @@ static void after_step(void *ctx, fw_app *app, uint64_t now_ns)
             size_t n = 1u;
             x->pkt[0] = (uint8_t)(q->first_odt + o);
             if (o == 0u && (q->mode & DAQ_MODE_TIMESTAMP)) {
-                wr32(x->pkt + 1, (uint32_t)(now_ns / 1000u));
+                wr32(x->pkt + 1, stamp);
                 n += TS_BYTES;
             }
             for (e = 0; e < t->n_entries; ++e) {
+                /* entries are a few bytes: copied 4 at a time by fixed-size
+                 * copies the compiler inlines, not a memcpy call each */
                 const fw_xcp_entry *en = &x->entry[t->first_entry + e];
-                memcpy(x->pkt + n, region_bytes(x, en->region) + en->offset, en->size);
+                const uint8_t *src = region_bytes(x, en->region) + en->offset;
+                for (b = 0; b + 4u <= en->size; b = (uint8_t)(b + 4u)) {
+                    memcpy(x->pkt + n + b, src + b, 4u);
+                }
+                for (; b < en->size; ++b) {
+                    x->pkt[n + b] = src[b];
+                }
                 n += en->size;
             }
             if (send_packet(x, n) == FW_OK) {
@@ -812,9 +825,13 @@ fw_status fw_xcp_on_command(fw_xcp *x, fw_app *app, const uint8_t *c, size_t len
         x->mta = rd32(c + 4);
         return respond(x, 1u);
     case CC_UPLOAD:
-        return cmd_upload(x, c, len);
     case CC_SHORT_UPLOAD:
-        return cmd_short_upload(x, c, len);
+        /* Without DAQ the step event leaves the signals alone: they are
+         * refreshed here, between steps, from the same identifier state. */
+        if (!daq_running(x)) {
+            refresh(x, app);
+        }
+        return c[0] == CC_UPLOAD ? cmd_upload(x, c, len) : cmd_short_upload(x, c, len);
     case CC_DOWNLOAD:
         return cmd_download(x, c, len);
     default:

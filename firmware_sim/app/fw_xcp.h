@@ -41,9 +41,11 @@
  * before-step hook), never inside one.
  *
  * DAQ. One event channel, FW_XCP_EVENT_STEP: once per identifier step
- * (every accepted Measurement), after the Estimate went out. The signals
- * are refreshed from the identifier, then every running DAQ list on the
- * event (prescaler counted) sends its ODTs: PID = absolute ODT number, a
+ * (every accepted Measurement), after the Estimate went out. While a DAQ
+ * list runs, the signals are refreshed from the identifier, then every
+ * running list on the event (prescaler counted) sends its ODTs (without
+ * DAQ, UPLOAD and SHORT_UPLOAD refresh them before they read, so a step
+ * costs the slave nothing but a counter): PID = absolute ODT number, a
  * 4-byte timestamp (1 us, the Measurement's reception time) after the
  * first ODT's PID, then the entries' bytes. A DTO the transport refuses is
  * counted in fw_xcp_signals.daq_dto_lost (also readable over XCP).
@@ -79,7 +81,8 @@ extern "C" {
  * refused by fw_xcp_attach. */
 #define FW_XCP_TERMS 12u
 
-/* The signals, refreshed at every step event: all 4-byte values, in this
+/* The signals, refreshed at every step event while DAQ runs, else by each
+ * read: all 4-byte values, in this
  * fixed layout (the FW_XCP_OFF_* offsets, checked at compile time, are what
  * make_a2l.py reads). Little-endian on every supported target. */
 typedef struct {

@@ -305,6 +305,7 @@ def estimate(elf: Path, objects: Path | Sequence[Path], step_symbol: str = "rhon
         "estimated_cycles_max": max(per_call),
         "estimated_cycles_p99": percentile(per_call, 0.99),
         "cycles_each": per_call,
+        "instructions_each": per_call_instructions,
         "cycle_share_by_class": {k: round(v / cycles, 4) for k, v in by_class.most_common()},
         "cycles_per_call_by_function": {k: round(v / calls, 1) for k, v in by_function.most_common()},
     }

@@ -70,9 +70,11 @@
  * packet is preceded by LEN and CTR (2 bytes each, little-endian); a
  * datagram may hold several. The master is the sender of the datagram that
  * connected; while it is connected, datagrams from anyone else are dropped
- * and counted. XCP addresses are offsets from __executable_start, the load
- * address of this image (a PIE or not): the A2L's addresses are the symbols'
- * values minus that of __executable_start, as nm shows them.
+ * and counted, except a CONNECT, which takes the session over (locked
+ * again: a master that vanished does not lock the others out). XCP
+ * addresses are offsets from __executable_start, the load address of this
+ * image (a PIE or not): the A2L's addresses are the symbols' values minus
+ * that of __executable_start, as nm shows them.
  *
  * SCHED_FIFO is requested with --fifo (and memory locked); when the system
  * refuses, the runner says so and keeps the default policy. This file is the
@@ -694,7 +696,7 @@ static struct {
     struct sockaddr_in peer;            /* the master */
     int have_peer;
     uint16_t ctr;                       /* the slave's packet counter (CTR) */
-    uint64_t datagrams, commands, errors, ignored, malformed, foreign, send_errors;
+    uint64_t datagrams, commands, errors, ignored, malformed, foreign, takeovers, send_errors;
     uint8_t rx[XCP_RX_BUFFER];
     uint8_t tx[XCP_HEADER + FW_XCP_MAX_DTO];
 } xu;
@@ -803,8 +805,14 @@ static void take_xcp(void)
             continue;
         }
         if (xcp.connected && xu.have_peer && !same_peer(&from, &xu.peer)) {
-            xu.foreign += 1u; /* another master while one is connected */
-            continue;
+            /* another master while one is connected: only a CONNECT is taken, and it takes the
+             * session over (locked again, DAQ stopped), so a master that vanished without
+             * DISCONNECT does not lock everyone out */
+            if (!(n >= (ssize_t)(XCP_HEADER + 1u) && xu.rx[XCP_HEADER] == 0xFFu)) {
+                xu.foreign += 1u;
+                continue;
+            }
+            xu.takeovers += 1u;
         }
         xu.peer = from;
         xu.have_peer = 1;
@@ -1336,10 +1344,11 @@ int main(int argc, char **argv)
             printf(", send errors %llu\n", (unsigned long long)plat.send_errors);
         }
         if (xu.fd >= 0) {
-            printf("xcp: datagrams %llu, commands %llu, errors %llu, ignored %llu, malformed %llu, other masters %llu, "
-                   "step events %u, DAQ packets sent %u, lost %u\n",
+            printf("xcp: datagrams %llu, commands %llu, errors %llu, ignored %llu, malformed %llu, other masters %llu "
+                   "(%llu took over), step events %u, DAQ packets sent %u, lost %u\n",
                    (unsigned long long)xu.datagrams, (unsigned long long)xu.commands, (unsigned long long)xu.errors,
                    (unsigned long long)xu.ignored, (unsigned long long)xu.malformed, (unsigned long long)xu.foreign,
+                   (unsigned long long)xu.takeovers,
                    rhonn_xcp_signals.events, rhonn_xcp_signals.daq_dto_sent, rhonn_xcp_signals.daq_dto_lost);
         }
         if (spin_ns != 0u) {
@@ -1387,10 +1396,11 @@ int main(int argc, char **argv)
         }
         if (xu.fd >= 0) {
             fprintf(f, ", \"xcp\": {\"datagrams\": %llu, \"commands\": %llu, \"errors\": %llu, \"ignored\": %llu, "
-                       "\"malformed\": %llu, \"other_masters\": %llu, \"step_events\": %u, \"daq_dto_sent\": %u, "
-                       "\"daq_dto_lost\": %u}",
+                       "\"malformed\": %llu, \"other_masters\": %llu, \"takeovers\": %llu, \"step_events\": %u, "
+                       "\"daq_dto_sent\": %u, \"daq_dto_lost\": %u}",
                     (unsigned long long)xu.datagrams, (unsigned long long)xu.commands, (unsigned long long)xu.errors,
                     (unsigned long long)xu.ignored, (unsigned long long)xu.malformed, (unsigned long long)xu.foreign,
+                    (unsigned long long)xu.takeovers,
                     rhonn_xcp_signals.events, rhonn_xcp_signals.daq_dto_sent, rhonn_xcp_signals.daq_dto_lost);
         }
         fprintf(f, "}\n");

@@ -304,14 +304,18 @@ static void test_learning_off_takes_effect_at_the_next_step(void)
     CHECK(fw_app_learning(&app) == 1); /* written, not yet taken: no step ran */
     CHECK_FW(fw_app_get_identifier(&app, &net), FW_OK);
     CHECK(step() == FW_OK);
-    CHECK(fw_app_learning(&app) == 0 && img.signals.learning == 0u);
+    CHECK(fw_app_learning(&app) == 0);
+    CHECK_FW(short_upload(4, 0, sig_addr + FW_XCP_OFF_LEARNING), FW_OK); /* a read refreshes the signals */
+    CHECK(pkts[0][1] == 0u && img.signals.learning == 0u);
     CHECK_STATUS(rhonn_get_weights(net, 4, w0, LIM_IDENTIFIER.neurons[4].n_terms), RHONN_OK);
     for (k = 0; k < 5; ++k) {
         CHECK(step() == FW_OK);
     }
     CHECK_STATUS(rhonn_get_weights(net, 4, w1, LIM_IDENTIFIER.neurons[4].n_terms), RHONN_OK);
     CHECK(memcmp(w0, w1, sizeof(rhonn_real) * LIM_IDENTIFIER.neurons[4].n_terms) == 0);
-    CHECK_FW(download1(1), FW_E_RANGE); /* the MTA moved past the byte: a reserved one now */
+    CHECK_FW(set_mta(cal_addr + 1u), FW_OK);
+    CHECK_FW(download1(1), FW_E_RANGE); /* a reserved byte */
+    CHECK(answered_error(0x22));
     CHECK_FW(set_mta(cal_addr), FW_OK);
     CHECK_FW(download1(1), FW_OK);
     CHECK(step() == FW_OK && fw_app_learning(&app) == 1);
@@ -467,6 +471,23 @@ static void test_init_refuses_bad_arguments(void)
     memset(&other, 0, sizeof other);
     CHECK_FW(fw_xcp_on_command(&other, &app, (const uint8_t *)"\xFF\x00", 2, 0), FW_E_NOT_INIT);
     CHECK_FW(fw_xcp_attach(&other, &app), FW_E_NOT_INIT);
+    CHECK_FW(fw_xcp_on_command(NULL, &app, NULL, 0, 0), FW_E_NULL);
+    CHECK_FW(fw_xcp_attach(&xcp, NULL), FW_E_NULL);
+    /* the application's side of the hooks */
+    {
+        fw_app blank;
+        memset(&blank, 0, sizeof blank);
+        CHECK_FW(fw_app_set_step_hooks(NULL, NULL), FW_E_NULL);
+        CHECK_FW(fw_app_set_step_hooks(&blank, NULL), FW_E_NOT_INIT);
+        CHECK_FW(fw_app_set_learning(&blank, 0), FW_E_NOT_INIT);
+        CHECK(fw_app_learning(&blank) == 0 && fw_app_learning(NULL) == 0);
+        CHECK_FW(fw_xcp_attach(&xcp, &blank), FW_E_NOT_INIT);
+    }
+    /* hooks removed: the slave sees no more steps */
+    setup();
+    CHECK(step() == FW_OK && img.signals.events == 1u);
+    CHECK_FW(fw_app_set_step_hooks(&app, NULL), FW_OK);
+    CHECK(step() == FW_OK && img.signals.events == 1u);
 }
 
 int main(void)
