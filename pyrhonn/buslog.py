@@ -320,12 +320,18 @@ def _candump_line(path: Path, frame: int) -> int:
 #: the most bytes of a log read (a text log is held whole while it is checked)
 MAX_LOG_BYTES = 1 << 31
 _BLF_OBJ = struct.Struct("<4sHHII")  # signature, header size, header version, object size, object type
+_BLF_CONTAINER = struct.Struct("<H6xL4x")  # compression method, uncompressed size
+_BLF_LOG_CONTAINER = 10
+#: the largest uncompressed container read (loggers write 128 KiB; a larger one is a damaged size field)
+MAX_BLF_CONTAINER = 1 << 26
 _PARTIAL_HINT = "; read what is there with --partial-log"
 
 
-def _blf_completeness(p: Path, declared_size: int, declared_objects: int) -> str | None:
+def _blf_completeness(p: Path, declared_size: int, declared_objects: int, where: str) -> str | None:
     """What a BLF file misses, from its header and its objects' sizes (None: complete). Walks the
-    object headers without decompressing: the last one must end inside the file."""
+    object headers without decompressing: the last one must end inside the file. A container that
+    declares more than :data:`MAX_BLF_CONTAINER` bytes uncompressed is refused (``where`` names the
+    file) before anything is decompressed."""
     actual = p.stat().st_size
     found: list[str] = []
     if declared_size > actual:  # the header, written when the logger stopped, says how long the file was
@@ -341,7 +347,13 @@ def _blf_completeness(p: Path, declared_size: int, declared_objects: int) -> str
             if len(raw) < _BLF_OBJ.size:
                 found.append(f"cut inside an object header at byte {pos:,} of {actual:,}")
                 break
-            sig, _, _, size, _ = _BLF_OBJ.unpack(raw)
+            sig, _, _, size, kind = _BLF_OBJ.unpack(raw)
+            if kind == _BLF_LOG_CONTAINER and size >= _BLF_OBJ.size + _BLF_CONTAINER.size:
+                _, inflated = _BLF_CONTAINER.unpack(fh.read(_BLF_CONTAINER.size))
+                if inflated > MAX_BLF_CONTAINER:
+                    raise ValueError(f"{where}: object {count + 1} (a container, at byte {pos:,}) declares "
+                                     f"{inflated:,} bytes uncompressed, more than the {MAX_BLF_CONTAINER:,} read; "
+                                     "the file is damaged there")
             if sig != b"LOBJ" or size < _BLF_OBJ.size:
                 found.append(f"no object where one should start, at byte {pos:,} (the file is damaged there)")
                 break
@@ -425,7 +437,7 @@ def read_frames(path: str | Path, option: str = "--can-log", partial: bool = Fal
         with readers[suffix](source) as reader:
             if suffix == ".blf":
                 incomplete = _blf_completeness(p, int(getattr(reader, "file_size", 0) or 0),
-                                               int(getattr(reader, "object_count", 0) or 0))
+                                               int(getattr(reader, "object_count", 0) or 0), f"{option} {path}")
             for msg in reader:
                 count += 1
                 if msg.is_error_frame or msg.is_remote_frame:
@@ -436,6 +448,8 @@ def read_frames(path: str | Path, option: str = "--can-log", partial: bool = Fal
                 ext.append(bool(msg.is_extended_id))
                 data.append(bytes(msg.data))
     except Exception as exc:  # python-can's readers raise struct.error, ValueError, BLFParseError, zlib.error ...
+        if isinstance(exc, ValueError) and str(exc).startswith(f"{option} {path}: "):
+            raise  # a size this module refused, already named
         if not (partial and incomplete):
             where = f"line {_candump_line(p, count)}" if suffix == ".log" else f"after frame {count}"
             text = " ".join(str(exc).split()) or type(exc).__name__

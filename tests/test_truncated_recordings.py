@@ -144,6 +144,18 @@ def test_a_blf_whose_header_was_never_completed_is_refused(files: dict[str, Path
     assert read_frames(tmp_path / "open.blf", partial=True).t.size == 2 * K
 
 
+def test_a_blf_container_declaring_a_huge_size_is_refused_before_decompressing(files: dict[str, Path],
+                                                                              tmp_path: Path) -> None:
+    raw = bytearray(files["blf"].read_bytes())
+    first = int.from_bytes(raw[4:8], "little")  # the first object: a container
+    raw[first + 16 + 8:first + 16 + 12] = (3_000_000_000).to_bytes(4, "little")
+    (tmp_path / "big.blf").write_bytes(bytes(raw))
+    for partial in (False, True):
+        with pytest.raises(ValueError, match=r"object 1 \(a container, at byte 144\) declares 3,000,000,000 bytes "
+                                             "uncompressed"):
+            read_frames(tmp_path / "big.blf", partial=partial)
+
+
 def test_a_binary_log_named_as_text_and_a_missing_log_are_named(files: dict[str, Path], tmp_path: Path) -> None:
     (tmp_path / "run.log").write_bytes(files["blf"].read_bytes())
     with pytest.raises(ValueError, match="binary data, not a candump log"):
