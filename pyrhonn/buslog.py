@@ -683,8 +683,14 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
     starts = tau + bus.window_start * T
     end = starts[-1] + T
 
-    # each signal, per sample window: the latest frame carrying it, and what the others were
-    decoded: dict[str, tuple[np.ndarray, list[dict[str, Any] | None]]] = {}
+    # each message's frames decoded once into arrays of the signals used (NaN where a frame does not carry one)
+    used_sigs: dict[str, list[str]] = {}
+    for name in names:
+        msg, sig = resolved[name]
+        used_sigs.setdefault(msg.name, []).append(sig.name)
+        if name in flags:
+            used_sigs[msg.name].append(flags[name].name)
+    decoded: dict[str, tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]] = {}
     for m in {msg.name: msg for msg, _ in resolved.values()}.values():
         idx = where_msg[m.name]
         if m.name == clock_msg.name:  # the clock message's own signals: from the sample's own frame
@@ -693,13 +699,19 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
             inside = (frames.t[idx] >= starts[0]) & (frames.t[idx] < end)
             idx = idx[inside]
             window = np.searchsorted(starts, frames.t[idx], side="right") - 1
-        values: list[dict[str, Any] | None] = []
-        for i in idx:
+        ok = np.ones(idx.size, dtype=bool)
+        arrays = {name: np.full(idx.size, np.nan) for name in dict.fromkeys(used_sigs[m.name])}
+        for r, i in enumerate(idx.tolist()):
             try:
-                values.append(m.decode(frames.data[i], decode_choices=False, scaling=True))
+                v = m.decode(frames.data[i], decode_choices=False, scaling=True)
             except Exception:  # cantools: DecodeError, a wrong length, an unknown multiplexer value, ...
-                values.append(None)
-        decoded[m.name] = (window, values)
+                ok[r] = False
+                continue
+            for key, column in arrays.items():
+                if key in v:  # a multiplexed signal is in the frames its multiplexer value selects
+                    x = float(v[key])
+                    column[r] = x if not math.isnan(x) else np.inf  # NaN here means "not in this frame"
+        decoded[m.name] = (window, ok, arrays)
     n, n_in = len(state_names), len(input_names)
     value = np.full((K, n + n_in), np.nan)
     got = np.zeros((K, n + n_in), dtype=bool)
@@ -707,24 +719,25 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
               for what in ("frames", "undecodable", "flagged", "nonfinite")}
     for col, name in enumerate(names):
         msg, sig = resolved[name]
-        window, values = decoded[msg.name]
+        window, ok, arrays = decoded[msg.name]
+        np.add.at(counts["undecodable"][:, col], window[~ok], 1)
+        carries = np.flatnonzero(ok & ~np.isnan(arrays[sig.name]))
+        w = window[carries]
+        np.add.at(counts["frames"][:, col], w, 1)
+        # frames are in time order: the latest of each window wins
+        windows, from_end = np.unique(w[::-1], return_index=True)
+        latest = carries[w.size - 1 - from_end]
+        x = arrays[sig.name][latest]
+        finite = np.isfinite(x)
+        counts["nonfinite"][windows[~finite], col] += 1
+        good = finite.copy()
         flag = flags.get(name)
-        latest: dict[int, dict[str, Any]] = {}
-        for w, v in zip(window.tolist(), values):
-            if v is None:
-                counts["undecodable"][w, col] += 1
-            elif sig.name in v:  # a multiplexed signal is in the frames its multiplexer value selects
-                counts["frames"][w, col] += 1
-                latest[w] = v  # frames are in time order: the latest of the window wins
-        for w, v in latest.items():
-            x = float(v[sig.name])
-            if not math.isfinite(x):
-                counts["nonfinite"][w, col] += 1
-            elif flag is not None and not float(v[flag.name]):
-                counts["flagged"][w, col] += 1
-            else:
-                got[w, col] = True
-                value[w, col] = x
+        if flag is not None:
+            down = finite & (arrays[flag.name][latest] == 0)
+            counts["flagged"][windows[down], col] += 1
+            good &= ~down
+        got[windows[good], col] = True
+        value[windows[good], col] = x[good]
 
     # the stretch: --start/--stop, then the ends without every input cut off; a gap inside is a lost sample
     t_all = tau - tau[0]
