@@ -57,10 +57,11 @@ from __future__ import annotations
 import csv
 import difflib
 import io
+import itertools
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -130,22 +131,21 @@ class Data:
         return convert(self.X, state_names, self.valid), convert(self.U, input_names, None)
 
 
-def _records(text: str, source: str, sep: str = ",") -> list[tuple[int, list[str]]]:
-    """Every CSV record with the line it starts on; blank lines are kept as []."""
+def _records(text: str, source: str, sep: str = ",") -> Iterator[tuple[int, list[str]]]:
+    """Every CSV record with the line it starts on, one at a time; blank lines are kept as []."""
     reader = csv.reader(io.StringIO(text, newline=""), strict=True, delimiter=sep)
-    out: list[tuple[int, list[str]]] = []
     last = 0
     while True:
         try:
             record = next(reader)
         except StopIteration:
-            return out
+            return
         except csv.Error as exc:
             hint = " (a quote that is never closed?)" if "end of data" in str(exc) else ""
             raise ValueError(f"{source}: line {last + 1}: malformed CSV: {exc}{hint}") from None
         if len(record) == 1 and not record[0].strip():
             record = []
-        out.append((last + 1, record))
+        yield last + 1, record
         last = reader.line_num
 
 
@@ -201,14 +201,14 @@ def _separator(header: str, required: Sequence[str], sep: str | None) -> str:
     return max(SEPARATORS, key=found)  # ties: the first, a comma
 
 
-def _decimal(records: list[tuple[int, list[str]]], sep: str, decimal: str | None) -> str:
+def _decimal(records: Iterable[tuple[int, list[str]]], sep: str, decimal: str | None) -> str:
     """The decimal mark: ``decimal`` if given; else a comma when the separator is not one and a cell of
     the first 100 lines is a number with a decimal comma."""
     if decimal is not None:
         return decimal
     if sep == ",":
         return "."
-    for _, record in records[1:101]:
+    for _, record in itertools.islice(records, 1, 101):
         if any(_DECIMAL_COMMA.match(cell) for cell in record):
             return ","
     return "."
@@ -226,9 +226,11 @@ def _unit_row(record: list[str], decimal: str) -> bool:
 
 
 def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
-              config_source: str = "the config", sep: str | None = None, decimal: str | None = None) -> Data:
+              config_source: str = "the config", sep: str | None = None, decimal: str | None = None,
+              allow_lost: bool = False) -> Data:
     """Read and check a data file for the config ``cf`` (see the module docs); ``sep`` (one of
-    :data:`SEPARATORS`) and ``decimal`` (``.`` or ``,``) None: found from the file."""
+    :data:`SEPARATORS`) and ``decimal`` (``.`` or ``,``) None: found from the file. A lost sample
+    (``lost`` = 1) is an error naming its line unless ``allow_lost`` (the caller handles gaps)."""
     source = str(path)
     if sep is not None and sep not in SEPARATORS:
         raise ValueError(f"--csv-sep: expected one of ',', ';' or tab, got {sep!r}")
@@ -239,13 +241,14 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
     raw = read_file(path, source, limit=MAX_FILE_BYTES)
     _not_csv(raw, source)
     text = decode_text(raw, source, bom=True)  # spreadsheets write a BOM
+    del raw  # a long file is held once, as text
     if not text.strip():
         raise ValueError(f"{source}: empty file (expected a header row naming the columns, then the data)")
     required = list(cf.state_names) + list(cf.input_names)
     sep = _separator(text.split("\n", 1)[0], required, sep)
-    records = _records(text, source, sep)
-    decimal = _decimal(records, sep, decimal)
-    header_line, header = records[0]
+    decimal = _decimal(_records(text, source, sep), sep, decimal)
+    records = _records(text, source, sep)  # read one at a time: a long file is not held twice
+    header_line, header = next(records)
     if not header:
         raise ValueError(f"{source}: line {header_line}: empty line where the header row was expected")
     names = [h.strip() for h in header]
@@ -285,17 +288,14 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
                          "samples; rename it")
     used = set(required) | {f"{cf.state_names[j]}{valid_suffix}" for j in validity} | {TIME_COLUMN, LOST_COLUMN}
     ignored = tuple(name for name in names if name not in used)
-    body = records[1:]
     units: dict[str, str] | None = None
-    if body and body[0][1] and len(body[0][1]) == len(names) and _unit_row(body[0][1], decimal):
-        units = {name: cell.strip().strip("[]()").strip() for name, cell in zip(names, body[0][1])
+    second = next(records, None)
+    if second is not None and second[1] and len(second[1]) == len(names) and _unit_row(second[1], decimal):
+        units = {name: cell.strip().strip("[]()").strip() for name, cell in zip(names, second[1])
                  if name in used and cell.strip().strip("[]()").strip()}
-        body = body[1:]
-    while body and not body[-1][1]:
-        body.pop()  # blank lines at the end of the file
-    if not body:
-        raise ValueError(f"{source}: line {header_line}: header only, no data rows")
-    n, m, T = len(cf.state_names), len(cf.input_names), len(body)
+        second = None
+    body = itertools.chain([second] if second is not None else [], records)
+    n, m, T = len(cf.state_names), len(cf.input_names), text.count("\n") + 1  # at most this many rows
     X = np.empty((T, n))
     U = np.empty((T, m))
     valid = np.ones((T, n), dtype=bool)
@@ -305,10 +305,16 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
     state_cols = [where[name] for name in cf.state_names]
     input_cols = [where[name] for name in cf.input_names]
     width = len(names)
-    for k, (line, record) in enumerate(body):
-        lines[k] = line
+    k = -1
+    blank: int | None = None  # the first blank line: allowed only at the end of the file
+    for line, record in body:
         if not record:
-            raise ValueError(f"{source}: line {line}: empty line inside the data")
+            blank = line if blank is None else blank
+            continue
+        if blank is not None:
+            raise ValueError(f"{source}: line {blank}: empty line inside the data")
+        k += 1
+        lines[k] = line
         if len(record) != width:
             raise ValueError(f"{source}: line {line}: expected {width} fields as in the header, got {len(record)}")
         if t is not None:
@@ -325,9 +331,12 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
                 raise ValueError(f"{source}: line {line}, column {LOST_COLUMN!r}: expected 0 or 1, got "
                                  f"{record[where[LOST_COLUMN]]!r}")
             if flag == "1":
-                if k == 0 or k == T - 1:
-                    which = "first" if k == 0 else "last"
-                    raise ValueError(f"{source}: line {line}, column {LOST_COLUMN!r}: the {which} data row cannot be "
+                if not allow_lost:
+                    raise ValueError(f"{source}: line {line}, column {LOST_COLUMN!r}: a lost sample; this command "
+                                     "needs a record without gaps (pyrhonn identify splits one at its gaps; or "
+                                     "cut the file there)")
+                if k == 0:
+                    raise ValueError(f"{source}: line {line}, column {LOST_COLUMN!r}: the first data row cannot be "
                                      "a lost sample (leave it out)")
                 lost[k] = True
                 X[k], U[k], valid[k] = np.nan, np.nan, False
@@ -352,8 +361,15 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
                 raise ValueError(f"{source}: line {line}, column {names[c]!r}: missing input value "
                                  "(inputs must be given on every line)")
             U[k, j] = value
-    return Data(X=X, U=U, valid=valid, t=t, lines=lines, ignored=ignored,
-                lost=lost if LOST_COLUMN in where else None, units=units)
+    T = k + 1
+    if T == 0:
+        raise ValueError(f"{source}: line {header_line}: header only, no data rows")
+    if lost[T - 1]:
+        raise ValueError(f"{source}: line {int(lines[T - 1])}, column {LOST_COLUMN!r}: the last data row cannot be a "
+                         "lost sample (leave it out)")
+    return Data(X=X[:T].copy(), U=U[:T].copy(), valid=valid[:T].copy(), t=None if t is None else t[:T].copy(),
+                lines=lines[:T].copy(), ignored=ignored, lost=lost[:T].copy() if LOST_COLUMN in where else None,
+                units=units)
 
 
 def write_data(path: str | Path, data: Data, cf: ConfigFile, *, valid_suffix: str = "_valid") -> None:

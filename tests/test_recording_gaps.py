@@ -202,3 +202,11 @@ def test_a_free_run_ends_with_its_segment_and_k_step_predictions_restart_after_a
     assert m["free_run"]["states"]["q_m"]["scored"] == 333 - 250
     assert all(np.isfinite(s["rmse"]) for kind in ("one_step", "free_run", "steps_ahead")
                for s in m[kind]["states"].values())
+
+
+def test_commands_that_need_a_record_without_gaps_refuse_a_lost_sample_naming_its_line(files: dict[str, Path],
+                                                                                     tmp_path: Path, cli_error) -> None:
+    err = cli_error(["export", "--config", str(files["config"]), "--out", str(tmp_path / "e.h"), "--data",
+                     str(files["csv"])])
+    assert f"{files['csv']}: line {min(LOST) + 2}, column 'lost': a lost sample; this command needs a record " \
+           "without gaps" in err and not (tmp_path / "e.h").exists()

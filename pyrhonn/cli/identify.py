@@ -352,7 +352,7 @@ def run(args: argparse.Namespace) -> int:
                          "--can-log")
     data = bus.data if bus else mdf[0] if mdf else read_data(source, cf, valid_suffix=args.valid_suffix,
                                                              config_source=config_source, sep=args.csv_sep,
-                                                             decimal=args.decimal)
+                                                             decimal=args.decimal, allow_lost=True)
     units = {**{k: v for k, v in (data.units or {}).items() if k in cf.state_names or k == TIME_COLUMN},
              **args.units}  # --units over the file's unit row
     T = data.n_samples
