@@ -86,13 +86,12 @@ candump log).
 from __future__ import annotations
 
 import difflib
-import io
 import math
 import re
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -369,20 +368,51 @@ def _blf_completeness(p: Path, declared_size: int, declared_objects: int, where:
     return "; ".join(found) or None
 
 
-def _text_completeness(raw: bytes, suffix: str) -> tuple[str | None, bytes]:
-    """What a text log misses (None: complete) and the part of it to read: without a cut last line."""
-    cut = not raw.endswith(b"\n")
-    body = raw[:raw.rfind(b"\n") + 1] if cut else raw
-    lines = body.count(b"\n")
-    missing: list[str] = []
-    if cut:
-        missing.append(f"its last line ({lines + 1}) is cut short (no end of line)")
+class _WholeLines:
+    """A text log's lines up to byte ``end`` (its last whole line), decoded as a reader iterates them:
+    the file is never held whole."""
+
+    def __init__(self, path: Path, end: int) -> None:
+        self._fh = open(path, "rb")
+        self._end = end
+
+    def __iter__(self) -> Iterator[str]:
+        pos = 0
+        for raw in self._fh:
+            pos += len(raw)
+            if pos > self._end:
+                return
+            yield raw.decode("utf-8", errors="replace")
+
+    def close(self) -> None:
+        self._fh.close()
+
+
+def _text_completeness(p: Path, suffix: str) -> tuple[str | None, int]:
+    """What a text log misses (None: complete) and how many of its bytes to read: up to its last whole
+    line. Reads its end (and counts its lines only when the last one is cut)."""
+    size = p.stat().st_size
+    with open(p, "rb") as fh:
+        back = 4096
+        while True:  # the tail back to a line end (or the whole file)
+            fh.seek(max(size - back, 0))
+            tail = fh.read()
+            if b"\n" in tail[:-1] or back >= size:
+                break
+            back *= 4
+        cut = not tail.endswith(b"\n")
+        end = size - (len(tail) - tail.rfind(b"\n") - 1) if cut else size
+        missing: list[str] = []
+        if cut:
+            fh.seek(0)
+            lines = sum(chunk.count(b"\n") for chunk in iter(lambda: fh.read(1 << 20), b""))
+            missing.append(f"its last line ({lines + 1}) is cut short (no end of line)")
     if suffix == ".asc":
-        tail = [ln.strip() for ln in body[-4096:].splitlines() if ln.strip()]
-        if not tail or tail[-1] != b"End TriggerBlock":
+        whole = [ln.strip() for ln in tail[:len(tail) - (size - end)].splitlines() if ln.strip()]
+        if not whole or whole[-1] != b"End TriggerBlock":
             missing.append("it does not end with 'End TriggerBlock' (written when the logger stops): the rest "
                            "of the recording is missing")
-    return ("; ".join(missing) or None), body
+    return ("; ".join(missing) or None), end
 
 
 def read_frames(path: str | Path, option: str = "--can-log", partial: bool = False) -> Frames:
@@ -427,11 +457,12 @@ def read_frames(path: str | Path, option: str = "--can-log", partial: bool = Fal
         elif ident[:8] != b"MDF     ":
             raise ValueError(f"{option} {path}: not an MDF file (it does not start with 'MDF')")
     elif suffix != ".blf":
-        raw = p.read_bytes()
-        if b"\0" in raw[:4096]:
+        with open(p, "rb") as fh:
+            head = fh.read(4096)
+        if b"\0" in head:
             raise ValueError(f"{option} {path}: binary data, not {kind} log (text); a BLF file must be named .blf")
-        incomplete, body = _text_completeness(raw, suffix)
-        source = io.StringIO(body.decode("utf-8", errors="replace"))
+        incomplete, end = _text_completeness(p, suffix)
+        source = _WholeLines(p, end)
     try:
         readers = {".blf": can.BLFReader, ".asc": can.ASCReader, ".log": can.CanutilsLogReader, ".mf4": can.MF4Reader}
         with readers[suffix](source) as reader:
