@@ -247,7 +247,7 @@ def load_dbc(path: str | Path, option: str = "--dbc") -> Any:
 
     p = Path(path)
     if not p.is_file():
-        raise ValueError(f"{option} {path}: no such file")
+        raise ValueError(f"{option} {path}: no such file{near_names(p)}")
     try:
         return cantools.database.load_file(str(p), database_format="dbc", strict=True)
     except UnicodeDecodeError as exc:
@@ -746,7 +746,7 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
     n, n_in = len(state_names), len(input_names)
     value = np.full((K, n + n_in), np.nan)
     got = np.zeros((K, n + n_in), dtype=bool)
-    counts = {what: np.zeros((K, n + n_in), dtype=np.int64)
+    counts = {what: np.zeros((K, n + n_in), dtype=np.int32)  # per sample window: small counts
               for what in ("frames", "undecodable", "flagged", "nonfinite")}
     for col, name in enumerate(names):
         msg, sig = resolved[name]
