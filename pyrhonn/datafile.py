@@ -72,6 +72,8 @@ from .validation import decode_text, read_file
 __all__ = ["Data", "LOST_COLUMN", "SEPARATORS", "TIME_COLUMN", "check_suffix", "read_data", "write_data"]
 
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
+#: a column of such numbers, one a line, spaces around them (read in one pass)
+_COLUMN = re.compile(r"(?:[^\S\n]*[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?[^\S\n]*(?:\n|\Z))+")
 _MISSING = ("", "nan", "NaN", "NAN")
 _INFINITE = re.compile(r"[+-]?(?:inf|Inf|INF|infinity|Infinity|INFINITY)\Z")
 TIME_COLUMN = "t"
@@ -305,14 +307,11 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
     state_cols = [where[name] for name in cf.state_names]
     input_cols = [where[name] for name in cf.input_names]
     width = len(names)
-    k = -1
-    blank: int | None = None  # the first blank line: allowed only at the end of the file
-    for line, record in body:
-        if not record:
-            blank = line if blank is None else blank
-            continue
-        if blank is not None:
-            raise ValueError(f"{source}: line {blank}: empty line inside the data")
+    k = -1  # the last data row filled
+
+    def one_row(line: int, record: list[str]) -> None:
+        """A data row, checked cell by cell: every defect named with its line and column."""
+        nonlocal k
         k += 1
         lines[k] = line
         if len(record) != width:
@@ -340,7 +339,7 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
                                      "a lost sample (leave it out)")
                 lost[k] = True
                 X[k], U[k], valid[k] = np.nan, np.nan, False
-                continue
+                return
         for j, c in validity.items():
             flag = record[c].strip()
             if flag not in ("0", "1"):
@@ -361,6 +360,83 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
                 raise ValueError(f"{source}: line {line}, column {names[c]!r}: missing input value "
                                  "(inputs must be given on every line)")
             U[k, j] = value
+
+    def numbers(cells: tuple[str, ...]) -> np.ndarray | None:
+        """A column of plain numbers in one pass (None if any cell is anything else)."""
+        joined = "\n".join(cells)
+        if decimal == ",":
+            if "." in joined:
+                return None
+            joined = joined.replace(",", ".")
+        if not _COLUMN.fullmatch(joined):
+            return None
+        parts = joined.split("\n")
+        if len(parts) != len(cells):  # a quoted cell held a line end
+            return None
+        try:
+            with np.errstate(over="ignore"):
+                a = np.array(parts, dtype=np.float64)
+        except (ValueError, OverflowError):
+            return None
+        return a if np.isfinite(a).all() else None
+
+    def plain_rows(chunk: list[tuple[int, list[str]]]) -> bool:
+        """Rows whose every cell is plain (numbers, flags 0/1, no lost sample, times increasing), filled
+        column by column; False (nothing filled) for anything else, which :func:`one_row` then names."""
+        if any(len(r) != width for _, r in chunk):
+            return False
+        cols = list(zip(*(r for _, r in chunk)))
+        got: dict[int, np.ndarray] = {}
+        for c in ([where[TIME_COLUMN]] if t is not None else []) + state_cols + input_cols:
+            a = numbers(cols[c])
+            if a is None:
+                return False
+            got[c] = a
+        flags = {c: {cell.strip() for cell in cols[c]} for c in validity.values()}
+        if any(not f <= {"0", "1"} for f in flags.values()):
+            return False
+        if LOST_COLUMN in where and {cell.strip() for cell in cols[where[LOST_COLUMN]]} != {"0"}:
+            return False
+        if t is not None:
+            tc = got[where[TIME_COLUMN]]
+            if np.any(np.diff(tc) <= 0) or (k >= 0 and not tc[0] > t[k]):
+                return False
+        rows = slice(k + 1, k + 1 + len(chunk))
+        lines[rows] = [line for line, _ in chunk]
+        if t is not None:
+            t[rows] = got[where[TIME_COLUMN]]
+        for j, c in validity.items():
+            valid[rows, j] = np.array([cell.strip() == "1" for cell in cols[c]])
+        for j, c in enumerate(state_cols):
+            X[rows, j] = got[c]
+        for j, c in enumerate(input_cols):
+            U[rows, j] = got[c]
+        return True
+
+    chunk: list[tuple[int, list[str]]] = []
+
+    def flush() -> None:
+        nonlocal k
+        if chunk and plain_rows(chunk):
+            k += len(chunk)
+        else:
+            for line, record in chunk:
+                one_row(line, record)
+        chunk.clear()
+
+    blank: int | None = None  # the first blank line: allowed only at the end of the file
+    for line, record in body:
+        if not record:
+            if blank is None:
+                flush()  # the rows before it first: their defects come first
+                blank = line
+            continue
+        if blank is not None:
+            raise ValueError(f"{source}: line {blank}: empty line inside the data")
+        chunk.append((line, record))
+        if len(chunk) == 4096:
+            flush()
+    flush()
     T = k + 1
     if T == 0:
         raise ValueError(f"{source}: line {header_line}: header only, no data rows")
