@@ -133,6 +133,9 @@ def test_every_gap_is_counted_and_each_segment_reported(runs: dict[str, Path],
     assert [x["rejected"]["sample"] for x in g["gap_list"]] == [58, 201, 336, 541, 543]
     assert [(s["first"]["sample"], s["last"]["sample"]) for s in g["segments"]] == [
         (0, 56), (59, 199), (202, 332), (337, 539), (544, N - 1)]
+    # the dropouts (v's flag 0 on samples 100 and 101) are counted in the segment that holds them
+    assert [s["dropouts"]["v"] for s in g["segments"]] == [0, 2, 0, 0, 0]
+    assert all(s["dropouts"]["q_m"] == 0 for s in g["segments"])
     rows = _predictions(runs["asc"] / "predictions.csv")
     for k in sorted(LOST) + [58, 201, 336, 541, 543]:  # nothing predicted for a sample not stepped
         assert rows[k]["q_m_hat"] == "" and rows[k]["q_m_err"] == ""

@@ -460,7 +460,7 @@ def run(args: argparse.Namespace) -> int:
         **sections,
         "next_prediction": {name: float(sim.next_prediction[j]) for j, name in enumerate(cf.state_names)},
         **({"bus": bus.report()} if bus else {}),
-        **({"gaps": segs.report(data.t, data.lines)} if segs is not None else {}),
+        **({"gaps": segs.report(data.t, data.lines, data.valid, tuple(cf.state_names))} if segs else {}),
         **({"mdf": mdf[1].report()} if mdf else {}),
     }
     with atomic.output_folder(out, "pyrhonn identify"):  # marked INCOMPLETE until every file is in place
