@@ -95,6 +95,7 @@ from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
+from .mdfsignals import mdf_damage
 from .validation import near_names
 
 __all__ = ["Aligned", "BusMap", "LOG_SUFFIXES", "SignalRef", "SignalStats", "align", "load_dbc", "read_bus_log",
@@ -456,6 +457,10 @@ def read_frames(path: str | Path, option: str = "--can-log", partial: bool = Fal
                           "file)")
         elif ident[:8] != b"MDF     ":
             raise ValueError(f"{option} {path}: not an MDF file (it does not start with 'MDF')")
+        damage = mdf_damage(p)
+        if damage:
+            raise ValueError(f"{option} {path}: truncated or damaged MDF4: {damage}; an MDF4 is read whole or not at "
+                             "all (--partial-log reads the complete part of a BLF, ASC or candump log)")
     elif suffix != ".blf":
         with open(p, "rb") as fh:
             head = fh.read(4096)
