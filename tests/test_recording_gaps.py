@@ -213,3 +213,12 @@ def test_commands_that_need_a_record_without_gaps_refuse_a_lost_sample_naming_it
                      str(files["csv"])])
     assert f"{files['csv']}: line {min(LOST) + 2}, column 'lost': a lost sample; this command needs a record " \
            "without gaps" in err and not (tmp_path / "e.h").exists()
+
+
+def test_numbered_by_the_sequence_counter_across_its_wrap_the_gaps_are_the_same(
+        files: dict[str, Path], runs: dict[str, Path], tmp_path: Path) -> None:
+    assert main(["identify", "--can-log", str(files["blf"]), "--dbc", str(files["dbc"]), "--config",
+                 str(files["config"]), "--counter", "Measurement.Seq", "--out", str(tmp_path / "n"), "--no-plots"]) == 0
+    assert _predictions(tmp_path / "n" / "predictions.csv") == _predictions(runs["csv"] / "predictions.csv")
+    g = json.loads((tmp_path / "n" / "metrics.json").read_text())["gaps"]
+    assert g["lost_samples"] == len(LOST) and g["gaps"] == 5
