@@ -86,16 +86,16 @@ candump log).
 from __future__ import annotations
 
 import difflib
-import io
 import math
 import re
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
+from .mdfsignals import mdf_damage
 from .validation import near_names
 
 __all__ = ["Aligned", "BusMap", "LOG_SUFFIXES", "SignalRef", "SignalStats", "align", "load_dbc", "read_bus_log",
@@ -248,7 +248,7 @@ def load_dbc(path: str | Path, option: str = "--dbc") -> Any:
 
     p = Path(path)
     if not p.is_file():
-        raise ValueError(f"{option} {path}: no such file")
+        raise ValueError(f"{option} {path}: no such file{near_names(p)}")
     try:
         return cantools.database.load_file(str(p), database_format="dbc", strict=True)
     except UnicodeDecodeError as exc:
@@ -320,12 +320,18 @@ def _candump_line(path: Path, frame: int) -> int:
 #: the most bytes of a log read (a text log is held whole while it is checked)
 MAX_LOG_BYTES = 1 << 31
 _BLF_OBJ = struct.Struct("<4sHHII")  # signature, header size, header version, object size, object type
+_BLF_CONTAINER = struct.Struct("<H6xL4x")  # compression method, uncompressed size
+_BLF_LOG_CONTAINER = 10
+#: the largest uncompressed container read (loggers write 128 KiB; a larger one is a damaged size field)
+MAX_BLF_CONTAINER = 1 << 26
 _PARTIAL_HINT = "; read what is there with --partial-log"
 
 
-def _blf_completeness(p: Path, declared_size: int, declared_objects: int) -> str | None:
+def _blf_completeness(p: Path, declared_size: int, declared_objects: int, where: str) -> str | None:
     """What a BLF file misses, from its header and its objects' sizes (None: complete). Walks the
-    object headers without decompressing: the last one must end inside the file."""
+    object headers without decompressing: the last one must end inside the file. A container that
+    declares more than :data:`MAX_BLF_CONTAINER` bytes uncompressed is refused (``where`` names the
+    file) before anything is decompressed."""
     actual = p.stat().st_size
     found: list[str] = []
     if declared_size > actual:  # the header, written when the logger stopped, says how long the file was
@@ -341,7 +347,13 @@ def _blf_completeness(p: Path, declared_size: int, declared_objects: int) -> str
             if len(raw) < _BLF_OBJ.size:
                 found.append(f"cut inside an object header at byte {pos:,} of {actual:,}")
                 break
-            sig, _, _, size, _ = _BLF_OBJ.unpack(raw)
+            sig, _, _, size, kind = _BLF_OBJ.unpack(raw)
+            if kind == _BLF_LOG_CONTAINER and size >= _BLF_OBJ.size + _BLF_CONTAINER.size:
+                _, inflated = _BLF_CONTAINER.unpack(fh.read(_BLF_CONTAINER.size))
+                if inflated > MAX_BLF_CONTAINER:
+                    raise ValueError(f"{where}: object {count + 1} (a container, at byte {pos:,}) declares "
+                                     f"{inflated:,} bytes uncompressed, more than the {MAX_BLF_CONTAINER:,} read; "
+                                     "the file is damaged there")
             if sig != b"LOBJ" or size < _BLF_OBJ.size:
                 found.append(f"no object where one should start, at byte {pos:,} (the file is damaged there)")
                 break
@@ -357,20 +369,51 @@ def _blf_completeness(p: Path, declared_size: int, declared_objects: int) -> str
     return "; ".join(found) or None
 
 
-def _text_completeness(raw: bytes, suffix: str) -> tuple[str | None, bytes]:
-    """What a text log misses (None: complete) and the part of it to read: without a cut last line."""
-    cut = not raw.endswith(b"\n")
-    body = raw[:raw.rfind(b"\n") + 1] if cut else raw
-    lines = body.count(b"\n")
-    missing: list[str] = []
-    if cut:
-        missing.append(f"its last line ({lines + 1}) is cut short (no end of line)")
+class _WholeLines:
+    """A text log's lines up to byte ``end`` (its last whole line), decoded as a reader iterates them:
+    the file is never held whole."""
+
+    def __init__(self, path: Path, end: int) -> None:
+        self._fh = open(path, "rb")
+        self._end = end
+
+    def __iter__(self) -> Iterator[str]:
+        pos = 0
+        for raw in self._fh:
+            pos += len(raw)
+            if pos > self._end:
+                return
+            yield raw.decode("utf-8", errors="replace")
+
+    def close(self) -> None:
+        self._fh.close()
+
+
+def _text_completeness(p: Path, suffix: str) -> tuple[str | None, int]:
+    """What a text log misses (None: complete) and how many of its bytes to read: up to its last whole
+    line. Reads its end (and counts its lines only when the last one is cut)."""
+    size = p.stat().st_size
+    with open(p, "rb") as fh:
+        back = 4096
+        while True:  # the tail back to a line end (or the whole file)
+            fh.seek(max(size - back, 0))
+            tail = fh.read()
+            if b"\n" in tail[:-1] or back >= size:
+                break
+            back *= 4
+        cut = not tail.endswith(b"\n")
+        end = size - (len(tail) - tail.rfind(b"\n") - 1) if cut else size
+        missing: list[str] = []
+        if cut:
+            fh.seek(0)
+            lines = sum(chunk.count(b"\n") for chunk in iter(lambda: fh.read(1 << 20), b""))
+            missing.append(f"its last line ({lines + 1}) is cut short (no end of line)")
     if suffix == ".asc":
-        tail = [ln.strip() for ln in body[-4096:].splitlines() if ln.strip()]
-        if not tail or tail[-1] != b"End TriggerBlock":
+        whole = [ln.strip() for ln in tail[:len(tail) - (size - end)].splitlines() if ln.strip()]
+        if not whole or whole[-1] != b"End TriggerBlock":
             missing.append("it does not end with 'End TriggerBlock' (written when the logger stops): the rest "
                            "of the recording is missing")
-    return ("; ".join(missing) or None), body
+    return ("; ".join(missing) or None), end
 
 
 def read_frames(path: str | Path, option: str = "--can-log", partial: bool = False) -> Frames:
@@ -414,18 +457,23 @@ def read_frames(path: str | Path, option: str = "--can-log", partial: bool = Fal
                           "file)")
         elif ident[:8] != b"MDF     ":
             raise ValueError(f"{option} {path}: not an MDF file (it does not start with 'MDF')")
+        damage = mdf_damage(p)
+        if damage:
+            raise ValueError(f"{option} {path}: truncated or damaged MDF4: {damage}; an MDF4 is read whole or not at "
+                             "all (--partial-log reads the complete part of a BLF, ASC or candump log)")
     elif suffix != ".blf":
-        raw = p.read_bytes()
-        if b"\0" in raw[:4096]:
+        with open(p, "rb") as fh:
+            head = fh.read(4096)
+        if b"\0" in head:
             raise ValueError(f"{option} {path}: binary data, not {kind} log (text); a BLF file must be named .blf")
-        incomplete, body = _text_completeness(raw, suffix)
-        source = io.StringIO(body.decode("utf-8", errors="replace"))
+        incomplete, end = _text_completeness(p, suffix)
+        source = _WholeLines(p, end)
     try:
         readers = {".blf": can.BLFReader, ".asc": can.ASCReader, ".log": can.CanutilsLogReader, ".mf4": can.MF4Reader}
         with readers[suffix](source) as reader:
             if suffix == ".blf":
                 incomplete = _blf_completeness(p, int(getattr(reader, "file_size", 0) or 0),
-                                               int(getattr(reader, "object_count", 0) or 0))
+                                               int(getattr(reader, "object_count", 0) or 0), f"{option} {path}")
             for msg in reader:
                 count += 1
                 if msg.is_error_frame or msg.is_remote_frame:
@@ -436,6 +484,8 @@ def read_frames(path: str | Path, option: str = "--can-log", partial: bool = Fal
                 ext.append(bool(msg.is_extended_id))
                 data.append(bytes(msg.data))
     except Exception as exc:  # python-can's readers raise struct.error, ValueError, BLFParseError, zlib.error ...
+        if isinstance(exc, ValueError) and str(exc).startswith(f"{option} {path}: "):
+            raise  # a size this module refused, already named
         if not (partial and incomplete):
             where = f"line {_candump_line(p, count)}" if suffix == ".log" else f"after frame {count}"
             text = " ".join(str(exc).split()) or type(exc).__name__
@@ -669,8 +719,14 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
     starts = tau + bus.window_start * T
     end = starts[-1] + T
 
-    # each signal, per sample window: the latest frame carrying it, and what the others were
-    decoded: dict[str, tuple[np.ndarray, list[dict[str, Any] | None]]] = {}
+    # each message's frames decoded once into arrays of the signals used (NaN where a frame does not carry one)
+    used_sigs: dict[str, list[str]] = {}
+    for name in names:
+        msg, sig = resolved[name]
+        used_sigs.setdefault(msg.name, []).append(sig.name)
+        if name in flags:
+            used_sigs[msg.name].append(flags[name].name)
+    decoded: dict[str, tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]] = {}
     for m in {msg.name: msg for msg, _ in resolved.values()}.values():
         idx = where_msg[m.name]
         if m.name == clock_msg.name:  # the clock message's own signals: from the sample's own frame
@@ -679,38 +735,45 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
             inside = (frames.t[idx] >= starts[0]) & (frames.t[idx] < end)
             idx = idx[inside]
             window = np.searchsorted(starts, frames.t[idx], side="right") - 1
-        values: list[dict[str, Any] | None] = []
-        for i in idx:
+        ok = np.ones(idx.size, dtype=bool)
+        arrays = {name: np.full(idx.size, np.nan) for name in dict.fromkeys(used_sigs[m.name])}
+        for r, i in enumerate(idx.tolist()):
             try:
-                values.append(m.decode(frames.data[i], decode_choices=False, scaling=True))
+                v = m.decode(frames.data[i], decode_choices=False, scaling=True)
             except Exception:  # cantools: DecodeError, a wrong length, an unknown multiplexer value, ...
-                values.append(None)
-        decoded[m.name] = (window, values)
+                ok[r] = False
+                continue
+            for key, column in arrays.items():
+                if key in v:  # a multiplexed signal is in the frames its multiplexer value selects
+                    x = float(v[key])
+                    column[r] = x if not math.isnan(x) else np.inf  # NaN here means "not in this frame"
+        decoded[m.name] = (window, ok, arrays)
     n, n_in = len(state_names), len(input_names)
     value = np.full((K, n + n_in), np.nan)
     got = np.zeros((K, n + n_in), dtype=bool)
-    counts = {what: np.zeros((K, n + n_in), dtype=np.int64)
+    counts = {what: np.zeros((K, n + n_in), dtype=np.int32)  # per sample window: small counts
               for what in ("frames", "undecodable", "flagged", "nonfinite")}
     for col, name in enumerate(names):
         msg, sig = resolved[name]
-        window, values = decoded[msg.name]
+        window, ok, arrays = decoded[msg.name]
+        np.add.at(counts["undecodable"][:, col], window[~ok], 1)
+        carries = np.flatnonzero(ok & ~np.isnan(arrays[sig.name]))
+        w = window[carries]
+        np.add.at(counts["frames"][:, col], w, 1)
+        # frames are in time order: the latest of each window wins
+        windows, from_end = np.unique(w[::-1], return_index=True)
+        latest = carries[w.size - 1 - from_end]
+        x = arrays[sig.name][latest]
+        finite = np.isfinite(x)
+        counts["nonfinite"][windows[~finite], col] += 1
+        good = finite.copy()
         flag = flags.get(name)
-        latest: dict[int, dict[str, Any]] = {}
-        for w, v in zip(window.tolist(), values):
-            if v is None:
-                counts["undecodable"][w, col] += 1
-            elif sig.name in v:  # a multiplexed signal is in the frames its multiplexer value selects
-                counts["frames"][w, col] += 1
-                latest[w] = v  # frames are in time order: the latest of the window wins
-        for w, v in latest.items():
-            x = float(v[sig.name])
-            if not math.isfinite(x):
-                counts["nonfinite"][w, col] += 1
-            elif flag is not None and not float(v[flag.name]):
-                counts["flagged"][w, col] += 1
-            else:
-                got[w, col] = True
-                value[w, col] = x
+        if flag is not None:
+            down = finite & (arrays[flag.name][latest] == 0)
+            counts["flagged"][windows[down], col] += 1
+            good &= ~down
+        got[windows[good], col] = True
+        value[windows[good], col] = x[good]
 
     # the stretch: --start/--stop, then the ends without every input cut off; a gap inside is a lost sample
     t_all = tau - tau[0]

@@ -57,10 +57,11 @@ from __future__ import annotations
 import csv
 import difflib
 import io
+import itertools
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -71,6 +72,8 @@ from .validation import decode_text, read_file
 __all__ = ["Data", "LOST_COLUMN", "SEPARATORS", "TIME_COLUMN", "check_suffix", "read_data", "write_data"]
 
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
+#: a column of such numbers, one a line, spaces around them (read in one pass)
+_COLUMN = re.compile(r"(?:[^\S\n]*[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?[^\S\n]*(?:\n|\Z))+")
 _MISSING = ("", "nan", "NaN", "NAN")
 _INFINITE = re.compile(r"[+-]?(?:inf|Inf|INF|infinity|Infinity|INFINITY)\Z")
 TIME_COLUMN = "t"
@@ -130,22 +133,21 @@ class Data:
         return convert(self.X, state_names, self.valid), convert(self.U, input_names, None)
 
 
-def _records(text: str, source: str, sep: str = ",") -> list[tuple[int, list[str]]]:
-    """Every CSV record with the line it starts on; blank lines are kept as []."""
+def _records(text: str, source: str, sep: str = ",") -> Iterator[tuple[int, list[str]]]:
+    """Every CSV record with the line it starts on, one at a time; blank lines are kept as []."""
     reader = csv.reader(io.StringIO(text, newline=""), strict=True, delimiter=sep)
-    out: list[tuple[int, list[str]]] = []
     last = 0
     while True:
         try:
             record = next(reader)
         except StopIteration:
-            return out
+            return
         except csv.Error as exc:
             hint = " (a quote that is never closed?)" if "end of data" in str(exc) else ""
             raise ValueError(f"{source}: line {last + 1}: malformed CSV: {exc}{hint}") from None
         if len(record) == 1 and not record[0].strip():
             record = []
-        out.append((last + 1, record))
+        yield last + 1, record
         last = reader.line_num
 
 
@@ -201,14 +203,14 @@ def _separator(header: str, required: Sequence[str], sep: str | None) -> str:
     return max(SEPARATORS, key=found)  # ties: the first, a comma
 
 
-def _decimal(records: list[tuple[int, list[str]]], sep: str, decimal: str | None) -> str:
+def _decimal(records: Iterable[tuple[int, list[str]]], sep: str, decimal: str | None) -> str:
     """The decimal mark: ``decimal`` if given; else a comma when the separator is not one and a cell of
     the first 100 lines is a number with a decimal comma."""
     if decimal is not None:
         return decimal
     if sep == ",":
         return "."
-    for _, record in records[1:101]:
+    for _, record in itertools.islice(records, 1, 101):
         if any(_DECIMAL_COMMA.match(cell) for cell in record):
             return ","
     return "."
@@ -226,9 +228,11 @@ def _unit_row(record: list[str], decimal: str) -> bool:
 
 
 def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
-              config_source: str = "the config", sep: str | None = None, decimal: str | None = None) -> Data:
+              config_source: str = "the config", sep: str | None = None, decimal: str | None = None,
+              allow_lost: bool = False) -> Data:
     """Read and check a data file for the config ``cf`` (see the module docs); ``sep`` (one of
-    :data:`SEPARATORS`) and ``decimal`` (``.`` or ``,``) None: found from the file."""
+    :data:`SEPARATORS`) and ``decimal`` (``.`` or ``,``) None: found from the file. A lost sample
+    (``lost`` = 1) is an error naming its line unless ``allow_lost`` (the caller handles gaps)."""
     source = str(path)
     if sep is not None and sep not in SEPARATORS:
         raise ValueError(f"--csv-sep: expected one of ',', ';' or tab, got {sep!r}")
@@ -239,13 +243,14 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
     raw = read_file(path, source, limit=MAX_FILE_BYTES)
     _not_csv(raw, source)
     text = decode_text(raw, source, bom=True)  # spreadsheets write a BOM
+    del raw  # a long file is held once, as text
     if not text.strip():
         raise ValueError(f"{source}: empty file (expected a header row naming the columns, then the data)")
     required = list(cf.state_names) + list(cf.input_names)
     sep = _separator(text.split("\n", 1)[0], required, sep)
-    records = _records(text, source, sep)
-    decimal = _decimal(records, sep, decimal)
-    header_line, header = records[0]
+    decimal = _decimal(_records(text, source, sep), sep, decimal)
+    records = _records(text, source, sep)  # read one at a time: a long file is not held twice
+    header_line, header = next(records)
     if not header:
         raise ValueError(f"{source}: line {header_line}: empty line where the header row was expected")
     names = [h.strip() for h in header]
@@ -285,17 +290,14 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
                          "samples; rename it")
     used = set(required) | {f"{cf.state_names[j]}{valid_suffix}" for j in validity} | {TIME_COLUMN, LOST_COLUMN}
     ignored = tuple(name for name in names if name not in used)
-    body = records[1:]
     units: dict[str, str] | None = None
-    if body and body[0][1] and len(body[0][1]) == len(names) and _unit_row(body[0][1], decimal):
-        units = {name: cell.strip().strip("[]()").strip() for name, cell in zip(names, body[0][1])
+    second = next(records, None)
+    if second is not None and second[1] and len(second[1]) == len(names) and _unit_row(second[1], decimal):
+        units = {name: cell.strip().strip("[]()").strip() for name, cell in zip(names, second[1])
                  if name in used and cell.strip().strip("[]()").strip()}
-        body = body[1:]
-    while body and not body[-1][1]:
-        body.pop()  # blank lines at the end of the file
-    if not body:
-        raise ValueError(f"{source}: line {header_line}: header only, no data rows")
-    n, m, T = len(cf.state_names), len(cf.input_names), len(body)
+        second = None
+    body = itertools.chain([second] if second is not None else [], records)
+    n, m, T = len(cf.state_names), len(cf.input_names), text.count("\n") + 1  # at most this many rows
     X = np.empty((T, n))
     U = np.empty((T, m))
     valid = np.ones((T, n), dtype=bool)
@@ -305,10 +307,13 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
     state_cols = [where[name] for name in cf.state_names]
     input_cols = [where[name] for name in cf.input_names]
     width = len(names)
-    for k, (line, record) in enumerate(body):
+    k = -1  # the last data row filled
+
+    def one_row(line: int, record: list[str]) -> None:
+        """A data row, checked cell by cell: every defect named with its line and column."""
+        nonlocal k
+        k += 1
         lines[k] = line
-        if not record:
-            raise ValueError(f"{source}: line {line}: empty line inside the data")
         if len(record) != width:
             raise ValueError(f"{source}: line {line}: expected {width} fields as in the header, got {len(record)}")
         if t is not None:
@@ -325,13 +330,16 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
                 raise ValueError(f"{source}: line {line}, column {LOST_COLUMN!r}: expected 0 or 1, got "
                                  f"{record[where[LOST_COLUMN]]!r}")
             if flag == "1":
-                if k == 0 or k == T - 1:
-                    which = "first" if k == 0 else "last"
-                    raise ValueError(f"{source}: line {line}, column {LOST_COLUMN!r}: the {which} data row cannot be "
+                if not allow_lost:
+                    raise ValueError(f"{source}: line {line}, column {LOST_COLUMN!r}: a lost sample; this command "
+                                     "needs a record without gaps (pyrhonn identify splits one at its gaps; or "
+                                     "cut the file there)")
+                if k == 0:
+                    raise ValueError(f"{source}: line {line}, column {LOST_COLUMN!r}: the first data row cannot be "
                                      "a lost sample (leave it out)")
                 lost[k] = True
                 X[k], U[k], valid[k] = np.nan, np.nan, False
-                continue
+                return
         for j, c in validity.items():
             flag = record[c].strip()
             if flag not in ("0", "1"):
@@ -352,8 +360,92 @@ def read_data(path: str | Path, cf: ConfigFile, *, valid_suffix: str = "_valid",
                 raise ValueError(f"{source}: line {line}, column {names[c]!r}: missing input value "
                                  "(inputs must be given on every line)")
             U[k, j] = value
-    return Data(X=X, U=U, valid=valid, t=t, lines=lines, ignored=ignored,
-                lost=lost if LOST_COLUMN in where else None, units=units)
+
+    def numbers(cells: tuple[str, ...]) -> np.ndarray | None:
+        """A column of plain numbers in one pass (None if any cell is anything else)."""
+        joined = "\n".join(cells)
+        if decimal == ",":
+            if "." in joined:
+                return None
+            joined = joined.replace(",", ".")
+        if not _COLUMN.fullmatch(joined):
+            return None
+        parts = joined.split("\n")
+        if len(parts) != len(cells):  # a quoted cell held a line end
+            return None
+        try:
+            with np.errstate(over="ignore"):
+                a = np.array(parts, dtype=np.float64)
+        except (ValueError, OverflowError):
+            return None
+        return a if np.isfinite(a).all() else None
+
+    def plain_rows(chunk: list[tuple[int, list[str]]]) -> bool:
+        """Rows whose every cell is plain (numbers, flags 0/1, no lost sample, times increasing), filled
+        column by column; False (nothing filled) for anything else, which :func:`one_row` then names."""
+        if any(len(r) != width for _, r in chunk):
+            return False
+        cols = list(zip(*(r for _, r in chunk)))
+        got: dict[int, np.ndarray] = {}
+        for c in ([where[TIME_COLUMN]] if t is not None else []) + state_cols + input_cols:
+            a = numbers(cols[c])
+            if a is None:
+                return False
+            got[c] = a
+        flags = {c: {cell.strip() for cell in cols[c]} for c in validity.values()}
+        if any(not f <= {"0", "1"} for f in flags.values()):
+            return False
+        if LOST_COLUMN in where and {cell.strip() for cell in cols[where[LOST_COLUMN]]} != {"0"}:
+            return False
+        if t is not None:
+            tc = got[where[TIME_COLUMN]]
+            if np.any(np.diff(tc) <= 0) or (k >= 0 and not tc[0] > t[k]):
+                return False
+        rows = slice(k + 1, k + 1 + len(chunk))
+        lines[rows] = [line for line, _ in chunk]
+        if t is not None:
+            t[rows] = got[where[TIME_COLUMN]]
+        for j, c in validity.items():
+            valid[rows, j] = np.array([cell.strip() == "1" for cell in cols[c]])
+        for j, c in enumerate(state_cols):
+            X[rows, j] = got[c]
+        for j, c in enumerate(input_cols):
+            U[rows, j] = got[c]
+        return True
+
+    chunk: list[tuple[int, list[str]]] = []
+
+    def flush() -> None:
+        nonlocal k
+        if chunk and plain_rows(chunk):
+            k += len(chunk)
+        else:
+            for line, record in chunk:
+                one_row(line, record)
+        chunk.clear()
+
+    blank: int | None = None  # the first blank line: allowed only at the end of the file
+    for line, record in body:
+        if not record:
+            if blank is None:
+                flush()  # the rows before it first: their defects come first
+                blank = line
+            continue
+        if blank is not None:
+            raise ValueError(f"{source}: line {blank}: empty line inside the data")
+        chunk.append((line, record))
+        if len(chunk) == 4096:
+            flush()
+    flush()
+    T = k + 1
+    if T == 0:
+        raise ValueError(f"{source}: line {header_line}: header only, no data rows")
+    if lost[T - 1]:
+        raise ValueError(f"{source}: line {int(lines[T - 1])}, column {LOST_COLUMN!r}: the last data row cannot be a "
+                         "lost sample (leave it out)")
+    return Data(X=X[:T].copy(), U=U[:T].copy(), valid=valid[:T].copy(), t=None if t is None else t[:T].copy(),
+                lines=lines[:T].copy(), ignored=ignored, lost=lost[:T].copy() if LOST_COLUMN in where else None,
+                units=units)
 
 
 def write_data(path: str | Path, data: Data, cf: ConfigFile, *, valid_suffix: str = "_valid") -> None:

@@ -68,8 +68,10 @@ class Segments:
             out[a] = True
         return out
 
-    def report(self, t: np.ndarray | None, lines: np.ndarray) -> dict[str, Any]:
-        """The ``gaps`` entry of metrics.json: counts as the firmware's counters, and every segment."""
+    def report(self, t: np.ndarray | None, lines: np.ndarray, valid: np.ndarray | None = None,
+               names: tuple[str, ...] = ()) -> dict[str, Any]:
+        """The ``gaps`` entry of metrics.json: counts as the firmware's counters, and every segment (with
+        ``valid`` (T, n) and the state ``names``: each state's dropouts in it, predicted through)."""
         def when(k: int) -> dict[str, Any]:
             return {"sample": k, "line": int(lines[k]), **({"t": float(t[k])} if t is not None else {})}
 
@@ -80,7 +82,9 @@ class Segments:
                     "measurement in a sample that arrived is a dropout: not valid, predicted through",
             "lost_samples": self.lost, "gaps": len(self.gaps), "rejected_after_gap": len(self.gaps),
             "restarts": self.restarts,
-            "segments": [{"first": when(a), "last": when(b - 1), "samples": b - a} for a, b in self.bounds],
+            "segments": [{"first": when(a), "last": when(b - 1), "samples": b - a,
+                          **({"dropouts": {name: int((~valid[a:b, j]).sum()) for j, name in enumerate(names)}}
+                             if valid is not None else {})} for a, b in self.bounds],
             "gap_list": [{"first_lost": when(g.first), "lost": g.lost, "rejected": when(g.rejected)}
                          for g in self.gaps]}
 

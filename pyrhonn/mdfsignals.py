@@ -27,6 +27,7 @@ Every defect raises ``ValueError`` naming the file and channel.
 from __future__ import annotations
 
 import difflib
+import struct
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -35,7 +36,46 @@ import numpy as np
 
 from .validation import near_names
 
-__all__ = ["MdfSignals", "read_signal_mdf"]
+__all__ = ["MdfSignals", "mdf_damage", "read_signal_mdf"]
+
+_BLOCK = struct.Struct("<4s4xQQ")  # id ("##HD"), reserved, block length, number of links
+#: the most blocks followed in one file (a long bus log has one data block per few MiB)
+MAX_MDF_BLOCKS = 1 << 20
+
+
+def mdf_damage(path: Path) -> str | None:
+    """What is wrong with an MDF4 file's block structure (None: every block it links ends inside the
+    file). Follows the links from the header block, reading only block headers: a file cut short or
+    a damaged link is found before anything is allocated or decompressed."""
+    size = path.stat().st_size
+    if size < 64 + _BLOCK.size:
+        return f"{size:,} bytes: shorter than an MDF4 identification and header block"
+    todo, seen, beyond = [64], set(), 0
+    with open(path, "rb") as fh:
+        while todo:
+            at = todo.pop()
+            if at in seen:
+                continue
+            seen.add(at)
+            if len(seen) > MAX_MDF_BLOCKS:
+                return f"more than {MAX_MDF_BLOCKS:,} linked blocks"
+            if at + _BLOCK.size > size:
+                beyond = max(beyond, at + _BLOCK.size)
+                continue
+            fh.seek(at)
+            ident, length, links = _BLOCK.unpack(fh.read(_BLOCK.size))
+            if ident[:2] != b"##" or length < _BLOCK.size + 8 * links:
+                return f"no valid block at byte {at:,} (a damaged link or block header)"
+            if at + length > size:
+                beyond = max(beyond, at + length)
+                continue
+            for link in struct.unpack(f"<{links}Q", fh.read(8 * links)):
+                if link:
+                    todo.append(link)
+    if beyond:
+        return (f"cut short: its blocks reach byte {beyond:,}, the file has {size:,} (at least "
+                f"{beyond - size:,} bytes missing)")
+    return None
 
 #: how the channels are put on the identifier's grid, as the report says it
 METHOD = ("zero-order hold of the latest sample at or before each grid time; a state is valid only where its "
@@ -85,6 +125,9 @@ def read_signal_mdf(path: str | Path, state_names: Sequence[str], input_names: S
             raise ValueError(f"{source}: truncated: {incomplete}; read what is there with --partial-log")
     elif ident != b"MDF     ":
         raise ValueError(f"{source}: not an MDF file (it does not start with 'MDF')")
+    damage = mdf_damage(p)
+    if damage:
+        raise ValueError(f"{source}: truncated or damaged MDF4: {damage}; an MDF4 is read whole or not at all")
     names = list(state_names) + list(input_names)
     channels = dict(channels or {})
     try:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["fail", "check_int", "check_real", "check_array", "check_data", "read_file"]
+__all__ = ["fail", "check_int", "check_real", "check_array", "check_data", "read_file", "MissingFileError", "near_names"]
 
 
 def fail(path: str, message: str) -> ValueError:
@@ -23,16 +23,22 @@ def fail(path: str, message: str) -> ValueError:
     return ValueError(f"{path}: {message}")
 
 
+class MissingFileError(FileNotFoundError, ValueError):
+    """A file that is not there: a ``FileNotFoundError`` (as ``open`` raises) and a ``ValueError``
+    (as every other bad input), whose message names the closest files in its folder."""
+
+
 def read_file(path: str | os.PathLike, source: str, *, limit: int) -> bytes:
     """The bytes of the regular file ``path``, at most ``limit`` of them.
 
     A device, pipe or socket (``/dev/zero`` would be read forever, a FIFO
-    blocks) or a larger file is a ValueError naming ``source``; a file that
-    cannot be opened raises the OSError ``open`` gives.
+    blocks) or a larger file is a ValueError naming ``source``; a missing file
+    is a :class:`MissingFileError` naming the closest files in its folder; a
+    file that cannot be opened raises the OSError ``open`` gives.
     """
     p = Path(path)
     if not p.exists():
-        raise ValueError(f"{source}: No such file or directory{near_names(p)}")
+        raise MissingFileError(f"{source}: No such file or directory{near_names(p)}")
     if p.exists() and not (p.is_file() or p.is_dir()):  # a directory: let open() say so
         raise ValueError(f"{source}: not a regular file (a device, pipe or socket)")
     with open(p, "rb") as fh:

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from pyrhonn.cli import main
 from pyrhonn.configfile import load_shipped, shipped_text
@@ -113,3 +115,42 @@ def test_a_missing_data_or_config_file_names_the_closest_file(rows: list[list[st
     assert "plnat.toml: No such file or directory; did you mean" in err and "plant.toml" in err
     err = cli_error(["identify", str(tmp_path / "none" / "run.csv"), "--config", "example1"])
     assert "does not exist either" in err
+
+
+_CELL_STYLES = (repr, lambda v: f"{v:.17e}", lambda v: f"  {v!r} ", lambda v: f"{v:+.17g}")
+
+
+@settings(max_examples=40, deadline=None)
+@given(values=st.lists(st.lists(st.floats(allow_nan=False, allow_infinity=False, width=64), min_size=5, max_size=5),
+                       min_size=2, max_size=30),
+       styles=st.lists(st.integers(0, len(_CELL_STYLES) - 1), min_size=5, max_size=5),
+       sep=st.sampled_from([",", ";", "\t"]))
+def test_plain_rows_read_in_one_pass_equal_the_same_cells_read_one_by_one(values: list[list[float]], styles: list[int],
+                                                                         sep: str) -> None:
+    """A chunk of plain rows is read column by column; one empty cell sends its chunk through the
+    cell-by-cell reader: every other value is the same, bit for bit."""
+    cf = load_shipped("example1")
+    import tempfile
+
+    def write(path: Path, first_empty: bool) -> None:
+        with path.open("w", newline="") as fh:
+            w = csv.writer(fh, delimiter=sep)
+            w.writerow(["t", "x1", "x2", "x3", "x4", "u", "x1_valid"])
+            for k, row in enumerate(values):
+                cells = [_CELL_STYLES[styles[j]](v) for j, v in enumerate(row)]
+                if first_empty and k == 0:
+                    cells[0] = ""
+                w.writerow([repr(0.5 * k)] + cells + ["0" if first_empty and k == 0 else "1"])
+
+    with tempfile.TemporaryDirectory() as tmp:
+        write(Path(tmp) / "plain.csv", False)
+        write(Path(tmp) / "mixed.csv", True)
+        a, b = read_data(Path(tmp) / "plain.csv", cf), read_data(Path(tmp) / "mixed.csv", cf)
+    want = np.array(values)
+    np.testing.assert_array_equal(a.X, want[:, :4])
+    np.testing.assert_array_equal(a.U[:, 0], want[:, 4])
+    np.testing.assert_array_equal(b.X[1:], a.X[1:])
+    np.testing.assert_array_equal(b.X[0, 1:], a.X[0, 1:])
+    np.testing.assert_array_equal(b.U, a.U)
+    assert not b.valid[0, 0] and b.valid[1:].all() and a.valid.all()
+    np.testing.assert_array_equal(a.lines, b.lines)

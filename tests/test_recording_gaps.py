@@ -133,6 +133,9 @@ def test_every_gap_is_counted_and_each_segment_reported(runs: dict[str, Path],
     assert [x["rejected"]["sample"] for x in g["gap_list"]] == [58, 201, 336, 541, 543]
     assert [(s["first"]["sample"], s["last"]["sample"]) for s in g["segments"]] == [
         (0, 56), (59, 199), (202, 332), (337, 539), (544, N - 1)]
+    # the dropouts (v's flag 0 on samples 100 and 101) are counted in the segment that holds them
+    assert [s["dropouts"]["v"] for s in g["segments"]] == [0, 2, 0, 0, 0]
+    assert all(s["dropouts"]["q_m"] == 0 for s in g["segments"])
     rows = _predictions(runs["asc"] / "predictions.csv")
     for k in sorted(LOST) + [58, 201, 336, 541, 543]:  # nothing predicted for a sample not stepped
         assert rows[k]["q_m_hat"] == "" and rows[k]["q_m_err"] == ""
@@ -202,3 +205,20 @@ def test_a_free_run_ends_with_its_segment_and_k_step_predictions_restart_after_a
     assert m["free_run"]["states"]["q_m"]["scored"] == 333 - 250
     assert all(np.isfinite(s["rmse"]) for kind in ("one_step", "free_run", "steps_ahead")
                for s in m[kind]["states"].values())
+
+
+def test_commands_that_need_a_record_without_gaps_refuse_a_lost_sample_naming_its_line(files: dict[str, Path],
+                                                                                     tmp_path: Path, cli_error) -> None:
+    err = cli_error(["export", "--config", str(files["config"]), "--out", str(tmp_path / "e.h"), "--data",
+                     str(files["csv"])])
+    assert f"{files['csv']}: line {min(LOST) + 2}, column 'lost': a lost sample; this command needs a record " \
+           "without gaps" in err and not (tmp_path / "e.h").exists()
+
+
+def test_numbered_by_the_sequence_counter_across_its_wrap_the_gaps_are_the_same(
+        files: dict[str, Path], runs: dict[str, Path], tmp_path: Path) -> None:
+    assert main(["identify", "--can-log", str(files["blf"]), "--dbc", str(files["dbc"]), "--config",
+                 str(files["config"]), "--counter", "Measurement.Seq", "--out", str(tmp_path / "n"), "--no-plots"]) == 0
+    assert _predictions(tmp_path / "n" / "predictions.csv") == _predictions(runs["csv"] / "predictions.csv")
+    g = json.loads((tmp_path / "n" / "metrics.json").read_text())["gaps"]
+    assert g["lost_samples"] == len(LOST) and g["gaps"] == 5

@@ -103,3 +103,11 @@ def test_an_unknown_channel_and_an_unfinalised_file_are_named(mf4: Path, tmp_pat
     assert "truncated: its identification block says 'UnFinMF'" in err and "--partial-log" in err
     assert main(args + ["--out", str(tmp_path / "p"), "--partial-log"]) == 0
     assert json.loads((tmp_path / "p" / "metrics.json").read_text())["mdf"]["complete"] is False
+
+
+def test_a_signal_mdf4_cut_short_is_refused_before_it_is_read(mf4: Path, tmp_path: Path, cli_error) -> None:
+    raw = mf4.read_bytes()
+    (tmp_path / "cut.mf4").write_bytes(raw[:len(raw) // 2])
+    err = cli_error(["identify", str(tmp_path / "cut.mf4"), "--config", "example1", "--channel", "x3=pos3",
+                     "--out", str(tmp_path / "o")])
+    assert "cut.mf4: truncated or damaged MDF4: cut short: its blocks reach byte" in err and "bytes missing" in err

@@ -76,6 +76,10 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         with can.Logger(str(out[suffix])) as logger:
             for m in _frames():
                 logger.on_message_received(m)
+    out["mf4"] = d / "run.mf4"
+    with can.Logger(str(out["mf4"])) as logger:
+        for m in _frames():
+            logger.on_message_received(m)
     out["blf"] = d / "run.blf"
     with can.BLFWriter(str(out["blf"]), max_container_size=2048) as writer:  # several containers
         for m in _frames():
@@ -142,6 +146,28 @@ def test_a_blf_whose_header_was_never_completed_is_refused(files: dict[str, Path
     with pytest.raises(ValueError, match="its header was never completed"):
         read_frames(tmp_path / "open.blf")
     assert read_frames(tmp_path / "open.blf", partial=True).t.size == 2 * K
+
+
+def test_a_blf_container_declaring_a_huge_size_is_refused_before_decompressing(files: dict[str, Path],
+                                                                              tmp_path: Path) -> None:
+    raw = bytearray(files["blf"].read_bytes())
+    first = int.from_bytes(raw[4:8], "little")  # the first object: a container
+    raw[first + 16 + 8:first + 16 + 12] = (3_000_000_000).to_bytes(4, "little")
+    (tmp_path / "big.blf").write_bytes(bytes(raw))
+    for partial in (False, True):
+        with pytest.raises(ValueError, match=r"object 1 \(a container, at byte 144\) declares 3,000,000,000 bytes "
+                                             "uncompressed"):
+            read_frames(tmp_path / "big.blf", partial=partial)
+
+
+def test_an_mdf4_bus_log_cut_short_is_refused_naming_how_much_is_missing(files: dict[str, Path], tmp_path: Path,
+                                                                        cli_error) -> None:
+    assert read_frames(files["mf4"]).t.size == 2 * K
+    cut = _cut(files["mf4"], tmp_path / "cut.mf4", 0.6)
+    for extra in ([], ["--partial-log"]):
+        err = cli_error(_identify(files, cut, tmp_path / "o", *extra))
+        assert f"--can-log {cut}: truncated or damaged MDF4: cut short: its blocks reach byte" in err
+        assert "bytes missing)" in err and "Traceback" not in err and "Exception ignored" not in err
 
 
 def test_a_binary_log_named_as_text_and_a_missing_log_are_named(files: dict[str, Path], tmp_path: Path) -> None:

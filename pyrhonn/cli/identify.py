@@ -12,7 +12,14 @@ Input file
 The format of :mod:`pyrhonn.datafile` (a header row naming the columns by
 the config's ``state_names`` and ``input_names``, optional ``t`` and
 ``<state><suffix>`` validity columns); every defect is reported with its
-line number and exit code 2.
+line number and exit code 2. A separator ``;`` or tab, decimal commas and a
+unit row are read too (``--csv-sep``, ``--decimal``). A file ``DATA.mf4`` is a
+signal MDF4 (:mod:`pyrhonn.mdfsignals`: channels by name, resampled on the
+identifier's period by a zero-order hold).
+
+Gaps (:mod:`pyrhonn.gaps`): samples that never arrived (a ``lost`` column,
+or a bus log's lost frames) split the record into segments as the firmware
+does; ``metrics.json``'s ``gaps`` counts them and lists the segments.
 
 Validation (:mod:`pyrhonn.simulation`)
 --------------------------------------
@@ -117,7 +124,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Run the RHONN identifier (C core) on a CSV file whose columns are named by the config; "
                     "write one-step-ahead predictions, metrics (RMSE, absolute deviation) and plots.")
     p.add_argument("data", metavar="DATA.csv", nargs="?",
-                   help="the measurements: header row, then one line per sample (or --can-log)")
+                   help="the measurements: a CSV file (header row, then one line per sample), a signal MDF4 "
+                        "file of named channels (.mf4), or none with --can-log")
     p.add_argument("--config", required=True, metavar="CFG",
                    help="identifier config: a .toml file (see pyrhonn show-config) or a shipped config name")
     p.add_argument("--out", metavar="DIR", help="output folder (default: identify-<data file stem>)")
@@ -139,7 +147,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--csv-sep", type=_separator, metavar="SEP",
                    help="the CSV's column separator: ',', ';' or tab (default: the one that splits the header into "
                         "the config's names)")
-    p.add_argument("--decimal", choices=(".", ","),
+    p.add_argument("--decimal", choices=(".", ","), metavar="MARK",
                    help="the CSV's decimal mark (default: '.', or ',' when the file is not comma-separated and its "
                         "numbers have decimal commas)")
     p.add_argument("--channel", action="append", default=[], metavar="NAME=CHANNEL",
@@ -352,7 +360,7 @@ def run(args: argparse.Namespace) -> int:
                          "--can-log")
     data = bus.data if bus else mdf[0] if mdf else read_data(source, cf, valid_suffix=args.valid_suffix,
                                                              config_source=config_source, sep=args.csv_sep,
-                                                             decimal=args.decimal)
+                                                             decimal=args.decimal, allow_lost=True)
     units = {**{k: v for k, v in (data.units or {}).items() if k in cf.state_names or k == TIME_COLUMN},
              **args.units}  # --units over the file's unit row
     T = data.n_samples
@@ -452,7 +460,7 @@ def run(args: argparse.Namespace) -> int:
         **sections,
         "next_prediction": {name: float(sim.next_prediction[j]) for j, name in enumerate(cf.state_names)},
         **({"bus": bus.report()} if bus else {}),
-        **({"gaps": segs.report(data.t, data.lines)} if segs is not None else {}),
+        **({"gaps": segs.report(data.t, data.lines, data.valid, tuple(cf.state_names))} if segs else {}),
         **({"mdf": mdf[1].report()} if mdf else {}),
     }
     with atomic.output_folder(out, "pyrhonn identify"):  # marked INCOMPLETE until every file is in place

@@ -1,0 +1,200 @@
+"""Identifying from recordings: lossy bus logs in every format, and a long recording end to end.
+
+1. The firmware's Measurement frames of the LIM example (``--frames``, default 10,001 at 0.3 ms)
+   with ``--loss`` (default 0.5 %) of them lost at random, written as candump, BLF, ASC and MDF4 bus
+   logs and as the CSV of the same samples with a ``lost`` column. Each is identified by
+   ``pyrhonn identify`` in its own process; the bench checks that the predictions are the same from
+   every file and that every lost frame is counted, and reports each run's wall time and peak memory.
+2. A long recording (``--long``, default 10^6 samples) as a candump log and as CSV: ``identify``'s
+   end-to-end time and peak memory against the C core's own time on the same samples
+   (``Identifier.run`` over the segments), as a same-run ratio.
+
+    python bench/bench_recordings.py [--frames 10001] [--loss 0.005] [--long 1000000] [--long-formats log,csv]
+
+Needs python-can, cantools and asammdf (pyrhonn's dependencies).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import can
+from pyrhonn import Identifier, firmware
+from pyrhonn.configfile import load_shipped, shipped_text
+from pyrhonn.gaps import segments_of
+from pyrhonn.plants import lim
+
+PERIOD = 3e-4
+T0 = 1_700_000_000.0
+STATES = ("q_m", "v", "lambda_a", "lambda_b", "i_a", "i_b")
+BUS = "\n[bus]\nsample_period = 0.0003\nclock = \"Measurement\"\n\n[bus.signals]\n" + "".join(
+    f"{n} = \"Measurement.{s}\"\n" for n, s in zip(STATES + ("u_a", "u_b"), firmware.STATE_SIGNALS
+                                                    + firmware.INPUT_SIGNALS)) + "\n[bus.valid]\n" + "".join(
+    f"{n} = \"Measurement.{s}\"\n" for n, s in zip(STATES, firmware.VALID_SIGNALS))
+RUN = ("import json, resource, sys, time\n"
+       "from pyrhonn.cli import main\n"
+       "t = time.perf_counter()\n"
+       "code = main(sys.argv[1:])\n"
+       "print(json.dumps({'code': code, 'seconds': time.perf_counter() - t,\n"
+       "                  'peak_mib': resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))\n")
+
+
+def _samples(n: int, synthetic: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(X, U): the LIM example from just before its inputs switch on, or smooth signals in the DBC's
+    ranges for a long recording (the simulation of 10^6 samples would dominate the bench)."""
+    if not synthetic:
+        traj = lim.simulate(dt=PERIOD, horizon=2.0 + n * PERIOD + 0.01)
+        k0 = int(round(2.0 / PERIOD))
+        return traj.X[k0:k0 + n].copy(), traj.U[k0:k0 + n].copy()
+    k = np.arange(n)[:, None]
+    X = np.hstack([np.sin(k * w) * a for w, a in ((1e-3, 1.0), (7e-4, 2.0), (3e-3, 1.0), (2e-3, 1.0), (5e-3, 20.0),
+                                                  (4e-3, 20.0))])
+    U = np.hstack([np.sin(k * 5e-3) * 150.0, np.cos(k * 5e-3) * 150.0])
+    return X, U
+
+
+def _frames(X: np.ndarray, U: np.ndarray, lost: set[int]) -> list[can.Message]:
+    out = []
+    for k in range(X.shape[0]):
+        if k in lost:
+            continue
+        m = firmware.measurement_message(k, X[k], U[k])
+        m.timestamp = round(T0 + k * PERIOD, 6)
+        out.append(m)
+    return out
+
+
+def _write(frames: list[can.Message], path: Path) -> None:
+    if path.suffix == ".log":
+        with path.open("w") as fh:
+            for m in frames:
+                fh.write(f"({m.timestamp:.6f}) vcan0 {m.arbitration_id:03X}##1{bytes(m.data).hex().upper()}\n")
+        return
+    with can.Logger(str(path)) as logger:
+        for m in frames:
+            logger.on_message_received(m)
+
+
+def _csv(frames: list[can.Message], n: int, path: Path) -> None:
+    meas = firmware.database().get_message_by_name("Measurement")
+    by_k = {int(round((m.timestamp - T0) / PERIOD)): m for m in frames}
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow([*STATES, "u_a", "u_b", "lost"])
+        for k in range(n):
+            if k not in by_k:
+                w.writerow([""] * 8 + ["1"])
+                continue
+            d = meas.decode(bytes(by_k[k].data), decode_choices=False)
+            w.writerow([repr(float(d[s])) for s in firmware.STATE_SIGNALS + firmware.INPUT_SIGNALS] + ["0"])
+
+
+def _identify(argv: list[str], cwd: Path) -> dict[str, float]:
+    """``pyrhonn identify`` in its own process (run in ``cwd``, away from a source tree without the built
+    core): its exit code, wall time and peak memory."""
+    done = subprocess.run([sys.executable, "-c", RUN, *argv], capture_output=True, text=True, cwd=cwd)
+    if done.returncode != 0:
+        raise SystemExit(f"identify crashed: {' '.join(argv)}\n{done.stderr}")
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    if result["code"] != 0:
+        raise SystemExit(f"identify failed: {' '.join(argv)}\n{done.stderr}")
+    return result
+
+
+def _recorded(frames: list[can.Message], n: int, path: Path, d: Path) -> dict[str, float]:
+    """``frames`` written as ``path`` (its suffix says the format), then identified into ``out-<stem>``."""
+    if path.suffix == ".csv":
+        _csv(frames, n, path)
+        source = [str(path)]
+    else:
+        _write(frames, path)
+        source = ["--can-log", str(path), "--dbc", str(d / "rhonn_id.dbc")]
+    return _identify(["identify", *source, "--config", str(d / "lim.toml"), "--out", str(d / f"out-{path.stem}"),
+                      "--no-plots"], d)
+
+
+def _predictions(out: Path) -> list[dict[str, str]]:
+    with (out / "predictions.csv").open(newline="") as fh:
+        return [{k: v for k, v in row.items() if k.endswith(("_hat", "_err"))} for row in csv.DictReader(fh)]
+
+
+def _core_seconds(X: np.ndarray, U: np.ndarray, lost: np.ndarray) -> float:
+    """The C core's own time: Identifier.run over the segments (float32), best of three."""
+    cfg = load_shipped("firmware-lim").config
+    segs = segments_of(lost)
+    Xf, Uf = X.astype(np.float32), U.astype(np.float32)
+    valid = np.ones(X.shape, dtype=bool)
+    best = np.inf
+    for _ in range(3):
+        ident = Identifier(cfg)
+        t = time.perf_counter()
+        for i, (a, b) in enumerate(segs.bounds):
+            if i:
+                ident.restart()
+            ident.run(Xf[a:b], Uf[a:b], valid[a:b])
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--frames", type=int, default=10_001)
+    ap.add_argument("--loss", type=float, default=0.005)
+    ap.add_argument("--long", type=int, default=1_000_000)
+    ap.add_argument("--long-formats", default="log,csv", help="formats of the long recording (log, blf, asc, mf4, csv)")
+    ap.add_argument("--seed", type=int, default=5)
+    ap.add_argument("--out", type=Path, default=None, help="keep the files here (default: a temporary folder)")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        d = args.out or Path(tmp)
+        d.mkdir(parents=True, exist_ok=True)
+        (d / "lim.toml").write_text(shipped_text("firmware-lim") + BUS)
+        (d / "rhonn_id.dbc").write_text(firmware.database().as_dbc_string())
+        rng = np.random.default_rng(args.seed)
+        n = args.frames
+        lost = {int(k) for k in np.flatnonzero(rng.random(n) < args.loss) if 0 < k < n - 1}
+        X, U = _samples(n, synthetic=False)
+        frames = _frames(X, U, lost)
+        print(f"1. {n:,} Measurement frames, {len(lost)} lost at random ({args.loss:.1%})")
+        runs: dict[str, dict[str, float]] = {}
+        for suffix in ("log", "blf", "asc", "mf4", "csv"):
+            path = d / f"lossy-{suffix}.{suffix}"
+            runs[suffix] = _recorded(frames, n, path, d)
+            gaps = json.loads((d / f"out-{path.stem}" / "metrics.json").read_text())["gaps"]
+            assert gaps["lost_samples"] == len(lost), (suffix, gaps["lost_samples"])
+            print(f"   {suffix:4s} {path.stat().st_size / 2**20:7.2f} MiB: {runs[suffix]['seconds']:6.2f} s, peak "
+                  f"{runs[suffix]['peak_mib']:6.0f} MiB; {gaps['lost_samples']} lost in {gaps['gaps']} gaps, "
+                  f"{gaps['restarts']} restarts")
+        want = _predictions(d / "out-lossy-csv")
+        same = all(_predictions(d / f"out-lossy-{s}") == want for s in ("log", "blf", "asc", "mf4"))
+        print(f"   predictions equal across candump, BLF, ASC, MDF4 and CSV: {same}")
+        if not same:
+            raise SystemExit(1)
+
+        N = args.long
+        if N:
+            lost_big = {int(k) for k in np.flatnonzero(rng.random(N) < args.loss) if 0 < k < N - 1}
+            Xb, Ub = _samples(N, synthetic=True)
+            big = _frames(Xb, Ub, lost_big)
+            lost_mask = np.zeros(N, dtype=bool)
+            lost_mask[sorted(lost_big)] = True
+            core = _core_seconds(Xb, Ub, lost_mask)
+            print(f"2. {N:,} samples, {len(lost_big):,} lost; the C core alone (Identifier.run over the segments, "
+                  f"float32): {core:.2f} s")
+            for suffix in args.long_formats.split(","):
+                path = d / f"long-{suffix}.{suffix}"
+                r = _recorded(big, N, path, d)
+                print(f"   {suffix:4s} {path.stat().st_size / 2**20:7.1f} MiB: identify {r['seconds']:6.1f} s "
+                      f"({r['seconds'] / core:5.1f} x the core), peak {r['peak_mib']:6.0f} MiB")
+
+
+if __name__ == "__main__":
+    main()
