@@ -5,10 +5,10 @@ See README.md for the quick start and ``csrc/include/rhonn.h`` for the C core.
 from __future__ import annotations
 
 from .config import Activation, CovarianceForm, Factor, FactorKind, IdentifierConfig, NeuronConfig, Term
-from . import presets, terms
+from . import presets, terms, version
 from .identifier import Identifier, IdentifierError, NeuronHealth, capacities
 
-__version__ = "0.1.0"
+__version__ = version.__version__
 
 __all__ = [
     "Activation",

@@ -8,7 +8,8 @@ member        shape / dtype    meaning
 ============  ===============  ==================================================
 ``header``    0-d unicode      JSON: ``format`` = "pyrhonn-state", ``version`` = 2,
                                ``config`` (IdentifierConfig.to_dict()), ``dtype``,
-                               ``steps``, ``started``, ``learning``
+                               ``steps``, ``started``, ``learning``, ``written_by``
+                               ("pyrhonn X.Y.Z", informative only)
 ``w_<i>``     (L_i,) dtype     weights w_i(k) of neuron i
 ``p_<i>``     (L_i(L_i+1)/2,)  P_i(k), packed upper triangle, row by row; for a
                                neuron with ``covariance = "ud"`` its factors
@@ -51,6 +52,7 @@ import numpy as np
 
 from . import atomic
 from .config import IdentifierConfig
+from .version import __version__
 from .identifier import Identifier, IdentifierError, _unpacked, clearly_indefinite
 
 __all__ = ["FORMAT", "VERSION", "save_state", "load_state"]
@@ -67,6 +69,7 @@ def save_state(identifier: Identifier, path: str | Path) -> None:
     header = {
         "format": FORMAT,
         "version": VERSION,
+        "written_by": f"pyrhonn {__version__}",
         "dtype": cfg.dtype,
         "config": cfg.to_dict(),
         "steps": identifier.steps,
