@@ -1,4 +1,6 @@
 # The two commands of the README's quick start, and the pieces they use.
+#   make venv    set up .venv with the clone installed in editable mode (the
+#                C extensions built beside the sources; docs/development.md)
 #   make reproduce  set up .venv, build and install pyrhonn, reproduce the
 #                   paper's Tables 1-6 (pyrhonn reproduce all) into reproduce-out/
 #   make bench   set up .venv, build and install pyrhonn, run the benchmarks
@@ -16,7 +18,7 @@ JOBS   ?= 2
 venv:
 	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install --quiet --upgrade pip
-	$(VENV)/bin/python -m pip install --quiet ".[test]" cmake
+	$(VENV)/bin/python -m pip install --quiet -e ".[test]" cmake
 
 reproduce: venv
 	$(VENV)/bin/pyrhonn reproduce all --out reproduce-out
@@ -32,8 +34,8 @@ bench: venv
 
 test: venv test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm
 
-# Run from tests/ so the source tree's pyrhonn/ (without compiled
-# extensions) cannot shadow the installed package.
+# Run from tests/, as a user's program runs from its own folder: the tests
+# import the package that .venv holds (the clone, installed in editable mode).
 test-python:
 	cd tests && ../$(VENV)/bin/python -m pytest -q -p no:cacheprovider .
 
