@@ -28,7 +28,7 @@ import numpy as np
 
 
 def _stats(v: list[int]) -> dict:
-    from .score import stats_us
+    from .latency import stats_us
 
     return stats_us(np.asarray(v, dtype=np.int64))
 

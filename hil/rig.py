@@ -425,7 +425,7 @@ class Rig:
         included)."""
         from pyrhonn.firmware import database
 
-        from .score import stats_us
+        from .latency import stats_us
 
         sc = self.plan.scenario
         # time order: a frame the kernel stamped on arrival goes before the frames sent while it waited to be

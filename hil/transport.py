@@ -270,7 +270,7 @@ def _fifo_args() -> list[str]:
 
 
 def _hist_us(h: dict | None) -> dict:
-    """A runner histogram (count, min_us, ...) in hil.score.stats_us's form."""
+    """A runner histogram (count, min_us, ...) in hil.latency.stats_us's form."""
     if not h or not h.get("count"):
         return {"n": 0}
     return {"n": int(h["count"]), "min": h["min_us"], "avg": h["avg_us"], "p99": h["p99_us"], "p99.9": h["p999_us"],

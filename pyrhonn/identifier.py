@@ -35,6 +35,8 @@ import numpy as np
 
 from . import _rhonn_f32, _rhonn_f64, _rhonn_small_f32, _rhonn_small_f64
 from .config import IdentifierConfig
+from .covariance import clearly_indefinite
+from .covariance import unpacked as _unpacked
 
 __all__ = ["Identifier", "IdentifierError", "NeuronHealth", "capacities"]
 
@@ -184,19 +186,6 @@ def _packed(P: np.ndarray) -> np.ndarray:
     return P[np.triu_indices(P.shape[0])]
 
 
-def clearly_indefinite(P: np.ndarray) -> float | None:
-    """The smallest eigenvalue of the symmetric covariance ``P`` if it is
-    clearly negative, else None. P_i is a covariance (eq. 10), but one the
-    filter itself produced may sit a rounding error below semi-definite, so
-    only what is negative beyond L ulps of P's largest eigenvalue, at P's
-    own dtype, counts."""
-    eig = np.linalg.eigvalsh(P.astype(np.float64))
-    eps = float(np.finfo(P.dtype).eps) if P.dtype.kind == "f" else float(np.finfo(np.float64).eps)
-    if eig[0] < -P.shape[0] * eps * float(np.max(np.abs(eig))):
-        return float(eig[0])
-    return None
-
-
 def _float32_note(config: IdentifierConfig, field: int, neuron: int) -> str:
     """Why a float32 core refused a real-valued field that float64 accepts: the
     first value of that field that is beyond float32's range or rounds to 0."""
@@ -221,16 +210,6 @@ def _float32_note(config: IdentifierConfig, field: int, neuron: int) -> str:
     if field == 19:
         return " (below trace P0 once both are rounded to float32)"
     return ""
-
-
-def _unpacked(p: np.ndarray, L: int) -> np.ndarray:
-    """The symmetric matrix of a packed upper triangle, every entry's bits
-    as stored (a -0 stays -0: P + P.T would turn it into +0)."""
-    P = np.zeros((L, L), dtype=p.dtype)
-    P[np.triu_indices(L)] = p
-    lower = np.tril_indices(L, -1)
-    P[lower] = P.T[lower]
-    return P
 
 
 _F = TypeVar("_F", bound=Callable[..., Any])
@@ -945,7 +924,7 @@ class Identifier:
         """Rebuild an identifier, mid-run, from a file written by :meth:`save`."""
         from .statefile import load_state
 
-        return load_state(path)
+        return load_state(path, cls)
 
     def as_config(self) -> IdentifierConfig:
         """The config with w0 and P0 taken from the current weights and

@@ -46,14 +46,17 @@ from __future__ import annotations
 import json
 import zipfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from . import atomic
 from .config import IdentifierConfig
 from .version import __version__
-from .identifier import Identifier, IdentifierError, _unpacked, clearly_indefinite
+from .covariance import clearly_indefinite, unpacked
+
+if TYPE_CHECKING:  # the identifier imports this module (Identifier.save, .load), never the reverse
+    from .identifier import Identifier
 
 __all__ = ["FORMAT", "VERSION", "save_state", "load_state"]
 
@@ -63,7 +66,7 @@ VERSION = 2
 
 def save_state(identifier: Identifier, path: str | Path) -> None:
     """Write ``identifier``'s full state to ``path`` (see module docs)."""
-    if not isinstance(identifier, Identifier):
+    if not isinstance(getattr(identifier, "config", None), IdentifierConfig):
         raise ValueError(f"identifier: expected an Identifier, got {type(identifier).__name__}")
     cfg = identifier.config
     header = {
@@ -114,8 +117,9 @@ def _member(path: Path, archive: Any, name: str, shape: tuple[int, ...], dtype: 
     return a
 
 
-def load_state(path: str | Path) -> Identifier:
-    """Rebuild an identifier from a file written by :func:`save_state`."""
+def load_state(path: str | Path, identifier_type: type[Identifier]) -> Identifier:
+    """Rebuild an identifier of ``identifier_type`` (:class:`pyrhonn.Identifier`
+    or a subclass) from a file written by :func:`save_state`."""
     path = Path(path)
     try:
         archive = np.load(path, allow_pickle=False)
@@ -160,7 +164,7 @@ def load_state(path: str | Path) -> Identifier:
             if not isinstance(header.get(key), bool):
                 raise _fail(path, f"header.{key}", f"expected true or false, got {header.get(key)!r}")
         try:
-            ident = Identifier(cfg)
+            ident = identifier_type(cfg)
         except ValueError as exc:
             raise _fail(path, "header.config", str(exc)) from None
         dt = np.dtype(cfg.dtype)
@@ -175,7 +179,7 @@ def load_state(path: str | Path) -> Identifier:
                 raise _fail(path, f"p_{i}", "covariance diagonal must be > 0" if nr.covariance.code == 0
                             else "factor D must be > 0")
             if nr.covariance.code == 0:
-                lowest = clearly_indefinite(_unpacked(p, L))
+                lowest = clearly_indefinite(unpacked(p, L))
                 if lowest is not None:
                     raise _fail(path, f"p_{i}", f"covariance not positive semi-definite (smallest eigenvalue "
                                                 f"{lowest:.3g})")
@@ -198,7 +202,7 @@ def load_state(path: str | Path) -> Identifier:
     try:
         ident._restore(weights=weights, packed_cov=covs, regressors=regs, prediction=xhat, history=history,
                        started=header["started"], learning=header["learning"], steps=steps)
-    except IdentifierError as exc:  # the core's own check: P positive definite at the file's precision
+    except ValueError as exc:  # IdentifierError: the core's own check: P positive definite at the file's precision
         member = str(exc).split(":", 1)[0]
         raise _fail(path, member, f"covariance not positive definite at {cfg.dtype} precision") from None
     return ident
