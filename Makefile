@@ -1,10 +1,11 @@
 # The two commands of the README's quick start, and the pieces they use.
 #   make venv    set up .venv with the clone installed in editable mode (the
 #                C extensions built beside the sources; docs/development.md)
+#   make lint    ruff and mypy (settings in pyproject.toml)
 #   make reproduce  set up .venv, build and install pyrhonn, reproduce the
 #                   paper's Tables 1-6 (pyrhonn reproduce all) into reproduce-out/
 #   make bench   set up .venv, build and install pyrhonn, run the benchmarks
-#   make test    set up .venv, run the Python tests, then again with every
+#   make test    set up .venv, lint, run the Python tests, then again with every
 #                CPU busy (stress-ng; SKIP_LOADED=1 skips it), then the C tests
 #                under CTest (plain, then with AddressSanitizer + UBSan), then
 #                the SocketCAN tests inside a VM with vcan0 (SKIP_VM=1 skips it)
@@ -13,12 +14,19 @@ VENV   ?= .venv
 BUILD  ?= build
 JOBS   ?= 2
 
-.PHONY: venv reproduce bench test test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm clean
+.PHONY: venv lint reproduce bench test test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm clean
 
 venv:
 	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install --quiet --upgrade pip
 	$(VENV)/bin/python -m pip install --quiet -e ".[test]" cmake
+
+# Run before every other tier of `make test`: a lint error fails it early.
+# Alone it uses the .venv that `make venv` set up (without installing again).
+lint:
+	@test -x $(VENV)/bin/ruff -a -x $(VENV)/bin/mypy || { echo "lint: no ruff and mypy in $(VENV): run make venv"; exit 1; }
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
 
 reproduce: venv
 	$(VENV)/bin/pyrhonn reproduce all --out reproduce-out
@@ -32,7 +40,7 @@ bench: venv
 	$(VENV)/bin/python bench/bench_core_vs_dense.py
 	$(VENV)/bin/python bench/bench_real_data.py
 
-test: venv test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm
+test: venv lint test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm
 
 # Run from tests/, as a user's program runs from its own folder: the tests
 # import the package that .venv holds (the clone, installed in editable mode).
@@ -167,4 +175,4 @@ else
 endif
 
 clean:
-	rm -rf $(BUILD) $(VENV) pyrhonn/_rhonn_*.so pyrhonn/_rhonn_*.c pyrhonn/_rhonn_*.o pyrhonn/_fwapp*
+	rm -rf $(BUILD) $(VENV) pyrhonn/_rhonn_*.so pyrhonn/_rhonn_*.c pyrhonn/_rhonn_*.o pyrhonn/_fwapp*.so pyrhonn/_fwapp.c pyrhonn/_fwapp.o

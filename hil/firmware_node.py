@@ -23,6 +23,7 @@ import json
 import signal
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
@@ -49,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     from .rig import ids
     from .transport import _deep_receive_buffer, lim_config
 
-    kw = {"fd": True}
+    kw: dict[str, Any] = {"fd": True}
     if args.port is not None:
         kw["port"] = args.port
     try:

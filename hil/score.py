@@ -94,7 +94,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     prev_seq: int | None = None
     foreign: dict[str, int] = {}
     unexpected = duplicates = mismatched = 0
-    diags: list[dict[str, int]] = []
+    diags: list[dict[str, Any]] = []
     health: dict[int, dict[str, Any]] = {}
     HEALTH = ident["Health"]
     plan_bytes: dict[int, bytes] = {}
@@ -153,18 +153,18 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
         except ValueError:
             mismatched += 1
             continue
-        k = _answered_cycle(by_seq.get(e.seq), sent_ns, t_ns)
-        if k is None:
+        cycle = _answered_cycle(by_seq.get(e.seq), sent_ns, t_ns)
+        if cycle is None:
             unexpected += 1
-        elif recv_ns[k] >= 0:
+        elif recv_ns[cycle] >= 0:
             duplicates += 1
         else:
-            recv_ns[k] = t_ns
-            picked_ns[k] = recv_ns[k] + (int(pickup[i]) if pickup is not None else 0)
-            raw[k] = e.xhat
-            phys[k] = decode_estimate(m).xhat
-            status[k] = e.step_status
-            resync[k] = e.resync
+            recv_ns[cycle] = t_ns
+            picked_ns[cycle] = recv_ns[cycle] + (int(pickup[i]) if pickup is not None else 0)
+            raw[cycle] = e.xhat
+            phys[cycle] = decode_estimate(m).xhat
+            status[cycle] = e.step_status
+            resync[cycle] = e.resync
 
     lost = np.asarray(plan.lost)
     was_sent = sent_ns >= 0

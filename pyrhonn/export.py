@@ -44,7 +44,7 @@ import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Optional, Tuple
+from typing import Callable
 
 import numpy as np
 
@@ -76,7 +76,7 @@ _CXX_KEYWORDS = frozenset("""alignas alignof and and_eq asm bitand bitor bool ca
 _HEX_FLOATS = "#if !defined(__cplusplus) || __cplusplus >= 201703L"
 
 LiteralFormat = Callable[[float], str]
-WarmSamples = Tuple[np.ndarray, Optional[np.ndarray], Optional[np.ndarray]]
+WarmSamples = tuple[np.ndarray, np.ndarray | None, np.ndarray | None]
 
 
 def _hex_literal(dtype: str) -> LiteralFormat:

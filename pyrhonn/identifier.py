@@ -152,7 +152,7 @@ def _aligned_workspace(build: ModuleType) -> tuple[Any, Any]:
     return raw, ffi.cast("rhonn_population_work *", raw + skip)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _raw_allocator(build: ModuleType) -> Callable[..., Any]:
     """``ffi.new`` of one build without the zeroing, for buffers written whole at once."""
     return build.ffi.new_allocator(should_clear_after_alloc=False)  # type: ignore[no-any-return]
@@ -222,7 +222,7 @@ def _serialised(method: _F) -> _F:
     state :meth:`Identifier.step` lent to the vector lanes is given back
     first, so the method finds all of it in the struct."""
     @functools.wraps(method)
-    def locked(self: "Identifier", *args: Any, **kwargs: Any) -> Any:
+    def locked(self: Identifier, *args: Any, **kwargs: Any) -> Any:
         with self._lock:
             self._settle()
             return method(self, *args, **kwargs)
@@ -562,7 +562,7 @@ class Identifier:
         views: list[np.ndarray] = []  # the rows of the block the C call writes (call.rows), as arrays
         me = weakref.ref(self)
 
-        def owner() -> "Identifier":
+        def owner() -> Identifier:
             ident = me()
             if ident is None:  # only when step was kept and the identifier itself dropped
                 raise ReferenceError("step: its Identifier no longer exists (keep the Identifier, not only "
@@ -619,7 +619,7 @@ class Identifier:
             xb = tobytes(x)
             acquire()  # one step at a time on this identifier (see the class docs)
             try:
-                row = c_step(call, xb, ub, vb)  # the row it wrote, or minus its status
+                row: int = c_step(call, xb, ub, vb)  # the row it wrote, or minus its status
                 if row < 0:
                     if row == no_row:
                         new_block()
@@ -869,7 +869,8 @@ class Identifier:
     # -- errors ---------------------------------------------------------------------
 
     def _status_name(self, status: int) -> str:
-        return self._ffi.string(self._lib.rhonn_status_name(status)).decode()
+        name: bytes = self._ffi.string(self._lib.rhonn_status_name(status))
+        return name.decode()
 
     def _check(self, status: int, what: str) -> None:
         if status:
@@ -920,7 +921,7 @@ class Identifier:
         save_state(self, path)
 
     @classmethod
-    def load(cls, path: str | Path) -> "Identifier":
+    def load(cls, path: str | Path) -> Identifier:
         """Rebuild an identifier, mid-run, from a file written by :meth:`save`."""
         from .statefile import load_state
 

@@ -79,10 +79,9 @@ def save_state(identifier: Identifier, path: str | Path) -> None:
         "started": bool(identifier._net.started),
         "learning": identifier.learning,
     }
-    members: dict[str, np.ndarray] = {"header": np.array(json.dumps(header))}
+    members: dict[str, Any] = {"header": np.array(json.dumps(header))}
     regressors = identifier.regressors
     for i in range(cfg.n_states):
-        L = cfg.neurons[i].n_terms
         members[f"w_{i}"] = identifier.get_weights(i)
         members[f"p_{i}"] = identifier._stored_covariance(i)
         members[f"z_{i}"] = regressors[i]
@@ -105,7 +104,7 @@ def _member(path: Path, archive: Any, name: str, shape: tuple[int, ...], dtype: 
     if name not in archive.files:
         raise _fail(path, name, "missing")
     try:
-        a = archive[name]
+        a: np.ndarray = archive[name]
     except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
         raise _fail(path, name, f"unreadable ({exc})") from None
     if a.dtype != dtype:

@@ -22,7 +22,7 @@ def fail(path: str, message: str) -> ValueError:
     return ValueError(f"{path}: {message}")
 
 
-def read_file(path: str | os.PathLike, source: str, *, limit: int) -> bytes:
+def read_file(path: str | os.PathLike[str], source: str, *, limit: int) -> bytes:
     """The bytes of the regular file ``path``, at most ``limit`` of them.
 
     A device, pipe or socket (``/dev/zero`` would be read forever, a FIFO

@@ -417,7 +417,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"errors over valid targets ({scope}), warmup {args.warmup}:")
     width = max(5, *(len(s) for s in cf.state_names))
     print(f"  {'state':<{width}}  {'scored':>7}" + "".join(f"  {label + ' RMSE':>18}  {'RRSE':>8}" for _, label in kinds))
-    for j, name in enumerate(cf.state_names):
+    for name in cf.state_names:
         row = f"  {name:<{width}}  {sections['one_step']['states'][name]['scored']:>7}"
         for kind, _ in kinds:
             st = sections[kind]["states"][name]

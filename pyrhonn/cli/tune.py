@@ -360,7 +360,7 @@ class Trajectory:
 def _example(name: str, dt: float | None, horizon: float | None, cf: ConfigFile, config_source: str) -> Trajectory:
     from ..plants import lim, oscillator, robot
 
-    kwargs: dict[str, float] = {} if horizon is None else {"horizon": horizon}
+    kwargs: dict[str, Any] = {} if horizon is None else {"horizon": horizon}
     with options_named(horizon="--horizon", dt="--dt"):
         if name == "example1":
             traj = oscillator.simulate(dt=0.2 if dt is None else dt, **kwargs)
@@ -440,7 +440,8 @@ def _report(result: tuning.TuneResult, cf: ConfigFile) -> str:
     lines.append(f"  {'state':<{width}}  {'std':>11}  {'RMSE base':>11}  {'RMSE tuned':>11}  "
                  f"{'norm. base':>11}  {'norm. tuned':>11}")
     for j, name in enumerate(names):
-        scale = (best or base).scale[j] if (best or base) is not None else None
+        scored = best or base
+        scale = None if scored is None else scored.scale[j]
         lines.append(f"  {name:<{width}}  {_fmt(scale)}  {_fmt(None if base is None else base.rmse[j])}  "
                      f"{_fmt(None if best is None else best.rmse[j])}  "
                      f"{_fmt(None if base is None else base.normalised[j])}  "
