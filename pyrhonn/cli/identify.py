@@ -45,7 +45,8 @@ Outputs (in ``--out``, default ``identify-<file stem>``)
   absolute deviation. ``states`` repeats ``one_step`` (the version 1
   layout). Also the prediction x̂(T) beyond the last line, where the free
   run diverged (if it did), and the run settings.
-- ``<state>.png`` per state (unless ``--no-plots``): measured vs identified
+- ``<state>.png`` per state (unless ``--no-plots``, which removes an earlier
+  run's ``<state>.png`` for these states): measured vs identified
   (one step, free run, H steps ahead), and the one-step error, against
   ``t`` (or the sample index).
 
@@ -404,6 +405,8 @@ def run(args: argparse.Namespace) -> int:
         atomic.write_text(out / "metrics.json", json.dumps(report, indent=2) + "\n")
         for j, path in enumerate(plots):
             _plot(path, cf.state_names[j], data, sim, j, args.warmup, args.units)
+        for stale in [] if plots else [out / f"{name}.png" for name in cf.state_names]:
+            stale.unlink(missing_ok=True)  # an earlier run's plot would pass for this run's
 
     print(f"identified {source}: {T} samples, {_count(cfg.n_states, 'state')}, {_count(cfg.n_inputs, 'input')}, "
           f"config {config_source}, {dtype}")
