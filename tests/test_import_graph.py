@@ -149,15 +149,18 @@ def describe(graph: dict[str, dict[str, int]], component: list[str]) -> str:
                      for b, line in sorted(graph[a].items()) if b in members)
 
 
-def test_pyrhonn_and_hil_have_no_import_cycle() -> None:
-    graph = import_graph(ROOT, PACKAGES)
+@pytest.fixture(scope="module")
+def graph() -> dict[str, dict[str, int]]:
+    return import_graph(ROOT, PACKAGES)
+
+
+def test_pyrhonn_and_hil_have_no_import_cycle(graph: dict[str, dict[str, int]]) -> None:
     assert len(graph) > 40 and "pyrhonn.identifier" in graph and "hil.rig" in graph
     found = cycles(graph)
     assert not found, "import cycles: " + " | ".join(describe(graph, c) for c in found)
 
 
-def test_pyrhonn_never_imports_hil() -> None:
-    graph = import_graph(ROOT, PACKAGES)
+def test_pyrhonn_never_imports_hil(graph: dict[str, dict[str, int]]) -> None:
     wrong = {a: sorted(b for b in targets if b.split(".")[0] == "hil")
              for a, targets in graph.items() if a.split(".")[0] == "pyrhonn"}
     assert not {a: b for a, b in wrong.items() if b}
