@@ -1,10 +1,13 @@
 # The two commands of the README's quick start, and the pieces they use.
+#   make venv    set up .venv with the clone installed in editable mode (the
+#                C extensions built beside the sources; docs/development.md)
+#   make lint    ruff and mypy (settings in pyproject.toml)
 #   make reproduce  set up .venv, build and install pyrhonn, reproduce the
 #                   paper's Tables 1-6 (pyrhonn reproduce all) into reproduce-out/
 #   make bench   set up .venv, build and install pyrhonn, run the benchmarks
 #   make docs    set up .venv, build the documentation site into site/ (mkdocs
 #                --strict: a warning or a broken link fails it)
-#   make test    set up .venv, build the docs, run the Python tests, then again with every
+#   make test    set up .venv, lint, build the docs, run the Python tests, then again with every
 #                CPU busy (stress-ng; SKIP_LOADED=1 skips it), then the C tests
 #                under CTest (plain, then with AddressSanitizer + UBSan), then
 #                the SocketCAN tests inside a VM with vcan0 (SKIP_VM=1 skips it)
@@ -13,12 +16,19 @@ VENV   ?= .venv
 BUILD  ?= build
 JOBS   ?= 2
 
-.PHONY: venv reproduce bench docs test test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm clean
+.PHONY: venv lint reproduce bench docs test test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm clean
 
 venv:
 	test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install --quiet --upgrade pip
-	$(VENV)/bin/python -m pip install --quiet ".[test]" cmake
+	$(VENV)/bin/python -m pip install --quiet -e ".[test]" cmake
+
+# Run before every other tier of `make test`: a lint error fails it early.
+# Alone it uses the .venv that `make venv` set up (without installing again).
+lint:
+	@test -x $(VENV)/bin/ruff -a -x $(VENV)/bin/mypy || { echo "lint: no ruff and mypy in $(VENV): run make venv"; exit 1; }
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
 
 reproduce: venv
 	$(VENV)/bin/pyrhonn reproduce all --out reproduce-out
@@ -32,15 +42,15 @@ bench: venv
 	$(VENV)/bin/python bench/bench_core_vs_dense.py
 	$(VENV)/bin/python bench/bench_real_data.py
 
-test: venv docs test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm
+test: venv lint docs test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm
 
 # The site's reference pages are generated from the installed package
 # (docs_hooks.py): the CLI from its parser, the config keys, the C headers.
 docs: venv
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet --site-dir site
 
-# Run from tests/ so the source tree's pyrhonn/ (without compiled
-# extensions) cannot shadow the installed package.
+# Run from tests/, as a user's program runs from its own folder: the tests
+# import the package that .venv holds (the clone, installed in editable mode).
 test-python:
 	cd tests && ../$(VENV)/bin/python -m pytest -q -p no:cacheprovider .
 
@@ -187,4 +197,4 @@ else
 endif
 
 clean:
-	rm -rf $(BUILD) $(VENV) pyrhonn/_rhonn_*.so pyrhonn/_rhonn_*.c pyrhonn/_rhonn_*.o pyrhonn/_fwapp*
+	rm -rf $(BUILD) $(VENV) pyrhonn/_rhonn_*.so pyrhonn/_rhonn_*.c pyrhonn/_rhonn_*.o pyrhonn/_fwapp*.so pyrhonn/_fwapp.c pyrhonn/_fwapp.o

@@ -56,7 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"rhonn_runner --bus-less, period {PERIOD_US:.0f} us, {args.cycles} cycles each")
     print(f"{'policy':14} {'step p99':>9} {'step p99.9':>11} {'p99.9/period':>13} {'step max':>9} "
           f"{'wake p99.9':>11} {'wake max':>9} {'overruns':>9} {'overrun %':>10}")
-    for label, r in rows:
+    for _label, r in rows:
         st, wk = r["step"], r["wake-up"]
         print(f"{r['policy']:14} {st['p99_us']:8.2f}u {st['p999_us']:10.2f}u {st['p999_us'] / PERIOD_US:12.2%} "
               f"{st['max_us']:8.1f}u {wk['p999_us']:10.1f}u {wk['max_us']:8.1f}u {r['overruns']:9d} "

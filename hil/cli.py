@@ -439,13 +439,13 @@ def _replay(args) -> int:
     except KeyboardInterrupt as exc:  # SIGINT, or SIGTERM as Interrupted
         signum = getattr(exc, "signum", signal.SIGINT)
         name = signal.Signals(signum).name
-        rec = exc.recording if isinstance(exc, Interrupted) else None
-        if rec is None:  # before the rig started: --log still ends as this run's log, an empty partial one
-            rec = Recording(scenario=sc, meta={"transport": args.transport, "channel": args.channel,
+        partial = exc.recording if isinstance(exc, Interrupted) else None
+        if partial is None:  # before the rig started: --log still ends as this run's log, an empty partial one
+            partial = Recording(scenario=sc, meta={"transport": args.transport, "channel": args.channel,
                                                "wall_time_ns": time.time_ns(),
                                                "partial": f"interrupted by {name} before the first frame"})
         if args.log is not None:
-            _record(rec, args.log, f" (up to the {name}; marked partial)")
+            _record(partial, args.log, f" (up to the {name}; marked partial)")
         print(f"pyrhonn hil replay: interrupted by {name}", file=sys.stderr)
         return _signal_exit(signum)
     log_error = None

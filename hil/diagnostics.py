@@ -46,7 +46,7 @@ BO_ 304 Diagnostics: 32 RHONN
 """
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _message(protocol: str) -> Any:
     """The cantools Diagnostics message of ``protocol`` (this build's DBC, or the legacy one)."""
     import cantools
@@ -57,7 +57,9 @@ def _message(protocol: str) -> Any:
     if protocol == db.version:
         return db.get_message_by_name("Diagnostics")
     if protocol == LEGACY_PROTOCOL:
-        return cantools.database.load_string(_LEGACY_DBC, database_format="dbc").get_message_by_name("Diagnostics")
+        legacy = cantools.database.load_string(_LEGACY_DBC, database_format="dbc")
+        assert isinstance(legacy, cantools.database.can.Database)  # a DBC is a CAN database
+        return legacy.get_message_by_name("Diagnostics")
     raise ValueError(f"protocol: Diagnostics of {protocol!r} cannot be decoded (this hil knows {db.version!r} "
                      f"and {LEGACY_PROTOCOL!r})")
 

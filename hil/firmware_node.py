@@ -23,12 +23,13 @@ import json
 import signal
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
 
 def _stats(v: list[int]) -> dict:
-    from .score import stats_us
+    from .latency import stats_us
 
     return stats_us(np.asarray(v, dtype=np.int64))
 
@@ -49,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     from .rig import ids
     from .transport import _deep_receive_buffer, lim_config
 
-    kw = {"fd": True}
+    kw: dict[str, Any] = {"fd": True}
     if args.port is not None:
         kw["port"] = args.port
     try:

@@ -103,7 +103,7 @@ class Interrupted(KeyboardInterrupt):
     ``recording``: every frame sent and received up to that moment, marked
     partial, to be written as a log."""
 
-    def __init__(self, signum: int = signal.SIGINT, recording: "Recording | None" = None) -> None:
+    def __init__(self, signum: int = signal.SIGINT, recording: Recording | None = None) -> None:
         super().__init__(signal.Signals(signum).name)
         self.signum = int(signum)
         self.recording = recording
@@ -114,7 +114,7 @@ class BusLost(OSError):
     holds every frame sent and received up to that moment, so nothing that
     happened before is lost: it can be written as a log and scored."""
 
-    def __init__(self, message: str, recording: "Recording") -> None:
+    def __init__(self, message: str, recording: Recording) -> None:
         super().__init__(message)
         self.recording = recording
 
@@ -154,6 +154,7 @@ def _paired_clocks() -> tuple[int, int]:
             best = (r1 - r0, m, (r0 + r1) // 2)
         if r1 - r0 < 2_000:
             break
+    assert best is not None  # the loop ran at least once
     return best[1], best[2]
 
 
@@ -187,7 +188,7 @@ class Rig:
                  spin_ns: int = 100_000, reply_timeout: float = 1.0, drain: float = 0.5,
                  extra_frames: Callable[[int], list[can.Message]] | None = None,
                  kernel_drops: Callable[[], dict[str, int]] | None = None,
-                 progress: "Callable[[int, int, int, int], None] | None" = None, sample_drops: bool = False) -> None:
+                 progress: Callable[[int, int, int, int], None] | None = None, sample_drops: bool = False) -> None:
         self.bus = bus
         self.plan = plan
         self.transport = transport
@@ -445,7 +446,7 @@ class Rig:
         included)."""
         from pyrhonn.firmware import database
 
-        from .score import stats_us
+        from .latency import stats_us
 
         sc = self.plan.scenario
         # time order: a frame the kernel stamped on arrival goes before the frames sent while it waited to be
@@ -484,7 +485,7 @@ class _ASCWriter(can.ASCWriter):
         return dt.strftime(self.FORMAT_DATE.format(f"{dt.microsecond // 1000:03d}"))
 
 
-def _writer(path: Path, target: Path) -> can.io.generic.MessageWriter:
+def _writer(path: Path, target: Path) -> can.BLFWriter | _ASCWriter:
     """python-can's writer for ``path``'s format, writing to ``target``."""
     suffix = path.suffix.lower()
     if suffix == ".blf":
@@ -527,7 +528,7 @@ class _LogWriter:
         self.writer = _writer(path, target)
         self.origin, self.lead = _log_origin(rec)
         self.last = 0.0
-        if self.blf:
+        if isinstance(self.writer, can.BLFWriter):
             self.writer.start_timestamp = 0.0
         elif self.origin:
             self.writer.log_event(ASC_ORIGIN_EVENT, self.origin / 1e9)
@@ -542,7 +543,7 @@ class _LogWriter:
         self.writer.on_message_received(m)
 
     def stop(self) -> None:
-        if self.blf and self.origin:  # the header, written by stop(): the absolute start and stop
+        if isinstance(self.writer, can.BLFWriter) and self.origin:  # the header, written by stop(): start, stop
             self.writer.start_timestamp = self.origin / 1e9
             self.writer.stop_timestamp = self.origin / 1e9 + self.last
         self.writer.stop()
@@ -706,7 +707,7 @@ def _read_frames(path: Path, suffix: str) -> tuple[list[can.Message], Exception 
     """The frames of a log, up to where it stops parsing: the frames read,
     and the exception that stopped the reader (None: read to its end)."""
     msgs: list[can.Message] = []
-    reader = None
+    reader: Any = None  # a BLFReader or an ASCReader
     try:  # the BLF reader parses the file's header when it is made: a foreign or empty file fails there
         reader = can.BLFReader(path) if suffix == ".blf" else can.ASCReader(path)
         if suffix == ".blf":

@@ -167,14 +167,14 @@ class Scenario:
         return int(round(self.duration / self.period))
 
     @classmethod
-    def at_rest(cls, cycles: int, **fields_: Any) -> "Scenario":
+    def at_rest(cls, cycles: int, **fields_: Any) -> Scenario:
         """``cycles`` periods of the LIM at rest (its voltages never switch on,
         no hold) for timing runs: any number of cycles stays inside the DBC's
         ranges, and the firmware's step costs the same whatever the values."""
         duration = cycles * fields_.get("period", 3e-4)
         return cls(duration=duration, hold_duration=0.0, input_start=duration + 1.0, **fields_)
 
-    def replace(self, **changes: Any) -> "Scenario":
+    def replace(self, **changes: Any) -> Scenario:
         if "trajectory" in changes and "trajectory_sha256" not in changes:
             changes["trajectory_sha256"] = ""   # another file: pin its own content
         return Scenario(**{**asdict(self), **changes})
@@ -185,7 +185,7 @@ class Scenario:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "Scenario":
+    def from_dict(cls, d: dict[str, Any]) -> Scenario:
         if not isinstance(d, dict):
             raise _fail("scenario", f"expected a mapping, got {type(d).__name__}")
         names = {f.name for f in fields(cls)}
@@ -200,7 +200,7 @@ class Scenario:
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), sort_keys=True)
 
-    def build(self) -> "Plan":
+    def build(self) -> Plan:
         return _build(self)
 
 

@@ -43,20 +43,11 @@ import numpy as np
 
 from . import diagnostics
 from .accounting import kernel_losses, stepped
+from .latency import stats_us
 from .rig import Recording, ids
 from .scenario import TABLE7
 
 __all__ = ["FATES", "fates", "score", "stats_us"]
-
-
-def stats_us(values_ns: np.ndarray) -> dict[str, float | int]:
-    """min/avg/p50/p99/p99.9/max of nanosecond values, in microseconds."""
-    v = np.asarray(values_ns, dtype=np.float64)
-    if v.size == 0:
-        return {"n": 0}
-    q = np.percentile(v, [50, 99, 99.9])
-    return {"n": int(v.size), "min": float(v.min()) / 1e3, "avg": float(v.mean()) / 1e3, "p50": float(q[0]) / 1e3,
-            "p99": float(q[1]) / 1e3, "p99.9": float(q[2]) / 1e3, "max": float(v.max()) / 1e3}
 
 
 def _ns(t: float) -> int:
@@ -103,7 +94,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     prev_seq: int | None = None
     foreign: dict[str, int] = {}
     unexpected = duplicates = mismatched = 0
-    diags: list[dict[str, int]] = []
+    diags: list[dict[str, Any]] = []
     health: dict[int, dict[str, Any]] = {}
     HEALTH = ident["Health"]
     plan_bytes: dict[int, bytes] = {}
@@ -162,18 +153,18 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
         except ValueError:
             mismatched += 1
             continue
-        k = _answered_cycle(by_seq.get(e.seq), sent_ns, t_ns)
-        if k is None:
+        cycle = _answered_cycle(by_seq.get(e.seq), sent_ns, t_ns)
+        if cycle is None:
             unexpected += 1
-        elif recv_ns[k] >= 0:
+        elif recv_ns[cycle] >= 0:
             duplicates += 1
         else:
-            recv_ns[k] = t_ns
-            picked_ns[k] = recv_ns[k] + (int(pickup[i]) if pickup is not None else 0)
-            raw[k] = e.xhat
-            phys[k] = decode_estimate(m).xhat
-            status[k] = e.step_status
-            resync[k] = e.resync
+            recv_ns[cycle] = t_ns
+            picked_ns[cycle] = recv_ns[cycle] + (int(pickup[i]) if pickup is not None else 0)
+            raw[cycle] = e.xhat
+            phys[cycle] = decode_estimate(m).xhat
+            status[cycle] = e.step_status
+            resync[cycle] = e.resync
 
     lost = np.asarray(plan.lost)
     was_sent = sent_ns >= 0

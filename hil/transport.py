@@ -227,8 +227,8 @@ def udp_runner(runner: str | os.PathLike | None = None) -> str:
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("_pyrhonn_build_runner", script)
+    assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
-    assert spec.loader is not None
     spec.loader.exec_module(module)
     try:
         return str(module.cached())
@@ -270,7 +270,7 @@ def _fifo_args() -> list[str]:
 
 
 def _hist_us(h: dict | None) -> dict:
-    """A runner histogram (count, min_us, ...) in hil.score.stats_us's form."""
+    """A runner histogram (count, min_us, ...) in hil.latency.stats_us's form."""
     if not h or not h.get("count"):
         return {"n": 0}
     return {"n": int(h["count"]), "min": h["min_us"], "avg": h["avg_us"], "p99": h["p99_us"], "p99.9": h["p999_us"],
@@ -357,7 +357,7 @@ def _udp(channel: str | None, port: int | None, firmware: str | None, runner: st
     # the rig's socket also gets its own Measurements back (multicast loop): twice the traffic to buffer
     sock = getattr(getattr(rig, "_multicast", None), "_socket", None)
     _deep_receive_buffer(sock)
-    rig.hil_kernel_drops = _drop_counter(sock, port)   # what a receive queue that overflowed dropped
+    rig.hil_kernel_drops = _drop_counter(sock, port)  # type: ignore[attr-defined]  # what a receive queue that overflowed dropped
 
     def firmware_side() -> dict:
         if proc is None:

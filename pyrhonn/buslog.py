@@ -120,7 +120,7 @@ class SignalRef:
     origin: str = field(default="", compare=False)
 
     @classmethod
-    def parse(cls, text: object, origin: str) -> "SignalRef":
+    def parse(cls, text: object, origin: str) -> SignalRef:
         if not isinstance(text, str):
             raise ValueError(f"{origin}: expected a string \"Message.Signal\", got {type(text).__name__}")
         found = _REF.match(text.strip())
@@ -183,7 +183,7 @@ class BusMap:
 
     @classmethod
     def from_table(cls, table: object, state_names: Sequence[str], input_names: Sequence[str],
-                   path: str = "bus") -> "BusMap":
+                   path: str = "bus") -> BusMap:
         """The ``[bus]`` table of a config file (a dict from TOML), checked
         against the config's names; errors name the key (``bus.signals.x9``)."""
         if not isinstance(table, dict):

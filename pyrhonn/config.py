@@ -93,19 +93,19 @@ class Factor:
             raise fail("index", f"a ONE factor has index 0, got {self.index}")
 
     @classmethod
-    def s(cls, state: int, delay: int = 0, power: int = 1) -> "Factor":
+    def s(cls, state: int, delay: int = 0, power: int = 1) -> Factor:
         return cls(FactorKind.S, state, delay, power)
 
     @classmethod
-    def x(cls, state: int, delay: int = 0, power: int = 1) -> "Factor":
+    def x(cls, state: int, delay: int = 0, power: int = 1) -> Factor:
         return cls(FactorKind.X, state, delay, power)
 
     @classmethod
-    def u(cls, input_index: int, power: int = 1, delay: int = 0) -> "Factor":
+    def u(cls, input_index: int, power: int = 1, delay: int = 0) -> Factor:
         return cls(FactorKind.U, input_index, delay, power)
 
     @classmethod
-    def one(cls) -> "Factor":
+    def one(cls) -> Factor:
         return cls(FactorKind.ONE)
 
     def __str__(self) -> str:
@@ -120,7 +120,7 @@ class Factor:
         return {"kind": self.kind.name, "index": self.index, "delay": self.delay, "power": self.power}
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], path: str = "factor") -> "Factor":
+    def from_dict(cls, data: Mapping[str, Any], path: str = "factor") -> Factor:
         if not isinstance(data, Mapping):
             raise fail(path, f"expected a table, got {type(data).__name__}")
         unknown = set(data) - {"kind", "index", "delay", "power"}
@@ -139,7 +139,7 @@ Term = tuple[Factor, ...]
 """A high-order term z_ij: the product of its factors (eq. 4)."""
 
 
-def _real_list(path: str, value: list | tuple) -> np.ndarray:
+def _real_list(path: str, value: list[Any] | tuple[Any, ...]) -> np.ndarray:
     """A (nested) list of real numbers as a float64 array; None, bools,
     strings and ragged rows are refused, not converted (np.array would turn
     None into NaN and "1" into 1.0)."""
@@ -373,7 +373,7 @@ class NeuronConfig:
         }
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], path: str = "neuron") -> "NeuronConfig":
+    def from_dict(cls, data: Mapping[str, Any], path: str = "neuron") -> NeuronConfig:
         if not isinstance(data, Mapping):
             raise fail(path, f"expected a table, got {type(data).__name__}")
         known = {"terms", "activation", "beta", "p0", "q", "r", "eta", "w0", "covariance", "forgetting",
@@ -468,7 +468,7 @@ class IdentifierConfig:
     def x0_vector(self) -> np.ndarray:
         return np.zeros(self.n_states) if self.x0 is None else self.x0.copy()
 
-    def replace(self, **changes: Any) -> "IdentifierConfig":
+    def replace(self, **changes: Any) -> IdentifierConfig:
         """A copy with some fields changed (validated again)."""
         data = {k: getattr(self, k) for k in ("n_states", "n_inputs", "neurons", "dtype", "x0")}
         data.update(changes)
@@ -483,12 +483,12 @@ class IdentifierConfig:
         n_inputs: int,
         dtype: str = "float64",
         **neuron_kwargs: Any,
-    ) -> "IdentifierConfig":
+    ) -> IdentifierConfig:
         """Every neuron with the same tuning. ``terms`` is either one term
         list shared by all neurons or a list of n_states term lists."""
         check_int("n_states", n_states, 1, 255)
         if terms and isinstance(terms[0], tuple) and terms[0] and isinstance(terms[0][0], Factor):
-            per = [tuple(terms)] * n_states  # type: ignore[arg-type]
+            per = [tuple(terms)] * n_states
         else:
             per = [tuple(ts) for ts in terms]  # type: ignore[arg-type]
         neurons = tuple(NeuronConfig(terms=t, **neuron_kwargs) for t in per)  # type: ignore[arg-type]
@@ -504,7 +504,7 @@ class IdentifierConfig:
         }
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "IdentifierConfig":
+    def from_dict(cls, data: Mapping[str, Any]) -> IdentifierConfig:
         if not isinstance(data, Mapping):
             raise fail("config", f"expected a table, got {type(data).__name__}")
         unknown = set(data) - {"n_states", "n_inputs", "dtype", "x0", "neurons"}

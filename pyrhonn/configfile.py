@@ -348,7 +348,7 @@ class ConfigFile:
         input_names: tuple[str, ...] | None = None,
         description: str = "",
         why: tuple[str, ...] = (),
-    ) -> "ConfigFile":
+    ) -> ConfigFile:
         """Wrap a config, with default names x1..xn and u1..um unless given."""
         if not isinstance(config, IdentifierConfig):
             raise fail("config", f"expected an IdentifierConfig, got {type(config).__name__}")

@@ -69,7 +69,7 @@ class Experiment:
         """The samples of the source file this experiment holds, as ``a..b`` (0-based, inclusive)."""
         return f"{self.first}..{self.first + self.n_samples - 1}"
 
-    def cut(self, start: int, stop: int, name: str | None = None) -> "Experiment":
+    def cut(self, start: int, stop: int, name: str | None = None) -> Experiment:
         """Samples ``start`` .. ``stop - 1`` as an experiment of their own."""
         if not 0 <= start < stop <= self.n_samples or stop - start < 2:
             raise fail(f"{self.name}", f"cannot cut samples {start}..{stop - 1} from {self.n_samples}")

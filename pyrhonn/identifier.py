@@ -35,6 +35,8 @@ import numpy as np
 
 from . import _rhonn_f32, _rhonn_f64, _rhonn_small_f32, _rhonn_small_f64
 from .config import IdentifierConfig
+from .covariance import clearly_indefinite
+from .covariance import unpacked as _unpacked
 
 __all__ = ["Identifier", "IdentifierError", "NeuronHealth", "capacities"]
 
@@ -150,7 +152,7 @@ def _aligned_workspace(build: ModuleType) -> tuple[Any, Any]:
     return raw, ffi.cast("rhonn_population_work *", raw + skip)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _raw_allocator(build: ModuleType) -> Callable[..., Any]:
     """``ffi.new`` of one build without the zeroing, for buffers written whole at once."""
     return build.ffi.new_allocator(should_clear_after_alloc=False)  # type: ignore[no-any-return]
@@ -184,19 +186,6 @@ def _packed(P: np.ndarray) -> np.ndarray:
     return P[np.triu_indices(P.shape[0])]
 
 
-def clearly_indefinite(P: np.ndarray) -> float | None:
-    """The smallest eigenvalue of the symmetric covariance ``P`` if it is
-    clearly negative, else None. P_i is a covariance (eq. 10), but one the
-    filter itself produced may sit a rounding error below semi-definite, so
-    only what is negative beyond L ulps of P's largest eigenvalue, at P's
-    own dtype, counts."""
-    eig = np.linalg.eigvalsh(P.astype(np.float64))
-    eps = float(np.finfo(P.dtype).eps) if P.dtype.kind == "f" else float(np.finfo(np.float64).eps)
-    if eig[0] < -P.shape[0] * eps * float(np.max(np.abs(eig))):
-        return float(eig[0])
-    return None
-
-
 def _float32_note(config: IdentifierConfig, field: int, neuron: int) -> str:
     """Why a float32 core refused a real-valued field that float64 accepts: the
     first value of that field that is beyond float32's range or rounds to 0."""
@@ -223,16 +212,6 @@ def _float32_note(config: IdentifierConfig, field: int, neuron: int) -> str:
     return ""
 
 
-def _unpacked(p: np.ndarray, L: int) -> np.ndarray:
-    """The symmetric matrix of a packed upper triangle, every entry's bits
-    as stored (a -0 stays -0: P + P.T would turn it into +0)."""
-    P = np.zeros((L, L), dtype=p.dtype)
-    P[np.triu_indices(L)] = p
-    lower = np.tril_indices(L, -1)
-    P[lower] = P.T[lower]
-    return P
-
-
 _F = TypeVar("_F", bound=Callable[..., Any])
 
 
@@ -243,7 +222,7 @@ def _serialised(method: _F) -> _F:
     state :meth:`Identifier.step` lent to the vector lanes is given back
     first, so the method finds all of it in the struct."""
     @functools.wraps(method)
-    def locked(self: "Identifier", *args: Any, **kwargs: Any) -> Any:
+    def locked(self: Identifier, *args: Any, **kwargs: Any) -> Any:
         with self._lock:
             self._settle()
             return method(self, *args, **kwargs)
@@ -584,7 +563,7 @@ class Identifier:
         views: list[np.ndarray] = []  # the rows of the block the C call writes (call.rows), as arrays
         me = weakref.ref(self)
 
-        def owner() -> "Identifier":
+        def owner() -> Identifier:
             ident = me()
             if ident is None:  # only when step was kept and the identifier itself dropped
                 raise ReferenceError("step: its Identifier no longer exists (keep the Identifier, not only "
@@ -641,7 +620,7 @@ class Identifier:
             xb = tobytes(x)
             acquire()  # one step at a time on this identifier (see the class docs)
             try:
-                row = c_step(call, xb, ub, vb)  # the row it wrote, or minus its status
+                row: int = c_step(call, xb, ub, vb)  # the row it wrote, or minus its status
                 if row < 0:
                     if row == no_row:
                         new_block()
@@ -891,7 +870,8 @@ class Identifier:
     # -- errors ---------------------------------------------------------------------
 
     def _status_name(self, status: int) -> str:
-        return self._ffi.string(self._lib.rhonn_status_name(status)).decode()
+        name: bytes = self._ffi.string(self._lib.rhonn_status_name(status))
+        return name.decode()
 
     def _check(self, status: int, what: str) -> None:
         if status:
@@ -942,11 +922,11 @@ class Identifier:
         save_state(self, path)
 
     @classmethod
-    def load(cls, path: str | Path) -> "Identifier":
+    def load(cls, path: str | Path) -> Identifier:
         """Rebuild an identifier, mid-run, from a file written by :meth:`save`."""
         from .statefile import load_state
 
-        return load_state(path)
+        return load_state(path, cls)
 
     def as_config(self) -> IdentifierConfig:
         """The config with w0 and P0 taken from the current weights and

@@ -69,7 +69,8 @@ def errors(truth: np.ndarray, estimate: np.ndarray, warmup: int = 0) -> np.ndarr
             k, j = (int(i) for i in np.argwhere(bad)[0])
             raise ValueError(f"{name}[{k}, {j}]: must be finite, got {a[k, j]!r}")
     with np.errstate(over="ignore"):  # a difference beyond float64 is an infinite error, said by the result
-        return (truth[warmup:] - estimate[warmup:]).astype(np.float64, copy=False)
+        error: np.ndarray = (truth[warmup:] - estimate[warmup:]).astype(np.float64, copy=False)
+    return error
 
 
 def rmse(truth: np.ndarray, estimate: np.ndarray, warmup: int = 0) -> np.ndarray:

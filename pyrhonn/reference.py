@@ -258,6 +258,7 @@ class ReferenceIdentifier:
                 hist, uhist = (np.tile(v, (self._depth, 1)) for v in (x_eff, u))
             else:
                 hist = np.vstack((x_eff, self._hist[:-1]))
+                assert self._uhist is not None  # kept with _hist
                 uhist = np.vstack((u, self._uhist[:-1]))
             z = [self._regressor(i, hist, uhist) for i in range(n)]
             xhat = np.array([w_new[i] @ z[i] for i in range(n)])  # eq. 3

@@ -64,7 +64,7 @@ class DataRange:
     sigma: np.ndarray
 
     @classmethod
-    def of(cls, experiments: Sequence[Experiment]) -> "DataRange":
+    def of(cls, experiments: Sequence[Experiment]) -> DataRange:
         X, valid = np.vstack([ex.X for ex in experiments]), np.vstack([ex.valid for ex in experiments])
         low, high = divergence_range(X, valid)
         sigma = np.nanstd(np.where(valid, X, np.nan), axis=0)

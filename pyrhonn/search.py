@@ -352,8 +352,8 @@ class SearchResult:
         reasons: dict[str, int] = {}
         for sc in self.scores:
             if sc.status != "scored":
-                key = sc.status.split(":")[0]
-                reasons[key] = reasons.get(key, 0) + 1
+                reason = sc.status.split(":")[0]
+                reasons[reason] = reasons.get(reason, 0) + 1
         if reasons:
             lines.append("  not ranked: " + ", ".join(f"{c} {why}" for why, c in sorted(reasons.items())))
         if self.held_out:

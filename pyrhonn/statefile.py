@@ -8,7 +8,8 @@ member        shape / dtype    meaning
 ============  ===============  ==================================================
 ``header``    0-d unicode      JSON: ``format`` = "pyrhonn-state", ``version`` = 2,
                                ``config`` (IdentifierConfig.to_dict()), ``dtype``,
-                               ``steps``, ``started``, ``learning``
+                               ``steps``, ``started``, ``learning``, ``written_by``
+                               ("pyrhonn X.Y.Z", informative only)
 ``w_<i>``     (L_i,) dtype     weights w_i(k) of neuron i
 ``p_<i>``     (L_i(L_i+1)/2,)  P_i(k), packed upper triangle, row by row; for a
                                neuron with ``covariance = "ud"`` its factors
@@ -45,13 +46,17 @@ from __future__ import annotations
 import json
 import zipfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from . import atomic
 from .config import IdentifierConfig
-from .identifier import Identifier, IdentifierError, _unpacked, clearly_indefinite
+from .version import __version__
+from .covariance import clearly_indefinite, unpacked
+
+if TYPE_CHECKING:  # the identifier imports this module (Identifier.save, .load), never the reverse
+    from .identifier import Identifier
 
 __all__ = ["FORMAT", "VERSION", "save_state", "load_state"]
 
@@ -61,22 +66,22 @@ VERSION = 2
 
 def save_state(identifier: Identifier, path: str | Path) -> None:
     """Write ``identifier``'s full state to ``path`` (see module docs)."""
-    if not isinstance(identifier, Identifier):
+    if not isinstance(getattr(identifier, "config", None), IdentifierConfig):
         raise ValueError(f"identifier: expected an Identifier, got {type(identifier).__name__}")
     cfg = identifier.config
     header = {
         "format": FORMAT,
         "version": VERSION,
+        "written_by": f"pyrhonn {__version__}",
         "dtype": cfg.dtype,
         "config": cfg.to_dict(),
         "steps": identifier.steps,
         "started": bool(identifier._net.started),
         "learning": identifier.learning,
     }
-    members: dict[str, np.ndarray] = {"header": np.array(json.dumps(header))}
+    members: dict[str, Any] = {"header": np.array(json.dumps(header))}
     regressors = identifier.regressors
     for i in range(cfg.n_states):
-        L = cfg.neurons[i].n_terms
         members[f"w_{i}"] = identifier.get_weights(i)
         members[f"p_{i}"] = identifier._stored_covariance(i)
         members[f"z_{i}"] = regressors[i]
@@ -132,7 +137,7 @@ def _member(path: Path, archive: Any, name: str, shape: tuple[int, ...], dtype: 
     if declared != shape:
         raise _fail(path, name, f"expected shape {shape}, got {declared}")
     try:
-        a = archive[name]
+        a: np.ndarray = archive[name]
     except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
         raise _fail(path, name, f"unreadable ({exc})") from None
     if a.dtype != dtype:
@@ -144,8 +149,9 @@ def _member(path: Path, archive: Any, name: str, shape: tuple[int, ...], dtype: 
     return a
 
 
-def load_state(path: str | Path) -> Identifier:
-    """Rebuild an identifier from a file written by :func:`save_state`."""
+def load_state(path: str | Path, identifier_type: type[Identifier]) -> Identifier:
+    """Rebuild an identifier of ``identifier_type`` (:class:`pyrhonn.Identifier`
+    or a subclass) from a file written by :func:`save_state`."""
     path = Path(path)
     try:
         archive = np.load(path, allow_pickle=False)
@@ -197,7 +203,7 @@ def load_state(path: str | Path) -> Identifier:
             if not isinstance(header.get(key), bool):
                 raise _fail(path, f"header.{key}", f"expected true or false, got {header.get(key)!r}")
         try:
-            ident = Identifier(cfg)
+            ident = identifier_type(cfg)
         except ValueError as exc:
             raise _fail(path, "header.config", str(exc)) from None
         dt = np.dtype(cfg.dtype)
@@ -212,7 +218,7 @@ def load_state(path: str | Path) -> Identifier:
                 raise _fail(path, f"p_{i}", "covariance diagonal must be > 0" if nr.covariance.code == 0
                             else "factor D must be > 0")
             if nr.covariance.code == 0:
-                lowest = clearly_indefinite(_unpacked(p, L))
+                lowest = clearly_indefinite(unpacked(p, L))
                 if lowest is not None:
                     raise _fail(path, f"p_{i}", f"covariance not positive semi-definite (smallest eigenvalue "
                                                 f"{lowest:.3g})")
@@ -235,7 +241,7 @@ def load_state(path: str | Path) -> Identifier:
     try:
         ident._restore(weights=weights, packed_cov=covs, regressors=regs, prediction=xhat, history=history,
                        started=header["started"], learning=header["learning"], steps=steps)
-    except IdentifierError as exc:  # the core's own check: P positive definite at the file's precision
+    except ValueError as exc:  # IdentifierError: the core's own check: P positive definite at the file's precision
         member = str(exc).split(":", 1)[0]
         raise _fail(path, member, f"covariance not positive definite at {cfg.dtype} precision") from None
     return ident

@@ -87,7 +87,7 @@ class Criterion(str, enum.Enum):
     HOLDOUT = "holdout"  #: the one-step mean squared error on the held-out rows
 
 
-def parse_criterion(criterion: "Criterion | str") -> "Criterion":
+def parse_criterion(criterion: Criterion | str) -> Criterion:
     """The :class:`Criterion` a name or member stands for; a ValueError naming ``criterion`` otherwise."""
     try:
         return Criterion(criterion)
@@ -489,7 +489,8 @@ def _conditioned(P: np.ndarray, floor: float) -> np.ndarray:
         return np.eye(P.shape[0]) * (float(np.max(np.abs(np.diag(P)))) or 1e-12)
     lam = np.maximum(lam, floor * top)
     out = (V * lam) @ V.T
-    return 0.5 * (out + out.T)
+    symmetric: np.ndarray = 0.5 * (out + out.T)
+    return symmetric
 
 
 @dataclass(frozen=True)
@@ -680,7 +681,7 @@ def check_data(X: np.ndarray, U: np.ndarray, valid: np.ndarray, state_names: Seq
 def _select_paths(space: CandidateSpace, crit: Criterion, X: np.ndarray, U: np.ndarray, Y: np.ndarray,
                   Y_val: np.ndarray | None, atoms: list[_Atom], table: np.ndarray, bias: bool, est_rows: np.ndarray,
                   val_rows: np.ndarray, n_val: int, max_terms: int, M: int, terms: tuple[Term, ...],
-                  n: int) -> list["NeuronSelection | None"]:
+                  n: int) -> list[NeuronSelection | None]:
     """Every neuron's best model over the grid of (activation, beta): the core of :func:`select`."""
     best: list[NeuronSelection | None] = [None] * n
     for act in space.activations:

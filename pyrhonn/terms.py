@@ -11,7 +11,7 @@ from typing import Iterable, Sequence
 
 from .config import Factor, Term
 
-__all__ = ["bias", "first_order", "inputs", "pairwise_products", "delayed_taps", "powers"]
+__all__ = ["bias", "first_order", "inputs", "pairwise_products", "delayed_taps", "delayed_inputs", "powers"]
 
 
 def _indices(name: str, values: Iterable[int]) -> list[int]:
@@ -74,6 +74,16 @@ def delayed_taps(state: int, delays: Sequence[int], raw: bool = False) -> tuple[
     ds = _indices("delays", delays)
     make = Factor.x if raw else Factor.s
     return tuple((make(j, delay=d),) for d in ds)
+
+
+def delayed_inputs(input_index: int, delays: Sequence[int], power: int = 1) -> tuple[Term, ...]:
+    """u_input(k - d)^power for each d: an input that acts on the plant
+    after a dead time (``delayed_inputs(0, [3])`` is ``((Factor.u(0, delay=3),),)``)."""
+    (j,) = _indices("input_index", [input_index])
+    ds = _indices("delays", delays)
+    if isinstance(power, bool) or not isinstance(power, int) or power < 1:
+        raise ValueError(f"power: expected an integer >= 1, got {power!r}")
+    return tuple((Factor.u(j, power, delay=d),) for d in ds)
 
 
 def powers(state: int, up_to: int) -> tuple[Term, ...]:

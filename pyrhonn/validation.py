@@ -28,7 +28,7 @@ class MissingFileError(FileNotFoundError, ValueError):
     (as every other bad input), whose message names the closest files in its folder."""
 
 
-def read_file(path: str | os.PathLike, source: str, *, limit: int) -> bytes:
+def read_file(path: str | os.PathLike[str], source: str, *, limit: int) -> bytes:
     """The bytes of the regular file ``path``, at most ``limit`` of them.
 
     A device, pipe or socket (``/dev/zero`` would be read forever, a FIFO

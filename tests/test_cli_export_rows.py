@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from pyrhonn.cli import main
-from pyrhonn.configfile import load_shipped
 from pyrhonn.plants import oscillator
 
 

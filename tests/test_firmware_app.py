@@ -125,7 +125,7 @@ def test_the_application_takes_a_float32_lim_shaped_config() -> None:
 
 def _warm(app: FirmwareApp, n: int = 20) -> int:
     X, U, valid = _trajectory(n, start=2.0)
-    for t, msg in enumerate(_measurements(X, U, valid)):
+    for msg in _measurements(X, U, valid):
         assert len(app.handle(msg)) == 1 and app.last_status == "FW_OK"
     return n  # the next expected Seq
 

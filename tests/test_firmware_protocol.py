@@ -32,6 +32,7 @@ from hypothesis import strategies as st
 
 cantools = pytest.importorskip("cantools")
 from cantools.database.can.c_source import camel_to_snake_case  # noqa: E402
+from cantools.database.errors import EncodeError  # noqa: E402
 
 from pyrhonn import firmware  # noqa: E402
 from pyrhonn._fwapp import ffi, lib  # noqa: E402
@@ -488,7 +489,7 @@ def test_rig_helpers_round_trip() -> None:
     assert msg.is_fd and msg.bitrate_switch and msg.arbitration_id == 0x100 and len(msg.data) == 20
     d = DB.decode_message("Measurement", bytes(msg.data))
     assert d["Seq"] == 65535 and d["ValidV"] == 0 and d["Qm"] == pytest.approx(0.123456)
-    with pytest.raises(Exception):
+    with pytest.raises(EncodeError):
         firmware.measurement_message(0, [9.0, 0, 0, 0, 0, 0], [0, 0])  # 9 m: outside the DBC range
     sender = firmware.SecOCSender(firmware.TEST_KEY)
     msgs = firmware.weight_load_messages([np.arange(20, dtype=np.float32), np.ones(2, dtype=np.float32)],

@@ -39,7 +39,7 @@ MEAS, EST, DIAG = (DB.get_message_by_name(n) for n in ("Measurement", "Estimate"
 SCENARIO = Scenario(duration=0.1, start=1.95, frame_loss=0.02, seed=9)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _run() -> tuple[Recording, float, float]:
     before = time.time()
     rec = run_replay(SCENARIO, "virtual")

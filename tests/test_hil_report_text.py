@@ -34,7 +34,7 @@ DB = firmware.database()
 DIAG = DB.get_message_by_name("Diagnostics")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _run():
     """A 0.3 s virtual replay through the end of the paper's hold (2.1 s), with 1 % frame loss."""
     return run_replay(Scenario(duration=0.3, start=1.95, frame_loss=0.01, seed=5), "virtual")

@@ -209,7 +209,7 @@ def _ttl_of_estimates(runner_exe: Path, tmp_path: Path, *extra: str) -> tuple[in
         while ttl is None and time.monotonic() < end:
             try:
                 data, anc, _, _ = sock.recvmsg(4096, socket.CMSG_SPACE(4))
-            except socket.timeout:
+            except TimeoutError:
                 continue
             if unpack_message(data).arbitration_id == ID["Estimate"]:
                 ttl = next(struct.unpack("i", d[:4])[0] for lvl, typ, d in anc

@@ -273,9 +273,10 @@ class HonnObserverParams:
         else:
             if not isinstance(self.A, np.ndarray) or self.A.ndim != 2 or self.A.shape[0] != self.A.shape[1] \
                     or self.A.shape[0] < 1:
-                got = self.A.shape if isinstance(self.A, np.ndarray) else type(self.A).__name__
+                got: object = self.A.shape if isinstance(self.A, np.ndarray) else type(self.A).__name__
                 raise fail("A", f"expected a square numpy array (n, n), got {got}")
             put("A", check_array("A", self.A, self.A.shape))
+        assert self.A is not None  # set above
         n = self.A.shape[0]
         for name in ("B", "C", "D"):
             if not isinstance(getattr(self, name), np.ndarray) or getattr(self, name).ndim != 2:
@@ -465,7 +466,7 @@ class HonnObserver:
         if not np.all(np.isfinite(x_next)):
             raise FloatingPointError(f"observer estimate x̂({self._k + 1}) is not finite")
         # eq. 17: W1(k+1) = (1 - sigma1) W1(k) + Gamma1 Phi1 ỹ^T F^T
-        self._W = self._leak * self._W + np.outer(p.Gamma1 @ phi, p.F @ y_err)  # type: ignore[union-attr]
+        self._W = self._leak * self._W + np.outer(p.Gamma1 @ phi, p.F @ y_err)
         self._k += 1
         self._hist[self._k % self._hist.shape[0]] = x_next
         self._x = x_next

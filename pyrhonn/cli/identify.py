@@ -52,7 +52,8 @@ Outputs (in ``--out``, default ``identify-<file stem>``)
   absolute deviation. ``states`` repeats ``one_step`` (the version 1
   layout). Also the prediction x̂(T) beyond the last line, where the free
   run diverged (if it did), and the run settings.
-- ``<state>.png`` per state (unless ``--no-plots``): measured vs identified
+- ``<state>.png`` per state (unless ``--no-plots``, which removes an earlier
+  run's ``<state>.png`` for these states): measured vs identified
   (one step, free run, H steps ahead), and the one-step error, against
   ``t`` (or the sample index).
 
@@ -471,6 +472,8 @@ def run(args: argparse.Namespace) -> int:
         atomic.write_text(out / "metrics.json", json.dumps(report, indent=2) + "\n")
         for j, path in enumerate(plots):
             _plot(path, cf.state_names[j], data, sim, j, args.warmup, units)
+        for stale in [] if plots else [out / f"{name}.png" for name in cf.state_names]:
+            stale.unlink(missing_ok=True)  # an earlier run's plot would pass for this run's
 
     print(f"identified {source}: {T} samples, {_count(cfg.n_states, 'state')}, {_count(cfg.n_inputs, 'input')}, "
           f"config {config_source}, {dtype}")
@@ -496,7 +499,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"errors over valid targets ({scope}), warmup {args.warmup}:")
     width = max(5, *(len(s) for s in cf.state_names))
     print(f"  {'state':<{width}}  {'scored':>7}" + "".join(f"  {label + ' RMSE':>18}  {'RRSE':>8}" for _, label in kinds))
-    for j, name in enumerate(cf.state_names):
+    for name in cf.state_names:
         row = f"  {name:<{width}}  {sections['one_step']['states'][name]['scored']:>7}"
         for kind, _ in kinds:
             st = sections[kind]["states"][name]

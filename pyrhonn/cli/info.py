@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from typing import Any
 
 from .. import __version__
 from ..identifier import _BUILDS, build_capacities, capacities
@@ -30,7 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from .. import _rhonn_f32, _rhonn_f64
 
-    data = {
+    data: dict[str, Any] = {
         "version": __version__,
         "capacities": capacities("float64"),
         "unrolled_kernels": bool(getattr(_rhonn_f64.lib, "RHONN_UNROLL", 0)),

@@ -22,6 +22,7 @@ import argparse
 import json
 import sys
 import time
+from typing import Any
 from pathlib import Path
 
 from .options import options_named, real_option
@@ -103,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
         return _run(args, opts, keys, out)
 
 
-def _run(args: argparse.Namespace, opts: dict[str, object], keys: tuple[str, ...], out: Path) -> int:
+def _run(args: argparse.Namespace, opts: dict[str, Any], keys: tuple[str, ...], out: Path) -> int:
     start = time.perf_counter()
     results = []
     for i, key in enumerate(keys, 1):

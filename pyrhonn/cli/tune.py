@@ -360,7 +360,7 @@ class Trajectory:
 def _example(name: str, dt: float | None, horizon: float | None, cf: ConfigFile, config_source: str) -> Trajectory:
     from ..plants import lim, oscillator, robot
 
-    kwargs: dict[str, float] = {} if horizon is None else {"horizon": horizon}
+    kwargs: dict[str, Any] = {} if horizon is None else {"horizon": horizon}
     with options_named(horizon="--horizon", dt="--dt"):
         if name == "example1":
             traj = oscillator.simulate(dt=0.2 if dt is None else dt, **kwargs)
@@ -440,7 +440,8 @@ def _report(result: tuning.TuneResult, cf: ConfigFile) -> str:
     lines.append(f"  {'state':<{width}}  {'std':>11}  {'RMSE base':>11}  {'RMSE tuned':>11}  "
                  f"{'norm. base':>11}  {'norm. tuned':>11}")
     for j, name in enumerate(names):
-        scale = (best or base).scale[j] if (best or base) is not None else None
+        scored = best or base
+        scale = None if scored is None else scored.scale[j]
         lines.append(f"  {name:<{width}}  {_fmt(scale)}  {_fmt(None if base is None else base.rmse[j])}  "
                      f"{_fmt(None if best is None else best.rmse[j])}  "
                      f"{_fmt(None if base is None else base.normalised[j])}  "
@@ -460,12 +461,12 @@ def _report(result: tuning.TuneResult, cf: ConfigFile) -> str:
     cfg = result.config
     lines.append("tuned values:" if result.improved else "values (base):")
     params = list(dict.fromkeys(d.param for d in result.space))
-    if result.per_neuron or result.selection is not None:
+    if result.per_neuron or result.selection is not None or not _same_in_every_neuron(cfg, params):
         lines.append("  " + f"{'neuron':<{width}}" + "".join(f"  {p:>10}" for p in params))
         for i, nr in enumerate(cfg.neurons):
             lines.append("  " + f"{names[i]:<{width}}" + "".join(f"  {_value(nr, p):>10}" for p in params))
     else:
-        lines.append("  " + ", ".join(f"{p} = {_value(cfg.neurons[0], p)}" for p in params))
+        lines.append("  " + ", ".join(f"{p} = {_value(cfg.neurons[0], p)}" for p in params) + " (every neuron)")
     if result.selection is not None:
         lines.append("selected structure: " + ", ".join(f"{k.replace('_', ' ')} {v}"
                                                         for k, v in result.best_structure.items()))
@@ -508,9 +509,25 @@ def _free_run_report(base: IdentifierConfig, result: tuning.TuneResult, cf: Conf
     return "\n".join(lines)
 
 
+def _same_in_every_neuron(cfg: IdentifierConfig, params: list[str]) -> bool:
+    """Whether every neuron holds the same value of each of ``params`` (a base
+    config kept as it was may hold its own per neuron, even after a shared search)."""
+    first = cfg.neurons[0]
+    return all(np.array_equal(np.asarray(getattr(nr, p)), np.asarray(getattr(first, p)))
+               for nr in cfg.neurons[1:] for p in params)
+
+
 def _value(neuron: object, param: str) -> str:
     v = getattr(neuron, param)
     return "array" if isinstance(v, np.ndarray) else f"{float(v):.3g}"
+
+
+def _at_a_time(opts: Options) -> str:
+    """How many trials run at once: ``--n-jobs`` workers, each running ``--batch`` trials per call."""
+    if opts.batch == 1:
+        return f"{opts.n_jobs} at a time"
+    workers = f"{opts.n_jobs} workers" if opts.n_jobs > 1 else "1 worker"
+    return f"{opts.n_jobs * opts.batch} at a time ({workers}, {opts.batch} trials per call)"
 
 
 def run(args: argparse.Namespace) -> int:
@@ -537,8 +554,8 @@ def run(args: argparse.Namespace) -> int:
         T = traj.X.shape[0]
         split = tuning.Split(T, tuning.split_point(T, opts.train_fraction), (),
                              tuning.fold_bounds(T, tuning.split_point(T, opts.train_fraction), opts.folds))
-        progress(f"{traj.label}: {_scheme(split)}; until the study holds {opts.trials} trials, {opts.n_jobs} at "
-                 "a time" + (f", study {opts.study.shown}" if opts.study is not None else ""))
+        progress(f"{traj.label}: {_scheme(split)}; until the study holds {opts.trials} trials, {_at_a_time(opts)}"
+                 + (f", study {opts.study.shown}" if opts.study is not None else ""))
         result = tuning.tune(
             base, traj.X, traj.U, traj.valid, truth=traj.truth, train_fraction=opts.train_fraction,
             folds=opts.folds, n_trials=opts.trials, n_jobs=opts.n_jobs, batch=opts.batch, seed=opts.seed,

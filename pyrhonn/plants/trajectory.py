@@ -253,7 +253,7 @@ class Corruption:
         quantiser: str = "floor",
         dropout: float | Mapping[str, float] = 0.0,
         seed: int = 0,
-    ) -> "Corruption":
+    ) -> Corruption:
         """Build from per-state mappings keyed by state name; unnamed states get 0.
 
         ``Corruption.by_name(lim.STATE_NAMES, resolution={"q_m": 5e-6})``
@@ -440,7 +440,7 @@ class Trajectory:
             raise fail("name", f"unknown state {name!r}; states are {list(self.state_names)}")
         return self.X[:, self.state_names.index(name)]
 
-    def remeasure(self, *, holds: Sequence[HoldWindow] = (), corruption: Corruption | None = None) -> "Trajectory":
+    def remeasure(self, *, holds: Sequence[HoldWindow] = (), corruption: Corruption | None = None) -> Trajectory:
         """The same true run seen through another measurement model (no re-simulation)."""
         X_meas, valid = measure(self.t, self.X, dt=self.dt, holds=holds, corruption=corruption)
         meta = dict(self.metadata)

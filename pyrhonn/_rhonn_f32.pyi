@@ -1,0 +1,5 @@
+"""Types of the cffi extension pyrhonn._rhonn_f32, built by pyrhonn/_build.py."""
+from typing import Any
+
+ffi: Any
+lib: Any
