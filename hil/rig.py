@@ -410,7 +410,8 @@ class Rig:
         first_tx = None
         overruns = n_sent = n_lost = 0
         progress = self.progress
-        drops_every = drop_sampling(self.plan.cycles) if self.kernel_drops is not None and self.sample_drops else 0
+        kernel_drops = self.kernel_drops
+        drops_every = drop_sampling(self.plan.cycles) if kernel_drops is not None and self.sample_drops else 0
         for k in range(self.plan.cycles):
             deadline = t0 + k * T + delay
             if time.perf_counter_ns() > deadline + T:
@@ -423,8 +424,8 @@ class Rig:
             n_sent += 1
             if progress is not None and (k % PROGRESS_EVERY == 0 or k == self.plan.cycles - 1):
                 progress(k + 1, n_sent, self._n_est, n_lost)  # right after a send: the most slack before the next
-            if drops_every and k % drops_every == 0:  # the same slack; a read of /proc/net/udp
-                self._drop_samples.append((k, self.kernel_drops()))
+            if drops_every and kernel_drops is not None and k % drops_every == 0:  # the same slack; /proc/net/udp
+                self._drop_samples.append((k, kernel_drops()))
             if first_tx is None:
                 first_tx = sent
             if self.extra_frames is not None:

@@ -66,7 +66,7 @@ class Thresholds:
     latency_us: dict[str, float] = field(default_factory=dict)
 
     @classmethod
-    def from_dict(cls, d: Any, where: str = "thresholds") -> "Thresholds":
+    def from_dict(cls, d: Any, where: str = "thresholds") -> Thresholds:
         from pyrhonn.validation import check_int, fail
 
         if not isinstance(d, dict):

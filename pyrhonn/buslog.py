@@ -743,10 +743,10 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
             except Exception:  # cantools: DecodeError, a wrong length, an unknown multiplexer value, ...
                 ok[r] = False
                 continue
-            for key, column in arrays.items():
-                if key in v:  # a multiplexed signal is in the frames its multiplexer value selects
-                    x = float(v[key])
-                    column[r] = x if not math.isnan(x) else np.inf  # NaN here means "not in this frame"
+            for sig_name, values in arrays.items():
+                if sig_name in v:  # a multiplexed signal is in the frames its multiplexer value selects
+                    got_value = float(v[sig_name])
+                    values[r] = got_value if not math.isnan(got_value) else np.inf  # NaN: "not in this frame"
         decoded[m.name] = (window, ok, arrays)
     n, n_in = len(state_names), len(input_names)
     value = np.full((K, n + n_in), np.nan)
@@ -763,8 +763,8 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
         # frames are in time order: the latest of each window wins
         windows, from_end = np.unique(w[::-1], return_index=True)
         latest = carries[w.size - 1 - from_end]
-        x = arrays[sig.name][latest]
-        finite = np.isfinite(x)
+        latest_values = arrays[sig.name][latest]
+        finite = np.isfinite(latest_values)
         counts["nonfinite"][windows[~finite], col] += 1
         good = finite.copy()
         flag = flags.get(name)
@@ -773,7 +773,7 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
             counts["flagged"][windows[down], col] += 1
             good &= ~down
         got[windows[good], col] = True
-        value[windows[good], col] = x[good]
+        value[windows[good], col] = latest_values[good]
 
     # the stretch: --start/--stop, then the ends without every input cut off; a gap inside is a lost sample
     t_all = tau - tau[0]

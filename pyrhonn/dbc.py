@@ -175,7 +175,7 @@ def database_text(state_names: Sequence[str], input_names: Sequence[str], X: np.
     protocol = copy.deepcopy(database())   # database() is the process's own protocol, cached: not changed here
     protocol_version = protocol.version
     version = f"{protocol_version} {name}"
-    frames = cantools.database.load_string(_frames_text(state_names, sig, version), database_format="dbc")
+    frames: Any = cantools.database.load_string(_frames_text(state_names, sig, version), database_format="dbc")
     messages: list[Any] = []
     for msg in protocol.messages:
         if msg.frame_id in (MEASUREMENT_ID, ESTIMATE_ID):
@@ -214,7 +214,7 @@ def write_dbc(path: str | Path, state_names: Sequence[str], input_names: Sequenc
     return sig
 
 
-def export_dbc(path: str | Path, cf: "ConfigFile", X: np.ndarray, U: np.ndarray, valid: np.ndarray, *,
+def export_dbc(path: str | Path, cf: ConfigFile, X: np.ndarray, U: np.ndarray, valid: np.ndarray, *,
                name: str) -> list[str]:
     """``pyrhonn export --dbc``: the DBC of the config file ``cf``'s identifier, scaled from a data file's
     measured values (a state's value not valid on a row is not part of its range); one line per signal

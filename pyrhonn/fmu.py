@@ -289,13 +289,14 @@ def _model_description(cf: ConfigFile, cfg: IdentifierConfig, s: FmuSettings, va
                              f"sample period {s.period!r} s",
               "generationTool": f"pyrhonn {__version__}", "variableNamingConvention": "flat"}
     if s.fmi_version == 3:
-        root = ET.Element("fmiModelDescription", fmiVersion="3.0", instantiationToken=token, **common)
+        root = ET.Element("fmiModelDescription", {"fmiVersion": "3.0", "instantiationToken": token, **common})
         ET.SubElement(root, "CoSimulation", modelIdentifier=s.model_identifier,
                       canHandleVariableCommunicationStepSize="false", fixedInternalStepSize=repr(float(s.period)),
                       canBeInstantiatedOnlyOncePerProcess="false", canGetAndSetFMUState="false",
                       canSerializeFMUState="false", hasEventMode="false")
     else:
-        root = ET.Element("fmiModelDescription", fmiVersion="2.0", guid=token, numberOfEventIndicators="0", **common)
+        root = ET.Element("fmiModelDescription", {"fmiVersion": "2.0", "guid": token, "numberOfEventIndicators": "0",
+                                                  **common})
         cs = ET.SubElement(root, "CoSimulation", modelIdentifier=s.model_identifier,
                            canHandleVariableCommunicationStepSize="false", canBeInstantiatedOnlyOncePerProcess="false",
                            canNotUseMemoryManagementFunctions="true", canGetAndSetFMUstate="false",

@@ -111,8 +111,8 @@ def segments_of(lost: np.ndarray) -> Segments:
 
 
 def simulate_segments(identifier: Identifier, X: np.ndarray, U: np.ndarray, valid: np.ndarray, segs: Segments, *,
-                      free_run_from: int | None = None, steps: int | None = None) -> tuple[Simulation, np.ndarray,
-                                                                                           np.ndarray | None]:
+                      free_run_from: int | None = None,
+                      steps: int | None = None) -> tuple[Simulation, np.ndarray | None, np.ndarray | None]:
     """:func:`simulate` over each segment of ``segs``, :meth:`Identifier.restart` before every one but
     the first; rows not stepped are NaN. The weights are frozen from ``free_run_from`` on; the free run
     starts there and ends with its segment (a parallel model has no input across a gap). Returns the

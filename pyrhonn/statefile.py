@@ -109,11 +109,11 @@ def _declared(path: Path, archive: Any, name: str) -> tuple[tuple[int, ...], np.
     try:
         info = archive.zip.getinfo(f"{name}.npy")
         with archive.zip.open(info) as fh:
-            version = np.lib.format.read_magic(fh)
+            version = np.lib.format.read_magic(fh)  # type: ignore[no-untyped-call]
             if version == (1, 0):
-                shape, _, dtype = np.lib.format.read_array_header_1_0(fh)
+                shape, _, dtype = np.lib.format.read_array_header_1_0(fh)  # type: ignore[no-untyped-call]
             elif version == (2, 0):
-                shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
+                shape, _, dtype = np.lib.format.read_array_header_2_0(fh)  # type: ignore[no-untyped-call]
             else:
                 raise ValueError(f"unsupported .npy version {version}")
     except (KeyError, ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:

@@ -5,8 +5,12 @@ README and the docs runs as written, and the README links only to files that
 exist."""
 from __future__ import annotations
 
+import os
 import re
+import shlex
+import shutil
 import subprocess
+import sys
 from dataclasses import fields
 from pathlib import Path
 
@@ -155,11 +159,6 @@ def test_plants_md_lim_constants_match_the_code():
 # - ```console (a transcript: a `$ ` command and its output), ```sh (a command that needs what a test
 #   does not have: your own recordings, a CAN interface, a database, a long run), ```toml and ```csv
 #   are shown, not run.
-
-import os
-import shlex
-import shutil
-import sys
 
 PAGES = sorted([ROOT / "README.md", *(ROOT / "docs").glob("*.md")])
 RUNNABLE = ("python", "bash", "c")

@@ -244,7 +244,7 @@ def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None
             sock.sendto(struct.pack("<HH", len(cmd), 0) + cmd, ("127.0.0.1", xcp_port))
             try:
                 return sock.recvfrom(64)[0][4:]
-            except socket.timeout:
+            except TimeoutError:
                 return None
 
         assert ask(a, b"\xff\x00")[:1] == b"\xff"

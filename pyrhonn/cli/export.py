@@ -148,7 +148,7 @@ def run(args: argparse.Namespace) -> int:
     cf = load_named(args.config)
     signals = _signals(args, cf)
     cfg = cf.config if args.dtype in (None, cf.config.dtype) else cf.config.replace(dtype=args.dtype)
-    settings = _fmu_settings(args, cf, name, signals.units) if args.fmu is not None else None
+    settings = _fmu_settings(args, cf, name, dict(signals.units)) if args.fmu is not None else None
     try:
         ident = Identifier(cfg)
     except ValueError as exc:
