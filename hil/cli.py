@@ -91,7 +91,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "the recorded one: a regression check of a firmware build (exit 1 when any differs); "
                         "the scenario options above are then refused")
     r.add_argument("--out", type=Path, default=None, help="directory for report.json, report.txt and the PNGs")
-    r.add_argument("--log", type=Path, default=None, help="record the run to FILE.blf or FILE.asc (+ FILE.json)")
+    r.add_argument("--log", type=Path, default=None, help="record the run to FILE.blf, FILE.asc or FILE.mf4 (MDF4) (+ FILE.json)")
     r.add_argument("--json", action="store_true", help="print the JSON report instead of the table")
     _verdict_args(r, "its [scenario] table is the replay's scenario (an option above may not set a field it sets; "
                      "refused with --from-log)")
@@ -402,14 +402,14 @@ def _signal_exit(signum: int) -> int:
 
 def _replay(args) -> int:
     from .progress import progress_for
-    from .rig import BusLost, Interrupted, LogWriteError, Recording, read_log
+    from .rig import LOG_SUFFIXES, BusLost, Interrupted, LogWriteError, Recording, read_log
     from .score import compare_runs, score
     from .transport import lim_config, run_replay
 
     _check_transport_options(args)
     spin = _runner_spin(args, bench=False)
-    if args.log is not None and args.log.suffix.lower() not in (".blf", ".asc"):  # a typo: before reading anything
-        raise ValueError(f"--log: {args.log.name}: expected a .blf or .asc file name")
+    if args.log is not None and args.log.suffix.lower() not in LOG_SUFFIXES:  # a typo: before reading anything
+        raise ValueError(f"--log: {args.log.name}: expected a .blf, .asc or .mf4 file name")
     file = _read_scenario_file(args)
     recorded = read_log(args.from_log) if args.from_log is not None else None
     sc = _scenario(args, recorded, file)

@@ -24,11 +24,16 @@ disturbs the schedule. The Recording holds the frames in time order (a
 received frame by its arrival at the socket, which may precede a frame the
 rig sent while that one waited to be picked up), each at its time relative
 to the earliest frame, and ``meta["wall_time_ns"]``, the wall clock
-(CLOCK_REALTIME) of that relative 0. :func:`write_log` writes BLF or ASC
+(CLOCK_REALTIME) of that relative 0. :func:`write_log` writes BLF, ASC or MDF4
 through python-can's writers with absolute times: the file's start (the BLF
 header's start time, the ASC's ``Begin Triggerblock``) is the run's wall
 clock truncated to the millisecond, and each frame's time is its offset
-from it, to the nanosecond in BLF and the microsecond in ASC; plus a
+from it, to the nanosecond in BLF and the microsecond in ASC. MDF4 (a bus
+logging file, ``CAN_DataFrame`` channels, as CANape and asammdf read it):
+python-can's writer takes the time it opens the file as the header's start
+and stores each frame's absolute time less that start, a float64 of the
+wall clock's magnitude, so frames keep their offsets to about a microsecond;
+plus a
 ``LOG.json`` sidecar with the scenario and the run's metadata.
 :func:`read_log` reads a log back into the same :class:`Recording` (the
 relative times, which is all :mod:`hil.score` needs; logs of the format
@@ -486,14 +491,20 @@ class _ASCWriter(can.ASCWriter):
         return dt.strftime(self.FORMAT_DATE.format(f"{dt.microsecond // 1000:03d}"))
 
 
-def _writer(path: Path, target: Path) -> can.BLFWriter | _ASCWriter:
+#: The log formats hil writes and reads (with the sidecar): BLF, ASC and MDF4.
+LOG_SUFFIXES = (".blf", ".asc", ".mf4")
+
+
+def _writer(path: Path, target: Path) -> can.BLFWriter | _ASCWriter | can.MF4Writer:
     """python-can's writer for ``path``'s format, writing to ``target``."""
     suffix = path.suffix.lower()
     if suffix == ".blf":
         return can.BLFWriter(target)
     if suffix == ".asc":
         return _ASCWriter(target)
-    raise ValueError(f"log: {path.name}: expected a .blf or .asc file name")
+    if suffix == ".mf4":
+        return can.MF4Writer(target)
+    raise ValueError(f"log: {path.name}: expected a .blf, .asc or .mf4 file name")
 
 
 ASC_ORIGIN_EVENT = "pyrhonn hil: frame times from the wall clock of this Triggerblock"
@@ -526,18 +537,21 @@ class _LogWriter:
 
     def __init__(self, path: Path, target: Path, rec: Recording) -> None:
         self.blf = path.suffix.lower() == ".blf"
+        self.mf4 = path.suffix.lower() == ".mf4"
         self.writer = _writer(path, target)
         self.origin, self.lead = _log_origin(rec)
         self.last = 0.0
         if isinstance(self.writer, can.BLFWriter):
             self.writer.start_timestamp = 0.0
-        elif self.origin:
+        elif isinstance(self.writer, _ASCWriter) and self.origin:
             self.writer.log_event(ASC_ORIGIN_EVENT, self.origin / 1e9)
 
     def write(self, ts: float, m: can.Message) -> None:
         offset_ns = int(round(ts * 1e9)) + self.lead
         if self.blf:
             m.timestamp = offset_ns / 1e9 + 0.4e-9  # BLF truncates to whole ns: land on ours
+        elif self.mf4:  # absolute: the writer subtracts the time it opened the file
+            m.timestamp = self.origin / 1e9 + offset_ns / 1e9
         else:
             m.timestamp = self.origin / 1e9 + int(round(offset_ns / 1e3)) / 1e6 if self.origin else ts
         self.last = offset_ns / 1e9
@@ -573,7 +587,7 @@ def partial_reason(rec: Recording) -> str | None:
 
 
 def write_log(rec: Recording, path: str | os.PathLike) -> Path:
-    """Write ``rec`` to ``path`` (BLF or ASC), then its sidecar ``path.json``
+    """Write ``rec`` to ``path`` (BLF, ASC or MDF4), then its sidecar ``path.json``
     with the frame count and the log's SHA-256 (and ``partial``: why the run
     is not whole, or null). Each is written to a temporary file and renamed
     into place: a write that fails or is interrupted leaves the previous log
@@ -582,8 +596,8 @@ def write_log(rec: Recording, path: str | os.PathLike) -> Path:
     from pyrhonn.firmware import database
 
     path = Path(path)
-    if path.suffix.lower() not in (".blf", ".asc"):
-        raise ValueError(f"log: {path.name}: expected a .blf or .asc file name")
+    if path.suffix.lower() not in LOG_SUFFIXES:
+        raise ValueError(f"log: {path.name}: expected a .blf, .asc or .mf4 file name")
     written = 0
     try:
         with atomic.replacing_path(path) as tmp:
@@ -708,9 +722,10 @@ def _read_frames(path: Path, suffix: str) -> tuple[list[can.Message], Exception 
     """The frames of a log, up to where it stops parsing: the frames read,
     and the exception that stopped the reader (None: read to its end)."""
     msgs: list[can.Message] = []
-    reader: Any = None  # a BLFReader or an ASCReader
-    try:  # the BLF reader parses the file's header when it is made: a foreign or empty file fails there
-        reader = can.BLFReader(path) if suffix == ".blf" else can.ASCReader(path)
+    reader: Any = None  # a BLFReader, an ASCReader or an MF4Reader
+    try:  # the BLF and MF4 readers parse the file's header when made: a foreign or empty file fails there
+        reader = (can.BLFReader(path) if suffix == ".blf" else can.MF4Reader(path) if suffix == ".mf4" else
+                  can.ASCReader(path))
         if suffix == ".blf":
             # each object's offset from the file's start, to the ns: python-can adds the start (the wall
             # clock, where a float's step is 0.24 us) to it; read_log anchors the offsets on the sidecar
@@ -744,8 +759,8 @@ def read_log(path: str | os.PathLike, *, partial: bool = False) -> Recording:
                          "refused, nothing says the log is whole")
     scenario, meta = _read_sidecar(sc_path)
     suffix = path.suffix.lower()
-    if suffix not in (".blf", ".asc"):
-        raise ValueError(f"log: {path.name}: expected a .blf or .asc file")
+    if suffix not in LOG_SUFFIXES:
+        raise ValueError(f"log: {path.name}: expected a .blf, .asc or .mf4 file")
     if path.stat().st_size == 0:
         raise ValueError(f"log: {path}: empty file (not a {suffix[1:].upper()} log)")
     if "frames" not in meta or not isinstance(meta.get("sha256"), str):
@@ -756,6 +771,13 @@ def read_log(path: str | os.PathLike, *, partial: bool = False) -> Recording:
     if why and not partial:
         raise ValueError(f"log: {path}: a partial log ({why}; {expected} frames recorded): refused, its run did "
                          "not finish (hil score --partial scores it anyway)")
+    if suffix == ".mf4":  # its blocks checked first: asammdf would fail on a cut file and again at exit
+        from pyrhonn.mdfsignals import mdf_damage
+
+        damage = mdf_damage(path)
+        if damage is not None:
+            raise ValueError(f"log: {path}: not a whole MDF4 file ({damage}): cut short after it was written, "
+                             "or not the log its sidecar describes; refused")
     msgs, failure = _read_frames(path, suffix)
     if len(msgs) < expected:
         raise ValueError(f"log: {path}: {expected - len(msgs)} of the {expected} frames its sidecar records are "
