@@ -268,16 +268,25 @@ def _write_predictions(path: Path, data: Data, cf: ConfigFile, sim: Simulation, 
     with atomic.replacing(path, "w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(header)
-        for k in range(T):
-            row: list[Any] = [int(data.lines[k])]
+        for a in range(0, T, _ROWS_AT_ONCE):  # column by column, a block of rows at a time
+            rows = slice(a, min(a + _ROWS_AT_ONCE, T))
+            columns: list[list[Any]] = [data.lines[rows].tolist()]
             if data.t is not None:
-                row.append(repr(float(data.t[k])))
+                columns.append(_cells(data.t[rows]))
             for j in range(len(cf.state_names)):
-                row.append(repr(float(hat[k, j])) if np.isfinite(hat[k, j]) else "")
-                row.append(repr(float(err[k, j])) if errors[k] and data.valid[k, j] else "")
-                for _, values in extra:
-                    row.append(repr(float(values[k, j])) if np.isfinite(values[k, j]) else "")
-            w.writerow(row)
+                columns.append(_cells(hat[rows, j]))
+                columns.append(_cells(err[rows, j], errors[rows] & data.valid[rows, j]))
+                columns += [_cells(values[rows, j]) for _, values in extra]
+            w.writerows(zip(*columns))
+
+
+_ROWS_AT_ONCE = 1 << 14
+
+
+def _cells(values: np.ndarray, keep: np.ndarray | None = None) -> list[str]:
+    """Exact decimal text of each value (repr), empty where not finite or not ``keep``."""
+    show = np.isfinite(values) if keep is None else keep & np.isfinite(values)
+    return [repr(v) if ok else "" for v, ok in zip(values.tolist(), show.tolist())]
 
 
 NOT_VALID_LABEL = "not valid (not learnt; predicted from its own outputs)"  #: legend entry of the shaded samples
