@@ -82,7 +82,8 @@ import numpy as np
 from .. import atomic
 from ..config import DTYPES, IdentifierConfig
 from ..configfile import ConfigFile, load_named
-from ..datafile import SEPARATORS, Data, TIME_COLUMN, check_suffix, read_data, write_data
+from ..datafile import (ROWS_AT_ONCE, SEPARATORS, Data, TIME_COLUMN, check_suffix, decimal_cells, read_data,
+                        write_data)
 from ..gaps import Segments, segments_of, simulate_segments
 from ..mdfsignals import METHOD, MdfSignals, read_signal_mdf
 from ..identifier import Identifier, IdentifierError
@@ -268,25 +269,16 @@ def _write_predictions(path: Path, data: Data, cf: ConfigFile, sim: Simulation, 
     with atomic.replacing(path, "w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(header)
-        for a in range(0, T, _ROWS_AT_ONCE):  # column by column, a block of rows at a time
-            rows = slice(a, min(a + _ROWS_AT_ONCE, T))
+        for a in range(0, T, ROWS_AT_ONCE):  # column by column, a block of rows at a time
+            rows = slice(a, min(a + ROWS_AT_ONCE, T))
             columns: list[list[Any]] = [data.lines[rows].tolist()]
             if data.t is not None:
-                columns.append(_cells(data.t[rows]))
+                columns.append(decimal_cells(data.t[rows]))
             for j in range(len(cf.state_names)):
-                columns.append(_cells(hat[rows, j]))
-                columns.append(_cells(err[rows, j], errors[rows] & data.valid[rows, j]))
-                columns += [_cells(values[rows, j]) for _, values in extra]
+                columns.append(decimal_cells(hat[rows, j]))
+                columns.append(decimal_cells(err[rows, j], errors[rows] & data.valid[rows, j]))
+                columns += [decimal_cells(values[rows, j]) for _, values in extra]
             w.writerows(zip(*columns))
-
-
-_ROWS_AT_ONCE = 1 << 14
-
-
-def _cells(values: np.ndarray, keep: np.ndarray | None = None) -> list[str]:
-    """Exact decimal text of each value (repr), empty where not finite or not ``keep``."""
-    show = np.isfinite(values) if keep is None else keep & np.isfinite(values)
-    return [repr(v) if ok else "" for v, ok in zip(values.tolist(), show.tolist())]
 
 
 NOT_VALID_LABEL = "not valid (not learnt; predicted from its own outputs)"  #: legend entry of the shaded samples
