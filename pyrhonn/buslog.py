@@ -95,7 +95,7 @@ from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
-from .mdfsignals import mdf_damage
+from .mdfsignals import mdf_damage, require_asammdf
 from .validation import near_names
 
 __all__ = ["Aligned", "BusMap", "LOG_SUFFIXES", "SignalRef", "SignalStats", "align", "load_dbc", "read_bus_log",
@@ -450,6 +450,7 @@ def read_frames(path: str | Path, option: str = "--can-log", partial: bool = Fal
     incomplete: str | None = None
     source: Any = str(p)
     if suffix == ".mf4":
+        require_asammdf(f"{option} {path}")
         with open(p, "rb") as fh:
             ident = fh.read(64)
         if ident[:8] == b"UnFinMF ":

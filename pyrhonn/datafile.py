@@ -69,7 +69,8 @@ from . import atomic
 from .configfile import ConfigFile
 from .validation import decode_text, read_file
 
-__all__ = ["Data", "LOST_COLUMN", "SEPARATORS", "TIME_COLUMN", "check_suffix", "read_data", "write_data"]
+__all__ = ["Data", "LOST_COLUMN", "ROWS_AT_ONCE", "SEPARATORS", "TIME_COLUMN", "check_suffix", "decimal_cells",
+           "read_data", "write_data"]
 
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
 #: a column of such numbers, one a line, spaces around them (read in one pass)
@@ -464,10 +465,25 @@ def write_data(path: str | Path, data: Data, cf: ConfigFile, *, valid_suffix: st
     with atomic.replacing(path, "w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(header)
-        for k in range(data.n_samples):
-            row = [repr(float(data.t[k]))] if data.t is not None else []
-            row += [repr(float(data.X[k, j])) if data.valid[k, j] else "" for j in range(n)]
-            lost = gaps and bool(data.lost[k])  # type: ignore[index]
-            row += ["" if lost else repr(float(v)) for v in data.U[k]]
-            row += ["1" if v else "0" for v in data.valid[k]] + (["1" if lost else "0"] if gaps else [])
-            w.writerow(row)
+        T = data.n_samples
+        arrived = ~data.lost if gaps and data.lost is not None else np.ones(T, dtype=bool)
+        for a in range(0, T, ROWS_AT_ONCE):  # column by column, a block of rows at a time
+            rows = slice(a, min(a + ROWS_AT_ONCE, T))
+            columns = [decimal_cells(data.t[rows])] if data.t is not None else []
+            columns += [decimal_cells(data.X[rows, j], data.valid[rows, j]) for j in range(n)]
+            columns += [decimal_cells(data.U[rows, j], arrived[rows]) for j in range(m)]
+            columns += [["1" if v else "0" for v in data.valid[rows, j].tolist()] for j in range(n)]
+            if gaps:
+                columns.append(["0" if v else "1" for v in arrived[rows].tolist()])
+            w.writerows(zip(*columns))
+
+
+#: rows formatted at once when writing (bounds the text held)
+ROWS_AT_ONCE = 1 << 14
+
+
+def decimal_cells(values: np.ndarray, keep: np.ndarray | None = None) -> list[str]:
+    """The exact decimal text of each value (``repr``, which reads back to the same float64), empty
+    where it is not finite or ``keep`` is False."""
+    show = np.isfinite(values) if keep is None else keep & np.isfinite(values)
+    return [repr(v) if ok else "" for v, ok in zip(values.tolist(), show.tolist())]

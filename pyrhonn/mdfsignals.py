@@ -27,6 +27,7 @@ Every defect raises ``ValueError`` naming the file and channel.
 from __future__ import annotations
 
 import difflib
+import importlib.util
 import struct
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,11 +37,17 @@ import numpy as np
 
 from .validation import near_names
 
-__all__ = ["MdfSignals", "mdf_damage", "read_signal_mdf"]
+__all__ = ["MdfSignals", "mdf_damage", "read_signal_mdf", "require_asammdf"]
 
 _BLOCK = struct.Struct("<4s4xQQ")  # id ("##HD"), reserved, block length, number of links
 #: the most blocks followed in one file (a long bus log has one data block per few MiB)
 MAX_MDF_BLOCKS = 1 << 20
+
+
+def require_asammdf(where: str) -> None:
+    """A ValueError naming ``where`` when asammdf, which reads MDF4, is not installed."""
+    if importlib.util.find_spec("asammdf") is None:
+        raise ValueError(f"{where}: reading MDF4 needs asammdf: pip install 'pyrhonn[mdf]' (or asammdf)")
 
 
 def mdf_damage(path: Path) -> str | None:
@@ -110,10 +117,11 @@ def read_signal_mdf(path: str | Path, state_names: Sequence[str], input_names: S
                     period: float | None = None, channels: Mapping[str, str] | None = None,
                     partial: bool = False, period_option: str = "--sample-period") -> MdfSignals:
     """The states and inputs of the signal MDF4 ``path`` on a grid of ``period`` s (see the module docs)."""
-    from asammdf import MDF
-
     p = Path(path)
     source = str(path)
+    require_asammdf(source)
+    from asammdf import MDF
+
     if not p.is_file():
         raise ValueError(f"{source}: No such file or directory{near_names(p)}")
     with open(p, "rb") as fh:

@@ -431,6 +431,10 @@ def test_outputs_are_replaced_whole_and_an_interrupted_run_marks_the_folder(
                 raise OSError(28, "No space left on device")
             self.w.writerow(row)
 
+        def writerows(self, rows) -> None:
+            for row in rows:
+                self.writerow(row)
+
     monkeypatch.setattr(datafile.csv, "writer", Failing)
     assert _identify(files, "asc", out, "--warmup", "6") == 2
     now = {p.name: p.read_bytes() for p in out.iterdir()}

@@ -111,3 +111,20 @@ def test_a_signal_mdf4_cut_short_is_refused_before_it_is_read(mf4: Path, tmp_pat
     err = cli_error(["identify", str(tmp_path / "cut.mf4"), "--config", "example1", "--channel", "x3=pos3",
                      "--out", str(tmp_path / "o")])
     assert "cut.mf4: truncated or damaged MDF4: cut short: its blocks reach byte" in err and "bytes missing" in err
+
+
+def test_without_asammdf_an_mdf4_is_refused_saying_what_to_install(mf4: Path, tmp_path: Path, cli_error,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    import importlib.util
+
+    from pyrhonn import mdfsignals
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(mdfsignals.importlib.util, "find_spec", lambda name, *a: None if name == "asammdf" else
+                        real(name, *a))
+    err = cli_error(["identify", str(mf4), "--config", "example1", "--out", str(tmp_path / "o")])
+    assert f"{mf4}: reading MDF4 needs asammdf: pip install 'pyrhonn[mdf]'" in err
+    dbc = Path(__file__).resolve().parent.parent / "firmware_sim" / "rhonn_id.dbc"
+    err = cli_error(["identify", "--can-log", str(mf4), "--dbc", str(dbc), "--config", "example1", "--out",
+                     str(tmp_path / "o")])
+    assert f"--can-log {mf4}: reading MDF4 needs asammdf: pip install 'pyrhonn[mdf]'" in err

@@ -83,7 +83,8 @@ import numpy as np
 from .. import atomic
 from ..config import DTYPES, IdentifierConfig
 from ..configfile import ConfigFile, load_named
-from ..datafile import SEPARATORS, Data, TIME_COLUMN, check_suffix, read_data, write_data
+from ..datafile import (ROWS_AT_ONCE, SEPARATORS, Data, TIME_COLUMN, check_suffix, decimal_cells, read_data,
+                        write_data)
 from ..gaps import Segments, segments_of, simulate_segments
 from ..mdfsignals import METHOD, MdfSignals, read_signal_mdf
 from ..identifier import Identifier, IdentifierError
@@ -269,16 +270,16 @@ def _write_predictions(path: Path, data: Data, cf: ConfigFile, sim: Simulation, 
     with atomic.replacing(path, "w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(header)
-        for k in range(T):
-            row: list[Any] = [int(data.lines[k])]
+        for a in range(0, T, ROWS_AT_ONCE):  # column by column, a block of rows at a time
+            rows = slice(a, min(a + ROWS_AT_ONCE, T))
+            columns: list[list[Any]] = [data.lines[rows].tolist()]
             if data.t is not None:
-                row.append(repr(float(data.t[k])))
+                columns.append(decimal_cells(data.t[rows]))
             for j in range(len(cf.state_names)):
-                row.append(repr(float(hat[k, j])) if np.isfinite(hat[k, j]) else "")
-                row.append(repr(float(err[k, j])) if errors[k] and data.valid[k, j] else "")
-                for _, values in extra:
-                    row.append(repr(float(values[k, j])) if np.isfinite(values[k, j]) else "")
-            w.writerow(row)
+                columns.append(decimal_cells(hat[rows, j]))
+                columns.append(decimal_cells(err[rows, j], errors[rows] & data.valid[rows, j]))
+                columns += [decimal_cells(values[rows, j]) for _, values in extra]
+            w.writerows(zip(*columns))
 
 
 NOT_VALID_LABEL = "not valid (not learnt; predicted from its own outputs)"  #: legend entry of the shaded samples
