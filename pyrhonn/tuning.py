@@ -116,7 +116,26 @@ When every searched parameter's base value is a scalar inside its range
 (so with the default ranges unless the base has a P0 or Q array or Q = 0;
 true for the shipped ``example1``), the base config is the first trial of a new study, so the best trial is
 never worse than the base. Whatever happens, :attr:`TuneResult.config` is
-the base config itself when no trial beats it.
+the base config itself when no trial beats it on the objective (and
+:attr:`TuneResult.kept_base` says so when the best trial was not the base).
+
+Other objectives and validation experiments (``objective``, ``validation``)
+----------------------------------------------------------------------------
+``objective`` (:class:`~pyrhonn.tuning_objective.Objective`, default
+``one-step``) is ``one-step``, ``free-run``, ``k-step:H`` or ``mix``. On
+one trajectory (folds = 1), a frozen objective learns online up to the
+split and then scores the held-out part with the weights frozen: the free
+run, the H-step-ahead prediction, or (``mix``) per state the geometric mean
+of the free-run figure and the one-step figure above; a free run or
+prediction that leaves the training part's range
+(:func:`pyrhonn.residuals.divergence_range`) fails the trial, naming the
+sample. With ``validation`` experiments (:class:`pyrhonn.experiments.Experiment`),
+``(X, U, valid)`` is the estimation data only (named ``estimation_name``,
+starting at sample ``estimation_first`` of its file), ``train_fraction`` is
+not used, and every trial learns on it and is scored on the validation
+experiments with its weights frozen (:mod:`pyrhonn.tuning_validation`).
+With a frozen objective the free-run guard does not apply: the choice
+itself compared the best trial and the base on the objective.
 
 The sampler is ``optuna.samplers.TPESampler(seed=seed, multivariate=True,
 n_startup_trials=10)`` (seed and ``constant_liar``: see below).
@@ -388,8 +407,11 @@ class TuneResult:
             "best_values": dict(self.best_values),
             "best_structure": dict(self.best_structure),
             "improved": self.improved,
-            "free_run": {"definition": "mean over states of the held-out free-run RRSE, learning online up to "
-                                       "the split, then the weights frozen (inf: diverged)",
+            "free_run": {"definition": "mean over states of the free-run RRSE on the validation experiments, "
+                                       "weights learnt on the estimation experiments then frozen (inf: diverged)"
+                         if self.validation_rows else
+                         "mean over states of the held-out free-run RRSE, learning online up to "
+                         "the split, then the weights frozen (inf: diverged)",
                          "base": metrics.json_value(self.base_free_run), "written": metrics.json_value(self.best_free_run)},
             "kept_base": self.kept_base,
             "top_trials": [dict(t) for t in self.top],

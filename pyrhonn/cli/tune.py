@@ -23,6 +23,15 @@ cut into K contiguous folds; fold f learns from sample 0 on and is scored on
 its own block, and a trial's score is the mean over the folds
 (:func:`pyrhonn.tuning.fold_bounds`).
 
+``--validate VAL.csv`` (repeatable) and ``--fit-rows A:B`` keep the data
+that learn and the data that judge apart, as in ``pyrhonn select``: trials
+learn on rows A..B-1 of ``--data`` only and are scored on the validation
+recordings (or, without ``--validate``, on the rows outside A..B-1), each
+its own experiment, with the weights frozen (:mod:`pyrhonn.tuning_validation`).
+``--objective one-step|free-run|k-step:H|mix`` chooses the score
+(default one-step); ``--json`` writes the result with the rows that learnt
+and those that validated.
+
 ``--structure`` also searches the selection settings of ``pyrhonn select``
 (``--max-delay``, ``--degree``, ``--max-terms``, each ``LOW:HIGH`` or one
 value): every trial selects the terms on the training part (of each fold)
