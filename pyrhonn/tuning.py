@@ -116,7 +116,26 @@ When every searched parameter's base value is a scalar inside its range
 (so with the default ranges unless the base has a P0 or Q array or Q = 0;
 true for the shipped ``example1``), the base config is the first trial of a new study, so the best trial is
 never worse than the base. Whatever happens, :attr:`TuneResult.config` is
-the base config itself when no trial beats it.
+the base config itself when no trial beats it on the objective (and
+:attr:`TuneResult.kept_base` says so when the best trial was not the base).
+
+Other objectives and validation experiments (``objective``, ``validation``)
+----------------------------------------------------------------------------
+``objective`` (:class:`~pyrhonn.tuning_objective.Objective`, default
+``one-step``) is ``one-step``, ``free-run``, ``k-step:H`` or ``mix``. On
+one trajectory (folds = 1), a frozen objective learns online up to the
+split and then scores the held-out part with the weights frozen: the free
+run, the H-step-ahead prediction, or (``mix``) per state the geometric mean
+of the free-run figure and the one-step figure above; a free run or
+prediction that leaves the training part's range
+(:func:`pyrhonn.residuals.divergence_range`) fails the trial, naming the
+sample. With ``validation`` experiments (:class:`pyrhonn.experiments.Experiment`),
+``(X, U, valid)`` is the estimation data only (named ``estimation_name``,
+starting at sample ``estimation_first`` of its file), ``train_fraction`` is
+not used, and every trial learns on it and is scored on the validation
+experiments with its weights frozen (:mod:`pyrhonn.tuning_validation`).
+With a frozen objective the free-run guard does not apply: the choice
+itself compared the best trial and the base on the objective.
 
 The sampler is ``optuna.samplers.TPESampler(seed=seed, multivariate=True,
 n_startup_trials=10)`` (seed and ``constant_liar``: see below).
@@ -236,19 +255,25 @@ from . import metrics
 from .config import IdentifierConfig
 from .structure import Selection, select
 from .validation import check_int, fail
-from .tuning_objective import (DEFAULT_TRAIN_FRACTION, DIVERGED, Score, Split, TrialFailure, _Problem, fold_bounds,
-                               held_out_score, split_point)
+from .experiments import Experiment
+from .tuning_objective import (DEFAULT_OBJECTIVE, DEFAULT_TRAIN_FRACTION, DIVERGED, OBJECTIVES, Objective, Score, Split,
+                               TrialFailure, _Problem, _check_trajectory, fold_bounds, held_out_score,
+                               split_point)
 from .tuning_space import (DEFAULT_FACTORS, PARAMETERS, Q_OVER_P0, SIGNIFICANT_DIGITS, Dimension, _round,
                            apply_factors, apply_values, search_space)
 from .tuning_structure import STRUCTURE_SETTINGS, StructureSearch, _Selector
+from .tuning_validation import _Validated
 from .tuning_study import STUDY_NAME, STUDY_SUFFIXES, StudyStorage, _Claim, _open_storage, _unusable, check_study, \
     check_study_path
 
 __all__ = [
     "DEFAULT_FACTORS",
+    "DEFAULT_OBJECTIVE",
     "DEFAULT_TRAIN_FRACTION",
     "DIVERGED",
     "Dimension",
+    "OBJECTIVES",
+    "Objective",
     "PARAMETERS",
     "Q_OVER_P0",
     "SIGNIFICANT_DIGITS",
@@ -344,15 +369,29 @@ class TuneResult:
     selection: Selection | None = None
     base_free_run: float = math.nan  #: the base config's held-out free-run score (free_run_score)
     best_free_run: float = math.nan  #: the written config's
-    kept_base: str | None = None  #: why the best trial was not written, when the free-run guard kept the base
+    kept_base: str | None = None  #: why the best trial was not written, when a guard kept the base
+    objective: str = "one-step"  #: what trials were scored on (:class:`Objective`)
+    fit_rows: tuple[str, ...] = ()  #: with validation experiments: the rows that learnt
+    validation_rows: tuple[str, ...] = ()  #: the validation experiments' rows, that only scored
 
     def summary(self) -> dict[str, Any]:
         """A JSON-serialisable summary of the study and the result."""
+        if self.validation_rows:
+            what = (f"mean over states of the {self.objective} RRSE on the validation experiments, weights "
+                    "learnt online on the estimation experiments then frozen (pyrhonn.tuning_validation)")
+        elif self.objective == "one-step":
+            what = ("mean over states of held-out one-step-ahead RMSE / std of the held-out targets "
+                    "(pyrhonn.tuning)" + (", mean over folds" if len(self.split.folds) > 1 else ""))
+        else:
+            what = (f"mean over states of the held-out {self.objective} RMSE / std of the held-out targets, "
+                    "weights frozen at the split (pyrhonn.tuning)")
         return {
-            "objective": "mean over states of held-out one-step-ahead RMSE / std of the held-out targets "
-                         "(pyrhonn.tuning)" + (", mean over folds" if len(self.split.folds) > 1 else ""),
-            "split": self.split.to_dict(),
-            "train_fraction": self.train_fraction,
+            "objective": what,
+            "objective_kind": self.objective,
+            "fit_rows": list(self.fit_rows),
+            "validation_rows": list(self.validation_rows),
+            "split": None if self.validation_rows else self.split.to_dict(),
+            "train_fraction": metrics.json_value(self.train_fraction),
             "per_neuron": self.per_neuron,
             "space": [d.to_dict() for d in self.space],
             "structure": None if self.structure is None else self.structure.to_dict(),
@@ -368,8 +407,11 @@ class TuneResult:
             "best_values": dict(self.best_values),
             "best_structure": dict(self.best_structure),
             "improved": self.improved,
-            "free_run": {"definition": "mean over states of the held-out free-run RRSE, learning online up to "
-                                       "the split, then the weights frozen (inf: diverged)",
+            "free_run": {"definition": "mean over states of the free-run RRSE on the validation experiments, "
+                                       "weights learnt on the estimation experiments then frozen (inf: diverged)"
+                         if self.validation_rows else
+                         "mean over states of the held-out free-run RRSE, learning online up to "
+                         "the split, then the weights frozen (inf: diverged)",
                          "base": metrics.json_value(self.base_free_run), "written": metrics.json_value(self.best_free_run)},
             "kept_base": self.kept_base,
             "top_trials": [dict(t) for t in self.top],
@@ -380,7 +422,7 @@ def _sha(obj: Any) -> str:
     return hashlib.sha256(json.dumps(obj, sort_keys=True).encode()).hexdigest()
 
 
-def _setup(config: IdentifierConfig, problem: _Problem, space: Sequence[Dimension], per_neuron: bool,
+def _setup(config: IdentifierConfig, problem: _Problem | _Validated, space: Sequence[Dimension], per_neuron: bool,
            structure: StructureSearch | None) -> dict[str, Any]:
     setup = {
         "format": "pyrhonn-tune",
@@ -388,7 +430,7 @@ def _setup(config: IdentifierConfig, problem: _Problem, space: Sequence[Dimensio
         "config_sha256": _sha(config.to_dict()),
         "data_sha256": problem.data_hash,
         "n_samples": problem.split.n_samples,
-        "train_fraction": problem.train_fraction,
+        "train_fraction": None if math.isnan(problem.train_fraction) else problem.train_fraction,
         "per_neuron": per_neuron,
         "space": [d.to_dict() for d in space],
     }
@@ -397,6 +439,10 @@ def _setup(config: IdentifierConfig, problem: _Problem, space: Sequence[Dimensio
         setup["folds"] = len(problem.folds)
     if structure is not None:
         setup["structure"] = structure.to_dict()
+    if problem.objective != DEFAULT_OBJECTIVE:
+        setup["objective"] = str(problem.objective)
+    if isinstance(problem, _Validated):
+        setup["validation"] = problem.validation_rows
     return setup
 
 
@@ -411,6 +457,8 @@ _SETUP_WHAT = {
     "space": "search space (parameters or ranges)",
     "folds": "number of folds",
     "structure": "structure search settings",
+    "objective": "objective",
+    "validation": "validation experiments",
 }
 
 
@@ -454,6 +502,10 @@ def tune(
     n_startup_trials: int = 10,
     progress: Progress | None = None,
     free_run_guard: bool = True,
+    objective: str | Objective = DEFAULT_OBJECTIVE,
+    validation: Sequence[Experiment] = (),
+    estimation_name: str = "estimation",
+    estimation_first: int = 0,
 ) -> TuneResult:
     """Search P0, Q, R, eta and beta of ``config`` (and, with ``structure``,
     the selection settings) on ``(X, U, valid)``.
@@ -485,11 +537,33 @@ def tune(
     if structure is not None and not isinstance(structure, StructureSearch):
         raise fail("structure", f"expected None or a StructureSearch, got {type(structure).__name__}")
     space = search_space(config, params=params, per_neuron=per_neuron, ranges=ranges, relative=structure is not None)
-    problem = _Problem(config, X, U, valid, truth, train_fraction, folds)
+    goal = Objective.parse(objective)
+    if structure is not None and goal.frozen:
+        raise fail("objective", f"{goal}: structure search scores one step ahead only")
+    problem: _Problem | _Validated
+    if isinstance(validation, Experiment) or not isinstance(validation, (list, tuple)):
+        raise fail("validation", f"expected a list of Experiment, got {type(validation).__name__}")
+    if validation:
+        if truth is not None:
+            raise fail("truth", "not with validation experiments (they are scored on their measurements)")
+        if structure is not None:
+            raise fail("structure", "structure search is not available with validation experiments")
+        if check_int("folds", folds, 1) != 1:
+            raise fail("folds", "not with validation experiments (they are the held-out data)")
+        if not isinstance(estimation_name, str):
+            raise fail("estimation_name", f"expected a string, got {type(estimation_name).__name__}")
+        check_int("estimation_first", estimation_first, 0)
+        X, U, valid, _ = _check_trajectory(config, X, U, valid, None)
+        mask = np.ones(X.shape, dtype=bool) if valid is None else valid
+        est = Experiment(np.where(mask, X, np.nan), U, mask, name=estimation_name, first=estimation_first)
+        problem = _Validated(config, [est], list(validation), goal)
+    else:
+        problem = _Problem(config, X, U, valid, truth, train_fraction, folds, goal)
     loc = None if study_path is None else check_study(study_path)
     selector = None
     if structure is not None:
         structure.check(config)
+        assert isinstance(problem, _Problem)  # refused with validation experiments above
         selector = _Selector(problem, structure)
         low = {name: lo for name, lo, _ in structure.dimensions()}
         X64, U64, valid64 = problem.raw
@@ -549,6 +623,7 @@ def tune(
     best_values: dict[str, float] = {}
     best_structure: dict[str, int] = {}
     best_selection: Selection | None = None
+    kept: str | None = None
     if complete:
         winner = min(complete, key=lambda t: (t.value, t.number))
         try:
@@ -562,17 +637,22 @@ def tune(
                 score = problem.score_folds(candidates)
         except TrialFailure:  # pragma: no cover - the C core and the selection are deterministic
             score = None
+        if (score is not None and base is not None and score.value >= base.value
+                and not winner.user_attrs.get("base", False)):
+            kept = (f"the best trial's held-out {goal} score ({score.value:.4g}) is not better than the base "
+                    f"config's ({base.value:.4g}): the base config is kept")
         if score is not None and (base is None or score.value < base.value):
             best_score, best_trial, best_config = score, winner.number, candidates[-1]
             best_values = {d.name: _round(winner.params[d.name]) for d in space}
             if selector is not None:
                 best_structure = settings
                 best_selection = selector.selection(len(problem.folds) - 1, settings)
-    kept_base: str | None = None
+    kept_base: str | None = kept
     base_free, best_free = problem.free_run_score(config), math.nan
     if best_score is not None:
         best_free = problem.free_run_score(best_config)
-        if free_run_guard and base_free < 1.0 and best_free > base_free * (1.0 + FREE_RUN_TOLERANCE):
+        # With a frozen objective the choice itself compared base and best on it (above).
+        if free_run_guard and not goal.frozen and base_free < 1.0 and best_free > base_free * (1.0 + FREE_RUN_TOLERANCE):
             kept_base = (f"the best trial's held-out free run (mean RRSE {best_free:.4g}) is worse than the base "
                          f"config's ({base_free:.4g}): the base config is kept")
             best_score, best_trial, best_config = None, None, config
@@ -591,6 +671,8 @@ def tune(
         seed=seed, study_name=STUDY_NAME, storage=None if loc is None else loc.shown, top=top,
         structure=structure, best_structure=best_structure, selection=best_selection,
         base_free_run=base_free, best_free_run=best_free if improved else base_free, kept_base=kept_base,
+        objective=str(goal), fit_rows=tuple(problem.fit_rows) if isinstance(problem, _Validated) else (),
+        validation_rows=tuple(problem.validation_rows) if isinstance(problem, _Validated) else (),
     )
 
 
@@ -600,7 +682,7 @@ def _storage_errors() -> type[BaseException]:
     return SQLAlchemyError
 
 
-def _run_trials(study: Any, claim: _Claim, problem: _Problem, config: IdentifierConfig,
+def _run_trials(study: Any, claim: _Claim, problem: _Problem | _Validated, config: IdentifierConfig,
                 space: Sequence[Dimension], selector: _Selector | None, structure: StructureSearch | None,
                 n_trials: int, n_jobs: int, batch: int, progress: Progress | None) -> int:
     """Run trials until the study holds ``n_trials``; returns how many this call ran.

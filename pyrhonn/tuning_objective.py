@@ -7,7 +7,7 @@ from __future__ import annotations
 import hashlib
 import math
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -15,11 +15,12 @@ from . import metrics
 from .config import IdentifierConfig
 from .identifier import Identifier, IdentifierError
 from .regressors import refit_w0
+from .residuals import divergence_range
 from .simulation import scores, simulate
 from .validation import check_int, check_real, fail
 
-__all__ = ["DEFAULT_TRAIN_FRACTION", "DIVERGED", "Score", "Split", "TrialFailure", "fold_bounds", "held_out_score",
-           "split_point"]
+__all__ = ["DEFAULT_OBJECTIVE", "DEFAULT_TRAIN_FRACTION", "DIVERGED", "OBJECTIVES", "Objective", "Score", "Split",
+           "TrialFailure", "fold_bounds", "held_out_score", "split_point"]
 
 DEFAULT_TRAIN_FRACTION = 0.6
 
@@ -30,6 +31,69 @@ DIVERGED = 1e3
 
 class TrialFailure(Exception):
     """A candidate config that cannot be scored (the identifier stopped or diverged)."""
+
+
+#: The kinds of held-out error a trial can be scored on (:class:`Objective`).
+OBJECTIVES = ("one-step", "free-run", "k-step", "mix")
+
+
+@dataclass(frozen=True)
+class Objective:
+    """What a trial is scored on over the held-out (or validation) samples.
+
+    ``one-step``: the one-step-ahead prediction (on a single file's held-out
+    part with learning on, as the identifier runs online; on validation
+    recordings with the weights frozen). ``free-run``: the network fed its
+    own predictions, weights frozen after learning. ``k-step`` (``horizon``
+    H >= 2): each sample predicted H steps ahead from measured samples,
+    weights frozen. ``mix``: per state the geometric mean of the one-step
+    and the free-run figures (a halving of one that doubles the other is
+    neutral). A frozen free run or branch that leaves the data's range fails
+    the trial, naming the sample.
+    """
+
+    kind: str = "one-step"
+    horizon: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in OBJECTIVES:
+            raise fail("objective", f"expected one of one-step, free-run, k-step:H, mix; got {self.kind!r}")
+        if self.kind == "k-step":
+            check_int("objective.horizon", self.horizon, 2)
+        elif self.horizon is not None:
+            raise fail("objective.horizon", f"only for k-step, got {self.horizon!r} for {self.kind}")
+
+    @classmethod
+    def parse(cls, text: object) -> Objective:
+        """``one-step``, ``free-run``, ``k-step:H`` (H >= 2) or ``mix``; ValueError naming ``objective``."""
+        if isinstance(text, Objective):
+            return text
+        if not isinstance(text, str):
+            raise fail("objective", f"expected a string such as free-run or k-step:10, got {type(text).__name__}")
+        kind, colon, h = text.strip().partition(":")
+        if kind == "k-step":
+            try:
+                horizon = int(h) if colon else -1
+            except ValueError:
+                horizon = -1
+            if horizon < 2:
+                raise fail("objective", f"expected k-step:H with a whole number H >= 2, got {text!r}")
+            return cls(kind, horizon)
+        if colon:
+            raise fail("objective", f"only k-step takes :H, got {text!r}")
+        return cls(kind)
+
+    def __str__(self) -> str:
+        return f"k-step:{self.horizon}" if self.kind == "k-step" else self.kind
+
+    @property
+    def frozen(self) -> bool:
+        """Whether the scored predictions are made with the weights frozen after learning."""
+        return self.kind != "one-step"
+
+
+#: The default objective; see the tuning docs for the measured figure behind it.
+DEFAULT_OBJECTIVE = Objective("one-step")
 
 
 def split_point(n_samples: int, train_fraction: float) -> int:
@@ -110,6 +174,18 @@ class Score:
                 "normalised_rmse": self.normalised.tolist(), "folds": list(self.folds)}
 
 
+def scored_each(score: Callable[[IdentifierConfig], Score],
+                configs: Sequence[IdentifierConfig]) -> list[Score | TrialFailure]:
+    """``score`` of each config in turn, or the :class:`TrialFailure` it raised."""
+    outcomes: list[Score | TrialFailure] = []
+    for config in configs:
+        try:
+            outcomes.append(score(config))
+        except TrialFailure as exc:
+            outcomes.append(exc)
+    return outcomes
+
+
 def _check_trajectory(config: IdentifierConfig, X: object, U: object, valid: object,
                       truth: object) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     n, m = config.n_states, config.n_inputs
@@ -152,7 +228,11 @@ class _Problem:
     """A trajectory prepared for scoring configs of one dtype (thread-safe: read only)."""
 
     def __init__(self, config: IdentifierConfig, X: np.ndarray, U: np.ndarray, valid: np.ndarray | None,
-                 truth: np.ndarray | None, train_fraction: float, folds: int = 1) -> None:
+                 truth: np.ndarray | None, train_fraction: float, folds: int = 1,
+                 objective: Objective = DEFAULT_OBJECTIVE) -> None:
+        if not isinstance(objective, Objective):
+            raise fail("objective", f"expected an Objective, got {type(objective).__name__}")
+        self.objective = objective
         X, U, valid_mask, truth = _check_trajectory(config, X, U, valid, truth)
         T, n = X.shape
         self.n_train = split_point(T, train_fraction)
@@ -198,6 +278,10 @@ class _Problem:
             self.scales.append(scale)
             total += scored
         self.split = Split(int(T), int(self.n_train), tuple(int(c) for c in total), self.folds)
+        if objective.frozen and len(self.folds) > 1:
+            raise fail("objective", f"{objective} scores the held-out part with the weights frozen at the split: "
+                                    "only with folds = 1")
+        self.range = divergence_range(X[:self.n_train], valid_mask[:self.n_train])
         digest = hashlib.sha256()
         for a in (np.where(valid_mask, X, 0.0), U, valid_mask, X if truth is None else truth):
             a = np.where(np.isfinite(a), a, 0.0) if a.dtype == np.float64 else a  # NaN payloads vary
@@ -270,8 +354,41 @@ class _Problem:
         folds = tuple(float(np.mean(e[1])) for e in errors)
         return Score(float(np.mean(folds)), rmse, scale, normalised, folds)
 
+    def _frozen_error(self, config: IdentifierConfig) -> tuple[np.ndarray, np.ndarray]:
+        """(RMSE_j, RMSE_j / s_j) of the frozen objective (free run, k-step or mix) over the held-out part:
+        learning online up to the split, then the weights frozen (:mod:`pyrhonn.simulation`)."""
+        N, E = self.folds[0]
+        kind, H = self.objective.kind, self.objective.horizon
+        X = np.where(np.isfinite(self.X), self.X, 0.0).astype(self.dtype)
+        try:
+            ident = Identifier(config)
+        except ValueError as exc:
+            raise TrialFailure(f"config rejected: {exc}") from None
+        try:
+            with np.errstate(all="ignore"):
+                sim = simulate(ident, X[:E], self.U[:E] if config.n_inputs else None,
+                               None if self.valid is None else self.valid[:E], free_run_from=N, steps=H)
+        except ValueError as exc:  # IdentifierError: the learning part stopped
+            raise TrialFailure(f"identifier stopped: {exc}") from None
+        what = "free run" if kind != "k-step" else f"{H}-step prediction"
+        est = sim.ahead if kind == "k-step" else sim.free_run
+        assert est is not None
+        est = est.astype(np.float64)
+        held = est[N:E]
+        out = ~np.isfinite(held) | (held < self.range[0]) | (held > self.range[1])
+        if out.any():
+            k = N + int(np.argmax(out.any(axis=1)))
+            raise TrialFailure(f"held-out {what} left the data's range at sample {k}")
+        rmse, normalised = self._fold_error(0, est[1:])  # est[k] estimates x(k); _fold_error reads row k-1
+        if kind == "mix":
+            one_rmse, one_norm = self._fold_error(0, self._run(config, E))
+            rmse, normalised = np.sqrt(rmse * one_rmse), np.sqrt(normalised * one_norm)
+        return rmse, normalised
+
     def score(self, config: IdentifierConfig) -> Score:
         """The objective of ``config`` (one run serves every fold); :class:`TrialFailure` when it cannot be scored."""
+        if self.objective.frozen:
+            return self._combine([self._frozen_error(config)])
         rows = self._run(config, self.folds[-1][1])
         return self._combine([self._fold_error(f, rows) for f in range(len(self.folds))])
 
@@ -310,6 +427,8 @@ class _Problem:
         """:meth:`score` of several tunings of one structure, run in one population call;
         each entry the config's Score or the TrialFailure ``score`` would raise for it."""
         outcomes: list[Score | TrialFailure] = []
+        if self.objective.frozen:  # a simulation per config: no population call
+            return scored_each(self.score, configs)
         for rows in self._run_many(configs, self.folds[-1][1]):
             if isinstance(rows, TrialFailure):
                 outcomes.append(rows)

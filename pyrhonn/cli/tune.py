@@ -23,6 +23,15 @@ cut into K contiguous folds; fold f learns from sample 0 on and is scored on
 its own block, and a trial's score is the mean over the folds
 (:func:`pyrhonn.tuning.fold_bounds`).
 
+``--validate VAL.csv`` (repeatable) and ``--fit-rows A:B`` keep the data
+that learn and the data that judge apart, as in ``pyrhonn select``: trials
+learn on rows A..B-1 of ``--data`` only and are scored on the validation
+recordings (or, without ``--validate``, on the rows outside A..B-1), each
+its own experiment, with the weights frozen (:mod:`pyrhonn.tuning_validation`).
+``--objective one-step|free-run|k-step:H|mix`` chooses the score
+(default one-step); ``--json`` writes the result with the rows that learnt
+and those that validated.
+
 ``--structure`` also searches the selection settings of ``pyrhonn select``
 (``--max-delay``, ``--degree``, ``--max-terms``, each ``LOW:HIGH`` or one
 value): every trial selects the terms on the training part (of each fold)
@@ -53,6 +62,7 @@ or studies exit 2 with one line.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import sys
@@ -65,15 +75,21 @@ from typing import Any
 
 import numpy as np
 
-from .options import options_named, real_option
+from .options import options_named, real_option, row_range
 from .. import __version__
 from .. import atomic, tuning
+from ..metrics import json_value
 from ..config import DTYPES, Activation, IdentifierConfig
 from ..identifier import Identifier
 from ..simulation import scores, simulate
 from ..structure import FACTOR_NAMES, Criterion
 from ..configfile import ConfigFile, dumps, is_path, load_named
 from ..datafile import check_suffix, read_data
+from ..experiments import Experiment
+from ..refine import DataRange
+from ..search import Validation, validate
+from ..tuning_objective import TrialFailure
+from ..tuning_validation import learnt
 
 EXAMPLES = ("example1", "example2", "example3")
 DEFAULT_TRIALS = 50
@@ -107,8 +123,21 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "(SQLite) file, or a database URL that workers on several machines share: "
                         "postgresql://user@host/db (needs psycopg) or sqlite:///path")
     p.add_argument("--seed", metavar="S", default="0", help="seed of the TPE sampler (default 0)")
-    p.add_argument("--train-fraction", metavar="F", default=str(tuning.DEFAULT_TRAIN_FRACTION),
-                   help=f"share of the samples used for training (default {tuning.DEFAULT_TRAIN_FRACTION})")
+    p.add_argument("--train-fraction", metavar="F",
+                   help=f"share of the samples used for training (default {tuning.DEFAULT_TRAIN_FRACTION}; not "
+                        "with --validate or --fit-rows)")
+    p.add_argument("--validate", action="append", default=[], metavar="VAL.csv",
+                   help="with --data: a validation recording (repeatable), its own experiment; trials learn on "
+                        "--data only and are scored on these with the weights frozen; nothing learns from them")
+    p.add_argument("--fit-rows", metavar="A:B",
+                   help="with --data: only samples A..B-1 of it learn; without --validate the samples outside "
+                        "them are the validation experiments")
+    p.add_argument("--objective", metavar="KIND", default=str(tuning.DEFAULT_OBJECTIVE),
+                   help="what a trial is scored on: one-step, free-run (weights frozen after learning), "
+                        "k-step:H (H >= 2) or mix (geometric mean of one-step and free-run); default "
+                        f"{tuning.DEFAULT_OBJECTIVE}")
+    p.add_argument("--json", metavar="FILE.json", help="also write the result as JSON (the rows that learnt and "
+                                                        "those that validated, the scores, the trials)")
     p.add_argument("--dtype", metavar="DTYPE", help="float64 or float32: build of the C core to tune for "
                                                     "(default: the config's dtype; written to the output)")
     p.add_argument("--per-neuron", action="store_true", help="one value per neuron instead of one shared value")
@@ -117,7 +146,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--range", metavar="NAME=LOW:HIGH", action="append", default=[],
                    help="absolute log-uniform range of a parameter, e.g. p0=1e4:1e10 (repeatable); with "
                         "--structure a range of factors of the selected value, e.g. p0=0.01:100")
-    p.add_argument("--folds", metavar="K", default="1",
+    p.add_argument("--folds", metavar="K",
                    help="blocked cross-validation: cut the held-out part into K contiguous folds; fold f "
                         "learns from sample 0 and is scored on its block; a trial scores the mean over "
                         "folds (default 1: the single split)")
@@ -240,6 +269,8 @@ class Options:
     out: Path
     study: tuning.StudyStorage | None
     folds: int
+    objective: tuning.Objective
+    json: Path | None
 
 
 def _check_out(text: str | None) -> Path:
@@ -291,7 +322,29 @@ def _parse(args: argparse.Namespace) -> Options:
         raise ValueError("--valid-suffix: only with --data")
     if is_path(args.config) and not Path(args.config).is_file():
         raise ValueError(f"--config: no such file: {args.config!r}")
-    fraction = real_option("--train-fraction", args.train_fraction)
+    kept_apart = bool(args.validate) or args.fit_rows is not None
+    for option, given in (("--validate", bool(args.validate)), ("--fit-rows", args.fit_rows is not None)):
+        if given and args.data is None:
+            raise ValueError(f"{option}: only with --data (the recording that learns)")
+    for path in args.validate:
+        if not Path(path).is_file():
+            raise ValueError(f"--validate: no such file: {path!r}")
+    for option, value in (("--train-fraction", args.train_fraction), ("--folds", args.folds)):
+        if kept_apart and value is not None:
+            raise ValueError(f"{option}: not with --validate or --fit-rows (the validation experiments are the "
+                             "held-out data)")
+    try:
+        objective = tuning.Objective.parse(args.objective)
+    except ValueError as exc:
+        raise ValueError(f"--objective: {str(exc).partition(': ')[2]}") from None
+    if objective.frozen and args.structure:
+        raise ValueError(f"--objective: {objective}: --structure scores one step ahead only")
+    json_out = None
+    if args.json is not None:
+        json_out = Path(args.json)
+        if json_out.suffix != ".json" or not json_out.parent.is_dir():
+            raise ValueError(f"--json: {args.json!r} must end in .json, in an existing folder")
+    fraction = real_option("--train-fraction", args.train_fraction or str(tuning.DEFAULT_TRAIN_FRACTION))
     if not 0.0 < fraction < 1.0:
         raise ValueError(f"--train-fraction: must be between 0 and 1 (exclusive), got {args.train_fraction!r}")
     trials = _int("--trials", args.trials, 1)
@@ -331,7 +384,10 @@ def _parse(args: argparse.Namespace) -> Options:
             raise ValueError(f"--range: {text!r}: expected 0 < LOW < HIGH")
         ranges[name] = (low, high)
     out = _check_out(args.out)
-    folds = _int("--folds", args.folds, 1)
+    folds = _int("--folds", args.folds or "1", 1)
+    if objective.frozen and folds > 1:
+        raise ValueError(f"--objective: {objective} scores the held-out part with the weights frozen at the "
+                         "split: only with --folds 1")
     study = None
     if args.study is not None:
         try:
@@ -342,7 +398,10 @@ def _parse(args: argparse.Namespace) -> Options:
             raise ValueError("--study and --out name the same file")
     if is_path(args.config) and Path(args.config).resolve() == out.resolve():
         raise ValueError("--out: would overwrite the base config --config; write the tuned config elsewhere")
-    return Options(trials, n_jobs, batch, seed, fraction, params, ranges, dt, horizon, out, study, folds)
+    if json_out is not None and json_out.resolve() == out.resolve():
+        raise ValueError("--json and --out name the same file")
+    return Options(trials, n_jobs, batch, seed, fraction, params, ranges, dt, horizon, out, study, folds, objective,
+                   json_out)
 
 
 # -- the trajectory -------------------------------------------------------------------------------------
@@ -355,6 +414,9 @@ class Trajectory:
     U: np.ndarray
     valid: np.ndarray
     truth: np.ndarray | None
+    name: str = "data"
+    first: int = 0  #: the file's sample at row 0 (--fit-rows)
+    validation: tuple[Experiment, ...] = ()
 
 
 def _example(name: str, dt: float | None, horizon: float | None, cf: ConfigFile, config_source: str) -> Trajectory:
@@ -383,7 +445,27 @@ def _data(path: str, cf: ConfigFile, config_source: str, valid_suffix: str) -> T
     except ValueError as exc:
         raise ValueError(f"--valid-suffix: {exc}") from None
     data = read_data(path, cf, valid_suffix=suffix, config_source=config_source)
-    return Trajectory(f"{path} ({data.n_samples} samples)", data.X, data.U, data.valid, None)
+    return Trajectory(f"{path} ({data.n_samples} samples)", data.X, data.U, data.valid, None, name=path)
+
+
+def _kept_apart(traj: Trajectory, args: argparse.Namespace, cf: ConfigFile, config_source: str) -> Trajectory:
+    """The trajectory cut to ``--fit-rows``, with the ``--validate`` recordings (or, without them, the
+    samples outside the fitting rows) as validation experiments."""
+    T = traj.X.shape[0]
+    a, b = row_range("--fit-rows", args.fit_rows, T)
+    whole = Experiment(traj.X, traj.U, traj.valid, name=traj.name)
+    validation: list[Experiment] = []
+    if not args.validate:
+        validation = [whole.cut(s, e) for s, e in ((0, a), (b, T)) if e - s >= 2]
+        if not validation:
+            raise ValueError(f"--fit-rows: {args.fit_rows} leaves no samples of {traj.name} to validate; give "
+                             "--validate VAL.csv")
+    for path in args.validate:
+        data = read_data(path, cf, valid_suffix=check_suffix(args.valid_suffix), config_source=config_source)
+        validation.append(Experiment(data.X, data.U, data.valid, name=path))
+    fit = whole.cut(a, b) if (a, b) != (0, T) else whole
+    return Trajectory(f"{traj.name} rows {a}..{b - 1} ({b - a} samples)", fit.X, fit.U, fit.valid, None,
+                      name=traj.name, first=a, validation=tuple(validation))
 
 
 # -- output ------------------------------------------------------------------------------------------------
@@ -398,8 +480,15 @@ def _what(result: tuning.TuneResult) -> str:
     return f"the selection's {ranges} and factors of the selected {what}"
 
 
-def _scheme(split: tuning.Split) -> str:
+def _scheme(split: tuning.Split, objective: str = "one-step", fit_rows: tuple[str, ...] = (),
+            validation_rows: tuple[str, ...] = ()) -> str:
     """What is trained and what is scored, in words."""
+    if validation_rows:
+        return (f"learning on {'; '.join(fit_rows)}, scored {objective} with the weights frozen on the validation "
+                f"experiments ({'; '.join(validation_rows)}), each run on its own")
+    if objective != "one-step":
+        return (f"learning on samples 0..{split.n_train - 1}, then the weights frozen and scored {objective} on "
+                f"samples {split.n_train}..{split.n_samples - 1}")
     if len(split.folds) <= 1:
         return (f"learning on samples 0..{split.n_train - 1}, scored one step ahead on samples {split.n_train}.."
                 f"{split.n_samples - 1} with learning on")
@@ -418,9 +507,9 @@ def _note(result: tuning.TuneResult, config_source: str, label: str) -> str:
             f"{k.replace('_', ' ')} {v}" for k, v in result.best_structure.items())
                      + f", criterion {result.structure.criterion.value if result.structure else '?'}.")
     head = (f"Tuned by `pyrhonn tune` (pyrhonn {__version__}) from {config_source} on {label}: "
-            f"{_scheme(s)}; searched {_what(result)} with optuna TPE (seed "
-            f"{result.seed}), {result.counts.total} trials in the study.{structure} Held-out score (mean over "
-            f"states of RMSE / std of the held-out targets, pyrhonn.tuning): base {base}, ")
+            f"{_scheme(s, result.objective, result.fit_rows, result.validation_rows)}; searched {_what(result)} with optuna TPE (seed "
+            f"{result.seed}), {result.counts.total} trials in the study.{structure} Held-out {result.objective} "
+            f"score (mean over states of RMSE / std of the held-out targets, pyrhonn.tuning): base {base}, ")
     text = head + (f"tuned {tuned} (trial {result.best_trial})." if result.improved
                    else f"not written: {result.kept_base}." if result.kept_base
                    else "no trial beat it: the tuning is the base config's.")
@@ -436,7 +525,9 @@ def _report(result: tuning.TuneResult, cf: ConfigFile) -> str:
     names = cf.state_names
     width = max(5, *(len(n) for n in names))
     base, best = result.base, result.best
-    lines.append("held-out one-step-ahead RMSE (learning on), and RMSE / std of the held-out targets (the RRSE):")
+    where = "on the validation experiments, weights frozen" if result.validation_rows else (
+        "held-out, learning on" if result.objective == "one-step" else "held-out, weights frozen at the split")
+    lines.append(f"{result.objective} RMSE ({where}), and RMSE / std of the held-out targets (the RRSE):")
     lines.append(f"  {'state':<{width}}  {'std':>11}  {'RMSE base':>11}  {'RMSE tuned':>11}  "
                  f"{'norm. base':>11}  {'norm. tuned':>11}")
     for j, name in enumerate(names):
@@ -454,7 +545,7 @@ def _report(result: tuning.TuneResult, cf: ConfigFile) -> str:
         lines.append(f"score (mean normalised RMSE): base {base.value:.6g} -> tuned {best.value:.6g} "
                      f"({change:+.1f} %), trial {result.best_trial}")
     elif result.kept_base:
-        lines.append(f"score (mean normalised RMSE): base {base.value:.6g}; {result.kept_base}")
+        lines.append(f"score (mean normalised RMSE): base {base.value:.6g}; not written: {result.kept_base}")
     else:
         lines.append(f"score (mean normalised RMSE): base {base.value:.6g}; no trial beat it, the base "
                      "tuning is written")
@@ -509,6 +600,51 @@ def _free_run_report(base: IdentifierConfig, result: tuning.TuneResult, cf: Conf
     return "\n".join(lines)
 
 
+def _validation_report(base: IdentifierConfig, result: tuning.TuneResult, cf: ConfigFile,
+                       traj: Trajectory) -> tuple[str, dict[str, object]]:
+    """The base and the written config learnt on the fitting rows, then frozen over the validation
+    experiments: one-step and free-run RMSE per state (:func:`pyrhonn.search.validate`)."""
+    est = [Experiment(np.where(traj.valid, traj.X, np.nan), traj.U, traj.valid, name=traj.name, first=traj.first)]
+    data_range = DataRange.of(est)
+    names = cf.state_names
+    width = max(5, *(len(n) for n in names))
+    lines = [f"validation experiments ({'; '.join(result.validation_rows)}), weights learnt on "
+             f"{'; '.join(result.fit_rows)} then frozen:",
+             f"  {'state':<{width}}  {'one-step base':>13}  {'tuned':>11}  {'free-run base':>13}  {'tuned':>11}"]
+    figures: dict[str, object] = {}
+    checked: dict[str, Validation] = {}
+    for label, cfg in (("base", base), ("tuned", result.config)):
+        try:
+            checked[label] = validate(learnt(cfg, est), list(traj.validation), data_range)
+        except TrialFailure as exc:
+            lines.append(f"  {label}: could not run: {exc}")
+            figures[label] = {"failure": str(exc)}
+            continue
+        v = checked[label]
+        figures[label] = {
+            "free_run_left_range": None if v.left_range is None else {"experiment": v.left_range[0],
+                                                                      "sample": v.left_range[1]},
+            **{kind: {name: {"rmse": json_value(rmse[j]), "rrse": json_value(rrse[j])} for j, name in enumerate(names)}
+               for kind, rmse, rrse in (("one_step", v.one_rmse, v.one_rrse), ("free_run", v.free_rmse, v.free_rrse))}}
+    for j, name in enumerate(names):
+        cells = []
+        for kind in ("one", "free"):
+            for label in ("base", "tuned"):
+                got = checked.get(label)
+                w = 13 if label == "base" else 11
+                if got is None:
+                    cells.append(f"{'-':>{w}}")
+                elif kind == "free" and got.left_range is not None:
+                    cells.append(f"{'diverged':>{w}}")
+                else:
+                    cells.append(f"{float((got.one_rmse if kind == 'one' else got.free_rmse)[j]):>{w}.5g}")
+        lines.append(f"  {name:<{width}}  " + "  ".join(cells))
+    for label, v in checked.items():
+        if v.left_range is not None:
+            lines.append(f"  {label}: free run left the data's range at sample {v.left_range[1]} of {v.left_range[0]}")
+    return "\n".join(lines), figures
+
+
 def _same_in_every_neuron(cfg: IdentifierConfig, params: list[str]) -> bool:
     """Whether every neuron holds the same value of each of ``params`` (a base
     config kept as it was may hold its own per neuron, even after a shared search)."""
@@ -538,6 +674,8 @@ def run(args: argparse.Namespace) -> int:
         traj = _example(args.example, opts.dt, opts.horizon, cf, config_source)
     else:
         traj = _data(args.data, cf, config_source, args.valid_suffix)
+        if args.validate or args.fit_rows is not None:
+            traj = _kept_apart(traj, args, cf, config_source)
     dtype = args.dtype or cf.config.dtype
     base = cf.config if dtype == cf.config.dtype else cf.config.replace(dtype=dtype)
     structure = _structure(args, base.n_inputs)
@@ -552,16 +690,22 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         T = traj.X.shape[0]
-        split = tuning.Split(T, tuning.split_point(T, opts.train_fraction), (),
-                             tuning.fold_bounds(T, tuning.split_point(T, opts.train_fraction), opts.folds))
-        progress(f"{traj.label}: {_scheme(split)}; until the study holds {opts.trials} trials, {_at_a_time(opts)}"
+        if traj.validation:
+            scheme = _scheme(tuning.Split(T, T, ()), str(opts.objective), (traj.label,),
+                             tuple(f"{ex.name} rows {ex.rows}" for ex in traj.validation))
+        else:
+            split = tuning.Split(T, tuning.split_point(T, opts.train_fraction), (),
+                                 tuning.fold_bounds(T, tuning.split_point(T, opts.train_fraction), opts.folds))
+            scheme = _scheme(split, str(opts.objective))
+        progress(f"{traj.label}: {scheme}; until the study holds {opts.trials} trials, {_at_a_time(opts)}"
                  + (f", study {opts.study.shown}" if opts.study is not None else ""))
         result = tuning.tune(
             base, traj.X, traj.U, traj.valid, truth=traj.truth, train_fraction=opts.train_fraction,
             folds=opts.folds, n_trials=opts.trials, n_jobs=opts.n_jobs, batch=opts.batch, seed=opts.seed,
             per_neuron=args.per_neuron,
             params=opts.params, ranges=opts.ranges or None, structure=structure, study_path=args.study,
-            progress=progress)
+            progress=progress, objective=opts.objective, validation=list(traj.validation),
+            estimation_name=traj.name, estimation_first=traj.first)
     except ValueError as exc:
         raise _named(exc) from None
     note = _note(result, config_source, traj.label)
@@ -576,7 +720,8 @@ def run(args: argparse.Namespace) -> int:
 
     c = result.counts
     print(f"tuned {config_source} on {traj.label}, {dtype}")
-    print(f"{_scheme(result.split)}; searched {_what(result)}")
+    print(f"{_scheme(result.split, result.objective, result.fit_rows, result.validation_rows)}; "
+          f"searched {_what(result)}")
     print(f"ran {result.new_trials} trials; the study has {c.total}: {c.complete} scored, {c.failed} failed "
           f"(identifier stopped or diverged" + (", or selection refused" if structure else "") + ")"
           + (f", {c.errored} errored" if c.errored else "")
@@ -584,7 +729,15 @@ def run(args: argparse.Namespace) -> int:
     if len(result.split.folds) > 1 and result.best is not None:
         print("score per fold: " + ", ".join(f"{v:.6g}" for v in result.best.folds))
     print(_report(result, cf))
-    print(_free_run_report(base, result, cf, traj))
+    frozen: dict[str, object] = {}
+    if traj.validation:
+        text, frozen = _validation_report(base, result, cf, traj)
+        print(text)
+    else:
+        print(_free_run_report(base, result, cf, traj))
+    if opts.json is not None:
+        payload = {**result.summary(), "validation_figures": frozen}
+        atomic.write_text(opts.json, json.dumps(payload, indent=2) + "\n")
     print(f"wrote {opts.out}" + (f"; study in {opts.study.shown} (a larger --trials resumes it)"
                                  if opts.study else ""))
     return 0
