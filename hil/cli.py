@@ -402,14 +402,14 @@ def _signal_exit(signum: int) -> int:
 
 def _replay(args) -> int:
     from .progress import progress_for
-    from .rig import LOG_SUFFIXES, BusLost, Interrupted, LogWriteError, Recording, read_log
+    from .rig import BusLost, Interrupted, LogWriteError, Recording, check_log_name, read_log
     from .score import compare_runs, score
     from .transport import lim_config, run_replay
 
     _check_transport_options(args)
     spin = _runner_spin(args, bench=False)
-    if args.log is not None and args.log.suffix.lower() not in LOG_SUFFIXES:  # a typo: before reading anything
-        raise ValueError(f"--log: {args.log.name}: expected a .blf, .asc or .mf4 file name")
+    if args.log is not None:  # a typo: before reading anything
+        check_log_name(args.log, "--log")
     file = _read_scenario_file(args)
     recorded = read_log(args.from_log) if args.from_log is not None else None
     sc = _scenario(args, recorded, file)

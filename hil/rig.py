@@ -495,6 +495,19 @@ class _ASCWriter(can.ASCWriter):
 LOG_SUFFIXES = (".blf", ".asc", ".mf4")
 
 
+def check_log_name(path: Path, option: str = "log") -> None:
+    """A ValueError naming ``option`` unless ``path`` names a log format hil writes, with what that
+    format needs installed (MDF4: asammdf, the ``mdf`` extra)."""
+    suffix = path.suffix.lower()
+    if suffix not in LOG_SUFFIXES:
+        raise ValueError(f"{option}: {path.name}: expected a .blf, .asc or .mf4 file name")
+    if suffix == ".mf4":
+        import importlib.util
+
+        if importlib.util.find_spec("asammdf") is None:
+            raise ValueError(f"{option}: {path.name}: MDF4 logs need asammdf (pip install 'pyrhonn[mdf]')")
+
+
 def _writer(path: Path, target: Path) -> can.BLFWriter | _ASCWriter | can.MF4Writer:
     """python-can's writer for ``path``'s format, writing to ``target``."""
     suffix = path.suffix.lower()
@@ -596,8 +609,7 @@ def write_log(rec: Recording, path: str | os.PathLike) -> Path:
     from pyrhonn.firmware import database
 
     path = Path(path)
-    if path.suffix.lower() not in LOG_SUFFIXES:
-        raise ValueError(f"log: {path.name}: expected a .blf, .asc or .mf4 file name")
+    check_log_name(path)
     written = 0
     try:
         with atomic.replacing_path(path) as tmp:
