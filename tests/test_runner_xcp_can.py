@@ -193,9 +193,10 @@ def test_pyxcp_over_can_fd_counts_one_daq_sample_per_replayed_step(can_runner: t
         key[0] ^= 1
         return bytes(key)
 
-    app = create_application_from_config({"Transport": {"Can": {
+    app = create_application_from_config({"Transport": {"CAN": {
         "interface": "socketcan", "channel": "vcan0", "fd": True, "can_id_master": CMD_ID,
         "can_id_slave": RES_ID}}})
+    assert (app.transport.can.interface, app.transport.can.fd) == ("socketcan", True)  # pyxcp took the keys
     app.general.seed_n_key_function = wrong_key
     app.general.disable_error_handling = True  # an error response raises, instead of pyxcp's retry policy
     app.transport.timeout = 10.0                # software emulation answers late; never a lost answer
@@ -204,7 +205,7 @@ def test_pyxcp_over_can_fd_counts_one_daq_sample_per_replayed_step(can_runner: t
                                          prescaler=1, measurements=[("measurements", steps_at, 0, "U32"),
                                                                     ("w0_0", w_at, 0, "F32")])])
     n = 120
-    frames = Scenario(duration=n * 3e-4, start=2.0, frame_loss=0.0, seed=5).build().frames()[:n]
+    frames = Scenario(duration=n * 3e-4, start=0.0, frame_loss=0.0, seed=5).build().frames()[:n]
     bus = can.Bus(interface="socketcan", channel="vcan0", fd=True,
                   can_filters=[{"can_id": estimate, "can_mask": 0x7FF}])
     try:
