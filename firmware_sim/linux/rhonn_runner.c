@@ -782,14 +782,14 @@ static int parse_xcp_spec(const char *spec)
  * regions, hooked into the application. 0, or -1 after printing why. */
 static int start_xcp(fw_status (*send)(void *ctx, const uint8_t *packet, size_t len))
 {
-    fw_xcp_config xc;
+    fw_xcp_config config;
     fw_status st;
-    xc.transport.ctx = NULL;
-    xc.transport.send = send;
-    xc.signals = &rhonn_xcp_signals;
-    xc.calibration = &rhonn_xcp_calibration;
-    xc.address_base = (uintptr_t)__executable_start;
-    st = fw_xcp_init(&xcp, &xc);
+    config.transport.ctx = NULL;
+    config.transport.send = send;
+    config.signals = &rhonn_xcp_signals;
+    config.calibration = &rhonn_xcp_calibration;
+    config.address_base = (uintptr_t)__executable_start;
+    st = fw_xcp_init(&xcp, &config);
     if (st == FW_OK) {
         st = fw_xcp_attach(&xcp, &app);
     }
