@@ -170,16 +170,7 @@ def runner(runner_exe: Path, tmp_path: Path) -> Iterator[tuple[subprocess.Popen,
 
 def _replay(bus: can.BusABC, frames: list[can.Message]) -> int:
     """Send the rig's Measurements one by one, each once its Estimate came back; the number answered."""
-    answered = 0
-    for f in frames:
-        bus.send(f)
-        deadline = time.monotonic() + 2.0
-        while time.monotonic() < deadline:
-            msg = bus.recv(timeout=0.5)
-            if msg is not None and msg.arbitration_id == ESTIMATE:
-                answered += 1
-                break
-    return answered
+    return int(xcp_master.replay(bus, frames, ESTIMATE))
 
 
 def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None:

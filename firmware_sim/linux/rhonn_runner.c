@@ -13,6 +13,7 @@
  *                [--rcvbuf BYTES]
  *   rhonn_runner --udp-multicast GROUP:PORT [--multicast-ttl N] ...  python-can's udp_multicast bus
  *   rhonn_runner --bus-less [--cycles N] ...     timing without a bus
+ *   ... [--xcp-udp [ADDR:]PORT | --xcp-can IFACE[,CMD_ID,RES_ID]]   an XCP slave beside the bus
  *
  * Buses. --interface: a raw SocketCAN CAN FD socket. --udp-multicast: the
  * wire protocol of python-can's udp_multicast interface (one msgpack map per
@@ -75,6 +76,16 @@
  * addresses are offsets from __executable_start, the load address of this
  * image (a PIE or not): the A2L's addresses are the symbols' values minus
  * that of __executable_start, as nm shows them.
+ *
+ * --xcp-can IFACE[,CMD_ID,RES_ID]: the same slave on XCP on CAN FD instead
+ * (one or the other, not both): each XCP packet is one CAN FD frame's data,
+ * without a header; commands come on CMD_ID, responses, errors and DAQ
+ * packets go out on RES_ID (11-bit; defaults 0x7F0 and 0x7F1, above the
+ * application's identifiers, so the measurement loop wins arbitration),
+ * padded with 0x00 to the next CAN FD length. Its own raw socket receives
+ * only CMD_ID (a kernel filter). When IFACE is also --interface, the bus
+ * socket skips both identifiers (counted): XCP frames never reach the
+ * application.
  *
  * SCHED_FIFO is requested with --fifo (and memory locked); when the system
  * refuses, the runner says so and keeps the default policy. This file is the
@@ -212,6 +223,10 @@ typedef struct {
     uint64_t malformed_by[UDP_CAN_N_STATUS];
     uint32_t rxq_ovfl;              /* the kernel's last SO_RXQ_OVFL count (cumulative) */
     uint64_t rx_drops;              /* its increases since the socket was opened */
+    /* SocketCAN shared with --xcp-can: the XCP identifiers are the slave's, not the application's */
+    uint32_t xcp_ids[2];
+    int xcp_shared;
+    uint64_t xcp_skipped;           /* XCP frames the bus socket saw and skipped */
     uint8_t rx[UDP_RX_BUFFER];
 } platform;
 
@@ -383,32 +398,44 @@ static fw_status hal_receive(void *ctx, fw_frame *frame)
     struct iovec iov;
     struct msghdr mh;
     ssize_t n;
+    unsigned burst;
     if (p->kind == BUS_NONE) {
         return FW_E_EMPTY;
     }
     if (p->kind == BUS_UDP) {
         return udp_receive(p, frame);
     }
-    iov.iov_base = &cf;
-    iov.iov_len = sizeof cf;
-    memset(&mh, 0, sizeof mh);
-    mh.msg_iov = &iov;
-    mh.msg_iovlen = 1;
-    mh.msg_control = ctl.buf;
-    mh.msg_controllen = sizeof ctl.buf;
-    n = recvmsg(p->fd, &mh, 0); /* the socket is non-blocking */
-    if (n >= 0) {
-        note_rxq_ovfl(p, &mh);
-    }
-    if (n < 0) {
-        if (errno == EAGAIN || errno == EWOULDBLOCK) {
-            return FW_E_EMPTY;
+    for (burst = 0;; ++burst) {
+        if (burst == UDP_RX_BURST) {
+            return FW_E_EMPTY; /* a flood of XCP frames: the rest waits for the next call */
         }
-        p->last_errno = errno; /* e.g. ENETDOWN: the interface went down */
-        return FW_E_HAL;
-    }
-    if (n != CANFD_MTU && n != CAN_MTU) {
-        return FW_E_HAL;
+        iov.iov_base = &cf;
+        iov.iov_len = sizeof cf;
+        memset(&mh, 0, sizeof mh);
+        mh.msg_iov = &iov;
+        mh.msg_iovlen = 1;
+        mh.msg_control = ctl.buf;
+        mh.msg_controllen = sizeof ctl.buf;
+        n = recvmsg(p->fd, &mh, 0); /* the socket is non-blocking */
+        if (n >= 0) {
+            note_rxq_ovfl(p, &mh);
+        }
+        if (n < 0) {
+            if (errno == EAGAIN || errno == EWOULDBLOCK) {
+                return FW_E_EMPTY;
+            }
+            p->last_errno = errno; /* e.g. ENETDOWN: the interface went down */
+            return FW_E_HAL;
+        }
+        if (n != CANFD_MTU && n != CAN_MTU) {
+            return FW_E_HAL;
+        }
+        /* XCP on the same interface: the master's commands (the slave's socket has its own copy)
+         * and the slave's own packets, looped back */
+        if (!(p->xcp_shared && (cf.can_id == p->xcp_ids[0] || cf.can_id == p->xcp_ids[1]))) {
+            break;
+        }
+        p->xcp_skipped += 1u;
     }
     frame->id = cf.can_id;
     frame->len = cf.len > FW_MAX_FRAME_LEN ? (uint8_t)FW_MAX_FRAME_LEN : cf.len;
@@ -751,23 +778,18 @@ static int parse_xcp_spec(const char *spec)
     return 0;
 }
 
-static int open_xcp(const char *spec)
+/* The protocol layer, the same for every transport: the slave on the two
+ * regions, hooked into the application. 0, or -1 after printing why. */
+static int start_xcp(fw_status (*send)(void *ctx, const uint8_t *packet, size_t len))
 {
-    socklen_t n = sizeof xu.local;
-    fw_xcp_config xc;
+    fw_xcp_config config;
     fw_status st;
-    xu.fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
-    if (xu.fd < 0 || bind(xu.fd, (const struct sockaddr *)&xu.local, sizeof xu.local) < 0 ||
-        getsockname(xu.fd, (struct sockaddr *)&xu.local, &n) < 0) {
-        fprintf(stderr, "rhonn_runner: --xcp-udp %s: %s\n", spec, strerror(errno));
-        return -1;
-    }
-    xc.transport.ctx = NULL;
-    xc.transport.send = xcp_udp_send;
-    xc.signals = &rhonn_xcp_signals;
-    xc.calibration = &rhonn_xcp_calibration;
-    xc.address_base = (uintptr_t)__executable_start;
-    st = fw_xcp_init(&xcp, &xc);
+    config.transport.ctx = NULL;
+    config.transport.send = send;
+    config.signals = &rhonn_xcp_signals;
+    config.calibration = &rhonn_xcp_calibration;
+    config.address_base = (uintptr_t)__executable_start;
+    st = fw_xcp_init(&xcp, &config);
     if (st == FW_OK) {
         st = fw_xcp_attach(&xcp, &app);
     }
@@ -776,6 +798,18 @@ static int open_xcp(const char *spec)
         return -1;
     }
     return 0;
+}
+
+static int open_xcp(const char *spec)
+{
+    socklen_t n = sizeof xu.local;
+    xu.fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+    if (xu.fd < 0 || bind(xu.fd, (const struct sockaddr *)&xu.local, sizeof xu.local) < 0 ||
+        getsockname(xu.fd, (struct sockaddr *)&xu.local, &n) < 0) {
+        fprintf(stderr, "rhonn_runner: --xcp-udp %s: %s\n", spec, strerror(errno));
+        return -1;
+    }
+    return start_xcp(xcp_udp_send);
 }
 
 static int same_peer(const struct sockaddr_in *a, const struct sockaddr_in *b)
@@ -835,12 +869,194 @@ static void take_xcp(void)
     }
 }
 
+/* ---------------------------------------------------------- XCP on CAN FD */
+
+/* XCP on CAN (ASAM XCP Part 3, CAN FD): one XCP packet per frame, no header;
+ * the master's commands on CMD_ID, the slave's responses, errors and DAQ
+ * packets on RES_ID. 11-bit identifiers; the defaults sit above the
+ * application's (0x100..0x131), so the measurement loop wins arbitration. */
+#define XCP_CAN_CMD_ID 0x7F0u
+#define XCP_CAN_RES_ID 0x7F1u
+#define XCP_CAN_PAD 0x00u   /* fill bytes up to the next CAN FD length */
+
+static struct {
+    int fd;                 /* -1: no XCP on CAN */
+    char ifname[IFNAMSIZ];
+    uint32_t cmd_id, res_id;
+    uint64_t frames, commands, errors, ignored, malformed, send_errors;
+} xc = {-1, "", XCP_CAN_CMD_ID, XCP_CAN_RES_ID, 0, 0, 0, 0, 0, 0};
+
+/* The shortest CAN FD data length (0..8, 12, 16, 20, 24, 32, 48, 64) that holds len bytes. */
+static uint8_t canfd_length(size_t len)
+{
+    static const uint8_t sizes[] = {8u, 12u, 16u, 20u, 24u, 32u, 48u, 64u};
+    size_t i;
+    if (len <= 8u) {
+        return (uint8_t)len;
+    }
+    for (i = 1; i < sizeof sizes; ++i) {
+        if (len <= sizes[i]) {
+            break;
+        }
+    }
+    return sizes[i < sizeof sizes ? i : sizeof sizes - 1u];
+}
+
+static fw_status xcp_can_send(void *ctx, const uint8_t *packet, size_t len)
+{
+    struct canfd_frame cf;
+    (void)ctx;
+    if (len == 0u || len > FW_XCP_MAX_DTO || len > CANFD_MAX_DLEN) {
+        return FW_E_HAL;
+    }
+    memset(&cf, 0, sizeof cf);
+    memset(cf.data, XCP_CAN_PAD, sizeof cf.data);
+    cf.can_id = xc.res_id;
+    cf.len = canfd_length(len);
+    cf.flags = CANFD_BRS;
+    memcpy(cf.data, packet, len);
+    if (send(xc.fd, &cf, CANFD_MTU, MSG_DONTWAIT) != (ssize_t)CANFD_MTU) {
+        xc.send_errors += 1u;
+        return FW_E_HAL; /* fw_xcp counts a DTO lost */
+    }
+    return FW_OK;
+}
+
+/* One identifier of --xcp-can: 0x-hex or decimal, 11 bits. -1 when not. */
+static int parse_can_id(const char *text, uint32_t *id)
+{
+    unsigned long long v;
+    int hex = text[0] == '0' && (text[1] == 'x' || text[1] == 'X');
+    const char *digits = hex ? text + 2 : text;
+    size_t i;
+    if (digits[0] == '\0' || strlen(digits) > 8u) {
+        return -1;
+    }
+    for (i = 0; digits[i] != '\0'; ++i) {
+        if (hex ? !strchr("0123456789abcdefABCDEF", digits[i]) : (digits[i] < '0' || digits[i] > '9')) {
+            return -1;
+        }
+    }
+    v = strtoull(digits, NULL, hex ? 16 : 10);
+    if (v > CAN_SFF_MASK) {
+        return -1;
+    }
+    *id = (uint32_t)v;
+    return 0;
+}
+
+/* "IFACE[,CMD_ID,RES_ID]" -> xc; -1 after printing why. */
+static int parse_xcp_can_spec(const char *spec)
+{
+    static const uint32_t app_ids[] = {RHONN_ID_MEASUREMENT_FRAME_ID, RHONN_ID_ESTIMATE_FRAME_ID,
+                                       RHONN_ID_CONTROL_FRAME_ID, RHONN_ID_CONTROL_ACK_FRAME_ID,
+                                       RHONN_ID_WEIGHT_LOAD_FRAME_ID, RHONN_ID_DIAGNOSTICS_FRAME_ID,
+                                       RHONN_ID_HEALTH_FRAME_ID};
+    const char *c1 = strchr(spec, ','), *c2 = c1 != NULL ? strchr(c1 + 1, ',') : NULL;
+    size_t n = c1 != NULL ? (size_t)(c1 - spec) : strlen(spec), i;
+    char id[16];
+    if (n == 0u || n >= sizeof xc.ifname || memchr(spec, '/', n) != NULL) {
+        fprintf(stderr, "rhonn_runner: --xcp-can takes IFACE[,CMD_ID,RES_ID] with a CAN interface name of "
+                        "1..%u characters, got '%s'\n", (unsigned)sizeof xc.ifname - 1u, spec);
+        return -1;
+    }
+    memcpy(xc.ifname, spec, n);
+    xc.ifname[n] = '\0';
+    if (c1 == NULL) {
+        return 0; /* the default identifiers */
+    }
+    if (c2 == NULL || strchr(c2 + 1, ',') != NULL) {
+        fprintf(stderr, "rhonn_runner: --xcp-can takes IFACE or IFACE,CMD_ID,RES_ID (both identifiers), "
+                        "got '%s'\n", spec);
+        return -1;
+    }
+    if ((size_t)(c2 - c1 - 1) >= sizeof id || (memcpy(id, c1 + 1, (size_t)(c2 - c1 - 1)),
+                                               id[c2 - c1 - 1] = '\0', parse_can_id(id, &xc.cmd_id)) < 0) {
+        fprintf(stderr, "rhonn_runner: --xcp-can: CMD_ID must be an 11-bit identifier (0..0x7FF, hex with 0x or "
+                        "decimal), got '%.*s'\n", (int)(c2 - c1 - 1), c1 + 1);
+        return -1;
+    }
+    if (parse_can_id(c2 + 1, &xc.res_id) < 0) {
+        fprintf(stderr, "rhonn_runner: --xcp-can: RES_ID must be an 11-bit identifier (0..0x7FF, hex with 0x or "
+                        "decimal), got '%s'\n", c2 + 1);
+        return -1;
+    }
+    if (xc.cmd_id == xc.res_id) {
+        fprintf(stderr, "rhonn_runner: --xcp-can: CMD_ID and RES_ID must differ, both are 0x%X\n",
+                (unsigned)xc.cmd_id);
+        return -1;
+    }
+    for (i = 0; i < sizeof app_ids / sizeof app_ids[0]; ++i) {
+        if (xc.cmd_id == app_ids[i] || xc.res_id == app_ids[i]) {
+            fprintf(stderr, "rhonn_runner: --xcp-can: %s 0x%X is one of the application's identifiers "
+                            "(rhonn_id.dbc: 0x100, 0x101, 0x110, 0x111, 0x120, 0x130, 0x131)\n", xc.cmd_id == app_ids[i] ? "CMD_ID" : "RES_ID",
+                    (unsigned)app_ids[i]);
+            return -1;
+        }
+    }
+    return 0;
+}
+
+/* A raw CAN FD socket on xc.ifname that receives only CMD_ID (11-bit data
+ * frames: the kernel filters the rest). 0, or -1 after printing why. */
+static int open_xcp_can(void)
+{
+    struct can_filter filter;
+    filter.can_id = xc.cmd_id;
+    filter.can_mask = CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_SFF_MASK;
+    xc.fd = open_can(xc.ifname, 0);
+    if (xc.fd < 0) {
+        return -1;
+    }
+    if (setsockopt(xc.fd, SOL_CAN_RAW, CAN_RAW_FILTER, &filter, sizeof filter) < 0) {
+        fprintf(stderr, "rhonn_runner: --xcp-can %s: CAN_RAW_FILTER: %s\n", xc.ifname, strerror(errno));
+        return -1;
+    }
+    return start_xcp(xcp_can_send);
+}
+
+/* Take the waiting XCP frames (at most a burst) and hand each packet to the
+ * slave. A frame's whole payload is the packet: a master's fill bytes past
+ * the command are ignored by the slave. */
+static void take_xcp_can(void)
+{
+    unsigned burst;
+    for (burst = 0; burst < 64u; ++burst) {
+        struct canfd_frame cf;
+        fw_status st;
+        ssize_t n = recv(xc.fd, &cf, sizeof cf, MSG_DONTWAIT);
+        if (n < 0) {
+            return; /* EAGAIN: nothing more */
+        }
+        xc.frames += 1u;
+        if ((n != CANFD_MTU && n != CAN_MTU) || cf.len == 0u || cf.len > CANFD_MAX_DLEN) {
+            xc.malformed += 1u;
+            continue;
+        }
+        st = fw_xcp_on_command(&xcp, &app, cf.data, cf.len, now_ns());
+        xc.commands += 1u;
+        xc.errors += st == FW_E_RANGE;
+        xc.ignored += st == FW_E_STATE;
+    }
+}
+
+/* The XCP packets waiting on whichever transport the slave has. */
+static void serve_xcp(void)
+{
+    if (xu.fd >= 0) {
+        take_xcp();
+    } else if (xc.fd >= 0) {
+        take_xcp_can();
+    }
+}
+
 static void usage(FILE *f)
 {
     fprintf(f, "usage: rhonn_runner (--interface IF | --udp-multicast GROUP:PORT | --bus-less)\n"
                "                    [--period-us US] [--cycles N] [--duration S] [--rx tick|arrival]\n"
                "                    [--spin-us N] [--diag-period N] [--fifo PRIO] [--json FILE] [--quiet]\n"
-               "                    [--rcvbuf BYTES] [--multicast-ttl N] [--xcp-udp [ADDR:]PORT]\n");
+               "                    [--rcvbuf BYTES] [--multicast-ttl N]\n"
+               "                    [--xcp-udp [ADDR:]PORT | --xcp-can IFACE[,CMD_ID,RES_ID]]\n");
 }
 
 static histogram wake_hist = {"wake-up", 0, 0, 0, 0, {0}};
@@ -906,7 +1122,7 @@ static int serve_until(uint64_t deadline)
         pfd[0].fd = plat.fd;
         pfd[0].events = POLLIN;
         pfd[0].revents = 0;
-        pfd[1].fd = xu.fd; /* -1 without XCP: poll skips it */
+        pfd[1].fd = xu.fd >= 0 ? xu.fd : xc.fd; /* -1 without XCP: poll skips it */
         pfd[1].events = POLLIN;
         pfd[1].revents = 0;
         rc = ppoll(pfd, 2, &rel, NULL);
@@ -921,7 +1137,7 @@ static int serve_until(uint64_t deadline)
             spin_total_ns += now_ns() - t;
         }
         if (rc > 0 && (pfd[1].revents & POLLIN)) {
-            take_xcp();
+            serve_xcp();
         }
         if (rc > 0 && (pfd[0].revents & ~POLLNVAL) && take_frames(now_ns()) < 0) {
             return -1;
@@ -1002,8 +1218,8 @@ int main(int argc, char **argv)
         {"duration", required_argument, 0, 'd'},  {"fifo", required_argument, 0, 'f'},
         {"json", required_argument, 0, 'j'},      {"quiet", no_argument, 0, 'q'},
         {"rcvbuf", required_argument, 0, 'R'},    {"multicast-ttl", required_argument, 0, 'T'},
-        {"xcp-udp", required_argument, 0, 'X'},   {"help", no_argument, 0, 'h'},
-        {0, 0, 0, 0}};
+        {"xcp-udp", required_argument, 0, 'X'},   {"xcp-can", required_argument, 0, 'C'},
+        {"help", no_argument, 0, 'h'},            {0, 0, 0, 0}};
     const char *xcp_spec = NULL;
     const char *ifname = NULL, *udp_spec = NULL, *json_path = NULL, *where = "bus-less", *mode = "bus-less";
     int bus_less = 0, fifo = 0, quiet = 0, opt, rx_arrival = -1;
@@ -1030,7 +1246,7 @@ int main(int argc, char **argv)
     xu.fd = -1;
     plat.kind = BUS_NONE;
     plat.fd = -1;
-    while ((opt = getopt_long(argc, argv, "i:bu:r:D:S:p:n:d:f:j:qR:T:X:h", options, NULL)) != -1) {
+    while ((opt = getopt_long(argc, argv, "i:bu:r:D:S:p:n:d:f:j:qR:T:X:C:h", options, NULL)) != -1) {
         /* an option given twice is a mistake in a script, not "the last one wins" */
         if (opt > 0 && opt < 128 && opt != '?' && opt != 'h') {
             if (seen[opt]) {
@@ -1119,6 +1335,11 @@ int main(int argc, char **argv)
                 return 2;
             }
             break;
+        case 'C':
+            if (parse_xcp_can_spec(optarg) < 0) {
+                return 2;
+            }
+            break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
@@ -1126,6 +1347,10 @@ int main(int argc, char **argv)
     if (optind != argc || (ifname != NULL) + (udp_spec != NULL) + bus_less != 1) {
         fprintf(stderr, "rhonn_runner: give exactly one of --interface IF, --udp-multicast GROUP:PORT or --bus-less\n");
         usage(stderr);
+        return 2;
+    }
+    if (seen['X'] && seen['C']) {
+        fprintf(stderr, "rhonn_runner: give --xcp-udp or --xcp-can, not both (the slave serves one master)\n");
         return 2;
     }
     if (seen['n'] && seen['d']) {
@@ -1204,6 +1429,21 @@ int main(int argc, char **argv)
             fflush(stdout);
         }
     }
+    if (seen['C']) {
+        if (open_xcp_can() < 0) {
+            return 1;
+        }
+        if (ifname != NULL && strcmp(ifname, xc.ifname) == 0) {
+            plat.xcp_ids[0] = xc.cmd_id; /* one interface for both: XCP's frames are not the application's */
+            plat.xcp_ids[1] = xc.res_id;
+            plat.xcp_shared = 1;
+        }
+        if (!quiet) {
+            printf("xcp: can %s, command 0x%X, response 0x%X, A2L %s\n", xc.ifname, (unsigned)xc.cmd_id,
+                   (unsigned)xc.res_id, FW_XCP_A2L_NAME);
+            fflush(stdout);
+        }
+    }
 
     if (fifo) {
         struct sched_param sp;
@@ -1268,7 +1508,7 @@ int main(int argc, char **argv)
             woke = now_ns();
             hist_add(&wake_hist, woke > next ? woke - next : 0u);
 
-            take_xcp();
+            serve_xcp();
             if (bus_less) {
                 fw_frame f;
                 uint32_t before;
@@ -1351,6 +1591,14 @@ int main(int argc, char **argv)
                    (unsigned long long)xu.takeovers,
                    rhonn_xcp_signals.events, rhonn_xcp_signals.daq_dto_sent, rhonn_xcp_signals.daq_dto_lost);
         }
+        if (xc.fd >= 0) {
+            printf("xcp: can frames %llu, commands %llu, errors %llu, ignored %llu, malformed %llu, send errors %llu, "
+                   "skipped on the bus %llu, step events %u, DAQ packets sent %u, lost %u\n",
+                   (unsigned long long)xc.frames, (unsigned long long)xc.commands, (unsigned long long)xc.errors,
+                   (unsigned long long)xc.ignored, (unsigned long long)xc.malformed,
+                   (unsigned long long)xc.send_errors, (unsigned long long)plat.xcp_skipped,
+                   rhonn_xcp_signals.events, rhonn_xcp_signals.daq_dto_sent, rhonn_xcp_signals.daq_dto_lost);
+        }
         if (spin_ns != 0u) {
             printf("spin: %.1f us around each expected measurement, %.1f %% of the time\n", spin_us,
                    elapsed ? 100.0 * (double)spin_total_ns / (double)elapsed : 0.0);
@@ -1395,13 +1643,25 @@ int main(int argc, char **argv)
             fprintf(f, "}}");
         }
         if (xu.fd >= 0) {
-            fprintf(f, ", \"xcp\": {\"datagrams\": %llu, \"commands\": %llu, \"errors\": %llu, \"ignored\": %llu, "
+            fprintf(f, ", \"xcp\": {\"transport\": \"udp\", \"datagrams\": %llu, \"commands\": %llu, \"errors\": %llu, \"ignored\": %llu, "
                        "\"malformed\": %llu, \"other_masters\": %llu, \"takeovers\": %llu, \"step_events\": %u, "
                        "\"daq_dto_sent\": %u, \"daq_dto_lost\": %u}",
                     (unsigned long long)xu.datagrams, (unsigned long long)xu.commands, (unsigned long long)xu.errors,
                     (unsigned long long)xu.ignored, (unsigned long long)xu.malformed, (unsigned long long)xu.foreign,
                     (unsigned long long)xu.takeovers,
                     rhonn_xcp_signals.events, rhonn_xcp_signals.daq_dto_sent, rhonn_xcp_signals.daq_dto_lost);
+        }
+        if (xc.fd >= 0) {
+            fprintf(f, ", \"xcp\": {\"transport\": \"can\", \"interface\": ");
+            json_string(f, xc.ifname);
+            fprintf(f, ", \"cmd_id\": %u, \"res_id\": %u, \"frames\": %llu, \"commands\": %llu, \"errors\": %llu, "
+                       "\"ignored\": %llu, \"malformed\": %llu, \"send_errors\": %llu, \"bus_skipped\": %llu, "
+                       "\"step_events\": %u, \"daq_dto_sent\": %u, \"daq_dto_lost\": %u}",
+                    (unsigned)xc.cmd_id, (unsigned)xc.res_id, (unsigned long long)xc.frames,
+                    (unsigned long long)xc.commands, (unsigned long long)xc.errors, (unsigned long long)xc.ignored,
+                    (unsigned long long)xc.malformed, (unsigned long long)xc.send_errors,
+                    (unsigned long long)plat.xcp_skipped, rhonn_xcp_signals.events, rhonn_xcp_signals.daq_dto_sent,
+                    rhonn_xcp_signals.daq_dto_lost);
         }
         fprintf(f, "}\n");
         if (ferror(f) | fclose(f)) { /* a full disk or /dev/full: the statistics are not there */
@@ -1414,6 +1674,9 @@ int main(int argc, char **argv)
     }
     if (xu.fd >= 0) {
         close(xu.fd);
+    }
+    if (xc.fd >= 0) {
+        close(xc.fd);
     }
     return bus_failed || json_failed ? 1 : 0;
 }

@@ -1,6 +1,7 @@
 """Write the A2L that describes the Linux runner's XCP slave (fw_xcp.h).
 
     python firmware_sim/tools/make_a2l.py RUNNER OUT.a2l [--port 5555] [--host 127.0.0.1]
+    python firmware_sim/tools/make_a2l.py RUNNER OUT.a2l --can 0x7F0,0x7F1
 
 RUNNER is the built ``rhonn_runner`` (CMake, or ``build_runner.py``). The
 A2L has, for a calibration and measurement tool (CANape, INCA, pyxcp):
@@ -12,7 +13,9 @@ A2L has, for a calibration and measurement tool (CANape, INCA, pyxcp):
 - COMPU_METHODs with units (the states' units from the DBC's scalings), a
   verbal table for the learning switch;
 - the event list (one event, ``step``: once per identifier step) and
-  ``IF_DATA XCP`` for XCP on UDP (the host and port the runner was given).
+  ``IF_DATA XCP`` for XCP on UDP (the host and port the runner was given),
+  or with ``--can CMD_ID,RES_ID`` for XCP on CAN FD (``XCP_ON_CAN`` with its
+  ``CAN_FD`` block: the identifiers of the runner's ``--xcp-can``).
 
 ADDRESSES. An XCP address is an offset from the image's load address, which
 the runner takes as ``__executable_start`` (the image is a PIE, loaded at a
@@ -47,7 +50,7 @@ STATES: tuple[tuple[str, str], ...] = (("qm", "m"), ("v", "m/s"), ("lambda_a", "
                                        ("ia", "A"), ("ib", "A"))
 
 # The A2ML of the IF_DATA XCP subset written below (ASAM MCD-1 XCP's blocks
-# PROTOCOL_LAYER, DAQ with TIMESTAMP_SUPPORTED and EVENT, XCP_ON_UDP_IP).
+# PROTOCOL_LAYER, DAQ with TIMESTAMP_SUPPORTED and EVENT, XCP_ON_UDP_IP, XCP_ON_CAN with CAN_FD).
 A2ML = """    /begin A2ML
       block "IF_DATA" taggedunion if_data {
         "XCP" struct {
@@ -98,6 +101,33 @@ A2ML = """    /begin A2ML
               uint; uint;
               taggedunion { "HOST_NAME" char[256]; "ADDRESS" char[15]; };
             };
+            block "XCP_ON_CAN" struct {
+              uint;
+              taggedstruct {
+                "CAN_ID_MASTER" ulong;
+                "CAN_ID_SLAVE" ulong;
+                "BAUDRATE" ulong;
+                "SAMPLE_POINT" uchar;
+                "SAMPLE_RATE" enum { "SINGLE" = 1, "TRIPLE" = 3 };
+                "BTL_CYCLES" uchar;
+                "SJW" uchar;
+                "SYNC_EDGE" enum { "SINGLE" = 1, "DUAL" = 2 };
+                "MAX_DLC_REQUIRED";
+                block "CAN_FD" struct {
+                  taggedstruct {
+                    "MAX_DLC" uint;
+                    "CAN_FD_DATA_TRANSFER_BAUDRATE" ulong;
+                    "SAMPLE_POINT" uchar;
+                    "BTL_CYCLES" uchar;
+                    "SJW" uchar;
+                    "SYNC_EDGE" enum { "SINGLE" = 1, "DUAL" = 2 };
+                    "MAX_DLC_REQUIRED";
+                    "SECONDARY_SAMPLE_POINT" uchar;
+                    "TRANSCEIVER_DELAY_COMPENSATION" enum { "OFF" = 0, "ON" = 1 };
+                  };
+                };
+              };
+            };
           };
         };
       };
@@ -124,6 +154,65 @@ class Layout:
             raise ValueError(f"name: {self.name!r} is not an A2L identifier")
         if len(self.n_terms) != len(STATES) or not all(1 <= n <= self.terms_capacity for n in self.n_terms):
             raise ValueError(f"n_terms: {self.n_terms} must be {len(STATES)} values in 1..{self.terms_capacity}")
+
+
+@dataclass(frozen=True)
+class CanTransport:
+    """XCP on CAN FD (the runner's ``--xcp-can IFACE,CMD_ID,RES_ID``): the
+    master's command identifier, the slave's response (and DAQ) identifier,
+    11-bit, and the bus's bit rates for the tool's interface (the runner
+    takes whatever its interface is configured with)."""
+
+    cmd_id: int
+    res_id: int
+    bitrate: int = 500_000
+    data_bitrate: int = 2_000_000
+
+    def __post_init__(self) -> None:
+        for name in ("cmd_id", "res_id"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or not 0 <= value <= 0x7FF:
+                raise ValueError(f"{name}: {value!r} is not an 11-bit CAN identifier (0..0x7FF)")
+        if self.cmd_id == self.res_id:
+            raise ValueError(f"cmd_id, res_id: both are {self.cmd_id:#x}; they must differ")
+        from pyrhonn.firmware import database
+
+        taken = {m.frame_id: m.name for m in database().messages}
+        for name in ("cmd_id", "res_id"):
+            value = getattr(self, name)
+            if value in taken:
+                raise ValueError(f"{name}: {value:#x} is the application's {taken[value]} frame")
+        for name in ("bitrate", "data_bitrate"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or not 0 < value <= 0xFFFFFFFF:
+                raise ValueError(f"{name}: {value!r} is not a bit rate in bit/s (1..4294967295)")
+
+    def if_data(self) -> str:
+        """The IF_DATA XCP block XCP_ON_CAN with its CAN_FD part: packets up to 64 bytes, padded to
+        the next CAN FD length (MAX_DLC_REQUIRED is not set)."""
+        return (f"      /begin XCP_ON_CAN 0x0104\n"
+                f"        CAN_ID_MASTER 0x{self.cmd_id:X}\n"
+                f"        CAN_ID_SLAVE 0x{self.res_id:X}\n"
+                f"        BAUDRATE {self.bitrate}\n"
+                f"        /begin CAN_FD\n"
+                f"          MAX_DLC 64\n"
+                f"          CAN_FD_DATA_TRANSFER_BAUDRATE {self.data_bitrate}\n"
+                f"        /end CAN_FD\n"
+                f"      /end XCP_ON_CAN\n")
+
+
+def parse_can_ids(text: str) -> tuple[int, int]:
+    """``CMD_ID,RES_ID``, each 0x-hex or decimal, as two ints. ValueError
+    naming the part that is not a number (the range is CanTransport's)."""
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise ValueError(f"--can: takes CMD_ID,RES_ID (e.g. 0x7F0,0x7F1), got {text!r}")
+    ids = []
+    for name, part in zip(("CMD_ID", "RES_ID"), parts):
+        if not re.fullmatch(r"0[xX][0-9a-fA-F]{1,8}|[0-9]{1,10}", part):
+            raise ValueError(f"--can: {name} {part!r} is not a number (0x-hex or decimal)")
+        ids.append(int(part, 0) if part[:2].lower() == "0x" else int(part, 10))
+    return ids[0], ids[1]
 
 
 def _defines(text: str) -> dict[str, str]:
@@ -189,8 +278,12 @@ def _measurement(name: str, text: str, dtype: str, compu: str, lo: float, hi: fl
             f"      ECU_ADDRESS 0x{address:X}\n    /end MEASUREMENT\n")
 
 
-def a2l_text(layout: Layout, addresses: dict[str, int], host: str, port: int) -> str:
-    """The A2L (ASAP2 1.71) of the slave."""
+def a2l_text(layout: Layout, addresses: dict[str, int], host: str, port: int,
+             can: CanTransport | None = None) -> str:
+    """The A2L (ASAP2 1.71) of the slave: its transport XCP on UDP (host,
+    port), or XCP on CAN FD when ``can`` is given."""
+    if can is not None and max(layout.max_cto, layout.max_dto) > 64:
+        raise ValueError(f"can: MAX_CTO {layout.max_cto} / MAX_DTO {layout.max_dto} do not fit a CAN FD frame (64)")
     if not 0 <= port <= 65535:
         raise ValueError(f"port: {port} is not in 0..65535")
     if not re.fullmatch(r"\d{1,3}(\.\d{1,3}){3}", host):
@@ -263,8 +356,9 @@ def a2l_text(layout: Layout, addresses: dict[str, int], host: str, port: int) ->
         "        /begin TIMESTAMP_SUPPORTED 1 SIZE_DWORD UNIT_1US TIMESTAMP_FIXED /end TIMESTAMP_SUPPORTED\n"
         '        /begin EVENT "step" "step" 0 DAQ 255 0 0 0 /end EVENT\n'
         "      /end DAQ\n"
-        f'      /begin XCP_ON_UDP_IP 0x0104 {port} ADDRESS "{host}" /end XCP_ON_UDP_IP\n'
-        "    /end IF_DATA\n")
+        + (can.if_data() if can is not None else
+           f'      /begin XCP_ON_UDP_IP 0x0104 {port} ADDRESS "{host}" /end XCP_ON_UDP_IP\n')
+        + "    /end IF_DATA\n")
     characteristic = (
         f'    /begin CHARACTERISTIC learning "learning switch: 0 freezes the weights from the next step,'
         f' 1 resumes" VALUE 0x{cal + layout.calibration_offsets["learning"]:X} RL_UBYTE 0 CM_LEARNING 0 1\n'
@@ -291,11 +385,24 @@ def main(argv: list[str] | None = None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("runner", type=Path, help="the built rhonn_runner")
     parser.add_argument("output", type=Path, help="the A2L file to write")
-    parser.add_argument("--host", default="127.0.0.1", help="the runner's --xcp-udp address (default 127.0.0.1)")
-    parser.add_argument("--port", type=int, default=5555, help="the runner's --xcp-udp port (default 5555)")
+    parser.add_argument("--host", help="the runner's --xcp-udp address (default 127.0.0.1)")
+    parser.add_argument("--port", type=int, help="the runner's --xcp-udp port (default 5555)")
+    parser.add_argument("--can", metavar="CMD_ID,RES_ID",
+                        help="XCP on CAN FD instead of UDP: the runner's --xcp-can identifiers (its defaults: "
+                             "0x7F0,0x7F1)")
+    parser.add_argument("--can-bitrate", type=int, default=500_000, help="arbitration bit rate (default 500000)")
+    parser.add_argument("--can-data-bitrate", type=int, default=2_000_000,
+                        help="CAN FD data bit rate (default 2000000)")
     args = parser.parse_args(argv)
     try:
-        text = a2l_text(read_layout(), symbol_addresses(args.runner), args.host, args.port)
+        can = None
+        if args.can is not None:
+            if args.host is not None or args.port is not None:
+                raise ValueError("--can: XCP on CAN has no --host or --port (those are XCP on UDP's)")
+            can = CanTransport(*parse_can_ids(args.can), bitrate=args.can_bitrate, data_bitrate=args.can_data_bitrate)
+        host = "127.0.0.1" if args.host is None else args.host
+        port = 5555 if args.port is None else args.port
+        text = a2l_text(read_layout(), symbol_addresses(args.runner), host, port, can)
     except (OSError, ValueError, subprocess.CalledProcessError) as exc:
         print(f"make_a2l: {exc}", file=sys.stderr)
         return 1

@@ -8,11 +8,18 @@ test or a bench needs beside pyxcp itself.
   follow the list's headers, not the order they were given in);
 - :func:`udp_drops`: the kernel's count of datagrams a local UDP socket's
   receive queue dropped, which tells a DAQ packet lost by the master from
-  one the slave never sent.
+  one the slave never sent;
+- :func:`replay`: the rig's Measurements sent one at a time over a
+  python-can bus, each once the previous one was answered, so the slave
+  runs one step per frame whatever the machine's speed.
 """
 from __future__ import annotations
 
+import time
+from collections.abc import Sequence
 from pathlib import Path
+
+import can
 
 from cryptography.hazmat.primitives.ciphers import algorithms
 from cryptography.hazmat.primitives.cmac import CMAC
@@ -54,3 +61,19 @@ def udp_drops(port: int) -> int:
         if len(fields) > 1 and fields[1] == want:
             return int(fields[-1])
     return 0
+
+
+def replay(bus: can.BusABC, frames: Sequence[can.Message], answer_id: int, timeout: float = 2.0) -> int:
+    """Send ``frames`` one by one, each once the previous one's answer (a
+    frame with ``answer_id``) came back or ``timeout`` seconds passed; the
+    number answered."""
+    answered = 0
+    for frame in frames:
+        bus.send(frame)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            msg = bus.recv(timeout=min(0.5, timeout))
+            if msg is not None and msg.arbitration_id == answer_id:
+                answered += 1
+                break
+    return answered
