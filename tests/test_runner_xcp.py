@@ -32,16 +32,15 @@ from typing import Any
 import pytest
 
 can = pytest.importorskip("can")
-pya2l = pytest.importorskip("pya2l")
 pytest.importorskip("pyxcp")
 pytest.importorskip("cryptography")
 
-from pya2l import model  # noqa: E402
 from pyxcp import Master  # noqa: E402
 from pyxcp.config import create_application_from_config, set_application  # noqa: E402
 from pyxcp.daq_stim import DaqList  # noqa: E402
 from pyxcp.types import XcpResponseError  # noqa: E402
 
+from a2l_read import read_a2l  # noqa: E402
 from pyrhonn.firmware import database  # noqa: E402
 
 from hil.scenario import Scenario  # noqa: E402
@@ -84,20 +83,7 @@ def a2l(runner_exe: Path, make_a2l: Any, tmp_path_factory: pytest.TempPathFactor
     """The A2L of the runner, parsed by pya2ldb: name, addresses, IF_DATA."""
     out = tmp_path_factory.mktemp("a2l") / "rhonn_lim.a2l"
     assert make_a2l.main([str(runner_exe), str(out), "--port", "5555"]) == 0
-    session = pya2l.import_a2l(str(out), in_memory=True, progress_bar=False, loglevel="ERROR")
-    try:
-        measurements = {m.name: (m.ecu_address.address, m.datatype) for m in session.query(model.Measurement)}
-        characteristics = {c.name: c.address for c in session.query(model.Characteristic)}
-        units = {c.name: c.unit for c in session.query(model.CompuMethod)}
-        project = session.query(model.Project).one().name
-        module = session.query(model.Module).one()
-        from pya2l.aml.ifdata_parser import IfDataParser
-
-        if_data = IfDataParser(session).parse(module.if_data[0].raw)
-    finally:
-        session.close()
-    return {"path": out, "measurements": measurements, "characteristics": characteristics, "units": units,
-            "project": project, "if_data": if_data}
+    return {"path": out, **read_a2l(out)}
 
 
 def _nm(exe: Path) -> dict[str, int]:

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from a2l_read import read_a2l
 
 ROOT = Path(__file__).resolve().parent.parent
 FW = ROOT / "firmware_sim"
@@ -99,19 +100,11 @@ def test_runner_serves_one_xcp_transport_and_names_a_missing_can_interface(runne
 
 def test_the_a2l_describes_xcp_on_can_fd_and_pya2ldb_reads_it(runner_exe: Path, make_a2l: Any,
                                                                tmp_path: Path) -> None:
-    pya2l = pytest.importorskip("pya2l")
-    from pya2l import model
-    from pya2l.aml.ifdata_parser import IfDataParser
-
     out = tmp_path / "rhonn_lim_can.a2l"
     assert make_a2l.main([str(runner_exe), str(out), "--can", "0x7F0,2033", "--can-data-bitrate", "5000000"]) == 0
-    session = pya2l.import_a2l(str(out), in_memory=True, progress_bar=False, loglevel="ERROR")
-    try:
-        module = session.query(model.Module).one()
-        xcp = IfDataParser(session).parse(module.if_data[0].raw)["XCP"][0]
-        learning = session.query(model.Characteristic).one().address
-    finally:
-        session.close()
+    read = read_a2l(out)
+    xcp = read["if_data"]["XCP"][0]
+    (learning,) = read["characteristics"].values()
     assert "XCP_ON_UDP_IP" not in xcp
     version, params = xcp["XCP_ON_CAN"]
     assert version == 0x0104

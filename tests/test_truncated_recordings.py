@@ -201,5 +201,5 @@ def test_a_state_file_declaring_a_huge_member_is_refused_before_anything_is_allo
     save_state(Identifier(load_shipped("example1").config), tmp_path / "ok.npz")
     _replace_member(tmp_path / "ok.npz", tmp_path / "bad.npz", member, _npy_header(shape, descr) + b"\0" * 64)
     with pytest.raises(ValueError, match=f"{member}: ") as info:
-        load_state(tmp_path / "bad.npz")
+        load_state(tmp_path / "bad.npz", Identifier)
     assert says in str(info.value)
