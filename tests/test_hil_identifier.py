@@ -139,6 +139,15 @@ rmse = {{ y1 = 0.05, y2 = 1e-9 }}
     assert report["bit_exact"]["equal"] and report["bit_exact"]["checked"] == f["answered"]
     assert report["states"] == ["y1", "y2"] and report["not_valid"]["y2"]["held"] == 100
     assert report["identification"]["y1"]["rmse"] < 0.05
+    import matplotlib.pyplot as plt
+
+    from hil.figures import build_figures
+
+    figs = build_figures(report)
+    assert {"y1.png", "y2.png"} <= set(figs) and "position.png" not in figs
+    assert figs["y2.png"].axes[0].get_title() == "y2: real vs identified, virtual"
+    for fig in figs.values():
+        plt.close(fig)
     # the estimates are the offline identifier's: a different config is not
     cfg = sc.reference_config()
     other = cfg.replace(neurons=tuple(dataclasses.replace(n, r=n.r * 2) for n in cfg.neurons))
