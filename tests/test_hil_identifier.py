@@ -2,12 +2,18 @@
 delayed by 2 samples) selected from a synthetic recording with pyrhonn select,
 exported with its DBC (pyrhonn export --dbc), and replayed from the recording as
 that DBC's Measurement frames against the firmware built for it: the Python twin
-on the virtual bus, the C runner over udp_multicast; bit-exact against the
-offline Identifier, every frame accounted for, verdicts and JUnit."""
+on the virtual bus, the C runner over udp_multicast, the Cortex-M4F image under
+QEMU; bit-exact against the offline Identifier (the M4: frame for frame against
+the twin), every frame accounted for, verdicts and JUnit."""
 from __future__ import annotations
 
 import dataclasses
 import importlib.util
+import json
+import os
+import shutil
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -192,3 +198,19 @@ def test_an_identifier_scenario_refuses_a_dbc_of_other_signals_and_the_lim_encod
     err = cli_error(["hil", "replay", "--transport", "virtual", "--identifier", str(exported["config"]),
                      "--dbc", str(exported["dbc"]), "--duration", "0.1"])
     assert "trajectory" in err
+
+
+@pytest.mark.skipif(any(shutil.which(t) is None for t in ("arm-none-eabi-gcc", "qemu-system-arm", "cmake"))
+                    and os.environ.get("PYRHONN_REQUIRE_CORTEX_M4") != "1", reason="Cortex-M4 toolchain missing")
+def test_the_cortex_m4_image_of_the_identifier_sends_exactly_the_twins_frames(exported, tmp_path) -> None:
+    proc = subprocess.run([sys.executable, str(FW / "cortex_m4" / "run_m4.py"), "--identifier", str(exported["config"]),
+                           "--dbc", str(exported["dbc"]), "--trajectory", str(exported["data"]), "--out",
+                           str(tmp_path / "m4"), "--frames", "200", "--cycle-frames", "0", "--json",
+                           str(tmp_path / "m4.json")], capture_output=True, text=True, timeout=900, cwd=str(tmp_path))
+    assert proc.returncode == 0, proc.stderr + proc.stdout[-2000:]
+    report = json.loads((tmp_path / "m4.json").read_text())
+    app = report["application"]
+    assert app["identical_to_host"] and app["lines_compared"] > 400
+    assert app["status_counts"] == {"FW_OK": 200, "FW_E_SEQ_REPEAT": 1, "FW_E_SEQ_JUMP": 1}
+    assert report["capacities"]["RHONN_MAX_STATES"] == 2 and report["capacities"]["RHONN_MAX_DELAY"] >= 2
+    assert app["soft_double_routines"] == []
