@@ -49,8 +49,8 @@ from __future__ import annotations
 import functools
 import time
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from dataclasses import dataclass
+from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
@@ -213,7 +213,6 @@ class Estimate:
     saturated: bool
     resync: bool
     xhat: np.ndarray
-
 
 
 def protocol_layout(db: Any) -> tuple[tuple[str, ...], tuple[str, ...]]:

@@ -198,6 +198,14 @@ def test_an_identifier_scenario_refuses_a_dbc_of_other_signals_and_the_lim_encod
     err = cli_error(["hil", "replay", "--transport", "virtual", "--identifier", str(exported["config"]),
                      "--dbc", str(exported["dbc"]), "--duration", "0.1"])
     assert "trajectory" in err
+    f64 = tmp_path / "f64.toml"
+    f64.write_text(exported["config"].read_text().replace('dtype = "float32"', 'dtype = "float64"'))
+    with pytest.raises(ValueError, match="identifier: .*dtype is 'float64'; the firmware runs the float32 core"):
+        Scenario(**{**base, "identifier": str(f64)})
+    err = cli_error(["hil", "replay", "--transport", "udp_multicast", "--firmware", "python", "--identifier",
+                     str(exported["config"]), "--dbc", str(exported["dbc"]), "--trajectory", str(exported["data"]),
+                     "--duration", "0.1", "--quiet"])
+    assert "runs the LIM only" in err
 
 
 @pytest.mark.skipif(any(shutil.which(t) is None for t in ("arm-none-eabi-gcc", "qemu-system-arm", "cmake"))
