@@ -118,13 +118,14 @@ def _virtual(channel: str | None, firmware: bool, scenario: Scenario | None = No
     from pyrhonn.firmware import FirmwareApp
 
     channel = channel or f"hil-{uuid.uuid4().hex}"
+    # the twin first: a build that fails leaves no bus open
+    config, protocol = identifier_twin(scenario) if scenario is not None and firmware else (lim_config(), None)
     rig = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
     info: dict[str, Any] = {}
     stop = threading.Event()
     thread = None
     if firmware:
         fw_bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
-        config, protocol = identifier_twin(scenario) if scenario is not None else (lim_config(), None)
         app = FirmwareApp(fw_bus, config, protocol=protocol)
         info["app"] = app
 
