@@ -86,6 +86,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "q_m, v, lambda_a, lambda_b, i_a, i_b, u_a, u_b, sampled at the period or an integer "
                         "fraction of it (`pyrhonn hil trajectory` writes one); --start and --hold-start are on "
                         "its time axis")
+    r.add_argument("--identifier", type=Path, default=None, metavar="CFG.toml",
+                   help="replay another identifier instead of the LIM: the config file (float32) it was selected "
+                        "or tuned into; needs --dbc and --trajectory (a CSV with t and the config's states and "
+                        "inputs), whose samples go out as that DBC's Measurement frames")
+    r.add_argument("--dbc", type=Path, default=None, metavar="FILE.dbc",
+                   help="with --identifier: the protocol DBC pyrhonn export --dbc wrote for it")
     r.add_argument("--from-log", type=Path, default=None, metavar="RUN.blf",
                    help="replay the scenario of a recorded run (from its sidecar) and compare every estimate with "
                         "the recorded one: a regression check of a firmware build (exit 1 when any differs); "
@@ -225,13 +231,13 @@ def _dmi() -> str:
 SCENARIO_OPTIONS = {"duration": "duration", "start": "start", "seed": "seed", "frame_loss": "frame_loss",
                     "delay": "transport_delay", "encoder_resolution": "encoder_resolution",
                     "hold_start": "hold_start", "hold_duration": "hold_duration", "input_start": "input_start",
-                    "trajectory": "trajectory"}
+                    "trajectory": "trajectory", "identifier": "identifier", "dbc": "dbc"}
 
 
 def _scenario(args, recorded=None, file=None):
     """The replay's Scenario: ``recorded``'s (the --from-log run) or the one the options and the
     scenario ``file``'s [scenario] table make."""
-    from .scenario import Scenario
+    from .scenario import Scenario, identifier_defaults
 
     given = [dest for dest in SCENARIO_OPTIONS if getattr(args, dest) is not None]
     if recorded is not None:
@@ -242,17 +248,18 @@ def _scenario(args, recorded=None, file=None):
             raise ValueError(f"--from-log: replays the recorded run's own scenario; {file.path} has a [scenario] "
                              "table (keep only its [thresholds])")
         return recorded.scenario
-    kw = {SCENARIO_OPTIONS[dest]: getattr(args, dest) for dest in given if dest != "trajectory"}
+    paths = ("trajectory", "identifier", "dbc")
+    kw = {SCENARIO_OPTIONS[dest]: getattr(args, dest) for dest in given if dest not in paths}
     if args.trajectory is not None:
         if args.input_start is not None:
             raise ValueError("--input-start: applies to the simulated plant, not to a --trajectory file")
-        kw["trajectory"] = str(args.trajectory)
+    kw.update({dest: str(getattr(args, dest)) for dest in paths if getattr(args, dest) is not None})
     from pyrhonn.cli.options import options_named
 
     with options_named(**{field: "--" + dest.replace("_", "-") for dest, field in SCENARIO_OPTIONS.items()}):
         if file is not None and file.scenario:
             return file.make_scenario(**kw)
-        return Scenario(**kw)
+        return Scenario(**identifier_defaults(kw))
 
 
 def _trajectory(args) -> int:
@@ -404,7 +411,7 @@ def _replay(args) -> int:
     from .progress import progress_for
     from .rig import BusLost, Interrupted, LogWriteError, Recording, check_log_name, read_log
     from .score import compare_runs, score
-    from .transport import lim_config, run_replay
+    from .transport import run_replay
 
     _check_transport_options(args)
     spin = _runner_spin(args, bench=False)
@@ -413,6 +420,7 @@ def _replay(args) -> int:
     file = _read_scenario_file(args)
     recorded = read_log(args.from_log) if args.from_log is not None else None
     sc = _scenario(args, recorded, file)
+    _check_scored(args, file, sc)
     if recorded is not None and args.log is not None and args.log.resolve() == args.from_log.resolve():
         raise ValueError("--log: would overwrite the --from-log run it is compared with; choose another file")
     _check_out(args.out)  # first: --log may name a file in the --out folder this creates
@@ -458,7 +466,7 @@ def _replay(args) -> int:
             print(f"pyrhonn hil replay: interrupted by {signal.Signals(held[0]).name} after the run; the log is "
                   "complete", file=sys.stderr)
             return _signal_exit(held[0])
-    report = score(rec, reference=lim_config())
+    report = score(rec, reference=sc.reference_config())
     if recorded is not None:
         report["regression"] = compare_runs(score(recorded), report, str(args.from_log))
     report["firmware_side"] = rec.meta.get("firmware_side")
@@ -472,7 +480,6 @@ def _replay(args) -> int:
 def _score(args) -> int:
     from .rig import partial_reason, read_log, sidecar
     from .score import score
-    from .transport import lim_config
 
     try:
         rec = read_log(args.log, partial=args.partial)
@@ -486,9 +493,10 @@ def _score(args) -> int:
     file = _read_scenario_file(args)
     if file is not None:
         file.check_recorded(rec.scenario)
+    _check_scored(args, file, rec.scenario)
     _check_out(args.out)
     _check_verdict_outputs(args)
-    report = score(rec, reference=lim_config())
+    report = score(rec, reference=rec.scenario.reference_config())
     why = partial_reason(rec)
     if why:
         report["partial"] = why
@@ -496,18 +504,24 @@ def _score(args) -> int:
 
 
 def _read_scenario_file(args):
-    """The --scenario file (hil.scenario_file), its per-state limits checked against the scored states."""
+    """The --scenario file (hil.scenario_file); its per-state limits are checked by :func:`_check_scored`."""
     from .scenario_file import read_scenario_file
-    from .verdicts import UNITS
 
     if args.scenario is None:
         return None
-    file = read_scenario_file(args.scenario)
+    return read_scenario_file(args.scenario)
+
+
+def _check_scored(args, file, sc) -> None:
+    """The --scenario file's per-state limits against the states the scenario's report scores."""
+    from .score import scored_states
+
+    if file is None:
+        return
     try:
-        file.thresholds.check_states(tuple(UNITS))
+        file.thresholds.check_states(tuple(name for name, _j, _unit in scored_states(sc)))
     except ValueError as exc:
         raise ValueError(f"{args.scenario}: {exc}") from None
-    return file
 
 
 def _fifo_priority(text: str) -> int:

@@ -1,6 +1,7 @@
 """The replay's figures (matplotlib Agg), each one a PNG of ``hil replay --out``:
 
-- ``position.png``, ``velocity.png``: the real trace over the identified one
+- ``position.png``, ``velocity.png`` (another identifier: ``<state>.png`` per
+  state, by its config's name): the real trace over the identified one
   (as the paper's Fig. 19-20), under it the Measurement frames the rig sent
   (measured, held or not valid, and missing: lost, or refused after a loss),
   the error, and zooms on the hold and its end;
@@ -44,6 +45,11 @@ VIRTUAL_WARNING = ("WARNING: timing from the virtual transport (the firmware is 
 LOSS_BINS = 200
 
 
+def _axis(name: str, unit: str) -> str:
+    """An axis label: the name and its unit, where the unit is known."""
+    return f"{name} ({unit})" if unit else name
+
+
 def _hold_window(sc: dict[str, Any], j: int) -> tuple[float, float, str] | None:
     """(start, end, legend label) of the hold's shading on state ``j``'s plots, or None."""
     # the velocity differenced from a held position is not valid through the hold either
@@ -66,7 +72,7 @@ def _zooms(sc: dict[str, Any], hold: tuple[float, float, str] | None, t_end: flo
     return [("the largest error", t_worst - 0.015, t_worst + 0.015), ("the end of the run", t_end - 0.03, t_end)]
 
 
-def _state_figure(report: dict[str, Any], j: int, name: str, unit: str, fig_no: int) -> Any:
+def _state_figure(report: dict[str, Any], j: int, name: str, unit: str, fig_no: int | None) -> Any:
     """Real vs identified (top), the Measurement frames under it (measured, held, missing), the error,
     and two zooms (bottom) of state ``j``."""
     import matplotlib.pyplot as plt
@@ -100,9 +106,10 @@ def _state_figure(report: dict[str, Any], j: int, name: str, unit: str, fig_no: 
 
     traces(top)
     shade(top, True)
-    top.set_ylabel(f"{name} ({unit})")
+    top.set_ylabel(_axis(name, unit))
     top.set_xlabel("time (s)")
-    top.set_title(f"LIM {name}: real vs identified (cf. Fig. {fig_no}), {report['transport']}")
+    top.set_title(f"LIM {name}: real vs identified (cf. Fig. {fig_no}), {report['transport']}" if fig_no else
+                  f"{name}: real vs identified, {report['transport']}")
     top.legend(loc="best", fontsize=8)
 
     _frames_panel(frames, s, j, name, unit)
@@ -111,7 +118,7 @@ def _state_figure(report: dict[str, Any], j: int, name: str, unit: str, fig_no: 
     mid.plot(tk, err, lw=0.6, color="tab:red", label="identified - real")
     mid.axhline(0.0, color="0.4", lw=0.6)
     shade(mid, True)
-    mid.set_ylabel(f"error ({unit})")
+    mid.set_ylabel(_axis("error", unit))
     mid.set_xlabel("time (s)")
     mid.set_title("error of the identified estimate against the real trace", fontsize=9)
     mid.legend(loc="best", fontsize=7)
@@ -120,7 +127,7 @@ def _state_figure(report: dict[str, Any], j: int, name: str, unit: str, fig_no: 
         traces(ax, lo, hi)
         shade(ax, False)
         ax.set_xlim(lo, hi)
-        ax.set_ylabel(f"{name} ({unit})")
+        ax.set_ylabel(_axis(name, unit))
         ax.set_xlabel("time (s)")
         ax.set_title(f"zoom: {what}", fontsize=9)
     return fig
@@ -177,7 +184,7 @@ def _frames_panel(ax: Any, s: dict[str, Any], j: int, name: str, unit: str) -> N
     ax.plot(t[held], X[held, j], ".", ms=1.5, color="0.55", label=f"held / not valid ({int(held.sum())})")
     ax.plot(t[missing], np.full(int(missing.sum()), 0.04), "|", ms=8, color="tab:red",
             transform=ax.get_xaxis_transform(), label=f"missing: lost or refused ({int(missing.sum())})")
-    ax.set_ylabel(f"{name} ({unit})")
+    ax.set_ylabel(_axis(name, unit))
     ax.set_xlabel("time (s)")
     ax.set_title("Measurement frames sent to the firmware", fontsize=9)
     ax.legend(loc="best", fontsize=7, markerscale=3)
@@ -273,6 +280,16 @@ def _losses_figure(report: dict[str, Any]) -> Any:
     return fig
 
 
+def _scored(report: dict[str, Any]) -> list[tuple[str, str, int | None]]:
+    """(name, unit, figure of the paper) of each state plotted, in state order: the LIM's position and
+    velocity (Fig. 19-20), or every state of another identifier, by its config's name."""
+    if not (report.get("scenario") or {}).get("identifier"):
+        return [("position", "m", 19), ("velocity", "m/s", 20)]
+    ident = report.get("identification") or {}
+    scored = ident.get("scored") or [[name, ""] for name in report.get("states", [])]
+    return [(str(name), str(unit), None) for name, unit in scored]
+
+
 def build_figures(report: dict[str, Any]) -> dict[str, Any]:
     """The figures of a scored run (hil.score.score), by file name, open (the caller closes them)."""
     import matplotlib
@@ -282,7 +299,7 @@ def build_figures(report: dict[str, Any]) -> dict[str, Any]:
     if s is None:
         return {}
     out = {}
-    for j, (name, unit, fig_no) in enumerate((("position", "m", 19), ("velocity", "m/s", 20))):
+    for j, (name, unit, fig_no) in enumerate(_scored(report)):
         out[f"{name}.png"] = _state_figure(report, j, name, unit, fig_no)
     if s.get("health") is not None and len(s["health"]["cycle"]):
         out["health.png"] = _health_figure(report)

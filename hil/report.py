@@ -91,6 +91,11 @@ def _not_valid(counts: dict[str, dict[str, int]] | None) -> list[str]:
             "its own outputs"]
 
 
+def _scored(ident: dict[str, Any]) -> list[tuple[str, str]]:
+    """The scored states and their units (reports before another identifier could be replayed: the LIM's)."""
+    return [(str(n), str(u)) for n, u in ident.get("scored", [["position", "m"], ["velocity", "m/s"]])]
+
+
 def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
     f = report["frames"]
     served = (report.get("firmware_side") or {}).get("firmware")
@@ -134,20 +139,22 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
                       f"{'RMSE':>11}{'RMSE vs':>11}{'sensor':>11}{'peak |x|':>10}",
                   f"{_label('')}{'(truth)':>11}{'(truth)':>11}{'RMSE':>11}{'abs. dev.':>11}{'no hold':>11}"
                   f"{'measured':>11}{'RMSE':>11}",
-                  *(f"{_label('  ' + name + ' (' + unit + ')')}{_e(ident[name]['rmse'])}{_e(ident[name]['absolute_deviation'])}"
+                  *(f"{_label('  ' + name + (' (' + unit + ')' if unit else ''))}"
+                    f"{_e(ident[name]['rmse'])}{_e(ident[name]['absolute_deviation'])}"
                     f"{_e(ident[name]['table7_rmse'])}{_e(ident[name]['table7_absolute_deviation'])}"
                     f"{_e(ident[name]['outside_hold']['rmse'])}{_e(ident[name]['vs_measurement']['rmse'])}"
                     f"{_e(ident[name]['measurement_vs_truth']['rmse'])}"
                     f"{ident[name]['signal_peak']:10.3g}"
-                    for name, unit in (("position", "m"), ("velocity", "m/s"))),
+                    for name, unit in _scored(ident)),
                   f"  (truth: against {ident['truth']}; no hold: the same, the cycles whose sample and target are "
                   "both measured; vs measured: against the next Measurement frame where it is fresh; sensor: that Measurement "
                   "frame against the truth)",
                   *(f"  hold: {name} held for {ident[name]['hold']['cycles']} cycles, in which it moved up to "
                     f"{ident[name]['hold']['travel_max']:.3g} {unit} unobserved; the frames themselves, held values "
-                    f"included, are {ident[name]['hold']['frames_rmse']:.3e} {unit} RMSE off the truth (Table 7: "
-                    f"{ident[name]['table7_rmse']:.3e})" + _inside(ident[name]["hold"], unit)
-                    for name, unit in (("position", "m"), ("velocity", "m/s")) if ident[name]["hold"]["cycles"]),
+                    f"included, are {ident[name]['hold']['frames_rmse']:.3e} {unit} RMSE off the truth"
+                    + (f" (Table 7: {ident[name]['table7_rmse']:.3e})" if ident[name]["table7_rmse"] is not None
+                       else "") + _inside(ident[name]["hold"], unit)
+                    for name, unit in _scored(ident) if ident[name]["hold"]["cycles"]),
                   *_not_valid(report.get("not_valid")),
                   f"  note: {ident['note']}"]
     be = report.get("bit_exact")

@@ -304,6 +304,7 @@ class Rig:
             self._secoc = SecOCSender(TEST_KEY)
         want = ids()
         ack_id, diag_id, health_id = want["ControlAck"], want["Diagnostics"], want["Health"]
+        n_health = len(self.plan.scenario.state_names)   # one Health frame per neuron (the LIM: HEALTH_FRAMES)
         start = time.perf_counter_ns()
         end = start + int(timeout * 1e9)
         seen = len(self._events)
@@ -333,7 +334,7 @@ class Rig:
             # the Diagnostics frame is followed by one Health frame per neuron: read them too, briefly
             if diag_at is not None and health_end == 0:
                 health_end = time.perf_counter_ns() + 1_000_000_000
-            if diag_at is not None and (healths >= HEALTH_FRAMES or time.perf_counter_ns() > health_end):
+            if diag_at is not None and (healths >= n_health or time.perf_counter_ns() > health_end):
                 return True
             if acked and command != "DiagRequest":
                 return True

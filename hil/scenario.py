@@ -52,6 +52,18 @@ rig model is applied to it and the replay is scored against it. Times
 (``trajectory_sha256``, computed when not given): a logged run re-scores
 only against the very file it was replayed from.
 
+**Another identifier** replaces the LIM: ``identifier`` (the path of the
+config file its export started from, float32) and ``dbc`` (the DBC
+``pyrhonn export --dbc`` wrote for it). Its plant is always a recording:
+``trajectory`` is a CSV with ``t`` and the config's state and input
+columns (:func:`hil.trajectory.read_trajectory`), replayed as the
+Measurement frames of that DBC, and the estimates are scored per state,
+by the config's names, against the recording's x(k+1). The LIM's encoder
+model does not apply (``encoder_resolution`` 0, ``velocity_from_position``
+false: :func:`identifier_defaults` sets them); holds (``hold_states``: the
+config's state indices), frame loss and delay do. Both files are pinned
+by SHA-256 as the trajectory is.
+
 Everything derives from the scenario's fields and ``seed``: the same
 scenario always gives the same frames, which is what lets a logged run be
 re-scored offline from the log and the scenario alone.
@@ -66,7 +78,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ENCODER_SENC50", "Plan", "Scenario", "TABLE7"]
+__all__ = ["ENCODER_SENC50", "Plan", "Scenario", "TABLE7", "identifier_defaults"]
 
 #: Acu-Rite SENC 50 linear encoder resolution assumed for the paper's rig, m
 #: (RECALLED, confidence LOW; see the module docstring).
@@ -111,6 +123,10 @@ class Scenario:
     seed: int = 0
     trajectory: str = ""              #: "" = the plant; else a trajectory CSV (hil.trajectory), absolute path
     trajectory_sha256: str = ""       #: the file's SHA-256; computed when "", checked when given
+    identifier: str = ""              #: "" = the LIM (firmware-lim); else an identifier's config file, absolute path
+    identifier_sha256: str = ""       #: that file's SHA-256, as trajectory_sha256
+    dbc: str = ""                     #: the identifier's protocol DBC (pyrhonn export --dbc), absolute path
+    dbc_sha256: str = ""              #: that file's SHA-256, as trajectory_sha256
 
     def __post_init__(self) -> None:
         set_ = functools.partial(object.__setattr__, self)
@@ -128,39 +144,86 @@ class Scenario:
         set_("hold_start", _real("hold_start", self.hold_start, lo=0.0))
         set_("hold_duration", _real("hold_duration", self.hold_duration, lo=0.0))
         states = tuple(self.hold_states) if isinstance(self.hold_states, (tuple, list)) else None
-        if states is None or any(isinstance(s, bool) or not isinstance(s, (int, np.integer)) or not 0 <= s < 6
+        if states is None or any(isinstance(s, bool) or not isinstance(s, (int, np.integer)) or not 0 <= s < 32
                                  for s in states):
-            raise _fail("hold_states", f"expected a tuple of state indices 0..5, got {self.hold_states!r}")
+            raise _fail("hold_states", f"expected a tuple of state indices, got {self.hold_states!r}")
         set_("hold_states", tuple(int(s) for s in states))
         set_("frame_loss", _real("frame_loss", self.frame_loss, lo=0.0, hi=0.5))
         set_("transport_delay", _real("transport_delay", self.transport_delay, lo=0.0, hi=1.0))
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or not 0 <= self.seed < 2 ** 63:
             raise _fail("seed", f"expected a non-negative integer, got {self.seed!r}")
         set_("seed", int(self.seed))
-        self._check_trajectory(set_)
+        for name in ("trajectory", "identifier", "dbc"):
+            self._check_file(set_, name)
+        self._check_identifier()
 
-    def _check_trajectory(self, set_) -> None:
+    def _check_file(self, set_, name: str) -> None:
         from .trajectory import file_sha256
 
-        path, pinned = self.trajectory, self.trajectory_sha256
+        path, pinned = getattr(self, name), getattr(self, f"{name}_sha256")
         if not isinstance(path, str):
-            raise _fail("trajectory", f"expected a file path (str), got {path!r}")
+            raise _fail(name, f"expected a file path (str), got {path!r}")
         if not isinstance(pinned, str):
-            raise _fail("trajectory_sha256", f"expected a hex string, got {pinned!r}")
+            raise _fail(f"{name}_sha256", f"expected a hex string, got {pinned!r}")
         if not path:
             if pinned:
-                raise _fail("trajectory_sha256", "given without a trajectory")
+                raise _fail(f"{name}_sha256", f"given without a {name}")
             return
         absolute = str(Path(path).expanduser().resolve())
         try:
             digest = file_sha256(absolute)
         except OSError as exc:
-            raise _fail("trajectory", f"cannot read {absolute}: {exc.strerror or exc}") from None
+            raise _fail(name, f"cannot read {absolute}: {exc.strerror or exc}") from None
         if pinned and pinned != digest:
-            raise _fail("trajectory", f"{absolute} has changed since this scenario was made (SHA-256 {pinned[:12]}..., "
-                                      f"now {digest[:12]}...): a run re-scores only against the file it replayed")
-        set_("trajectory", absolute)
-        set_("trajectory_sha256", digest)
+            raise _fail(name, f"{absolute} has changed since this scenario was made (SHA-256 {pinned[:12]}..., "
+                              f"now {digest[:12]}...): a run re-scores only against the file it replayed")
+        set_(name, absolute)
+        set_(f"{name}_sha256", digest)
+
+    def _check_identifier(self) -> None:
+        if bool(self.identifier) != bool(self.dbc):
+            raise _fail("dbc" if self.identifier else "identifier",
+                        "an identifier's config file and its DBC go together (give both, or neither for the LIM)")
+        n = len(self.state_names)
+        if any(s >= n for s in self.hold_states):
+            raise _fail("hold_states", f"expected state indices 0..{n - 1} (the identifier's {n} states), got "
+                                       f"{list(self.hold_states)}")
+        if not self.identifier:
+            return
+        if not self.trajectory:
+            raise _fail("trajectory", "an identifier's plant is a recording: give its CSV (t and the config's "
+                                      "states and inputs)")
+        if self.encoder_resolution != 0.0 or self.velocity_from_position:
+            raise _fail("encoder_resolution" if self.encoder_resolution else "velocity_from_position",
+                        "the LIM's encoder model (a quantised position, the velocity differenced from it) does not "
+                        "apply to another identifier: set encoder_resolution 0 and velocity_from_position false")
+        cf = self.identifier_file()
+        proto = self.protocol()
+        if tuple(cf.state_names) != proto.states or tuple(cf.input_names) != proto.inputs:
+            raise _fail("dbc", f"{self.dbc} carries states {list(proto.states)} and inputs {list(proto.inputs)}; "
+                               f"{self.identifier} identifies states {list(cf.state_names)} and inputs "
+                               f"{list(cf.input_names)} (export the DBC from this config)")
+        if cf.config.dtype != "float32":
+            raise _fail("identifier", f"{self.identifier}: dtype is {cf.config.dtype!r}; the firmware runs the "
+                                      "float32 core (tune or select with --dtype float32)")
+
+    def identifier_file(self) -> Any:
+        """The identifier's config file (pyrhonn.configfile.ConfigFile): the scenario's, or firmware-lim."""
+        return _config_file(self.identifier, self.identifier_sha256)
+
+    def reference_config(self) -> Any:
+        """The float32 IdentifierConfig the firmware runs (the bit-exact check's reference)."""
+        config = self.identifier_file().config
+        return config if config.dtype == "float32" else config.replace(dtype="float32")
+
+    def protocol(self) -> Any:
+        """The rig's side of the protocol (pyrhonn.firmware.Protocol): the DBC's, or the LIM's."""
+        return _protocol(self.dbc, self.dbc_sha256)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """The protocol's state signals (the LIM's: Qm, V, ...), in the identifier's order."""
+        return tuple(self.protocol().states) if self.dbc else _LIM_STATES
 
     @property
     def cycles(self) -> int:
@@ -204,14 +267,52 @@ class Scenario:
         return _build(self)
 
 
+_LIM_STATES = ("Qm", "V", "LambdaA", "LambdaB", "Ia", "Ib")
+
+
+@functools.lru_cache(maxsize=8)
+def _config_file(path: str, digest: str) -> Any:
+    from pyrhonn.configfile import load_config, load_shipped
+
+    if not path:
+        return load_shipped("firmware-lim")
+    try:
+        return load_config(path)
+    except OSError as exc:
+        raise _fail("identifier", f"cannot read {path}: {exc.strerror or exc}") from None
+    except ValueError as exc:
+        raise _fail("identifier", str(exc)) from None
+
+
+@functools.lru_cache(maxsize=8)
+def _protocol(path: str, digest: str) -> Any:
+    from pyrhonn.firmware import Protocol, lim_protocol
+
+    if not path:
+        return lim_protocol()
+    try:
+        return Protocol.from_dbc(path)
+    except ValueError as exc:
+        raise _fail("dbc", str(exc)) from None
+
+
+def identifier_defaults(fields_: dict[str, Any]) -> dict[str, Any]:
+    """``fields_`` with, when it names an identifier, the LIM-only settings that do not apply to it off unless
+    set: no encoder quantisation, no velocity differencing, no hold."""
+    if not fields_.get("identifier"):
+        return fields_
+    return {"encoder_resolution": 0.0, "velocity_from_position": False, "hold_duration": 0.0, **fields_}
+
+
 @dataclass(frozen=True, eq=False)
 class Plan:
     """The frames of a scenario, cycle by cycle (N = scenario.cycles).
 
-    ``X`` (N, 6), ``U`` (N, 2), ``valid`` (N, 6): what Measurement k carries
-    (Seq = k mod 65536); ``truth_next`` (N, 6): the noise-free x(k+1) that
-    Estimate k predicts; ``lost`` (N,): frames lost on the wire; ``t`` (N,):
-    sampling instants; ``derived`` (N, 6): the flags of ``valid`` cleared
+    ``X`` (N, n), ``U`` (N, m), ``valid`` (N, n) (the LIM: n = 6, m = 2):
+    what Measurement k carries (Seq = k mod 65536); ``truth_next`` (N, n):
+    the noise-free (or recorded) x(k+1) that Estimate k predicts; ``lost``
+    (N,): frames lost on the wire; ``t`` (N,): sampling instants;
+    ``derived`` (N, n): the flags of ``valid`` cleared
     because the value is derived from a held or missing reading (the
     differenced velocity), not held itself.
     """
@@ -234,17 +335,15 @@ class Plan:
         """Per state signal with any flag cleared, how many samples went out
         not valid and why: ``held`` (the measurement hold) and ``derived``
         (computed from a held or missing reading)."""
-        from pyrhonn.firmware import STATE_SIGNALS
-
         held = ~self.valid & ~self.derived
         return {name: {"held": int(held[:, j].sum()), "derived": int(self.derived[:, j].sum())}
-                for j, name in enumerate(STATE_SIGNALS) if not self.valid[:, j].all()}
+                for j, name in enumerate(self.scenario.state_names) if not self.valid[:, j].all()}
 
     def frames(self) -> list:
         """The Measurement frames (python-can messages), lost ones included."""
-        from pyrhonn.firmware import measurement_message
-
-        return [measurement_message(k & 0xFFFF, self.X[k], self.U[k], self.valid[k]) for k in range(self.cycles)]
+        proto = self.scenario.protocol()
+        return [proto.measurement_message(k & 0xFFFF, self.X[k], self.U[k], self.valid[k])
+                for k in range(self.cycles)]
 
 
 def _recorded(sc: Scenario, cycles: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
@@ -254,7 +353,7 @@ def _recorded(sc: Scenario, cycles: int) -> tuple[np.ndarray, np.ndarray, np.nda
 
     if file_sha256(sc.trajectory) != sc.trajectory_sha256:
         raise _fail("trajectory", f"{sc.trajectory} has changed since this scenario was made")
-    rt = read_trajectory(sc.trajectory, sc.period)
+    rt = read_trajectory(sc.trajectory, sc.period, sc.identifier_file() if sc.identifier else None)
     t = rt.t
     k0 = int(round((sc.start - t[0]) / sc.period))
     need = k0 + cycles + 1                       # x(k+1) of the last frame included
@@ -266,9 +365,11 @@ def _recorded(sc: Scenario, cycles: int) -> tuple[np.ndarray, np.ndarray, np.nda
 
 @functools.lru_cache(maxsize=8)
 def _build(sc: Scenario) -> Plan:
-    from pyrhonn.firmware import INPUT_SIGNALS, STATE_SIGNALS, database
     from pyrhonn.plants import lim
     from pyrhonn.plants.trajectory import HoldWindow
+
+    proto = sc.protocol()
+    n = len(proto.states)
 
     N = sc.cycles
     if sc.trajectory:
@@ -284,11 +385,11 @@ def _build(sc: Scenario) -> Plan:
         levels = np.floor(levels) if sc.quantiser == "floor" else np.round(levels)
         reading[:, 0] = levels * sc.encoder_resolution
     T = Xtrue.shape[0]
-    valid = np.ones((T, 6), dtype=bool)
+    valid = np.ones((T, n), dtype=bool)
     if sc.hold_duration > 0:
         for j in sc.hold_states:
             valid[HoldWindow(j, sc.hold_start, sc.hold_duration).mask(t, sc.period), j] = False
-    derived = np.zeros((T, 6), dtype=bool)
+    derived = np.zeros((T, n), dtype=bool)
     if sc.velocity_from_position:
         reading[1:, 1] = np.diff(reading[:, 0]) / sc.period
         reading[0, 1] = 0.0
@@ -306,11 +407,10 @@ def _build(sc: Scenario) -> Plan:
     sl = slice(k0, k0 + N)
     X, Uk, V, D = held[sl].copy(), U[sl].copy(), valid[sl].copy(), derived[sl].copy()
     # the DBC's ranges: refuse a scenario the protocol cannot carry, naming where
-    msg = database().get_message_by_name("Measurement")
-    for j, name in enumerate(STATE_SIGNALS + INPUT_SIGNALS):
-        col = X[:, j] if j < 6 else Uk[:, j - 6]
-        s = msg.get_signal_by_name(name)
-        bad = (col < s.minimum) | (col > s.maximum)
+    for j, name in enumerate(proto.states + proto.inputs):
+        col = X[:, j] if j < n else Uk[:, j - n]
+        lo, hi = proto.signal_range(name)
+        bad = (col < lo) | (col > hi)
         if bad.any():
             k = int(np.argmax(bad))
             span = f"start {sc.start:g} s and duration {sc.duration:g} s"
@@ -318,7 +418,7 @@ def _build(sc: Scenario) -> Plan:
                    if sc.trajectory else f"t is the trajectory time: {span} take the simulated LIM, driven from "
                                          f"input_start {sc.input_start:g} s, outside what the DBC can carry")
             raise ValueError(f"scenario: {name} = {float(col[k]):.6g} at t = {t[k0 + k]:.4f} s is outside the DBC range "
-                             f"[{s.minimum}, {s.maximum}] ({why})")
+                             f"[{lo:g}, {hi:g}] ({why})")
     rng = np.random.default_rng(np.random.SeedSequence([sc.seed, 0x4811]))
     lost = rng.random(N) < sc.frame_loss if sc.frame_loss > 0 else np.zeros(N, dtype=bool)
     for a in (X, Uk, V, D, lost):

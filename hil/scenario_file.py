@@ -6,7 +6,7 @@ the replay's scenario and the thresholds its verdicts are judged by.
     start = 0.9
     frame_loss = 0.01
     seed = 4
-    trajectory = "run.csv"     # relative to this file's folder
+    trajectory = "run.csv"     # relative to this file's folder (so are identifier and dbc)
 
     [thresholds]               # hil.verdicts.Thresholds; every one optional
     lost_frames = 0
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .scenario import Scenario
+from .scenario import Scenario, identifier_defaults
 from .verdicts import Thresholds
 
 __all__ = ["ScenarioFile", "read_scenario_file"]
@@ -51,7 +51,7 @@ class ScenarioFile:
             where = "--input-start" if "input_start" in given else f"{self.path}: [scenario].input_start"
             raise ValueError(f"{where}: applies to the simulated plant, not to a trajectory file")
         try:
-            return Scenario.from_dict(merged)
+            return Scenario.from_dict(identifier_defaults(merged))
         except ValueError as exc:
             raise ValueError(f"{self.path}: [scenario].{exc}") from None
 
@@ -60,8 +60,9 @@ class ScenarioFile:
         if not self.scenario:
             return
         d = {**recorded.to_dict(), **self.scenario}
-        if "trajectory" in self.scenario and "trajectory_sha256" not in self.scenario:
-            d["trajectory_sha256"] = ""   # pinned anew from the file named here
+        for key in ("trajectory", "identifier", "dbc"):
+            if key in self.scenario and f"{key}_sha256" not in self.scenario:
+                d[f"{key}_sha256"] = ""   # pinned anew from the file named here
         try:
             mine = Scenario.from_dict(d)
         except ValueError as exc:
@@ -92,8 +93,9 @@ def read_scenario_file(path: Path) -> ScenarioFile:
         if not isinstance(sc, dict):
             raise ValueError(f"{path}: scenario: expected a table [scenario]")
         sc = dict(sc)
-        if isinstance(sc.get("trajectory"), str) and sc["trajectory"]:   # relative to the file, not the cwd
-            sc["trajectory"] = str((path.parent / Path(sc["trajectory"]).expanduser()).resolve())
+        for key in ("trajectory", "identifier", "dbc"):   # relative to the file, not the cwd
+            if isinstance(sc.get(key), str) and sc[key]:
+                sc[key] = str((path.parent / Path(sc[key]).expanduser()).resolve())
     try:
         thresholds = Thresholds.from_dict(doc.get("thresholds", {}))
     except ValueError as exc:

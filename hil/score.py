@@ -47,7 +47,7 @@ from .latency import stats_us
 from .rig import Recording, ids
 from .scenario import TABLE7
 
-__all__ = ["FATES", "fates", "score", "stats_us"]
+__all__ = ["FATES", "fates", "score", "scored_states", "stats_us"]
 
 
 def _ns(t: float) -> int:
@@ -63,16 +63,18 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     """The report of a run as a JSON-able dict. ``reference``: an
     IdentifierConfig to also check the estimates bit for bit against
     ``Identifier.run`` on the accepted Measurement frames (None: skipped)."""
-    from pyrhonn.firmware import database, decode_estimate, decode_health
+    from pyrhonn.firmware import decode_health
 
     sc = rec.scenario
     plan = sc.build()
+    proto = sc.protocol()
+    n_states = len(proto.states)
     N = plan.cycles
     T = int(round(sc.period * 1e9))
     delay = int(round(sc.transport_delay * 1e9))
     ident = ids()
     MEAS, EST, DIAG = ident["Measurement"], ident["Estimate"], ident["Diagnostics"]
-    meas_len = database().get_message_by_name("Measurement").length
+    meas_len = proto.measurement_length
     first_run = int(rec.meta.get("first_run_event", 0))
     protocol = rec.meta.get("protocol")
 
@@ -82,8 +84,8 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
     pickup = rec.meta.get("_rx_pickup_ns")     # live runs only: a log keeps the arrival stamps, not these
     if pickup is not None and (len(pickup) != len(rec.events) or rec.meta.get("rx_stamp") != "kernel"):
         pickup = None
-    raw = np.zeros((N, 6), dtype=np.int64)
-    phys = np.zeros((N, 6), dtype=np.float64)
+    raw = np.zeros((N, n_states), dtype=np.int64)
+    phys = np.zeros((N, n_states), dtype=np.float64)
     status = np.zeros(N, dtype=np.int64)
     resync = np.zeros(N, dtype=bool)
     expect_reject = np.zeros(N, dtype=bool)
@@ -101,9 +103,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
 
     def plan_frame(k: int) -> bytes:
         if k not in plan_bytes:
-            from pyrhonn.firmware import measurement_message
-
-            plan_bytes[k] = bytes(measurement_message(k & 0xFFFF, plan.X[k], plan.U[k], plan.valid[k]).data)
+            plan_bytes[k] = bytes(proto.measurement_message(k & 0xFFFF, plan.X[k], plan.U[k], plan.valid[k]).data)
         return plan_bytes[k]
 
     for i, (t, d, m) in enumerate(rec.events):
@@ -149,7 +149,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
 
     for i, t_ns, m in estimates:   # after every frame sent is known: in time order, its answer may come first
         try:
-            e = decode_estimate(m, scaling=False)
+            e = proto.decode_estimate(m, scaling=False)
         except ValueError:
             mismatched += 1
             continue
@@ -162,7 +162,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
             recv_ns[cycle] = t_ns
             picked_ns[cycle] = recv_ns[cycle] + (int(pickup[i]) if pickup is not None else 0)
             raw[cycle] = e.xhat
-            phys[cycle] = decode_estimate(m).xhat
+            phys[cycle] = proto.decode_estimate(m).xhat
             status[cycle] = e.step_status
             resync[cycle] = e.resync
 
@@ -182,7 +182,7 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
 
     out: dict[str, Any] = {
         "transport": rec.meta.get("transport"), "channel": rec.meta.get("channel"),
-        "scenario": sc.to_dict(), "cycles": N,
+        "scenario": sc.to_dict(), "cycles": N, "states": list(proto.states),
         "frames": {"sent": int(was_sent.sum()), "lost_injected": int(lost.sum()),
                    "lost_unaccounted": int(np.sum(~was_sent & ~lost)), "answered": int(answered.sum()),
                    "rejected_seq_jump": int(rejected.sum()), "missing": int(missing.sum()), "late": late,
@@ -236,7 +236,8 @@ def score(rec: Recording, *, reference: Any = None) -> dict[str, Any]:
                                   out["firmware"]["measurements"] if out["firmware"] else None)
     health_series = None
     if reference is not None:
-        out["bit_exact"], health_series = _reference_check(reference, meas_data, steps, answered, raw, unknown_from)
+        out["bit_exact"], health_series = _reference_check(reference, meas_data, steps, answered, raw, unknown_from,
+                                                           proto)
     out["_series"] = {"k": np.flatnonzero(answered), "est": phys[answered], "truth": np.asarray(plan.truth_next),
                       "latency_ns": latency, "t": np.asarray(plan.t), "X": np.asarray(plan.X),
                       "valid": np.asarray(plan.valid),
@@ -324,17 +325,18 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
     truth_all = np.asarray(plan.truth_next)
     X, V = np.asarray(plan.X), np.asarray(plan.valid)
     N = plan.cycles
-    next_fresh = np.ones((N, 6), dtype=bool)     # the last target lies after the run: counted as fresh
+    next_fresh = np.ones(V.shape, dtype=bool)     # the last target lies after the run: counted as fresh
     next_fresh[:-1] = V[1:]
     has_next = answered.copy()
     has_next[-1] = False
     ident: dict[str, Any] = {}
-    for j, name in enumerate(("position", "velocity")):
+    lim = not plan.scenario.identifier
+    for name, j, _unit in scored_states(plan.scenario):
         est, truth = phys[answered, j], truth_all[answered, j]
         out_hold = next_fresh[answered, j] & V[answered, j]
         vs_meas = (has_next & next_fresh[:, j])[:-1]
         sensed = next_fresh[:-1, j]
-        t7 = TABLE7[name]
+        t7 = TABLE7[name] if lim else {"rmse": None, "absolute_deviation": None}
         ident[name] = {
             **_errors(truth, est),
             "table7_rmse": t7["rmse"], "table7_absolute_deviation": t7["absolute_deviation"],
@@ -344,8 +346,14 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
             "signal_peak": float(np.max(np.abs(truth))), "signal_rms": float(np.sqrt(np.mean(truth ** 2))),
             "hold": _hold(truth_all[:-1, j], X[1:, j], next_fresh[:-1, j], answered[:-1], phys[:-1, j],
                           V[:-1, j])}
-        ident[name]["at_or_below_table7"] = bool(ident[name]["rmse"] <= t7["rmse"])
-    if plan.scenario.trajectory:
+        if lim:
+            ident[name]["at_or_below_table7"] = bool(ident[name]["rmse"] <= t7["rmse"])
+    ident["scored"] = [[name, unit] for name, _j, unit in scored_states(plan.scenario)]
+    if not lim:
+        ident["truth"] = "the recording's x(k+1)"
+        ident["note"] = (f"identifier {plan.scenario.identifier}; truth: the recorded trajectory "
+                         f"{plan.scenario.trajectory}")
+    elif plan.scenario.trajectory:
         ident["truth"] = "the trajectory file's x(k+1)"
         ident["note"] = (f"truth: the recorded trajectory {plan.scenario.trajectory}; compare with Table 7 through "
                          "the signals' scale")
@@ -355,6 +363,14 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
             "the LIM parameters are pyrhonn's PROPOSED set (the Lab-Volt table was not found): compare with "
             "Table 7 through the signals' scale, not as the same motor")
     return ident
+
+
+def scored_states(sc: Any) -> list[tuple[str, int, str]]:
+    """The states a scenario's report scores, as (name, state index, unit): the LIM's position and velocity
+    (Table 7's), or every state of another identifier, by its config's name (unit unknown: "")."""
+    if not sc.identifier:
+        return [("position", 0, "m"), ("velocity", 1, "m/s")]
+    return [(name, j, "") for j, name in enumerate(sc.identifier_file().state_names)]
 
 
 def _hold(truth: np.ndarray, frame: np.ndarray, fresh: np.ndarray, answered: np.ndarray,
@@ -380,8 +396,7 @@ def compare_runs(recorded: dict[str, Any], replayed: dict[str, Any], log: str) -
     --from-log``); the largest difference per state, the first differing
     cycle, and the cycles answered in one run only (lost or missing in the
     other, which the accounting of each run already explains)."""
-    from pyrhonn.firmware import STATE_SIGNALS
-
+    states = replayed.get("states") or ["Qm", "V", "LambdaA", "LambdaB", "Ia", "Ib"]
     ka, ea = recorded["_series"]["k"], np.asarray(recorded["_series"]["est"])
     kb, eb = replayed["_series"]["k"], np.asarray(replayed["_series"]["est"])
     common, ia, ib = np.intersect1d(ka, kb, assume_unique=True, return_indices=True)
@@ -395,7 +410,7 @@ def compare_runs(recorded: dict[str, Any], replayed: dict[str, Any], log: str) -
     return {"log": log, "compared": int(common.size), "differ": int((~same).sum()),
             "only_recorded": int(np.setdiff1d(ka, kb).size), "only_replayed": int(np.setdiff1d(kb, ka).size),
             "max_abs_diff": {name: float(diff[:, j].max()) if common.size else 0.0
-                             for j, name in enumerate(STATE_SIGNALS)},
+                             for j, name in enumerate(states)},
             "first_difference": first, "equal": bool(common.size > 0 and same.all())}
 
 
@@ -414,7 +429,8 @@ HEALTH_SAMPLES_MAX = 400  #: the offline twin's filter health is sampled at most
 
 
 def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndarray, answered: np.ndarray,
-                     raw: np.ndarray, unknown_from: int | None = None) -> tuple[dict, dict[str, Any] | None]:
+                     raw: np.ndarray, unknown_from: int | None = None, protocol: Any = None
+                     ) -> tuple[dict, dict[str, Any] | None]:
     """Identifier.run (float32) on the decoded frames the firmware stepped
     on (``accepted``, hil.accounting.stepped: whether or not their estimate
     reached the rig), restarted at every gap as the firmware does, scaled as
@@ -423,25 +439,24 @@ def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndar
     answered count); and the offline twin's filter health over the run
     (:func:`_health_series`), None when it stepped on no frame."""
     from pyrhonn import Identifier
-    from pyrhonn.firmware import INPUT_SIGNALS, STATE_SIGNALS, VALID_SIGNALS, database
+    from pyrhonn.firmware import lim_protocol
+
+    proto = protocol if protocol is not None else lim_protocol()
 
     if unknown_from is not None:
         accepted, answered = accepted.copy(), answered.copy()
         accepted[unknown_from:] = answered[unknown_from:] = False
 
-    db = database()
-    M, E = db.get_message_by_name("Measurement"), db.get_message_by_name("Estimate")
+    E = proto.database.get_message_by_name("Estimate")
+    n, m = len(proto.states), len(proto.inputs)
     ks = np.flatnonzero(accepted)
     if ks.size == 0 or not answered.any():
         return {"checked": 0, "mismatches": 0, "equal": False, "unknown_from": unknown_from}, None
-    X = np.empty((ks.size, 6), dtype=np.float32)
-    U = np.empty((ks.size, 2), dtype=np.float32)
-    V = np.empty((ks.size, 6), dtype=bool)
+    X = np.empty((ks.size, n), dtype=np.float32)
+    U = np.empty((ks.size, m), dtype=np.float32)
+    V = np.empty((ks.size, n), dtype=bool)
     for i, k in enumerate(ks):
-        d = M.decode(meas_data[int(k)], decode_choices=False)
-        X[i] = [d[s] for s in STATE_SIGNALS]
-        U[i] = [d[s] for s in INPUT_SIGNALS]
-        V[i] = [bool(d[s]) for s in VALID_SIGNALS]
+        X[i], U[i], V[i] = proto.decode_measurement(meas_data[int(k)])
     # the firmware restarts its identifier on the first frame it accepts after a gap (no learning across it)
     ident, parts = Identifier(config), []
     every = max(1, -(-ks.size // HEALTH_SAMPLES_MAX))
@@ -456,7 +471,7 @@ def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndar
     on = answered[ks]
     ks, xhat = ks[on], xhat[on]
     want = np.empty_like(raw[ks])
-    for j, name in enumerate(s + "Hat" for s in STATE_SIGNALS):
+    for j, name in enumerate(proto.estimate_signals):
         sig = E.get_signal_by_name(name)
         lo, hi = int(sig.scaled_to_raw(sig.minimum)), int(sig.scaled_to_raw(sig.maximum))
         want[:, j] = [min(max(sig.scaled_to_raw(float(v)), lo), hi) for v in xhat[:, j]]

@@ -26,6 +26,11 @@ missing values.
 exports the plant's trajectory with it, a template for your own files).
 Every defect raises ``ValueError`` naming the file and, where there is one,
 the line.
+
+For another identifier (``Scenario(identifier=...)``) the columns are ``t``
+and that config file's own state and input names (``pyrhonn select
+data.csv --states y1,y2 --inputs u`` names them after the data's columns),
+read by :func:`read_trajectory` with the config file given.
 """
 from __future__ import annotations
 
@@ -33,6 +38,7 @@ import functools
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +57,7 @@ STEP_TOLERANCE = 1e-6
 @dataclass(frozen=True, eq=False)
 class RecordedTrajectory:
     """A trajectory file sampled at the rig's period: ``t`` (N,), ``X``
-    (N, 6), ``U`` (N, 2) float64; ``step`` the file's own sampling step,
+    (N, n), ``U`` (N, m) float64 (the LIM: n = 6, m = 2); ``step`` the file's own sampling step,
     ``every`` how many file samples make one period."""
 
     path: str
@@ -89,20 +95,26 @@ def _lim_file_config():
     return load_shipped("firmware-lim")
 
 
-def read_trajectory(path: str | Path, period: float) -> RecordedTrajectory:
-    """Read, check and sample at ``period`` the trajectory file ``path``."""
+def read_trajectory(path: str | Path, period: float, config_file: Any = None) -> RecordedTrajectory:
+    """Read, check and sample at ``period`` the trajectory file ``path``: the LIM's columns, or with
+    ``config_file`` (a pyrhonn.configfile.ConfigFile) that identifier's states and inputs."""
     from pyrhonn.datafile import read_data
 
     source = str(path)
-    cf = _lim_file_config()
-    if tuple(cf.state_names) + tuple(cf.input_names) != COLUMNS[1:]:  # the DBC's order, guarded
-        raise RuntimeError("firmware-lim's state/input names no longer match the LIM's (hil.trajectory.COLUMNS)")
-    data = read_data(path, cf, config_source="a LIM trajectory")
+    if config_file is None:
+        cf = _lim_file_config()
+        if tuple(cf.state_names) + tuple(cf.input_names) != COLUMNS[1:]:  # the DBC's order, guarded
+            raise RuntimeError("firmware-lim's state/input names no longer match the LIM's (hil.trajectory.COLUMNS)")
+        what = "a LIM trajectory"
+    else:
+        cf, what = config_file, "the identifier's trajectory"
+    columns = ("t", *cf.state_names, *cf.input_names)
+    data = read_data(path, cf, config_source=what)
     if data.t is None:
         raise ValueError(f"{source}: line 1: missing column 't' (a trajectory needs its sample times, in s)")
     if not data.valid.all():
         k, j = np.argwhere(~data.valid)[0]
-        raise ValueError(f"{source}: line {int(data.lines[k])}: {COLUMNS[1 + j]} marked not valid: a trajectory is "
+        raise ValueError(f"{source}: line {int(data.lines[k])}: {columns[1 + j]} marked not valid: a trajectory is "
                          "the truth, every state on every line (the rig model adds the hold)")
     t = data.t
     if t.size < 2:

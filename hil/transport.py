@@ -79,18 +79,54 @@ def free_port() -> int:
     return random.SystemRandom().randrange(20000, 40000)
 
 
+def _source_module(relative: str, name: str, what: str) -> Any:
+    """A script of the source tree (beside this package, else the current directory's), imported;
+    FirmwareUnavailable naming ``what`` when there is none."""
+    import importlib.util
+
+    scripts = [base / relative for base in (ROOT, Path.cwd())]
+    script = next((p for p in scripts if p.is_file()), None)
+    if script is None:
+        raise FirmwareUnavailable(f"no {what}: no firmware_sim sources beside this installation or in the current "
+                                  f"directory ({relative})")
+    spec = importlib.util.spec_from_file_location(name, script)
+    module = importlib.util.module_from_spec(spec)
+    assert spec.loader is not None
+    spec.loader.exec_module(module)
+    return module
+
+
+def identifier_twin(scenario: Scenario) -> tuple[Any, Any]:
+    """(config, protocol) of the firmware twin FirmwareApp runs for ``scenario``: the LIM's, or for another
+    identifier its config and the firmware application compiled for its DBC
+    (firmware_sim/tools/build_twin.py, once per DBC, cached). FirmwareUnavailable when that cannot be built."""
+    from pyrhonn.firmware import lim_protocol
+
+    if not scenario.identifier:
+        return lim_config(), lim_protocol()
+    module = _source_module("firmware_sim/tools/build_twin.py", "_pyrhonn_build_twin",
+                            f"firmware twin for {scenario.dbc}")
+    try:
+        return scenario.reference_config(), module.protocol(scenario.dbc)
+    except (RuntimeError, OSError, subprocess.CalledProcessError) as exc:
+        raise FirmwareUnavailable(f"cannot build the firmware twin for {scenario.dbc} ({exc})") from exc
+
+
 @contextmanager
-def _virtual(channel: str | None, firmware: bool) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
+def _virtual(channel: str | None, firmware: bool, scenario: Scenario | None = None
+             ) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
     from pyrhonn.firmware import FirmwareApp
 
     channel = channel or f"hil-{uuid.uuid4().hex}"
+    # the twin first: a build that fails leaves no bus open
+    config, protocol = identifier_twin(scenario) if scenario is not None and firmware else (lim_config(), None)
     rig = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
     info: dict[str, Any] = {}
     stop = threading.Event()
     thread = None
     if firmware:
         fw_bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
-        app = FirmwareApp(fw_bus, lim_config())
+        app = FirmwareApp(fw_bus, config, protocol=protocol)
         info["app"] = app
 
         def serve() -> None:
@@ -207,30 +243,26 @@ def _stop(proc: subprocess.Popen | None) -> None:
             proc.kill()
 
 
-def udp_runner(runner: str | os.PathLike | None = None) -> str:
+def udp_runner(runner: str | os.PathLike | None = None, scenario: Scenario | None = None) -> str:
     """The rhonn_runner to start on udp_multicast: ``runner`` when given, else
     the one built from the source tree (beside the package, else the current
     directory's; once per source content, cached; see
-    firmware_sim/linux/build_runner.py). FirmwareUnavailable when neither."""
+    firmware_sim/linux/build_runner.py), for ``scenario``'s identifier when it
+    names one. FirmwareUnavailable when neither."""
     if runner is not None:
         path = Path(runner)
         if not (path.is_file() and os.access(path, os.X_OK)):
             raise FirmwareUnavailable(f"rhonn_runner: {runner}: not an executable file")
         return str(path)
     # the sources beside this package (a checkout, an editable install), else a checkout this runs in
-    scripts = [base / "firmware_sim" / "linux" / "build_runner.py" for base in (ROOT, Path.cwd())]
-    script = next((p for p in scripts if p.is_file()), None)
-    if script is None:
-        raise FirmwareUnavailable("no rhonn_runner to start: no firmware_sim sources beside this installation or in "
-                                  "the current directory; give --runner PATH (CMake target rhonn_runner, or "
-                                  "firmware_sim/linux/build_runner.py), or --firmware python")
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("_pyrhonn_build_runner", script)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
     try:
+        module = _source_module("firmware_sim/linux/build_runner.py", "_pyrhonn_build_runner", "rhonn_runner to start")
+    except FirmwareUnavailable as exc:
+        raise FirmwareUnavailable(f"{exc}; give --runner PATH (CMake target rhonn_runner, or "
+                                  "firmware_sim/linux/build_runner.py), or --firmware python") from None
+    try:
+        if scenario is not None and scenario.identifier:
+            return str(module.cached_for(Path(scenario.identifier), Path(scenario.dbc)))
         return str(module.cached())
     except (RuntimeError, OSError, subprocess.CalledProcessError) as exc:
         raise FirmwareUnavailable(f"cannot build rhonn_runner ({exc}); give --runner PATH, or --firmware python "
@@ -432,14 +464,15 @@ def _firmware_kind(transport: str, firmware: bool | str) -> str | None:
 @contextmanager
 def open_transport(transport: str, channel: str | None = None, *, port: int | None = None,
                    firmware: bool | str = True, runner: str | None = None, firmware_cpu: int | None = None,
-                   runner_spin_us: float = RUNNER_SPIN_US):
+                   runner_spin_us: float = RUNNER_SPIN_US, scenario: Scenario | None = None):
     """(rig bus, channel description, firmware-side report function).
     ``firmware``: True (the transport's default firmware), False (none: one
     must be running already), or "runner" / "python" (udp_multicast).
     ``firmware_cpu``: pin the firmware process started here to this CPU.
     ``runner_spin_us``: how long a runner started here (udp_multicast, or
     socketcan with ``runner``) busy-polls either side of each expected
-    Measurement (``rhonn_runner --rx arrival --spin-us``)."""
+    Measurement (``rhonn_runner --rx arrival --spin-us``). ``scenario``: the
+    firmware started here runs its identifier (None: the LIM's)."""
     if transport not in TRANSPORTS:
         raise ValueError(f"transport: expected one of {', '.join(TRANSPORTS)}, got {transport!r}")
     runner_spin_us = check_runner_spin(runner_spin_us)
@@ -450,16 +483,20 @@ def open_transport(transport: str, channel: str | None = None, *, port: int | No
                              "socketcan with a runner)")
         _check_cpu("firmware_cpu", firmware_cpu)
     if transport == "virtual":
-        with _virtual(channel, kind is not None) as t:
+        with _virtual(channel, kind is not None, scenario) as t:
             yield t
     elif transport == "udp_multicast":
         fallback = None
+        other = scenario is not None and bool(scenario.identifier)
+        if kind == "python" and other:
+            raise ValueError("firmware: the Python node over udp_multicast runs the LIM only; another identifier's "
+                             "firmware there is rhonn_runner (or replay it on the virtual bus)")
         if kind == "runner":
             try:
-                runner = udp_runner(runner)
+                runner = udp_runner(runner, scenario)
             except FirmwareUnavailable as exc:
-                if firmware is not True or runner is not None:
-                    raise                   # the runner was asked for by name
+                if firmware is not True or runner is not None or other:
+                    raise                   # the runner was asked for by name, or none other runs the identifier
                 kind, fallback = "python", f"rhonn_runner unavailable ({exc}): the firmware is the Python node"
         with _udp(channel, port, kind, runner, firmware_cpu, runner_spin_us) as (bus, where, side):
             def side_noted() -> dict:
@@ -494,7 +531,8 @@ def run_replay(scenario: Scenario, transport: str = "virtual", channel: str | No
     if spin_ns is None:
         spin_ns = 0 if transport == "virtual" else 150_000
     with open_transport(transport, channel, port=port, firmware=firmware, runner=runner,
-                        firmware_cpu=firmware_cpu, runner_spin_us=runner_spin_us) as (bus, where, side):
+                        firmware_cpu=firmware_cpu, runner_spin_us=runner_spin_us,
+                        scenario=scenario) as (bus, where, side):
         rig = Rig(bus, plan, transport=transport, channel=where, spin_ns=spin_ns, reply_timeout=reply_timeout,
                   drain=drain, extra_frames=extra_frames, kernel_drops=getattr(bus, "hil_kernel_drops", None),
                   progress=progress, sample_drops=sample_drops)

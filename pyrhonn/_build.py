@@ -335,38 +335,53 @@ size_t fwpy_secoc_key(const unsigned char **key);
 """
 
 
-def firmware_declarations() -> str:
+def firmware_declarations(includes: tuple[str, ...] = FIRMWARE_INCLUDES) -> str:
     """The firmware application's headers (fw_app.h with rhonn.h and
     fw_protocol.h, fw_hal_mem.h, and the cantools-generated rhonn_id.h) run
     through the C preprocessor for the float32 core, with empty stand-ins
-    for the system headers whose types cffi knows itself."""
+    for the system headers whose types cffi knows itself. ``includes``: the
+    include path (relative to the source tree, or absolute)."""
     with tempfile.TemporaryDirectory() as stubs:
         for name in ("stddef.h", "stdint.h", "stdbool.h"):
             (Path(stubs) / name).write_text("")
         source = "".join(f'#include "{h}"\n' for h in ("fw_app.h", "fw_hal_mem.h", "rhonn_id.h"))
         cc = shlex.split(os.environ.get("CC", "cc"))
         result = subprocess.run([*cc, "-E", "-P", "-nostdinc", "-isystem", stubs, "-x", "c", "-DRHONN_SINGLE",
-                                 *(f"-I{ROOT / d}" for d in FIRMWARE_INCLUDES), "-"], input=source,
+                                 *(f"-I{ROOT / d}" for d in includes), "-"], input=source,
                                 capture_output=True, text=True, check=False)
     if result.returncode != 0:
         raise RuntimeError(f"preprocessing the firmware headers failed: {result.stderr}")
     return "".join(f"#define {name} ...\n" for name in FIRMWARE_CONSTANTS) + result.stdout + FIRMWARE_GLUE_CDEF
 
 
-def make_fwapp_ffi() -> FFI:
+def make_fwapp_ffi(module: str = "pyrhonn._fwapp", protocol_dir: str | Path | None = None) -> FFI:
     """The builder of pyrhonn._fwapp: firmware_sim's application (fw_app,
     the generated pack/unpack of rhonn_id.dbc, the in-memory HAL) on the
     float32 core, the firmware's precision, compiled from the same sources
-    and flags as the CMake targets."""
+    and flags as the CMake targets.
+
+    ``protocol_dir``: a folder holding another DBC (``rhonn_id.dbc``) and the
+    protocol firmware_sim/tools/generate_protocol.py generated from it: the
+    same application for that identifier's frames, as ``module``
+    (firmware_sim/tools/build_twin.py builds it from a source tree)."""
     ffi = FFI()
-    ffi.cdef(firmware_declarations())
-    dbc = (FIRMWARE / "rhonn_id.dbc").read_bytes()
+    includes = FIRMWARE_INCLUDES
+    sources = list(FIRMWARE_SOURCES)
+    dbc_path = FIRMWARE / "rhonn_id.dbc"
+    if protocol_dir is not None:
+        pdir = Path(protocol_dir).resolve()
+        includes = (str(pdir), *FIRMWARE_INCLUDES)
+        sources = [str(pdir / "rhonn_id.c") if src == "firmware_sim/generated/rhonn_id.c" else str(ROOT / src)
+                   for src in sources]
+        dbc_path = pdir / "rhonn_id.dbc"
+    ffi.cdef(firmware_declarations(includes))
+    dbc = dbc_path.read_bytes()
     ffi.set_source(
-        "pyrhonn._fwapp",
+        module,
         FIRMWARE_GLUE % ", ".join(str(b) for b in dbc),
-        sources=list(FIRMWARE_SOURCES),
-        include_dirs=list(FIRMWARE_INCLUDES),
-        depends=build_depends(FIRMWARE_INCLUDES),
+        sources=sources,
+        include_dirs=[str(ROOT / d) for d in includes] if protocol_dir is not None else list(includes),
+        depends=build_depends(FIRMWARE_INCLUDES) if protocol_dir is None else [],
         define_macros=[("RHONN_UNROLL", "1"), ("RHONN_SINGLE", "1")],
         extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math"],
     )

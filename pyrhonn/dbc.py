@@ -182,6 +182,9 @@ def database_text(state_names: Sequence[str], input_names: Sequence[str], X: np.
             new = frames.get_message_by_frame_id(msg.frame_id)
             new.is_fd = True
             new.dbc = msg.dbc                          # the frame's attributes: CAN FD with bit-rate switch
+            for field in new.signals:                  # the value tables (Estimate.StepStatus) the firmware reads
+                if field.name in msg.signal_tree and msg.get_signal_by_name(field.name).choices:
+                    field.choices = copy.deepcopy(msg.get_signal_by_name(field.name).choices)
             messages.append(new)
             continue
         for s in msg.signals:

@@ -25,6 +25,18 @@ build time: :func:`database`, :func:`measurement_message`,
 :func:`decode_health`. Bit-rate figures of
 the design come from :func:`fd_frame_bits` and :func:`cycle_bus_time`.
 
+**Another identifier.** The module-level functions speak the LIM's protocol
+(``firmware_sim/rhonn_id.dbc``). A :class:`Protocol` is the same protocol
+for any identifier whose DBC ``pyrhonn export --dbc`` wrote (its states are
+the Measurement signals with a ``Valid<state>`` flag, its inputs the other
+value signals, its estimates ``<state>Hat``), read from the DBC with
+cantools; with ``library``, the firmware application compiled for that DBC
+(firmware_sim/tools/build_twin.py), :class:`FirmwareApp` runs it::
+
+    proto = Protocol.from_dbc("id.dbc", library=twin)  # twin: the compiled module
+    app = FirmwareApp(bus, config, protocol=proto)
+    bus.send(proto.measurement_message(0, x, u))
+
 Control and WeightLoad frames are authenticated as AUTOSAR SecOC does
 (firmware_sim/README.md, Authentication): a :class:`SecOCSender` holds the
 key and the rig's freshness counter and is the one place that secures them::
@@ -38,6 +50,7 @@ import functools
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
@@ -56,6 +69,7 @@ __all__ = [
     "FirmwareError",
     "Health",
     "INPUT_SIGNALS",
+    "Protocol",
     "SECOC_ENABLED",
     "STATE_SIGNALS",
     "SecOCSender",
@@ -69,7 +83,9 @@ __all__ = [
     "decode_estimate",
     "decode_health",
     "fd_frame_bits",
+    "lim_protocol",
     "measurement_message",
+    "protocol_layout",
     "status_name",
     "weight_load_messages",
 ]
@@ -187,25 +203,6 @@ def _message(name: str, data: bytes) -> can.Message:
                        is_fd=msg.is_fd, bitrate_switch=msg.is_fd)
 
 
-def measurement_message(seq: int, x: Sequence[float], u: Sequence[float], valid: Sequence[bool] | None = None,
-                        *, scaling: bool = True) -> can.Message:
-    """A Measurement frame. ``x`` (6,) and ``u`` (2,) are physical values
-    (rounded to the signals' resolution by cantools, which refuses values
-    outside the DBC ranges), or raw integers with ``scaling=False``."""
-    if len(x) != len(STATE_SIGNALS) or len(u) != len(INPUT_SIGNALS):
-        raise ValueError(f"x, u: expected {len(STATE_SIGNALS)} states and {len(INPUT_SIGNALS)} inputs, "
-                         f"got {len(x)} and {len(u)}")
-    valid = [True] * len(STATE_SIGNALS) if valid is None else list(valid)
-    values: dict[str, Any] = {"Seq": int(seq) & 0xFFFF}
-    for name, flag, value in zip(STATE_SIGNALS, VALID_SIGNALS, x):
-        values[flag] = int(bool(valid[VALID_SIGNALS.index(flag)]))
-        values[name] = float(value) if scaling else int(value)
-    for name, value in zip(INPUT_SIGNALS, u):
-        values[name] = float(value) if scaling else int(value)
-    data = database().encode_message("Measurement", values, scaling=scaling)
-    return _message("Measurement", data)
-
-
 @dataclass(frozen=True)
 class Estimate:
     """A decoded Estimate frame: x̂(k+1) in physical units (float64) or raw."""
@@ -218,15 +215,140 @@ class Estimate:
     xhat: np.ndarray
 
 
+def protocol_layout(db: Any) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(states, inputs) of a protocol database: the states are the Measurement signals with a
+    ``Valid<state>`` flag, in the flags' order, the inputs its other value signals (in the frame's
+    order: by start bit), and each state has its ``<state>Hat`` in the Estimate. ValueError naming
+    what does not fit that shape."""
+    try:
+        meas, est = db.get_message_by_name("Measurement"), db.get_message_by_name("Estimate")
+    except KeyError as exc:
+        raise ValueError(f"the DBC has no {exc.args[0]} message (the protocol needs Measurement and "
+                         "Estimate)") from None
+    names = [sig.name for sig in sorted(meas.signals, key=lambda sig: sig.start)]   # in the frame's order
+    if not names or names[0] != "Seq":
+        raise ValueError("Measurement: its first signal must be Seq")
+    states = tuple(n[len("Valid"):] for n in names if n.startswith("Valid") and n[len("Valid"):] in names)
+    if not states:
+        raise ValueError("Measurement: no Valid<state> flag for any of its signals (no state)")
+    flags = {f"Valid{x}" for x in states}
+    inputs = tuple(n for n in names[1:] if n not in flags and n not in states)
+    want = ["Seq", "StepStatus", "Learning", "Saturated", "Resync", *(f"{x}Hat" for x in states)]
+    got = [sig.name for sig in sorted(est.signals, key=lambda sig: sig.start)]
+    if got != want:
+        raise ValueError(f"Estimate: expected the signals {want}, got {got}")
+    return states, inputs
+
+
+class Protocol:
+    """The frames of one identifier's protocol (see the module docstring): the LIM's
+    (:func:`lim_protocol`) or another identifier's DBC (:meth:`from_dbc`).
+
+    ``states``, ``inputs``: the signal names in the identifier's order; ``library``: the firmware
+    application compiled for this DBC (a cffi module as ``pyrhonn._fwapp``), or None (the rig's side
+    only)."""
+
+    def __init__(self, db: Any, *, library: Any = None, source: str = "") -> None:
+        self.database = db
+        self.source = source
+        self.states, self.inputs = protocol_layout(db)
+        self.valid_signals = tuple(f"Valid{x}" for x in self.states)
+        self.estimate_signals = tuple(f"{x}Hat" for x in self.states)
+        self.library = library
+        if library is not None:
+            n, m = int(library.lib.FW_N_STATES), int(library.lib.FW_N_INPUTS)
+            if (n, m) != (len(self.states), len(self.inputs)):
+                raise ValueError(f"library: compiled for {n} states and {m} inputs, the DBC carries "
+                                 f"{len(self.states)} and {len(self.inputs)}")
+        self._meas = db.get_message_by_name("Measurement")
+        self._est = db.get_message_by_name("Estimate")
+
+    @classmethod
+    def from_dbc(cls, path: str | Path, *, library: Any = None) -> "Protocol":
+        """The protocol of a DBC file (``pyrhonn export --dbc``); ValueError naming the file."""
+        import cantools
+
+        source = str(path)
+        try:
+            db = cantools.database.load_file(source, database_format="dbc")
+        except OSError as exc:
+            raise ValueError(f"{source}: cannot read it: {exc.strerror or exc}") from None
+        except Exception as exc:  # cantools' parse errors have no common base class
+            raise ValueError(f"{source}: not a DBC cantools reads: {exc}") from None
+        try:
+            return cls(db, library=library, source=source)
+        except ValueError as exc:
+            raise ValueError(f"{source}: {exc}") from None
+
+    @property
+    def version(self) -> str:
+        return str(self.database.version)
+
+    @property
+    def measurement_length(self) -> int:
+        return int(self._meas.length)
+
+    def signal_range(self, name: str) -> tuple[float, float]:
+        """The accepted [min, max] of a Measurement signal."""
+        sig = self._meas.get_signal_by_name(name)
+        return float(sig.minimum), float(sig.maximum)
+
+    def measurement_message(self, seq: int, x: Sequence[float], u: Sequence[float],
+                            valid: Sequence[bool] | None = None, *, scaling: bool = True) -> can.Message:
+        """A Measurement frame. ``x`` and ``u`` are physical values in the identifier's order
+        (rounded to the signals' resolution by cantools, which refuses values outside the DBC
+        ranges), or raw integers with ``scaling=False``."""
+        n, m = len(self.states), len(self.inputs)
+        if len(x) != n or len(u) != m:
+            raise ValueError(f"x, u: expected {n} states and {m} inputs, got {len(x)} and {len(u)}")
+        flags = [True] * n if valid is None else list(valid)
+        if len(flags) != n:
+            raise ValueError(f"valid: expected {n} flags, got {len(flags)}")
+        values: dict[str, Any] = {"Seq": int(seq) & 0xFFFF}
+        for name, flag, value, ok in zip(self.states, self.valid_signals, x, flags):
+            values[flag] = int(bool(ok))
+            values[name] = float(value) if scaling else int(value)
+        for name, value in zip(self.inputs, u):
+            values[name] = float(value) if scaling else int(value)
+        data = self._meas.encode(values, scaling=scaling)
+        return can.Message(arbitration_id=self._meas.frame_id, is_extended_id=self._meas.is_extended_frame,
+                           data=data, is_fd=self._meas.is_fd, bitrate_switch=self._meas.is_fd)
+
+    def decode_estimate(self, msg: can.Message, *, scaling: bool = True) -> Estimate:
+        """Decode an Estimate frame (ValueError for any other frame)."""
+        if msg.arbitration_id != self._est.frame_id or msg.is_extended_id:
+            raise ValueError(f"msg: not an Estimate frame (id 0x{msg.arbitration_id:x})")
+        d = self._est.decode(bytes(msg.data), scaling=scaling, decode_choices=False)
+        return Estimate(seq=int(d["Seq"]), step_status=int(d["StepStatus"]), learning=bool(d["Learning"]),
+                        saturated=bool(d["Saturated"]), resync=bool(d["Resync"]),
+                        xhat=np.array([d[x] for x in self.estimate_signals],
+                                      dtype=np.float64 if scaling else np.int64))
+
+    def decode_measurement(self, data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x, u, valid) of a Measurement frame's payload, physical, in the identifier's order."""
+        d = self._meas.decode(bytes(data), decode_choices=False)
+        return (np.array([d[x] for x in self.states], dtype=np.float64),
+                np.array([d[x] for x in self.inputs], dtype=np.float64),
+                np.array([bool(d[x]) for x in self.valid_signals], dtype=bool))
+
+
+@functools.cache
+def lim_protocol() -> Protocol:
+    """The LIM's protocol, that of the DBC the extension was built from, with its firmware."""
+    return Protocol(database(), library=_fwapp, source="firmware_sim/rhonn_id.dbc")
+
+
+def measurement_message(seq: int, x: Sequence[float], u: Sequence[float], valid: Sequence[bool] | None = None,
+                        *, scaling: bool = True) -> can.Message:
+    """A Measurement frame of the LIM's protocol. ``x`` (6,) and ``u`` (2,) are physical values
+    (rounded to the signals' resolution by cantools, which refuses values outside the DBC ranges),
+    or raw integers with ``scaling=False``."""
+    return lim_protocol().measurement_message(seq, x, u, valid, scaling=scaling)
+
+
 def decode_estimate(msg: can.Message, *, scaling: bool = True) -> Estimate:
-    """Decode an Estimate frame (ValueError for any other frame)."""
-    m = database().get_message_by_name("Estimate")
-    if msg.arbitration_id != m.frame_id or msg.is_extended_id:
-        raise ValueError(f"msg: not an Estimate frame (id 0x{msg.arbitration_id:x})")
-    d = m.decode(bytes(msg.data), scaling=scaling, decode_choices=False)
-    return Estimate(seq=int(d["Seq"]), step_status=int(d["StepStatus"]), learning=bool(d["Learning"]),
-                    saturated=bool(d["Saturated"]), resync=bool(d["Resync"]),
-                    xhat=np.array([d[s] for s in ESTIMATE_SIGNALS], dtype=np.float64 if scaling else np.int64))
+    """Decode an Estimate frame of the LIM's protocol (ValueError for any other frame)."""
+    return lim_protocol().decode_estimate(msg, scaling=scaling)
 
 
 def decode_diagnostics(msg: can.Message) -> dict[str, int | float]:
@@ -343,11 +465,11 @@ def cycle_bus_time(nominal_bps: float, data_bps: float, *, frames: Sequence[str]
 # -- the application ------------------------------------------------------------------------
 
 
-def _make_c_config(config: IdentifierConfig) -> Any:
+def _make_c_config(config: IdentifierConfig, ffi: Any = _ffi) -> Any:
     # Identifier._c_config fills a rhonn_config from an IdentifierConfig
-    # through whichever FFI it is handed: reuse it with _fwapp's, so the
+    # through whichever FFI it is handed: reuse it with the firmware's, so the
     # Python-to-C mapping of a configuration exists once.
-    return Identifier._c_config(SimpleNamespace(_ffi=_ffi), config)  # type: ignore[arg-type]
+    return Identifier._c_config(SimpleNamespace(_ffi=ffi), config)  # type: ignore[arg-type]
 
 
 class FirmwareApp:
@@ -361,8 +483,8 @@ class FirmwareApp:
     config:
         The identifier: an :class:`IdentifierConfig` (or an
         :class:`Identifier`, whose current weights become w0). It must be
-        float32 (the firmware's precision) with 6 states and 2 inputs (the
-        DBC's LIM layout).
+        float32 (the firmware's precision) with the protocol's states and
+        inputs (the LIM's: 6 and 2).
     deadline_ns:
         StepTime above this counts as an overrun (0: no check).
     diag_period:
@@ -371,10 +493,21 @@ class FirmwareApp:
         True: the firmware's clock is the host's monotonic clock (real step
         times). False: a simulated clock that only :attr:`clock_ns` moves
         (deterministic diagnostics).
+    protocol:
+        A :class:`Protocol` with its ``library`` (the firmware compiled for
+        another identifier's DBC); None: the LIM's.
     """
 
     def __init__(self, bus: can.BusABC | None, config: IdentifierConfig | Identifier, *,
-                 deadline_ns: int = 300_000, diag_period: int = 0, host_clock: bool = True) -> None:
+                 deadline_ns: int = 300_000, diag_period: int = 0, host_clock: bool = True,
+                 protocol: Protocol | None = None) -> None:
+        if protocol is None:
+            protocol = lim_protocol()
+        if not isinstance(protocol, Protocol) or protocol.library is None:
+            raise ValueError("protocol: expected a Protocol with the firmware compiled for it (library), got "
+                             f"{type(protocol).__name__}")
+        self._ffi, self._lib = protocol.library.ffi, protocol.library.lib
+        self.protocol = protocol
         if isinstance(config, Identifier):
             config = config.as_config()
         if not isinstance(config, IdentifierConfig):
@@ -382,7 +515,7 @@ class FirmwareApp:
         if config.dtype != "float32":
             raise ValueError(f"config.dtype: the firmware runs the float32 core, got {config.dtype!r} "
                              "(use config.replace(dtype='float32'))")
-        n, m = int(_lib.FW_N_STATES), int(_lib.FW_N_INPUTS)
+        n, m = int(self._lib.FW_N_STATES), int(self._lib.FW_N_INPUTS)
         if config.n_states != n or config.n_inputs != m:
             raise ValueError(f"config: the protocol carries {n} states and {m} inputs, got "
                              f"{config.n_states} states and {config.n_inputs} inputs")
@@ -396,23 +529,24 @@ class FirmwareApp:
             raise ValueError(f"bus: expected a python-can bus, got {type(bus).__name__}")
         self._bus = bus
         self._config = config
-        self._c_config = _make_c_config(config)  # copied into the identifier by fw_app_init
-        self._app = _ffi.new("fw_app *")
-        self._mem = _ffi.new("fw_mem_hal *")
-        self._hal = _ffi.new("fw_hal *")
+        self._c_config = _make_c_config(config, self._ffi)  # copied into the identifier by fw_app_init
+        self._app = self._ffi.new("fw_app *")
+        self._mem = self._ffi.new("fw_mem_hal *")
+        self._hal = self._ffi.new("fw_hal *")
         self._host_clock = bool(host_clock)
-        _lib.fwpy_bind_hal(self._mem, self._hal, 1 if host_clock else 0)
-        app_cfg = _ffi.new("fw_app_config *")
+        self._lib.fwpy_bind_hal(self._mem, self._hal, 1 if host_clock else 0)
+        app_cfg = self._ffi.new("fw_app_config *")
         app_cfg.identifier = self._c_config
         app_cfg.deadline_ns = int(deadline_ns)
         app_cfg.diag_period = int(diag_period)
-        status = _lib.fw_app_init(self._app, app_cfg, self._hal)
-        if status != _lib.FW_OK:
-            raise FirmwareError(status_name(status), f"config: rejected by fw_app_init ({status_name(status)})")
-        self._frame = _ffi.new("fw_frame *")
-        self._data = _ffi.new("uint8_t[]", int(_lib.FW_MAX_FRAME_LEN) + 1)
-        self._net = _ffi.new("const rhonn_t **")
-        _lib.fw_app_get_identifier(self._app, self._net)
+        status = self._lib.fw_app_init(self._app, app_cfg, self._hal)
+        if status != self._lib.FW_OK:
+            name = self._status_name(status)
+            raise FirmwareError(name, f"config: rejected by fw_app_init ({name})")
+        self._frame = self._ffi.new("fw_frame *")
+        self._data = self._ffi.new("uint8_t[]", int(self._lib.FW_MAX_FRAME_LEN) + 1)
+        self._net = self._ffi.new("const rhonn_t **")
+        self._lib.fw_app_get_identifier(self._app, self._net)
         self.last_status = "FW_OK"
         self.tx_failures = 0
 
@@ -444,18 +578,18 @@ class FirmwareApp:
         self._mem.tick_ns = int(value)
 
     def _now(self) -> int:
-        return int(_lib.fwpy_now_ns()) if self._host_clock else int(self._mem.now_ns)
+        return int(self._lib.fwpy_now_ns()) if self._host_clock else int(self._mem.now_ns)
 
     def handle_frame(self, can_id: int, data: bytes, now_ns: int | None = None) -> list[can.Message]:
         """One received frame by SocketCAN-style id (with the FW_CAN_*_FLAG
         bits) and payload; returns what the firmware sends in response.
         :attr:`last_status` holds fw_app_on_frame's status name."""
         data = bytes(data)
-        n = min(len(data), int(_lib.FW_MAX_FRAME_LEN) + 1)  # anything longer is rejected alike (FW_E_LENGTH)
-        _ffi.memmove(self._data, data, n)
-        status = _lib.fw_app_on_frame(self._app, int(can_id) & 0xFFFFFFFF, self._data if n else _ffi.NULL, n,
+        n = min(len(data), int(self._lib.FW_MAX_FRAME_LEN) + 1)  # anything longer is rejected alike (FW_E_LENGTH)
+        self._ffi.memmove(self._data, data, n)
+        status = self._lib.fw_app_on_frame(self._app, int(can_id) & 0xFFFFFFFF, self._data if n else self._ffi.NULL, n,
                                       self._now() if now_ns is None else int(now_ns))
-        self.last_status = status_name(status)
+        self.last_status = self._status_name(status)
         return self._drain()
 
     def handle(self, msg: can.Message) -> list[can.Message]:
@@ -464,21 +598,21 @@ class FirmwareApp:
         Diagnostics frame due)."""
         can_id = msg.arbitration_id
         if msg.is_extended_id:
-            can_id |= int(_lib.FW_CAN_EFF_FLAG)
+            can_id |= int(self._lib.FW_CAN_EFF_FLAG)
         if msg.is_remote_frame:
-            can_id |= int(_lib.FW_CAN_RTR_FLAG)
+            can_id |= int(self._lib.FW_CAN_RTR_FLAG)
         if msg.is_error_frame:
-            can_id |= int(_lib.FW_CAN_ERR_FLAG)
+            can_id |= int(self._lib.FW_CAN_ERR_FLAG)
         return self.handle_frame(can_id, bytes(msg.data))
 
     def _drain(self) -> list[can.Message]:
         out = []
         f = self._frame
-        while _lib.fw_mem_hal_pop(self._mem, f) == _lib.FW_OK:
+        while self._lib.fw_mem_hal_pop(self._mem, f) == self._lib.FW_OK:
             out.append(can.Message(
-                arbitration_id=int(f.id) & 0x1FFFFFFF, is_extended_id=bool(f.id & _lib.FW_CAN_EFF_FLAG),
-                data=bytes(_ffi.buffer(f.data, int(f.len))), is_fd=bool(f.flags & _lib.FW_FRAME_FD),
-                bitrate_switch=bool(f.flags & _lib.FW_FRAME_BRS), timestamp=time.time()))
+                arbitration_id=int(f.id) & 0x1FFFFFFF, is_extended_id=bool(f.id & self._lib.FW_CAN_EFF_FLAG),
+                data=bytes(self._ffi.buffer(f.data, int(f.len))), is_fd=bool(f.flags & self._lib.FW_FRAME_FD),
+                bitrate_switch=bool(f.flags & self._lib.FW_FRAME_BRS), timestamp=time.time()))
         return out
 
     def serve(self, n_frames: int | None = None, *, until: float | Callable[[], bool] | None = None,
@@ -517,11 +651,11 @@ class FirmwareApp:
     def send_diagnostics(self) -> list[can.Message]:
         """A Diagnostics frame now, followed by one Health frame per neuron
         (returned, not sent)."""
-        self._check(_lib.fw_app_send_diagnostics(self._app), "send_diagnostics")
+        self._check(self._lib.fw_app_send_diagnostics(self._app), "send_diagnostics")
         return self._drain()
 
     def note_overrun(self) -> None:
-        self._check(_lib.fw_app_note_overrun(self._app), "note_overrun")
+        self._check(self._lib.fw_app_note_overrun(self._app), "note_overrun")
 
     def note_rx_drops(self, dropped: int) -> None:
         """Count frames the platform's receive queue dropped (``dropped`` in
@@ -529,28 +663,28 @@ class FirmwareApp:
         count."""
         if isinstance(dropped, bool) or not isinstance(dropped, (int, np.integer)) or not 0 <= dropped < 2 ** 32:
             raise ValueError(f"dropped: expected an integer in 0..{2 ** 32 - 1}, got {dropped!r}")
-        self._check(_lib.fw_app_note_rx_drops(self._app, int(dropped)), "note_rx_drops")
+        self._check(self._lib.fw_app_note_rx_drops(self._app, int(dropped)), "note_rx_drops")
 
     # -- looking inside -----------------------------------------------------------------------
 
     @property
     def counters(self) -> dict[str, int]:
-        c = _ffi.new("fw_counters *")
-        self._check(_lib.fw_app_get_counters(self._app, c), "counters")
+        c = self._ffi.new("fw_counters *")
+        self._check(self._lib.fw_app_get_counters(self._app, c), "counters")
         return {name: int(getattr(c, name)) for name in _COUNTERS}
 
     @property
     def prediction(self) -> np.ndarray:
         """x̂(k) of the firmware's identifier (float32)."""
         out = np.empty(self._config.n_states, dtype=np.float32)
-        self._check_core(_lib.rhonn_get_prediction(self._net[0], _ffi.from_buffer("float[]", out), out.size),
+        self._check_core(self._lib.rhonn_get_prediction(self._net[0], self._ffi.from_buffer("float[]", out), out.size),
                          "prediction")
         return out
 
     def get_weights(self, neuron: int) -> np.ndarray:
         L = self._config.neurons[neuron].n_terms
         out = np.empty(L, dtype=np.float32)
-        self._check_core(_lib.rhonn_get_weights(self._net[0], neuron, _ffi.from_buffer("float[]", out), L),
+        self._check_core(self._lib.rhonn_get_weights(self._net[0], neuron, self._ffi.from_buffer("float[]", out), L),
                          "weights")
         return out
 
@@ -558,24 +692,27 @@ class FirmwareApp:
         """P_i packed (upper triangle row by row), as the core stores it."""
         L = self._config.neurons[neuron].n_terms
         out = np.empty(L * (L + 1) // 2, dtype=np.float32)
-        self._check_core(_lib.rhonn_get_covariance(self._net[0], neuron, _ffi.from_buffer("float[]", out),
+        self._check_core(self._lib.rhonn_get_covariance(self._net[0], neuron, self._ffi.from_buffer("float[]", out),
                                                    out.size), "covariance")
         return out
 
     @property
     def freshness(self) -> int:
         """The last freshness value the firmware accepted (command authentication)."""
-        out = _ffi.new("uint64_t *")
-        self._check(_lib.fw_app_get_freshness(self._app, out), "freshness")
+        out = self._ffi.new("uint64_t *")
+        self._check(self._lib.fw_app_get_freshness(self._app, out), "freshness")
         return int(out[0])
 
     def identifier_bytes(self) -> bytes:
         """The whole rhonn_t, byte for byte (for bit-exact comparisons)."""
-        return bytes(_ffi.buffer(self._net[0], _ffi.sizeof("rhonn_t")))
+        return bytes(self._ffi.buffer(self._net[0], self._ffi.sizeof("rhonn_t")))
+
+    def _status_name(self, status: int) -> str:
+        return self._ffi.string(self._lib.fw_status_name(status)).decode()
 
     def _check(self, status: int, what: str) -> None:
-        if status != _lib.FW_OK:
-            raise FirmwareError(status_name(status), f"{what}: {status_name(status)}")
+        if status != self._lib.FW_OK:
+            raise FirmwareError(self._status_name(status), f"{what}: {self._status_name(status)}")
 
     def _check_core(self, status: int, what: str) -> None:
         if status != 0:

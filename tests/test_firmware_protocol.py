@@ -63,7 +63,7 @@ def test_generated_c_is_up_to_date(tmp_path: Path) -> None:
     subprocess.run([sys.executable, str(FW / "tools" / "generate_protocol.py"), "-o", str(tmp_path)], check=True,
                    capture_output=True, text=True)
     names = sorted(p.name for p in tmp_path.iterdir())
-    assert names == ["rhonn_id.c", "rhonn_id.h", "rhonn_id_limits.h"]
+    assert names == ["rhonn_id.c", "rhonn_id.h", "rhonn_id_layout.h", "rhonn_id_limits.h"]
     for name in names:
         fresh, committed = (tmp_path / name).read_text(), (FW / "generated" / name).read_text()
         assert _mask_version(fresh) == _mask_version(committed), f"generated/{name} is stale: regenerate it"

@@ -8,6 +8,7 @@
 
 #include "rhonn_id.h"
 #include "rhonn_id_limits.h"
+#include "rhonn_id_layout.h"
 
 /* Round to the nearest integer, ties to even (Python's round()), for
  * |v| < 2^52 (the caller clips v to the int32 range first). */
@@ -223,39 +224,12 @@ fw_status fw_measurement_decode(const uint8_t *data, size_t len, fw_measurement 
     }
     /* A state flagged invalid is not range-checked: the rig may send a
      * sentinel there, and the core ignores it. Inputs are always used. */
-    in_range = FW_IN_RANGE(f.seq, RHONN_ID_MEASUREMENT_SEQ)
-        && FW_IN_RANGE(f.valid_qm, RHONN_ID_MEASUREMENT_VALID_QM)
-        && FW_IN_RANGE(f.valid_v, RHONN_ID_MEASUREMENT_VALID_V)
-        && FW_IN_RANGE(f.valid_lambda_a, RHONN_ID_MEASUREMENT_VALID_LAMBDA_A)
-        && FW_IN_RANGE(f.valid_lambda_b, RHONN_ID_MEASUREMENT_VALID_LAMBDA_B)
-        && FW_IN_RANGE(f.valid_ia, RHONN_ID_MEASUREMENT_VALID_IA)
-        && FW_IN_RANGE(f.valid_ib, RHONN_ID_MEASUREMENT_VALID_IB)
-        && (!f.valid_qm || FW_IN_RANGE(f.qm, RHONN_ID_MEASUREMENT_QM))
-        && (!f.valid_v || FW_IN_RANGE(f.v, RHONN_ID_MEASUREMENT_V))
-        && (!f.valid_lambda_a || FW_IN_RANGE(f.lambda_a, RHONN_ID_MEASUREMENT_LAMBDA_A))
-        && (!f.valid_lambda_b || FW_IN_RANGE(f.lambda_b, RHONN_ID_MEASUREMENT_LAMBDA_B))
-        && (!f.valid_ia || FW_IN_RANGE(f.ia, RHONN_ID_MEASUREMENT_IA))
-        && (!f.valid_ib || FW_IN_RANGE(f.ib, RHONN_ID_MEASUREMENT_IB))
-        && FW_IN_RANGE(f.ua, RHONN_ID_MEASUREMENT_UA)
-        && FW_IN_RANGE(f.ub, RHONN_ID_MEASUREMENT_UB);
+    in_range = FW_MEASUREMENT_IN_RANGE(f);
     if (!in_range) {
         return FW_E_RANGE;
     }
     out.seq = f.seq;
-    out.valid[0] = f.valid_qm;
-    out.valid[1] = f.valid_v;
-    out.valid[2] = f.valid_lambda_a;
-    out.valid[3] = f.valid_lambda_b;
-    out.valid[4] = f.valid_ia;
-    out.valid[5] = f.valid_ib;
-    out.x[0] = FW_DECODE(rhonn_id_measurement_qm_decode, f.qm, RHONN_ID_MEASUREMENT_QM);
-    out.x[1] = FW_DECODE(rhonn_id_measurement_v_decode, f.v, RHONN_ID_MEASUREMENT_V);
-    out.x[2] = FW_DECODE(rhonn_id_measurement_lambda_a_decode, f.lambda_a, RHONN_ID_MEASUREMENT_LAMBDA_A);
-    out.x[3] = FW_DECODE(rhonn_id_measurement_lambda_b_decode, f.lambda_b, RHONN_ID_MEASUREMENT_LAMBDA_B);
-    out.x[4] = FW_DECODE(rhonn_id_measurement_ia_decode, f.ia, RHONN_ID_MEASUREMENT_IA);
-    out.x[5] = FW_DECODE(rhonn_id_measurement_ib_decode, f.ib, RHONN_ID_MEASUREMENT_IB);
-    out.u[0] = FW_DECODE(rhonn_id_measurement_ua_decode, f.ua, RHONN_ID_MEASUREMENT_UA);
-    out.u[1] = FW_DECODE(rhonn_id_measurement_ub_decode, f.ub, RHONN_ID_MEASUREMENT_UB);
+    FW_MEASUREMENT_FILL(out, f);
     *m = out;
     return FW_OK;
 }
@@ -296,12 +270,7 @@ fw_status fw_estimate_encode(const fw_estimate *e, uint8_t *data, size_t size, u
     f.step_status = e->step_status;
     f.learning = e->learning ? 1u : 0u;
     f.resync = e->resync ? 1u : 0u;
-    FW_QUANTISE(f.qm_hat, int32_t, e->xhat[0], RHONN_ID_ESTIMATE_QM_HAT);
-    FW_QUANTISE(f.v_hat, int16_t, e->xhat[1], RHONN_ID_ESTIMATE_V_HAT);
-    FW_QUANTISE(f.lambda_a_hat, int16_t, e->xhat[2], RHONN_ID_ESTIMATE_LAMBDA_A_HAT);
-    FW_QUANTISE(f.lambda_b_hat, int16_t, e->xhat[3], RHONN_ID_ESTIMATE_LAMBDA_B_HAT);
-    FW_QUANTISE(f.ia_hat, int16_t, e->xhat[4], RHONN_ID_ESTIMATE_IA_HAT);
-    FW_QUANTISE(f.ib_hat, int16_t, e->xhat[5], RHONN_ID_ESTIMATE_IB_HAT);
+    FW_ESTIMATE_FILL(f, e);
     f.saturated = sat;
     if (rhonn_id_estimate_pack(data, &f, size) != (int)RHONN_ID_ESTIMATE_LENGTH) {
         return FW_E_LENGTH;

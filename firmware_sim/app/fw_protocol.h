@@ -28,8 +28,12 @@
  * an LSB of value / scale (unless saturated), and a decoded value is the
  * float nearest raw * scale.
  *
- * State order is the LIM's, x = [q_m, v, lambda_a, lambda_b, i_a, i_b],
- * u = [u_a, u_b] (pyrhonn.plants.lim.STATE_NAMES / INPUT_NAMES).
+ * Which signals are the states and inputs, and their order, comes from the
+ * generated rhonn_id_layout.h: for the committed rhonn_id.dbc the LIM's,
+ * x = [q_m, v, lambda_a, lambda_b, i_a, i_b], u = [u_a, u_b]
+ * (pyrhonn.plants.lim.STATE_NAMES / INPUT_NAMES); for another identifier's
+ * DBC (pyrhonn export --dbc) its own, generated into a build directory
+ * (tools/generate_protocol.py --dbc).
  */
 #ifndef FW_PROTOCOL_H
 #define FW_PROTOCOL_H
@@ -44,8 +48,7 @@
 extern "C" {
 #endif
 
-#define FW_N_STATES 6u   /* the DBC carries the LIM: 6 states ... */
-#define FW_N_INPUTS 2u   /* ... and 2 inputs */
+#include "rhonn_id_layout.h" /* FW_N_STATES, FW_N_INPUTS: the DBC's (the LIM: 6 and 2) */
 #define FW_WEIGHTS_PER_FRAME 12u /* 64 bytes: 4 header, 12 x 4 weights, 12 SecOC trailer */
 
 /* A decoded Measurement frame. */

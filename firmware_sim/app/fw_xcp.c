@@ -10,6 +10,9 @@
 #define FW_XCP_MAGIC 0x58435031u /* "XCP1" */
 
 #define FW_XCP_STATIC_ASSERT(name, cond) typedef char fw_xcp_static_assert_##name[(cond) ? 1 : -1]
+/* The measurement layout the A2L describes (make_a2l.py): the LIM's six states. A build for another
+ * identifier's protocol (generate_protocol.py --dbc) has its own FW_N_STATES and so its own layout. */
+#if FW_N_STATES == 6u
 FW_XCP_STATIC_ASSERT(off_weights, offsetof(fw_xcp_signals, weights) == FW_XCP_OFF_WEIGHTS);
 FW_XCP_STATIC_ASSERT(off_xhat, offsetof(fw_xcp_signals, xhat) == FW_XCP_OFF_XHAT);
 FW_XCP_STATIC_ASSERT(off_innovation, offsetof(fw_xcp_signals, innovation) == FW_XCP_OFF_INNOVATION);
@@ -31,6 +34,7 @@ FW_XCP_STATIC_ASSERT(off_events, offsetof(fw_xcp_signals, events) == FW_XCP_OFF_
 FW_XCP_STATIC_ASSERT(off_dto_sent, offsetof(fw_xcp_signals, daq_dto_sent) == FW_XCP_OFF_DAQ_DTO_SENT);
 FW_XCP_STATIC_ASSERT(off_dto_lost, offsetof(fw_xcp_signals, daq_dto_lost) == FW_XCP_OFF_DAQ_DTO_LOST);
 FW_XCP_STATIC_ASSERT(signals_size, sizeof(fw_xcp_signals) == FW_XCP_SIGNALS_SIZE);
+#endif
 FW_XCP_STATIC_ASSERT(cal_learning, offsetof(fw_xcp_calibration, learning) == FW_XCP_CAL_OFF_LEARNING);
 FW_XCP_STATIC_ASSERT(cal_size, sizeof(fw_xcp_calibration) == FW_XCP_CALIBRATION_SIZE);
 FW_XCP_STATIC_ASSERT(float32, sizeof(float) == 4u);

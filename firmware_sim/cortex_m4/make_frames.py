@@ -3,6 +3,14 @@ Cortex-M4 image (app_main.c), and the frames the host's firmware sends back.
 
     python firmware_sim/cortex_m4/make_frames.py OUT_DIR [--frames N] [--start SECONDS]
                                                  [--diag-period P]
+    python firmware_sim/cortex_m4/make_frames.py OUT_DIR --identifier CFG.toml --dbc ID.dbc
+                                                 --trajectory DATA.csv [--frames N]
+
+With ``--identifier`` the stream is another identifier's (a config file and
+the DBC ``pyrhonn export --dbc`` wrote for it): the recording's first N rows
+as that DBC's Measurement frames, with a hold of the first state, a
+DiagRequest, a gap of three lost frames and a repeated frame; the host side
+is the twin built for that DBC (firmware_sim/tools/build_twin.py).
 
 The stream is the LIM at the rig's period (0.3 ms, ``pyrhonn.plants.lim`` as
 ``pyrhonn hil`` simulates it, the voltages switching on at 2.0 s), sent as
@@ -138,17 +146,49 @@ def stream(n_frames: int, start: float) -> list[Frame]:
     return frames
 
 
-def host_app() -> FirmwareApp:
+def identifier_stream(n_frames: int, config_file, protocol, trajectory: Path) -> list[Frame]:
+    """Another identifier's stream (see the module docstring): the recording's first ``n_frames`` rows."""
+    from pyrhonn.datafile import read_data
+
+    data = read_data(trajectory, config_file, config_source="the identifier's trajectory")
+    if data.X.shape[0] < n_frames + 4:
+        raise SystemExit(f"make_frames: {trajectory} has {data.X.shape[0]} rows; --frames {n_frames} needs "
+                         f"{n_frames + 4}")
+    sender = SecOCSender(TEST_KEY) if TEST_KEY is not None else None
+    if sender is None:
+        raise SystemExit("make_frames: pyrhonn._fwapp was built with a provisioned key; the test key is needed")
+    valid = np.ones(data.X.shape, dtype=bool)
+    valid[n_frames // 8:n_frames // 8 + max(1, n_frames // 20), 0] = False    # a hold of the first state
+    frames: list[Frame] = []
+    seq = 0
+    for k in range(n_frames):
+        if k == n_frames // 5:
+            m = control_message("DiagRequest", token=7, sender=sender)
+            frames.append(Frame("control", _can_id(m), bytes(m.data), k * PERIOD_NS - PERIOD_NS // 3))
+        if k == n_frames // 4:
+            m = protocol.measurement_message((seq - 1) & 0xFFFF, data.X[k - 1], data.U[k - 1], valid[k - 1])
+            frames.append(Frame("measurement_repeat", _can_id(m), bytes(m.data), k * PERIOD_NS - PERIOD_NS // 3))
+        if k == int(0.3 * n_frames):
+            seq += 3                                      # three frames lost on the way
+        m = protocol.measurement_message(seq & 0xFFFF, data.X[k], data.U[k], valid[k])
+        frames.append(Frame("measurement", _can_id(m), bytes(m.data), k * PERIOD_NS))
+        seq += 1
+    return frames
+
+
+def host_app(config=None, protocol=None) -> FirmwareApp:
     """The host's firmware as the M4 image runs it: the firmware's
-    identifier, deadline and diagnostics period, the simulated clock."""
-    app = FirmwareApp(None, lim_config(), deadline_ns=PERIOD_NS, diag_period=DIAG_PERIOD, host_clock=False)
+    identifier (or ``config`` on ``protocol``), deadline and diagnostics
+    period, the simulated clock."""
+    app = FirmwareApp(None, lim_config() if config is None else config, deadline_ns=PERIOD_NS,
+                      diag_period=DIAG_PERIOD, host_clock=False, protocol=protocol)
     app.tick_ns = TICK_NS
     return app
 
 
-def replay(frames: list[Frame]) -> str:
+def replay(frames: list[Frame], config=None, protocol=None) -> str:
     """The host's output for the stream, in app_main.c's format."""
-    app = host_app()
+    app = host_app(config, protocol)
     lines = []
     for k, f in enumerate(frames):
         app.clock_ns = f.time_ns
@@ -187,15 +227,36 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("out", type=Path, help="folder to write frames.h, frames_expected.txt and frames.json into")
     ap.add_argument("--frames", type=int, default=1000, help="Measurements in the stream (default 1000, at least 20)")
     ap.add_argument("--start", type=float, default=2.0, help="time of the first measurement in s (default 2.0)")
+    ap.add_argument("--identifier", type=Path, help="another identifier's config file (float32); with --dbc and "
+                                                    "--trajectory")
+    ap.add_argument("--dbc", type=Path, help="the DBC pyrhonn export --dbc wrote for it")
+    ap.add_argument("--trajectory", type=Path, help="its recording (t, the config's states and inputs)")
     args = ap.parse_args(argv)
     if args.frames < 20:
         ap.error(f"--frames: at least 20, got {args.frames}")
     if not 0.0 <= args.start <= 100.0:
         ap.error(f"--start: expected 0..100 s, got {args.start}")
-    frames = stream(args.frames, args.start)
+    given = [args.identifier, args.dbc, args.trajectory]
+    if any(g is not None for g in given) and any(g is None for g in given):
+        ap.error("--identifier, --dbc, --trajectory: give all three, or none for the LIM")
+    config = protocol = None
+    if args.identifier is not None:
+        from build_twin import protocol as twin_protocol   # firmware_sim/tools, on the path above
+
+        from pyrhonn.configfile import load_config
+
+        try:
+            config_file = load_config(args.identifier)
+            protocol = twin_protocol(args.dbc)
+        except (OSError, ValueError) as exc:
+            ap.error(str(exc))
+        config = config_file.config
+        frames = identifier_stream(args.frames, config_file, protocol, args.trajectory)
+    else:
+        frames = stream(args.frames, args.start)
     args.out.mkdir(parents=True, exist_ok=True)
     atomic.write_text(args.out / "frames.h", header(frames))
-    atomic.write_text(args.out / "frames_expected.txt", replay(frames))
+    atomic.write_text(args.out / "frames_expected.txt", replay(frames, config, protocol))
     atomic.write_text(args.out / "frames.json", json.dumps({
         "kinds": [f.kind for f in frames], "period_ns": PERIOD_NS, "tick_ns": TICK_NS, "diag_period": DIAG_PERIOD,
         "start_s": args.start}, indent=1) + "\n")

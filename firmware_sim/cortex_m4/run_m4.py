@@ -15,6 +15,15 @@ of rhonn_step inside them, against the whole-frame target (7,560 cycles).
 
     python firmware_sim/cortex_m4/run_m4.py [--out build/m4] [--samples N] [--frames N]
                                             [--cycle-frames N] [--json report.json]
+    python firmware_sim/cortex_m4/run_m4.py --identifier CFG.toml --dbc ID.dbc --trajectory DATA.csv
+                                            [--out build/m4-id] [--frames N] [--cycle-frames N]
+
+With ``--identifier`` only the application image is built, for another
+identifier (a float32 config file and the DBC ``pyrhonn export --dbc`` wrote
+for it: the protocol generated from that DBC, the config compiled in, the
+core's capacities the smallest that hold it), and run over its recording
+(make_frames.py --identifier): every status and every frame it sends must
+equal the twin's built for that DBC.
 
 Exit status 0 when every comparison agrees, 1 when one does not, 2
 when a tool is missing or a build fails. Needs arm-none-eabi-gcc with newlib
@@ -74,13 +83,15 @@ def run(cmd: list[str], **kw) -> subprocess.CompletedProcess:
 
 
 def build_m4(vector_dir: Path, build_dir: Path, unroll: bool, frames_dir: Path | None = None,
-             target: str | None = None) -> Path:
+             target: str | None = None, capacities: dict[str, int] | None = None,
+             protocol_dir: Path | None = None) -> Path:
     """Configure and build the images; the core image's path. ``frames_dir``
     (frames.h) adds the application image fw_app_m4.elf; ``target`` builds
-    that one target only."""
-    defines = {**LIM_CAPACITIES, "RHONN_UNROLL": int(unroll)}
+    that one target only; ``capacities`` and ``protocol_dir`` (another
+    identifier's protocol and fw_identifier.h) replace the LIM's."""
+    defines = {**(LIM_CAPACITIES if capacities is None else capacities), "RHONN_UNROLL": int(unroll)}
     run(["cmake", "-S", str(HERE), "-B", str(build_dir), f"-DCMAKE_TOOLCHAIN_FILE={ROOT / 'cmake' / 'arm-none-eabi.cmake'}",
-         f"-DVECTOR_DIR={vector_dir}", f"-DFRAMES_DIR={frames_dir or ''}",
+         f"-DVECTOR_DIR={vector_dir}", f"-DFRAMES_DIR={frames_dir or ''}", f"-DPROTOCOL_DIR={protocol_dir or ''}",
          "-DRHONN_CAPACITY_DEFINES=" + ";".join(f"{k}={v}" for k, v in defines.items())])
     run(["cmake", "--build", str(build_dir), *(["--target", target] if target else [])])
     return build_dir / "rhonn_m4.elf"
@@ -300,6 +311,35 @@ def frame_cycles(elf: Path, objs: dict[str, Path], lines: list[str], kinds: list
     }
 
 
+def run_identifier(out: Path, config: Path, dbc: Path, trajectory: Path, n_frames: int,
+                   cycle_frames: int) -> dict[str, object]:
+    """The application image of another identifier over its recording (see the module docstring)."""
+    import importlib.util
+
+    from pyrhonn.configfile import load_config
+    from pyrhonn.export import min_capacities
+
+    script = ROOT / "firmware_sim" / "linux" / "build_runner.py"
+    spec = importlib.util.spec_from_file_location("_m4_build_runner", script)
+    build_runner = importlib.util.module_from_spec(spec)
+    assert spec.loader is not None
+    spec.loader.exec_module(build_runner)
+    try:
+        build_runner.write_identifier_sources(out / "protocol", config, dbc)
+    except (OSError, ValueError) as exc:
+        raise ToolError(str(exc)) from exc
+    capacities = min_capacities(load_config(config).config)
+    run([sys.executable, str(HERE / "make_vector.py"), str(out / "vector"), "--samples", "1"])  # CMake asks for one
+    frames_dir = out / "frames"
+    run([sys.executable, str(HERE / "make_frames.py"), str(frames_dir), "--frames", str(n_frames), "--identifier",
+         str(config), "--dbc", str(dbc), "--trajectory", str(trajectory)])
+    build_m4(out / "vector", out / "identifier", True, frames_dir, target="fw_app_m4.elf", capacities=capacities,
+             protocol_dir=out / "protocol")
+    kinds = json.loads((frames_dir / "frames.json").read_text())["kinds"]
+    return {"identifier": str(config), "dbc": str(dbc), "capacities": capacities,
+            "application": run_app(out / "identifier", frames_dir, min(cycle_frames, len(kinds)))}
+
+
 def sizes(path: Path) -> dict[str, int]:
     out = run(["arm-none-eabi-size", str(path)]).stdout.splitlines()[1].split()
     return {"text": int(out[0]), "data": int(out[1]), "bss": int(out[2])}
@@ -314,7 +354,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cycle-frames", type=int, default=200,
                     help="frames of the stream whose cycles are estimated (default 200; 0: none)")
     ap.add_argument("--json", type=Path, help="write the report as JSON here")
+    ap.add_argument("--identifier", type=Path, help="another identifier's config file (float32): build and run "
+                                                    "its application image only; with --dbc and --trajectory")
+    ap.add_argument("--dbc", type=Path, help="with --identifier: the DBC pyrhonn export --dbc wrote for it")
+    ap.add_argument("--trajectory", type=Path, help="with --identifier: its recording (t, states, inputs)")
     args = ap.parse_args(argv)
+    given = [args.identifier, args.dbc, args.trajectory]
+    if any(g is not None for g in given) and any(g is None for g in given):
+        ap.error("--identifier, --dbc, --trajectory: give all three, or none for the LIM")
     if args.samples < 1:
         ap.error(f"--samples: at least 1, got {args.samples}")
     if args.frames != 0 and args.frames < 20:
@@ -323,51 +370,58 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--cycle-frames: at least 0, got {args.cycle_frames}")
     out = args.out.resolve()
     out.mkdir(parents=True, exist_ok=True)
+    if args.identifier is not None and args.frames < 20:
+        ap.error(f"--frames: at least 20 with --identifier, got {args.frames}")
     try:
-        run([sys.executable, str(HERE / "make_vector.py"), str(out / "vector"), "--samples", str(args.samples)])
-        frames_dir = out / "frames" if args.frames else None
-        if frames_dir is not None:
-            run([sys.executable, str(HERE / "make_frames.py"), str(frames_dir), "--frames", str(args.frames)])
-        report: dict[str, object] = {"samples": args.samples, "capacities": LIM_CAPACITIES,
-                                     "cycle_budget_168MHz_0.3ms": CYCLE_BUDGET}
-        host = run([str(build_host(out / "vector", out))]).stdout
-        agree = True
-        for unroll in (True, False):
-            name = "unrolled" if unroll else "generic"
-            elf = build_m4(out / "vector", out / name, unroll, frames_dir if unroll else None)
-            m4 = run([*QEMU, "-kernel", str(elf)], timeout=300).stdout
-            same = predictions(m4) == predictions(host) and len(predictions(m4)) == args.samples
-            agree = agree and same
-            core_obj = next((out / name).glob("CMakeFiles/rhonn_m4.elf.dir/**/rhonn.c.obj"))
-            stack, path = worst_stack(core_obj.with_suffix("").with_suffix(".c.ci"), "rhonn_step")
-            report[name] = {
-                "bit_identical_to_host_float32": same,
-                "predictions_compared": len(predictions(m4)),
-                "distinct_predictions": len(set(line.split(" ", 1)[1] for line in predictions(m4))),
-                "instructions_per_step": field(m4, "instructions_per_step"),
-                "budget_fraction": field(m4, "instructions_per_step") / CYCLE_BUDGET,
-                "sizeof_rhonn_t": int(field(m4, r"sizeof\(rhonn_t\)")),
-                "core_object": sizes(core_obj),
-                "image": sizes(elf),
-                "rhonn_step_worst_stack_bytes": stack,
-                "rhonn_step_worst_stack_path": path,
+        if args.identifier is not None:
+            report = run_identifier(out, args.identifier.resolve(), args.dbc.resolve(), args.trajectory.resolve(),
+                                    args.frames, args.cycle_frames)
+            agree = bool(report["application"]["identical_to_host"])
+        else:
+            run([sys.executable, str(HERE / "make_vector.py"), str(out / "vector"), "--samples", str(args.samples)])
+            frames_dir = out / "frames" if args.frames else None
+            if frames_dir is not None:
+                run([sys.executable, str(HERE / "make_frames.py"), str(frames_dir), "--frames", str(args.frames)])
+            report: dict[str, object] = {"samples": args.samples, "capacities": LIM_CAPACITIES,
+                                         "cycle_budget_168MHz_0.3ms": CYCLE_BUDGET}
+            host = run([str(build_host(out / "vector", out))]).stdout
+            agree = True
+            for unroll in (True, False):
+                name = "unrolled" if unroll else "generic"
+                elf = build_m4(out / "vector", out / name, unroll, frames_dir if unroll else None)
+                m4 = run([*QEMU, "-kernel", str(elf)], timeout=300).stdout
+                same = predictions(m4) == predictions(host) and len(predictions(m4)) == args.samples
+                agree = agree and same
+                core_obj = next((out / name).glob("CMakeFiles/rhonn_m4.elf.dir/**/rhonn.c.obj"))
+                stack, path = worst_stack(core_obj.with_suffix("").with_suffix(".c.ci"), "rhonn_step")
+                report[name] = {
+                    "bit_identical_to_host_float32": same,
+                    "predictions_compared": len(predictions(m4)),
+                    "distinct_predictions": len(set(line.split(" ", 1)[1] for line in predictions(m4))),
+                    "instructions_per_step": field(m4, "instructions_per_step"),
+                    "budget_fraction": field(m4, "instructions_per_step") / CYCLE_BUDGET,
+                    "sizeof_rhonn_t": int(field(m4, r"sizeof\(rhonn_t\)")),
+                    "core_object": sizes(core_obj),
+                    "image": sizes(elf),
+                    "rhonn_step_worst_stack_bytes": stack,
+                    "rhonn_step_worst_stack_path": path,
+                }
+            secoc = run([*QEMU, "-kernel", str(out / "unrolled" / "secoc_m4.elf")], timeout=300).stdout
+            secoc_ok = "cmac_rfc4493 ok" in secoc and "verified ok" in secoc
+            agree = agree and secoc_ok
+            report["secoc"] = {
+                "cmac_rfc4493_and_verification_on_target": secoc_ok,
+                "instructions_per_control_verify": field(secoc, "instructions_per_control_verify"),
+                "instructions_per_weight_load_verify": field(secoc, "instructions_per_weight_load_verify"),
+                "control_verify_budget_fraction": field(secoc, "instructions_per_control_verify") / CYCLE_BUDGET,
+                "objects": {obj.name.split(".")[0]: sizes(obj)
+                            for obj in sorted((out / "unrolled").glob("CMakeFiles/fw_secoc_m4.dir/**/fw_*.c.obj"))},
             }
-        secoc = run([*QEMU, "-kernel", str(out / "unrolled" / "secoc_m4.elf")], timeout=300).stdout
-        secoc_ok = "cmac_rfc4493 ok" in secoc and "verified ok" in secoc
-        agree = agree and secoc_ok
-        report["secoc"] = {
-            "cmac_rfc4493_and_verification_on_target": secoc_ok,
-            "instructions_per_control_verify": field(secoc, "instructions_per_control_verify"),
-            "instructions_per_weight_load_verify": field(secoc, "instructions_per_weight_load_verify"),
-            "control_verify_budget_fraction": field(secoc, "instructions_per_control_verify") / CYCLE_BUDGET,
-            "objects": {obj.name.split(".")[0]: sizes(obj)
-                        for obj in sorted((out / "unrolled").glob("CMakeFiles/fw_secoc_m4.dir/**/fw_*.c.obj"))},
-        }
-        if frames_dir is not None:
-            app = run_app(out / "unrolled", frames_dir, min(args.cycle_frames, len(
-                json.loads((frames_dir / "frames.json").read_text())["kinds"])))
-            report["application"] = app
-            agree = agree and bool(app["identical_to_host"])
+            if frames_dir is not None:
+                app = run_app(out / "unrolled", frames_dir, min(args.cycle_frames, len(
+                    json.loads((frames_dir / "frames.json").read_text())["kinds"])))
+                report["application"] = app
+                agree = agree and bool(app["identical_to_host"])
     except ToolError as exc:
         print(f"run_m4: {exc}", file=sys.stderr)
         return 2

@@ -117,7 +117,14 @@
 
 #include "fw_app.h"
 #include "fw_xcp.h"
+/* The identifier: the LIM's, or another one's header (static const rhonn_config FW_IDENTIFIER, as
+ * pyrhonn.export writes it) named by -DFW_IDENTIFIER_HEADER (firmware_sim/linux/build_runner.py --config). */
+#ifdef FW_IDENTIFIER_HEADER
+#include FW_IDENTIFIER_HEADER
+#else
 #include "lim_identifier.h"
+#define FW_IDENTIFIER LIM_IDENTIFIER
+#endif
 #include "rhonn_id.h"
 #include "udp_can.h"
 
@@ -649,6 +656,16 @@ fail:
 
 /* ------------------------------------------------------------ bus-less */
 
+#ifdef FW_IDENTIFIER_HEADER
+/* One Measurement frame of the bus-less test vector of another identifier:
+ * every state valid and every value 0 (inside any range the export writes). */
+static void vector_frame(uint32_t k, fw_frame *f)
+{
+    struct rhonn_id_measurement_t m;
+    memset(&m, 0, sizeof m);
+    m.seq = rhonn_id_measurement_seq_encode((double)(k & 0xFFFFu));
+    FW_MEASUREMENT_ALL_VALID(m);
+#else
 /* One Measurement frame of the bus-less test vector: the LIM's states and
  * inputs as slow sinusoids inside the DBC's ranges, all valid. */
 static void vector_frame(uint32_t k, fw_frame *f)
@@ -666,6 +683,7 @@ static void vector_frame(uint32_t k, fw_frame *f)
     m.ib = rhonn_id_measurement_ib_encode(20.0 * cos(9.0 * t + 0.3));
     m.ua = rhonn_id_measurement_ua_encode(150.0 * cos(9.0 * t));
     m.ub = rhonn_id_measurement_ub_encode(150.0 * sin(9.0 * t));
+#endif
     f->id = RHONN_ID_MEASUREMENT_FRAME_ID;
     f->flags = FW_FRAME_FD | FW_FRAME_BRS;
     f->len = (uint8_t)RHONN_ID_MEASUREMENT_LENGTH;
@@ -1409,7 +1427,7 @@ int main(int argc, char **argv)
     period_ns = (uint64_t)llround(period_us * 1e3);
     period_ns_now = period_ns;
     spin_ns = (uint64_t)llround(spin_us * 1e3);
-    cfg.identifier = &LIM_IDENTIFIER;
+    cfg.identifier = &FW_IDENTIFIER;
     cfg.deadline_ns = (uint32_t)period_ns;
     cfg.diag_period = (uint16_t)diag_period;
     st = fw_app_init(&app, &cfg, &hal);

@@ -18,6 +18,20 @@ rhonn_id_limits.h
     inverse_scale()'s bound, N as an integer (INV_SCALE): the float32
     firmware converts with it, without double arithmetic, and gets the same
     bits as cantools' double conversion.
+rhonn_id_layout.h
+    which Measurement and Estimate signals are the identifier's states and
+    inputs (FW_N_STATES, FW_N_INPUTS and the per-signal code fw_protocol.c
+    runs to decode a Measurement and encode an Estimate), read from the DBC:
+    the states are the signals with a ``Valid<state>`` flag, in the flags'
+    order, the inputs the other value signals after them, and each state's
+    estimate is ``<state>Hat``. Any DBC of that shape works, for instance one
+    written by ``pyrhonn export --dbc`` for another identifier:
+
+        python firmware_sim/tools/generate_protocol.py --dbc ID.dbc -o BUILD_DIR
+
+    writes the four files for it into BUILD_DIR (never over the committed
+    ones), and a build with BUILD_DIR before firmware_sim/generated on the
+    include path is the firmware of that identifier.
 
 The files are committed, so firmware builds need neither Python nor
 cantools. tests/test_firmware_protocol.py regenerates them into a temporary
@@ -128,8 +142,110 @@ def limits_header(dbc: Path) -> str:
     return "\n".join(lines)
 
 
+def _c_type(sig) -> str:
+    """The C type cantools' generator gives an integer signal's field."""
+    for bits in (8, 16, 32, 64):
+        if sig.length <= bits:
+            return f"{'' if sig.is_signed else 'u'}int{bits}_t"
+    raise ValueError(sig.name)
+
+
+def layout(db) -> tuple[list[str], list[str]]:
+    """(states, inputs) of a protocol DBC (pyrhonn.firmware.protocol_layout: see the module docstring);
+    ValueError naming the message and signal that does not fit what the firmware reads."""
+    from cantools.database.can.c_source import camel_to_snake_case
+
+    from pyrhonn.firmware import protocol_layout
+
+    states, inputs = (list(v) for v in protocol_layout(db))
+    meas, est = db.get_message_by_name("Measurement"), db.get_message_by_name("Estimate")
+    names = [s.name for s in meas.signals]
+    flags = {f"Valid{s}" for s in states}
+    for name in names:
+        sig = meas.get_signal_by_name(name)
+        if name in flags and (sig.length != 1 or sig.is_signed):
+            raise ValueError(f"Measurement.{name}: a Valid flag must be a 1-bit unsigned signal")
+        if name in states or name in inputs:
+            if sig.is_float or not sig.is_signed or sig.length > 24 or sig.offset != 0:
+                raise ValueError(f"Measurement.{name}: a state or input must be a signed integer signal of at most "
+                                 "24 bits without offset")
+            if inverse_scale(sig.scale) is None:
+                raise ValueError(f"Measurement.{name}: scale {sig.scale!r} is not 1/N for an integer N that the "
+                                 "float32 firmware converts exactly (generate_protocol.inverse_scale): 1e-06, "
+                                 "0.0001, 0.002 and 0.01 are, 0.1 and 1 are not")
+    for s in states:
+        m, e = meas.get_signal_by_name(s), est.get_signal_by_name(f"{s}Hat")
+        if (m.length, m.is_signed, m.scale, m.offset, m.minimum, m.maximum) != \
+                (e.length, e.is_signed, e.scale, e.offset, e.minimum, e.maximum):
+            raise ValueError(f"Estimate.{s}Hat: must have Measurement.{s}'s length, scale and range")
+    snake = [camel_to_snake_case(n) for n in names]
+    if len(set(snake)) != len(snake):
+        raise ValueError("Measurement: two signals have the same C name in cantools' generated code")
+    return states, inputs
+
+
+def layout_header(dbc: Path) -> str:
+    """rhonn_id_layout.h: the states and inputs of the DBC's Measurement and Estimate (see the module
+    docstring), as fw_protocol.c reads and writes them."""
+    import cantools
+    from cantools.database.can.c_source import camel_to_snake_case
+
+    db = cantools.database.load_file(str(dbc))
+    states, inputs = layout(db)
+    est = db.get_message_by_name("Estimate")
+    guard = f"{DATABASE_NAME.upper()}_LAYOUT_H"
+    M, E = f"{DATABASE_NAME.upper()}_MEASUREMENT", f"{DATABASE_NAME.upper()}_ESTIMATE"
+    sn = camel_to_snake_case
+    checks = [f"FW_IN_RANGE((f).seq, {M}_SEQ)"]
+    checks += [f"FW_IN_RANGE((f).{sn('Valid' + s)}, {M}_{sn('Valid' + s).upper()})" for s in states]
+    checks += [f"(!(f).{sn('Valid' + s)} || FW_IN_RANGE((f).{sn(s)}, {M}_{sn(s).upper()}))" for s in states]
+    checks += [f"FW_IN_RANGE((f).{sn(u)}, {M}_{sn(u).upper()})" for u in inputs]
+    fill = [f"(out).valid[{j}] = (f).{sn('Valid' + s)};" for j, s in enumerate(states)]
+    fill += [f"(out).x[{j}] = FW_DECODE({DATABASE_NAME}_measurement_{sn(s)}_decode, (f).{sn(s)}, {M}_{sn(s).upper()});"
+             for j, s in enumerate(states)]
+    fill += [f"(out).u[{j}] = FW_DECODE({DATABASE_NAME}_measurement_{sn(u)}_decode, (f).{sn(u)}, {M}_{sn(u).upper()});"
+             for j, u in enumerate(inputs)]
+    quant = [f"FW_QUANTISE((f).{sn(s + 'Hat')}, {_c_type(est.get_signal_by_name(s + 'Hat'))}, (e)->xhat[{j}], "
+             f"{E}_{sn(s + 'Hat').upper()});" for j, s in enumerate(states)]
+
+    def body(lines: list[str], sep: str) -> str:
+        return f" {sep} \\\n    ".join(lines)
+
+    text = [
+        f"/* Generated from {dbc.name} by firmware_sim/tools/generate_protocol.py: do not edit. */",
+        "/* The identifier's states and inputs in the Measurement and Estimate frames, in the",
+        " * identifier's order: the states are the signals with a Valid flag, the inputs the",
+        " * other value signals. fw_protocol.c defines FW_IN_RANGE, FW_DECODE and FW_QUANTISE. */",
+        f"#ifndef {guard}",
+        f"#define {guard}",
+        "",
+        f"#define FW_N_STATES {len(states)}u /* {', '.join(states)} */",
+        f"#define FW_N_INPUTS {len(inputs)}u /* {', '.join(inputs) or 'none'} */",
+        "",
+        "/* Every signal of the unpacked Measurement f within its DBC range (a state flagged not",
+        " * valid is not range-checked). */",
+        "#define FW_MEASUREMENT_IN_RANGE(f) \\\n    (" + body(checks, "&&") + ")",
+        "",
+        "/* The flags and physical values of the unpacked Measurement f into the fw_measurement out. */",
+        "#define FW_MEASUREMENT_FILL(out, f) \\\n    do { \\\n    " + " \\\n    ".join(fill)
+        + " \\\n    } while (0)",
+        "",
+        "/* Every state of the unpacked Measurement f marked valid. */",
+        "#define FW_MEASUREMENT_ALL_VALID(f) \\\n    do { \\\n    "
+        + " \\\n    ".join(f"(f).{sn('Valid' + s)} = 1u;" for s in states) + " \\\n    } while (0)",
+        "",
+        "/* The estimates of the fw_estimate *e into the Estimate struct f, collecting saturation. */",
+        "#define FW_ESTIMATE_FILL(f, e) \\\n    do { \\\n    " + " \\\n    ".join(quant)
+        + " \\\n    } while (0)",
+        "",
+        f"#endif /* {guard} */",
+        "",
+    ]
+    return "\n".join(text)
+
+
 def generate(out: Path, dbc: Path = DBC) -> list[Path]:
-    """Write the three files into ``out``; returns their paths."""
+    """Write the four files into ``out``; returns their paths."""
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         subprocess.run([sys.executable, "-m", "cantools", "generate_c_source", "--database-name", DATABASE_NAME,
@@ -145,14 +261,30 @@ def generate(out: Path, dbc: Path = DBC) -> list[Path]:
     limits = out / f"{DATABASE_NAME}_limits.h"
     limits.write_text(limits_header(dbc))
     written.append(limits)
+    layout_file = out / f"{DATABASE_NAME}_layout.h"
+    layout_file.write_text(layout_header(dbc))
+    written.append(layout_file)
     return written
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("-o", "--output-directory", type=Path, default=DEFAULT_OUT)
+    ap.add_argument("-o", "--output-directory", type=Path, default=None,
+                    help="where to write (default: firmware_sim/generated for the LIM's DBC; required with --dbc)")
+    ap.add_argument("--dbc", type=Path, default=DBC, help="the protocol DBC (default: firmware_sim/rhonn_id.dbc)")
     args = ap.parse_args(argv)
-    for path in generate(args.output_directory):
+    out = args.output_directory
+    if out is None:
+        if args.dbc.resolve() != DBC:
+            ap.error("--output-directory: required with --dbc (the committed files are the LIM's)")
+        out = DEFAULT_OUT
+    elif args.dbc.resolve() != DBC and out.resolve() == DEFAULT_OUT:
+        ap.error("--output-directory: firmware_sim/generated holds the LIM's protocol; write another DBC's elsewhere")
+    try:
+        written = generate(out, args.dbc)
+    except (OSError, ValueError) as exc:
+        ap.error(f"{args.dbc}: {exc}")
+    for path in written:
         print(f"wrote {path}")
     return 0
 

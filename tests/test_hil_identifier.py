@@ -1,0 +1,224 @@
+"""hil replay of another identifier than the LIM: a small plant (2 states, 1 input
+delayed by 2 samples) selected from a synthetic recording with pyrhonn select,
+exported with its DBC (pyrhonn export --dbc), and replayed from the recording as
+that DBC's Measurement frames against the firmware built for it: the Python twin
+on the virtual bus, the C runner over udp_multicast, the Cortex-M4F image under
+QEMU; bit-exact against the offline Identifier (the M4: frame for frame against
+the twin), every frame accounted for, verdicts and JUnit."""
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import json
+import os
+import shutil
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("can")
+cantools = pytest.importorskip("cantools")
+
+from pyrhonn.cli import main as pyrhonn_main  # noqa: E402
+from pyrhonn.firmware import FirmwareApp, Protocol, lim_protocol  # noqa: E402
+
+from hil.rig import read_log  # noqa: E402
+from hil.scenario import Scenario  # noqa: E402
+from hil.score import score  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+FW = ROOT / "firmware_sim"
+PERIOD = 3e-4
+
+
+def _module(path: Path, name: str):
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    assert spec.loader is not None
+    spec.loader.exec_module(module)
+    return module
+
+
+def _write_plant(path: Path, n: int = 1200) -> None:
+    """x1(k+1) = 0.95 x1 + 0.05 x2, x2(k+1) = 0.9 x2 + 0.1 tanh(u(k-2)), u a random staircase."""
+    rng = np.random.default_rng(1)
+    u = np.repeat(rng.uniform(-1, 1, n // 100 + 1), 100)[:n]
+    x = np.zeros((n, 2))
+    for k in range(n - 1):
+        x[k + 1, 0] = 0.95 * x[k, 0] + 0.05 * x[k, 1]
+        x[k + 1, 1] = 0.9 * x[k, 1] + 0.1 * np.tanh(u[k - 2] if k >= 2 else 0.0)
+    rows = [f"{float(k * PERIOD)!r},{float(x[k, 0])!r},{float(x[k, 1])!r},{float(u[k])!r}" for k in range(n)]
+    path.write_text("t,y1,y2,u\n" + "\n".join(rows) + "\n")
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory) -> dict[str, Path]:
+    """The user's workflow: select a config (float32) from the recording, export it with its DBC."""
+    d = tmp_path_factory.mktemp("identifier")
+    _write_plant(d / "data.csv")
+    assert pyrhonn_main(["select", str(d / "data.csv"), "--states", "y1,y2", "--inputs", "u",
+                         "--input-max-delay", "3", "--dtype", "float32", "--out", str(d / "cfg.toml")]) == 0
+    assert pyrhonn_main(["export", "--config", str(d / "cfg.toml"), "--data", str(d / "data.csv"),
+                         "--dbc", str(d / "id.dbc"), "--out", str(d / "id.h")]) == 0
+    return {"dir": d, "config": d / "cfg.toml", "dbc": d / "id.dbc", "data": d / "data.csv"}
+
+
+@pytest.fixture(scope="module")
+def twin(exported):
+    """The firmware application compiled for the exported DBC (cached per DBC and sources, in the cache
+    hil replay uses: the replay below finds it there)."""
+    build_twin = _module(FW / "tools" / "build_twin.py", "_test_build_twin")
+    try:
+        return build_twin.protocol(exported["dbc"])
+    except Exception as exc:  # noqa: BLE001 - no compiler here
+        pytest.skip(f"the twin cannot be built here: {exc}")
+
+
+def test_the_exported_dbc_carries_the_config_states_and_inputs_in_order(exported) -> None:
+    proto = Protocol.from_dbc(exported["dbc"])
+    assert proto.states == ("y1", "y2") and proto.inputs == ("u",)
+    assert lim_protocol().states == ("Qm", "V", "LambdaA", "LambdaB", "Ia", "Ib")
+    msg = proto.measurement_message(7, [0.25, -0.5], [0.75], [True, False])
+    x, u, valid = proto.decode_measurement(bytes(msg.data))
+    assert x.tolist() == [0.25, -0.5] and u.tolist() == [0.75] and valid.tolist() == [True, False]
+
+
+def test_the_generated_layout_names_the_dbc_signals_and_refuses_a_scale_the_float32_firmware_cannot_convert(
+        exported, tmp_path) -> None:
+    gen = _module(FW / "tools" / "generate_protocol.py", "_test_generate_protocol")
+    text = gen.layout_header(exported["dbc"])
+    assert "#define FW_N_STATES 2u" in text and "#define FW_N_INPUTS 1u" in text
+    assert "(out).u[0] = FW_DECODE(rhonn_id_measurement_u_decode" in text
+    bad = tmp_path / "bad.dbc"
+    bad.write_text(exported["dbc"].read_text().replace("(5e-05,0)", "(0.1,0)", 1))
+    with pytest.raises(ValueError, match=r"Measurement\.y\d: scale 0\.1 is not 1/N"):
+        gen.layout_header(bad)
+    with pytest.raises(SystemExit):   # never over the committed LIM files
+        gen.main(["--dbc", str(exported["dbc"]), "-o", str(FW / "generated")])
+
+
+def test_the_twin_refuses_a_config_of_another_shape_and_a_protocol_without_firmware(exported, twin) -> None:
+    with pytest.raises(ValueError, match="protocol carries 2 states and 1 inputs"):
+        FirmwareApp(None, Scenario().reference_config(), protocol=twin)
+    with pytest.raises(ValueError, match="protocol: expected a Protocol with the firmware"):
+        FirmwareApp(None, Scenario().reference_config(), protocol=Protocol.from_dbc(exported["dbc"]))
+
+
+def test_a_replay_on_the_virtual_bus_is_bit_exact_and_judged_by_the_thresholds(exported, twin, tmp_path,
+                                                                                monkeypatch) -> None:
+    monkeypatch.chdir(ROOT)   # the firmware sources: a checkout
+    (tmp_path / "ci.toml").write_text(f"""
+[scenario]
+identifier = "{exported['config']}"
+dbc = "{exported['dbc']}"
+trajectory = "{exported['data']}"
+duration = 0.3
+frame_loss = 0.01
+seed = 3
+hold_states = [1]
+hold_start = 0.1
+hold_duration = 0.03
+
+[thresholds]
+lost_frames = 0
+rmse = {{ y1 = 0.05, y2 = 1e-9 }}
+""")
+    argv = ["hil", "replay", "--transport", "virtual", "--scenario", str(tmp_path / "ci.toml"), "--quiet",
+            "--log", str(tmp_path / "run.blf"), "--junit", str(tmp_path / "junit.xml")]
+    assert pyrhonn_main(argv) == 1      # y2's limit is out of reach
+    cases = {tc.get("name"): tc for tc in ET.parse(tmp_path / "junit.xml").getroot().iter("testcase")}
+    assert set(cases) == {"rmse.y1", "rmse.y2", "lost_frames", "frames_accounted", "bit_exact"}
+    assert cases["rmse.y1"].find("failure") is None and cases["bit_exact"].find("failure") is None
+    assert cases["frames_accounted"].find("failure") is None
+    assert cases["rmse.y2"].find("failure") is not None
+
+    rec = read_log(tmp_path / "run.blf")
+    sc = rec.scenario
+    assert sc.identifier == str(exported["config"]) and sc.hold_states == (1,)
+    report = score(rec, reference=sc.reference_config())
+    f = report["frames"]
+    assert f["lost_injected"] > 0 and f["accounted"] and f["rejected_seq_jump"] > 0
+    assert report["bit_exact"]["equal"] and report["bit_exact"]["checked"] == f["answered"]
+    assert report["states"] == ["y1", "y2"] and report["not_valid"]["y2"]["held"] == 100
+    assert report["identification"]["y1"]["rmse"] < 0.05
+    import matplotlib.pyplot as plt
+
+    from hil.figures import build_figures
+
+    figs = build_figures(report)
+    assert {"y1.png", "y2.png"} <= set(figs) and "position.png" not in figs
+    assert figs["y2.png"].axes[0].get_title() == "y2: real vs identified, virtual"
+    for fig in figs.values():
+        plt.close(fig)
+    # the estimates are the offline identifier's: a different config is not
+    cfg = sc.reference_config()
+    other = cfg.replace(neurons=tuple(dataclasses.replace(n, r=n.r * 2) for n in cfg.neurons))
+    assert not score(rec, reference=other)["bit_exact"]["equal"]
+
+
+def test_a_replay_over_udp_multicast_runs_the_c_runner_built_for_the_identifier(exported, tmp_path,
+                                                                              monkeypatch) -> None:
+    d = exported["dir"]
+    build_runner = _module(FW / "linux" / "build_runner.py", "_test_build_runner")
+    try:   # built once per config, DBC and sources (the CI's second run reuses it)
+        exe = build_runner.cached_for(exported["config"], exported["dbc"])
+    except RuntimeError as exc:
+        pytest.skip(f"no C compiler: {exc}")
+    assert "static const rhonn_config FW_IDENTIFIER" in (exe.parent / "fw_identifier.h").read_text()
+    argv = ["hil", "replay", "--transport", "udp_multicast", "--runner", str(exe), "--identifier",
+            str(exported["config"]), "--dbc", str(exported["dbc"]), "--trajectory", str(exported["data"]),
+            "--duration", "0.3", "--frame-loss", "0.01", "--seed", "5", "--quiet", "--log", str(d / "udp.blf")]
+    monkeypatch.chdir(tmp_path)
+    assert pyrhonn_main(argv) == 0
+    rec = read_log(d / "udp.blf")
+    report = score(rec, reference=rec.scenario.reference_config())
+    assert report["bit_exact"]["equal"] and report["bit_exact"]["checked"] > 900
+    assert report["frames"]["accounted"] and report["firmware"]["measurements"] == report["frames"]["answered"]
+
+
+def test_an_identifier_scenario_refuses_a_dbc_of_other_signals_and_the_lim_encoder_model(exported, tmp_path,
+                                                                                        cli_error) -> None:
+    base = {"identifier": str(exported["config"]), "dbc": str(exported["dbc"]), "trajectory": str(exported["data"]),
+            "encoder_resolution": 0.0, "velocity_from_position": False, "hold_duration": 0.0, "duration": 0.1}
+    assert Scenario(**base).state_names == ("y1", "y2")
+    with pytest.raises(ValueError, match="encoder_resolution: the LIM's encoder model"):
+        Scenario(**{**base, "encoder_resolution": 1e-5})
+    with pytest.raises(ValueError, match="dbc: an identifier's config file and its DBC go together"):
+        Scenario(**{**base, "dbc": ""})
+    with pytest.raises(ValueError, match="hold_states: expected state indices 0..1"):
+        Scenario(**{**base, "hold_states": (2,)})
+    other = tmp_path / "other.dbc"
+    other.write_text(exported["dbc"].read_text().replace("y2", "z2"))
+    with pytest.raises(ValueError, match=r"dbc: .* carries states \['y1', 'z2'\]"):
+        Scenario(**{**base, "dbc": str(other)})
+    err = cli_error(["hil", "replay", "--transport", "virtual", "--identifier", str(exported["config"]),
+                     "--dbc", str(exported["dbc"]), "--duration", "0.1"])
+    assert "trajectory" in err
+    f64 = tmp_path / "f64.toml"
+    f64.write_text(exported["config"].read_text().replace('dtype = "float32"', 'dtype = "float64"'))
+    with pytest.raises(ValueError, match="identifier: .*dtype is 'float64'; the firmware runs the float32 core"):
+        Scenario(**{**base, "identifier": str(f64)})
+    err = cli_error(["hil", "replay", "--transport", "udp_multicast", "--firmware", "python", "--identifier",
+                     str(exported["config"]), "--dbc", str(exported["dbc"]), "--trajectory", str(exported["data"]),
+                     "--duration", "0.1", "--quiet"])
+    assert "runs the LIM only" in err
+
+
+@pytest.mark.skipif(any(shutil.which(t) is None for t in ("arm-none-eabi-gcc", "qemu-system-arm", "cmake"))
+                    and os.environ.get("PYRHONN_REQUIRE_CORTEX_M4") != "1", reason="Cortex-M4 toolchain missing")
+def test_the_cortex_m4_image_of_the_identifier_sends_exactly_the_twins_frames(exported, tmp_path) -> None:
+    proc = subprocess.run([sys.executable, str(FW / "cortex_m4" / "run_m4.py"), "--identifier", str(exported["config"]),
+                           "--dbc", str(exported["dbc"]), "--trajectory", str(exported["data"]), "--out",
+                           str(tmp_path / "m4"), "--frames", "200", "--cycle-frames", "0", "--json",
+                           str(tmp_path / "m4.json")], capture_output=True, text=True, timeout=900, cwd=str(tmp_path))
+    assert proc.returncode == 0, proc.stderr + proc.stdout[-2000:]
+    report = json.loads((tmp_path / "m4.json").read_text())
+    app = report["application"]
+    assert app["identical_to_host"] and app["lines_compared"] > 400
+    assert app["status_counts"] == {"FW_OK": 200, "FW_E_SEQ_REPEAT": 1, "FW_E_SEQ_JUMP": 1}
+    assert report["capacities"]["RHONN_MAX_STATES"] == 2 and report["capacities"]["RHONN_MAX_DELAY"] >= 2
+    assert app["soft_double_routines"] == []
