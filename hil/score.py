@@ -324,7 +324,6 @@ def _identification(plan: Any, answered: np.ndarray, phys: np.ndarray) -> dict[s
     """
     truth_all = np.asarray(plan.truth_next)
     X, V = np.asarray(plan.X), np.asarray(plan.valid)
-    N = plan.cycles
     next_fresh = np.ones(V.shape, dtype=bool)     # the last target lies after the run: counted as fresh
     next_fresh[:-1] = V[1:]
     has_next = answered.copy()

@@ -264,7 +264,7 @@ class Protocol:
         self._est = db.get_message_by_name("Estimate")
 
     @classmethod
-    def from_dbc(cls, path: str | Path, *, library: Any = None) -> "Protocol":
+    def from_dbc(cls, path: str | Path, *, library: Any = None) -> Protocol:
         """The protocol of a DBC file (``pyrhonn export --dbc``); ValueError naming the file."""
         import cantools
 
