@@ -90,8 +90,8 @@ def _source_module(relative: str, name: str, what: str) -> Any:
         raise FirmwareUnavailable(f"no {what}: no firmware_sim sources beside this installation or in the current "
                                   f"directory ({relative})")
     spec = importlib.util.spec_from_file_location(name, script)
+    assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
-    assert spec.loader is not None
     spec.loader.exec_module(module)
     return module
 
