@@ -231,6 +231,16 @@ class NeuronConfig:
         the N-th refusal in a row still resets P_i, inside
         :meth:`~pyrhonn.identifier.Identifier.run` as well. For records that
         must not stop the identifier.
+    wait_for_history:
+        False (the default): the neuron learns from the second sample after
+        construction, reset or restart on, its delayed taps reading the
+        constant history before the first sample (the paper's initial
+        function). True: it learns only once every tap of its regressor
+        (any factor's delay, states and inputs) reads a measured sample,
+        from sample D_i + 1 on (D_i its deepest delay), and after a dropout
+        of its own state once it has been measured D_i + 1 samples in a row.
+        A model fitted offline on measured histories is then not taught the
+        padded start of a record.
     """
 
     terms: tuple[Term, ...]
@@ -247,6 +257,7 @@ class NeuronConfig:
     reset_after: int = 0
     gate: float = 0.0
     skip_refused: bool = False
+    wait_for_history: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.terms, tuple) or not self.terms:
@@ -320,6 +331,9 @@ class NeuronConfig:
         if not isinstance(self.skip_refused, (bool, np.bool_)):
             raise fail("skip_refused", f"expected True or False, got {self.skip_refused!r}")
         object.__setattr__(self, "skip_refused", bool(self.skip_refused))
+        if not isinstance(self.wait_for_history, (bool, np.bool_)):
+            raise fail("wait_for_history", f"expected True or False, got {self.wait_for_history!r}")
+        object.__setattr__(self, "wait_for_history", bool(self.wait_for_history))
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, NeuronConfig) and self.to_dict() == other.to_dict()
@@ -370,6 +384,7 @@ class NeuronConfig:
             "reset_after": self.reset_after,
             "gate": self.gate,
             "skip_refused": self.skip_refused,
+            "wait_for_history": self.wait_for_history,
         }
 
     @classmethod
@@ -377,7 +392,7 @@ class NeuronConfig:
         if not isinstance(data, Mapping):
             raise fail(path, f"expected a table, got {type(data).__name__}")
         known = {"terms", "activation", "beta", "p0", "q", "r", "eta", "w0", "covariance", "forgetting",
-                 "p_trace_max", "reset_after", "gate", "skip_refused"}
+                 "p_trace_max", "reset_after", "gate", "skip_refused", "wait_for_history"}
         unknown = set(data) - known
         if unknown:
             raise fail(path, f"unknown keys {sorted(unknown)}")
@@ -411,7 +426,8 @@ class NeuronConfig:
                        r=data.get("r", 1.0), eta=data.get("eta", 1.0), w0=w0, covariance=covariance,
                        forgetting=data.get("forgetting", 1.0), p_trace_max=data.get("p_trace_max"),
                        reset_after=data.get("reset_after", 0), gate=data.get("gate", 0.0),
-                       skip_refused=data.get("skip_refused", False))
+                       skip_refused=data.get("skip_refused", False),
+                       wait_for_history=data.get("wait_for_history", False))
         except ValueError as exc:  # "p0[1]: ..." from the checks: the field, under this neuron's path
             raise ValueError(f"{path}.{exc}") from None
 

@@ -37,6 +37,8 @@ Example (every key that is not marked required is optional)::
                                        # (an outlier; default 0: off)
     skip_refused = true                # optional: a refused update skips this neuron only, the
                                        # step goes on (default false: the step is refused)
+    wait_for_history = true            # optional: learn only once every delayed tap reads a
+                                       # measured sample (default false: from the second sample)
 
     [[neurons]]                        # required: exactly n_states tables, in state order
     terms = ["S(x1)", "S(x1)*S(x2)", "S(x1(k-1))^2", "x3", "u1", "1"]   # required, non-empty
@@ -60,7 +62,7 @@ Rules
   :class:`~pyrhonn.config.NeuronConfig` default (logistic, beta = 1, p0 = 1,
   q = 0, r = 1, eta = 1); files written by :func:`dumps` always set all six.
   The covariance form, windup, gate and refusal keys (``covariance``, ``forgetting``,
-  ``p_trace_max``, ``reset_after``, ``gate``, ``skip_refused``) are off by default, so eq. 7 stays exact,
+  ``p_trace_max``, ``reset_after``, ``gate``, ``skip_refused``, ``wait_for_history``) are off by default, so eq. 7 stays exact,
   and :func:`dumps` writes them only where they are set.
 - **Numbers.** A real may be written as a TOML integer or float (``eta = 1``);
   booleans, strings and non-finite values (``inf``, ``nan``) are errors.
@@ -142,7 +144,8 @@ MAX_FILE_BYTES = 1 << 20  #: a config file is a few kB; a larger one is not a co
 
 TUNING_KEYS = ("activation", "beta", "p0", "q", "r", "eta")
 #: Covariance form and windup protection: optional, written by dumps only when not the default.
-PROTECTION_KEYS = ("covariance", "forgetting", "p_trace_max", "reset_after", "gate", "skip_refused")
+PROTECTION_KEYS = ("covariance", "forgetting", "p_trace_max", "reset_after", "gate", "skip_refused",
+                   "wait_for_history")
 
 _TOP_KEYS = ("format", "version", "n_states", "n_inputs", "dtype", "state_names", "input_names", "x0",
              "description", "defaults", "neurons", "bus")
@@ -454,7 +457,7 @@ def _tuning_value(path: str, key: str, value: object) -> Any:
         return check_int(path, value, 0, 65535)
     if key == "gate":
         return check_real(path, value, nonnegative=True)
-    if key == "skip_refused":
+    if key in ("skip_refused", "wait_for_history"):
         if not isinstance(value, bool):
             raise fail(path, f"expected true or false, got {_toml_type(value)}")
         return value

@@ -368,6 +368,7 @@ def _config_initializer(cfg: IdentifierConfig, name: str, lit: LiteralFormat) ->
             f"            {lit(0.0 if nr.p_trace_max is None else nr.p_trace_max)}, /* p_trace_max (0: off) */",
             f"            {lit(nr.gate)}, /* gate (0: off) */",
             f"            {int(nr.skip_refused)}, /* skip_refused */",
+            f"            {int(nr.wait_for_history)}, /* wait_for_history */",
             "        },",
         ]
     return lines + ["    },", "};"]

@@ -60,7 +60,7 @@ _FIELD_NAMES = {
     1: "n_states", 2: "n_inputs", 3: "x0", 4: "terms", 5: "activation", 6: "beta", 7: "eta",
     8: "r", 9: "q", 10: "w0", 11: "p0", 12: "terms[{t}] factors", 13: "terms[{t}][{f}].kind",
     14: "terms[{t}][{f}].index", 15: "terms[{t}][{f}].delay", 16: "terms[{t}][{f}].power",
-    17: "covariance", 18: "forgetting", 19: "p_trace_max", 20: "reset_after", 21: "gate", 22: "skip_refused",
+    17: "covariance", 18: "forgetting", 19: "p_trace_max", 20: "reset_after", 21: "gate", 22: "skip_refused", 23: "wait_for_history",
 }
 
 
@@ -317,6 +317,7 @@ class Identifier:
             nc.reset_after = neuron.reset_after
             nc.gate = neuron.gate
             nc.skip_refused = int(neuron.skip_refused)
+            nc.wait_for_history = int(neuron.wait_for_history)
             for t, term in enumerate(neuron.terms):
                 nc.terms[t].n_factors = len(term)
                 for f, fac in enumerate(term):

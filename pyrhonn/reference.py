@@ -141,9 +141,12 @@ class ReferenceIdentifier:
         self._ceiling = [nr.p_trace_max if nr.p_trace_max is not None else float(np.trace(nr.p0_matrix()))
                          for nr in config.neurons]
         # neuron i reads its own state down to x_i(k - own_need[i] + 1); 0: not at all
-        self._own_need = [max((f.delay + 1 for t in nr.terms for f in t
-                               if f.kind in (FactorKind.S, FactorKind.X) and f.index == i), default=0)
+        # (with wait_for_history: down to its deepest tap of any factor, and the runs start at 1)
+        self._own_need = [max(((0 if f.kind is FactorKind.ONE else f.delay) + 1 for t in nr.terms for f in t
+                               if nr.wait_for_history or f.kind in (FactorKind.S, FactorKind.X) and f.index == i),
+                              default=0)
                           for i, nr in enumerate(config.neurons)]
+        self._first_run = np.array([1 if nr.wait_for_history else 255 for nr in config.neurons])
         self.reset()
 
     def reset(self) -> None:
@@ -267,7 +270,7 @@ class ReferenceIdentifier:
         first = self._z is None  # the history was just filled with this sample
         self._w, self._P, self._hist, self._z, self._xhat = w_new, p_new, hist, z, xhat
         self._uhist = uhist
-        self._valid_run = np.where(valid, 255 if first else np.minimum(self._valid_run + 1, 255), 0)
+        self._valid_run = np.where(valid, self._first_run if first else np.minimum(self._valid_run + 1, 255), 0)
         return xhat.copy()
 
     def run(self, X: np.ndarray, U: np.ndarray | None = None, valid: np.ndarray | None = None) -> np.ndarray:

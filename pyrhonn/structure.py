@@ -550,7 +550,11 @@ class Selection:
         those combinations far beyond their uncertainty, and a model that
         simulated well stops doing so (measured on the cascaded tanks: a
         free run of 0.65 V became 2.5-7.8 V after 20 learning steps; 0.67-0.70
-        V with this P0 and Q)."""
+        V with this P0 and Q).
+
+        Each neuron waits for its history (``wait_for_history``): online, it
+        learns only from samples whose regressor reads measured values at
+        every tap, as the least-squares fit used only such rows."""
         if p0_form not in ("fit", "scalar"):
             raise fail("p0_form", f"expected 'fit' or 'scalar', got {p0_form!r}")
         neurons = []
@@ -571,7 +575,7 @@ class Selection:
             else:
                 qq = pp / max(self.rows, 1)
             neurons.append(NeuronConfig(terms=terms, activation=nr.activation, beta=nr.beta, p0=pp, q=qq, r=rr,
-                                        w0=np.array([t.weight for t in nr.terms])))
+                                        w0=np.array([t.weight for t in nr.terms]), wait_for_history=True))
         return IdentifierConfig(n_states=self.n_states, n_inputs=self.n_inputs, neurons=tuple(neurons), dtype=dtype)
 
     def config_file(self, state_names: tuple[str, ...] | None = None, input_names: tuple[str, ...] | None = None,

@@ -95,6 +95,7 @@ static void make_config(reader *r, rhonn_config *c)
             nc->gate = (rhonn_real)(1u + byte(r) % 30u);
         }
         nc->skip_refused = (uint8_t)(flags >> 7);
+        nc->wait_for_history = (uint8_t)(nc->n_terms & 1u);
         read_terms(r, nc, c->n_states, c->n_inputs);
     }
 }

@@ -106,6 +106,14 @@
  *      counted down to its deepest one): then xhat_i(k) is the end of a free
  *      run of x_i, and e_i(k) is that run's accumulated drift, not a one-step
  *      error; learning it would kick w_i at the end of every dropout.
+ *      With wait_for_history, a neuron also skips learning while z_i(k-1)
+ *      read the constant history before the first sample at any of its
+ *      taps (any factor's delay, states and inputs): it learns from the
+ *      sample D_i + 1 after init, reset or restart on, D_i the deepest
+ *      delay it reads, and after a dropout of its own state once it has
+ *      been measured D_i + 1 samples in a row (its own-state rule then
+ *      counts down to D_i). A model fitted offline on measured histories is
+ *      not taught the padded start of every record.
  *      A neuron whose e_i^2 / s_i exceeds its gate skips its update.
  *   2. Form the regressor z(k) from x(k), the delayed samples x(k-d), u(k)
  *      and the delayed inputs u(k-d). A state whose measurement is invalid
@@ -235,6 +243,12 @@ typedef struct {
      * learn and the step goes on. Last, so that positional initialisers
      * written before it existed leave it 0. */
     uint8_t skip_refused;
+    /* When this neuron starts learning after init, reset or restart (see
+     * STEP 1 below): 0 (as in a zero-initialised config) at the second
+     * sample, the history before the first sample taken as constant (the
+     * paper's initial function); 1 once every delayed tap of its regressor
+     * reads a measured sample, its state measured in each of them. */
+    uint8_t wait_for_history;
 } rhonn_neuron_config;
 
 typedef struct {
@@ -253,7 +267,8 @@ typedef enum {
     RHONN_FIELD_N_FACTORS, RHONN_FIELD_FACTOR_KIND, RHONN_FIELD_FACTOR_INDEX,
     RHONN_FIELD_FACTOR_DELAY, RHONN_FIELD_FACTOR_POWER,
     RHONN_FIELD_COVARIANCE, RHONN_FIELD_FORGETTING, RHONN_FIELD_P_TRACE_MAX,
-    RHONN_FIELD_RESET_AFTER, RHONN_FIELD_GATE, RHONN_FIELD_SKIP_REFUSED
+    RHONN_FIELD_RESET_AFTER, RHONN_FIELD_GATE, RHONN_FIELD_SKIP_REFUSED,
+    RHONN_FIELD_WAIT_FOR_HISTORY
 } rhonn_field;
 
 typedef struct {
@@ -348,6 +363,10 @@ typedef struct {
      * x_i(k - own_need[i] + 1) (0: not at all); valid_run[j] counts the
      * samples in a row, up to the newest, in which x_j was measured. */
     uint8_t own_need[RHONN_MAX_STATES];
+    /* What the first sample ORs into valid_run[j]: 0xFF (the run starts
+     * full: nothing older) or, with neuron j's wait_for_history, 0 (the
+     * run starts at 1). */
+    uint8_t first_run[RHONN_MAX_STATES];
     rhonn_real q_min[RHONN_MAX_STATES];  /* min_t Q_i[t], for the definiteness proof */
     rhonn_real inv_lambda[RHONN_MAX_STATES];  /* 1 / forgetting, 0 when off */
     rhonn_real forget_ceiling[RHONN_MAX_STATES]; /* c_i: p_trace_max, else trace P_i(0) */

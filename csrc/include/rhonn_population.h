@@ -143,6 +143,7 @@ typedef struct {
     uint8_t learning[RHONN_MAX_POPULATION];                    /* rhonn_t.learning */
     uint8_t need[RHONN_MAX_STATES][RHONN_MAX_POPULATION];      /* rhonn_t.own_need */
     uint8_t vrun[RHONN_MAX_STATES][RHONN_MAX_POPULATION];      /* rhonn_t.valid_run */
+    uint8_t first_run[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* rhonn_t.first_run */
     uint8_t flips[RHONN_MAX_STATES][RHONN_MAX_POPULATION];     /* 1: rhonn_t.bank[i] flips */
     uint8_t run_ended[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* 1: health fail_run is 0 */
     uint8_t has_last[RHONN_MAX_STATES][RHONN_MAX_POPULATION];  /* 1: health innovation, nis */

@@ -332,6 +332,9 @@ rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *
         if (nc->skip_refused > 1u) {
             return config_error(where, RHONN_FIELD_SKIP_REFUSED, i, 0, 0);
         }
+        if (nc->wait_for_history > 1u) {
+            return config_error(where, RHONN_FIELD_WAIT_FOR_HISTORY, i, 0, 0);
+        }
         for (t = 0; t < L; ++t) {
             const rhonn_term *term = &nc->terms[t];
             if (term->n_factors < 1u || term->n_factors > (size_t)RHONN_MAX_FACTORS) {
@@ -504,6 +507,7 @@ static void compile_terms(rhonn_t *net)
     net->gates = 0;
     for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
         net->own_need[i] = 0;
+        net->first_run[i] = 0xFFu;
         net->q_min[i] = R(0.0);
         net->inv_lambda[i] = R(0.0);
         net->forget_ceiling[i] = R(0.0);
@@ -514,6 +518,7 @@ static void compile_terms(rhonn_t *net)
         net->forget_ceiling[i] = forget_ceiling_of(&cfg->neurons[i]);
         net->gates = (uint8_t)(net->gates | (cfg->neurons[i].gate > R(0.0)));
         net->q_zero[i] = q_zero_of(&cfg->neurons[i]);
+        net->first_run[i] = (uint8_t)(cfg->neurons[i].wait_for_history != 0u ? 0u : 0xFFu);
         net->q_min[i] = q_min_of(&cfg->neurons[i]);
         for (t = 0; t < cfg->neurons[i].n_terms; ++t) {
             for (f = 0; f < cfg->neurons[i].terms[t].n_factors; ++f) {
@@ -549,9 +554,11 @@ static void compile_terms(rhonn_t *net)
                         net->term_entry[i][t][pad] = (uint16_t)OFF_ONE;
                     }
                 }
-                if ((fa->kind == (uint8_t)RHONN_FACTOR_S || fa->kind == (uint8_t)RHONN_FACTOR_X) &&
-                    fa->index == i && delay >= net->own_need[i]) {
-                    net->own_need[i] = (uint8_t)(delay + 1u);
+                if (((fa->kind == (uint8_t)RHONN_FACTOR_S || fa->kind == (uint8_t)RHONN_FACTOR_X) &&
+                     fa->index == i) || cfg->neurons[i].wait_for_history != 0u) {
+                    if (delay >= net->own_need[i]) { /* wait_for_history: every tap counts */
+                        net->own_need[i] = (uint8_t)(delay + 1u);
+                    }
                 }
             }
         }
@@ -646,6 +653,9 @@ static rhonn_status fixed_config_matches(const rhonn_config *cfg, rhonn_config_e
         }
         if (a->skip_refused != b->skip_refused) {
             return config_error(where, RHONN_FIELD_SKIP_REFUSED, i, 0, 0);
+        }
+        if (a->wait_for_history != b->wait_for_history) {
+            return config_error(where, RHONN_FIELD_WAIT_FOR_HISTORY, i, 0, 0);
         }
     }
     return RHONN_OK;
@@ -772,13 +782,18 @@ rhonn_status rhonn_reset(rhonn_t *net)
 rhonn_status rhonn_restart(rhonn_t *net)
 {
     rhonn_status st = check_net(net);
+    size_t i;
     if (st != RHONN_OK) {
         return st;
     }
     /* The step after this one sees started == 0: it does not learn (there is
      * no prediction made for its sample) and refills the history with its
-     * own sample, exactly as the first step after rhonn_init. */
+     * own sample, exactly as the first step after rhonn_init; the runs of
+     * measured samples start again with it (wait_for_history). */
     net->started = 0;
+    for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
+        net->valid_run[i] = 0;
+    }
     return RHONN_OK;
 }
 
@@ -1852,13 +1867,15 @@ static void commit_ring(rhonn_t *net, const rhonn_real *cur)
 static void count_runs(rhonn_t *net, const uint8_t *valid)
 {
     const size_t n = CFG(net)->n_states;
-    /* the first sample starts every run full: there is nothing older */
+    /* the first sample starts every run full: there is nothing older
+     * (with wait_for_history at 1: the history before it was not measured) */
     const uint8_t first = net->started ? 0u : 0xFFu;
     size_t j;
     RHONN_ASSUME(n <= (size_t)RHONN_MAX_STATES);
     RHONN_NEURON_LOOP
     for (j = 0; j < n; ++j) {
-        net->valid_run[j] = rhonn_run_next(net->valid_run[j], first, (uint8_t)(valid == NULL || valid[j] != 0u));
+        net->valid_run[j] = rhonn_run_next(net->valid_run[j], (uint8_t)(first & net->first_run[j]),
+                                           (uint8_t)(valid == NULL || valid[j] != 0u));
     }
 }
 

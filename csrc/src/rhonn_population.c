@@ -1305,6 +1305,7 @@ static void load_lane(rhonn_population_work *wk, const rhonn_t *net, size_t m)
         wk->p_trace_max[i][m] = nc->p_trace_max;
         wk->need[i][m] = net->own_need[i];
         wk->vrun[i][m] = net->valid_run[i];
+        wk->first_run[i][m] = net->first_run[i];
         wk->flips[i][m] = 0;
         wk->run_ended[i][m] = 0;
         wk->has_last[i][m] = 0;
@@ -1632,7 +1633,7 @@ POP_LANES void commit_alike(rhonn_population_work *wk, size_t i, uint8_t measure
 {
     size_t m;
     for (m = 0; m < NPOP; ++m) {
-        wk->vrun[i][m] = rhonn_run_next(wk->vrun[i][m], first[m], measured);
+        wk->vrun[i][m] = rhonn_run_next(wk->vrun[i][m], (uint8_t)(first[m] & wk->first_run[i][m]), measured);
     }
     for (m = 0; m < NPOP; ++m) {
         wk->xhat[i][m] = wk->xnew[i][m];
@@ -1986,7 +1987,8 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                 const uint8_t run = wk->vrun[i][m];
                 const uint8_t up = (uint8_t)(wk->updated[i][m] & keep[m]);
                 const uint8_t fresh = (uint8_t)(up & (wk->recovered[i][m] ^ 1u)); /* not a recovery */
-                wk->vrun[i][m] = keep[m] ? rhonn_run_next(run, first[m], measured) : run;
+                wk->vrun[i][m] = keep[m] ? rhonn_run_next(run, (uint8_t)(first[m] & wk->first_run[i][m]), measured)
+                                         : run;
                 wk->flips[i][m] ^= up;
                 wk->run_ended[i][m] |= up;
                 wk->n_resets[i][m] += (uint32_t)(up & wk->recovered[i][m]);

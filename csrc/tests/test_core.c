@@ -206,6 +206,7 @@ static void config_errors_name_the_field(void)
     EXPECT_FIELD(c.neurons[0].gate = (rhonn_real)NAN, RHONN_FIELD_GATE, 0, 0, 0);
     EXPECT_FIELD(c.neurons[1].gate = (rhonn_real)INFINITY, RHONN_FIELD_GATE, 1, 0, 0);
     EXPECT_FIELD(c.neurons[1].skip_refused = 2, RHONN_FIELD_SKIP_REFUSED, 1, 0, 0);
+    EXPECT_FIELD(c.neurons[0].wait_for_history = 3, RHONN_FIELD_WAIT_FOR_HISTORY, 0, 0, 0);
 #undef EXPECT_FIELD
     CHECK_STATUS(rhonn_validate_config(NULL, &where), RHONN_E_NULL);
     CHECK_STATUS(rhonn_init(NULL, &c, NULL), RHONN_E_NULL);
@@ -1290,6 +1291,50 @@ static void a_refused_neuron_is_skipped_while_the_others_learn(void)
     CHECK(h.rejected == T - 1u && h.resets == (T - 1u) / 3u && h.fail_run == (T - 1u) % 3u);
 }
 
+/* rhonn.h STEP 1, wait_for_history: both neurons read x_1(k-2), so they
+ * learn from the third sample after init or restart on (D = 2), bit for bit
+ * as a twin without the option whose learning is off for samples 0..2 (and
+ * again after its restart). Neuron 1 reads x_1(k-2) but not its own state
+ * at a delay: without the option it would learn from the second sample. */
+static void waiting_for_the_history_learns_from_measured_taps_only(void)
+{
+    enum { T = 60, RESTART = 30 };
+    rhonn_t net, twin;
+    rhonn_config c = small_config(), plain;
+    rhonn_real x[2], u[1], y[2], yt[2];
+    rhonn_health h;
+    size_t k;
+    int same = 1;
+    plain = c;
+    c.neurons[0].wait_for_history = 1;
+    c.neurons[1].wait_for_history = 1;
+    CHECK_STATUS(rhonn_init(&net, &c, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_init(&twin, &plain, NULL), RHONN_OK);
+    for (k = 0; k < T; ++k) {
+        const size_t since = k < RESTART ? k : k - RESTART;
+        if (k == RESTART) {
+            CHECK_STATUS(rhonn_restart(&net), RHONN_OK);
+            CHECK_STATUS(rhonn_restart(&twin), RHONN_OK);
+        }
+        sample(k, x, u);
+        CHECK_STATUS(rhonn_set_learning(&twin, since >= 3u), RHONN_OK);
+        CHECK_STATUS(rhonn_step(&net, x, u, NULL, y), RHONN_OK);
+        CHECK_STATUS(rhonn_step(&twin, x, u, NULL, yt), RHONN_OK);
+        same = same && memcmp(y, yt, sizeof y) == 0;
+    }
+    CHECK(same);
+    CHECK_STATUS(rhonn_get_health(&net, 1, &h), RHONN_OK);
+    CHECK(h.updates == (RESTART - 3u) + (T - RESTART - 3u));
+    /* without the option neuron 1 learns from the second sample */
+    CHECK_STATUS(rhonn_init(&net, &plain, NULL), RHONN_OK);
+    for (k = 0; k < 5; ++k) {
+        sample(k, x, u);
+        CHECK_STATUS(rhonn_step(&net, x, u, NULL, y), RHONN_OK);
+    }
+    CHECK_STATUS(rhonn_get_health(&net, 1, &h), RHONN_OK);
+    CHECK(h.updates == 4u);
+}
+
 int main(void)
 {
     printf("rhonn core tests (%s, sizeof(rhonn_t) = %u bytes)\n",
@@ -1326,5 +1371,6 @@ int main(void)
     RUN(the_gate_skips_an_outlier_in_every_neuron);
     RUN(bounded_forgetting_learns_after_a_million_quiet_samples);
     RUN(a_refused_neuron_is_skipped_while_the_others_learn);
+    RUN(waiting_for_the_history_learns_from_measured_taps_only);
     return CHECK_SUMMARY();
 }

@@ -41,6 +41,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x0.0p+0, /* p_trace_max (0: off) */
             0x0.0p+0, /* gate (0: off) */
             0, /* skip_refused */
+            0, /* wait_for_history */
         },
         { /* [1]: x2 + x5*x6(k-1) + x6*x5(k-1) + u1*x6 + u2*x5 */
             5, /* n_terms */
@@ -64,6 +65,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x0.0p+0, /* p_trace_max (0: off) */
             0x0.0p+0, /* gate (0: off) */
             0, /* skip_refused */
+            0, /* wait_for_history */
         },
         { /* [2]: S(x3) + S(x5) + S(x6) + S(x1)*S(x5) + S(x1)*S(x6) */
             5, /* n_terms */
@@ -87,6 +89,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x0.0p+0, /* p_trace_max (0: off) */
             0x0.0p+0, /* gate (0: off) */
             0, /* skip_refused */
+            0, /* wait_for_history */
         },
         { /* [3]: S(x4) + S(x5) + S(x6) + S(x1)*S(x5) + S(x1)*S(x6) */
             5, /* n_terms */
@@ -110,6 +113,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x0.0p+0, /* p_trace_max (0: off) */
             0x0.0p+0, /* gate (0: off) */
             0, /* skip_refused */
+            0, /* wait_for_history */
         },
         { /* [4]: S(x5) + S(x3) + S(x4) + S(x2)*S(x3) + S(x2)*S(x4) + u1 */
             6, /* n_terms */
@@ -134,6 +138,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x0.0p+0, /* p_trace_max (0: off) */
             0x0.0p+0, /* gate (0: off) */
             0, /* skip_refused */
+            0, /* wait_for_history */
         },
         { /* [5]: S(x6) + S(x3) + S(x4) + S(x2)*S(x3) + S(x2)*S(x4) + u2 */
             6, /* n_terms */
@@ -158,6 +163,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0x0.0p+0, /* p_trace_max (0: off) */
             0x0.0p+0, /* gate (0: off) */
             0, /* skip_refused */
+            0, /* wait_for_history */
         },
     },
 };
@@ -187,6 +193,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0.0, /* p_trace_max (0: off) */
             0.0, /* gate (0: off) */
             0, /* skip_refused */
+            0, /* wait_for_history */
         },
         { /* [1]: x2 + x5*x6(k-1) + x6*x5(k-1) + u1*x6 + u2*x5 */
             5, /* n_terms */
@@ -210,6 +217,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0.0, /* p_trace_max (0: off) */
             0.0, /* gate (0: off) */
             0, /* skip_refused */
+            0, /* wait_for_history */
         },
         { /* [2]: S(x3) + S(x5) + S(x6) + S(x1)*S(x5) + S(x1)*S(x6) */
             5, /* n_terms */
@@ -233,6 +241,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0.0, /* p_trace_max (0: off) */
             0.0, /* gate (0: off) */
             0, /* skip_refused */
+            0, /* wait_for_history */
         },
         { /* [3]: S(x4) + S(x5) + S(x6) + S(x1)*S(x5) + S(x1)*S(x6) */
             5, /* n_terms */
@@ -256,6 +265,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0.0, /* p_trace_max (0: off) */
             0.0, /* gate (0: off) */
             0, /* skip_refused */
+            0, /* wait_for_history */
         },
         { /* [4]: S(x5) + S(x3) + S(x4) + S(x2)*S(x3) + S(x2)*S(x4) + u1 */
             6, /* n_terms */
@@ -280,6 +290,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0.0, /* p_trace_max (0: off) */
             0.0, /* gate (0: off) */
             0, /* skip_refused */
+            0, /* wait_for_history */
         },
         { /* [5]: S(x6) + S(x3) + S(x4) + S(x2)*S(x3) + S(x2)*S(x4) + u2 */
             6, /* n_terms */
@@ -304,6 +315,7 @@ static const rhonn_config LIM_IDENTIFIER = {
             0.0, /* p_trace_max (0: off) */
             0.0, /* gate (0: off) */
             0, /* skip_refused */
+            0, /* wait_for_history */
         },
     },
 };
