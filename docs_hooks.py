@@ -293,7 +293,7 @@ def format_figure(value: Any, spec: str | None) -> str:
             return "yes" if value else "no"
         raise ValueError(f"not a number or text: {value!r}")
     if spec is not None:
-        text = format(value, spec)
+        text = re.sub(r"e([+-])0(\d)", r"e\1\2", format(value, spec))  # 1.70e-5, as the pages write it
         return text[:-1] + " %" if spec.endswith("%") else text
     if isinstance(value, int):
         return f"{value:,}"

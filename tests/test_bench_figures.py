@@ -43,7 +43,7 @@ def _references(hooks: ModuleType) -> list[tuple[Path, str, str, str | None, boo
 
 def test_the_docs_quote_benchmark_figures_through_references(hooks: ModuleType) -> None:
     names = {name for _, name, _, _, _ in _references(hooks)}
-    assert {"cortex_m4", "core_vs_dense"} <= names
+    assert {"cortex_m4", "core_vs_dense", "real_data"} <= names
 
 
 def test_every_figure_reference_in_the_docs_resolves_against_bench_results(hooks: ModuleType) -> None:
@@ -124,6 +124,7 @@ def test_figures_are_formatted_as_the_pages_write_them(hooks: ModuleType) -> Non
     assert hooks.format_figure(3.7512, None) == "3.75"
     assert hooks.format_figure(0.08855, ".1%") == "8.9 %"
     assert hooks.format_figure(4.8e-12, ".1e") == "4.8e-12"
+    assert hooks.format_figure(1.7e-5, ".2e") == "1.70e-5"
     assert hooks.format_figure(True, None) == "yes"
 
 
