@@ -267,7 +267,7 @@ def on_files(files: Files, config: Any) -> Files:
 RESULTS = ROOT / "bench" / "results"
 #: ``{{ bench("NAME", "a.b.c") }}`` or ``{{ bench("NAME", "a.b.c", "SPEC") }}``, SPEC a format spec
 #: ``{{ bench_run("NAME", "load.start.0") }}``: the same from the run's record (date, command, machine, load)
-BENCH_REF = re.compile(r'\{\{ bench(_run)?\("(\w+)", "([\w.-]+)"(?:, "([^"]*)")?\) \}\}')
+BENCH_REF = re.compile(r'\{\{ bench(_run)?\("(\w+)", "([^"]+)"(?:, "([^"]*)")?\) \}\}')
 _RESULTS_CACHE: dict[Path, dict[str, Any]] = {}
 
 
