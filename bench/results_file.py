@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import datetime
 import json
+import math
 import os
 import platform
 import shlex
@@ -47,10 +48,22 @@ def machine() -> dict[str, Any]:
             "python": platform.python_version()}
 
 
+def _finite(value: Any) -> Any:
+    """``value`` with every float that is not finite written as text ("inf", "-inf", "nan"):
+    JSON has no such numbers, and a diverged free run is a result to keep."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
+
+
 def save(name: str, figures: dict[str, Any], argv: list[str] | None = None, folder: Path = FOLDER) -> Path:
-    """Write ``figures`` (JSON values, NaN refused) as ``folder/NAME.json`` with the run's
-    date, machine, load and command (``bench/bench_NAME.py`` with ``argv``, by default this
-    process's arguments); returns the path."""
+    """Write ``figures`` (JSON values; a float that is not finite as its text, ``"inf"``) as
+    ``folder/NAME.json`` with the run's date, machine, load and command (``bench/bench_NAME.py``
+    with ``argv``, by default this process's arguments); returns the path."""
     if not name or not name.replace("_", "").isalnum():
         raise ValueError(f"name: letters, digits and underscores only, got {name!r}")
     if not isinstance(figures, dict) or not figures:
@@ -62,7 +75,7 @@ def save(name: str, figures: dict[str, Any], argv: list[str] | None = None, fold
         "command": shlex.join(["python", f"bench/bench_{name}.py", *args]),
         "machine": machine(),
         "load": {"start": [round(v, 2) for v in _START_LOAD], "end": [round(v, 2) for v in os.getloadavg()]},
-        "figures": figures,
+        "figures": _finite(figures),
     }
     text = json.dumps(record, indent=1, allow_nan=False, sort_keys=False) + "\n"
     folder.mkdir(parents=True, exist_ok=True)

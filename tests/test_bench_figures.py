@@ -170,11 +170,13 @@ def test_results_writer_replaces_the_file_whole_and_refuses_bad_figures(tmp_path
     assert data["figures"] == {"step": {"cycles": 4901}} and data["bench"] == "demo"
     assert data["command"].endswith("--frames 20") and data["machine"]["nproc"] >= 1
     before = path.read_bytes()
-    with pytest.raises(ValueError):
-        writer.save("demo", {"step": math.nan}, [], folder=tmp_path)
+    with pytest.raises(TypeError):  # not a JSON value: refused, the previous file kept
+        writer.save("demo", {"step": object()}, [], folder=tmp_path)
     with pytest.raises(ValueError, match="name"):
         writer.save("../demo", {"x": 1}, [], folder=tmp_path)
     with pytest.raises(ValueError, match="figures"):
         writer.save("demo", {}, [], folder=tmp_path)
     assert path.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["demo.json"]
+    writer.save("demo", {"free_run": [math.inf, math.nan, 0.5]}, [], folder=tmp_path)  # a diverged run
+    assert json.loads(path.read_text(encoding="utf-8"))["figures"] == {"free_run": ["inf", "nan", 0.5]}
