@@ -286,12 +286,18 @@ def _results(name: str, folder: Path) -> dict[str, Any]:
 
 def format_figure(value: Any, spec: str | None) -> str:
     """A figure as a page shows it: ``spec`` is a Python format spec (a trailing ``%`` is
-    written `` %``, as the pages do); without one, an integer with thousands separators,
+    written `` %``, as the pages do), after a divisor if it starts with one (``/1e3:.2f``: a
+    time in ns shown in µs); without one, an integer with thousands separators,
     a float with none of its decimals from 100 on and 3 significant digits below."""
     if isinstance(value, bool) or value is None or isinstance(value, (dict, list)):
         if spec is None and isinstance(value, bool):
             return "yes" if value else "no"
         raise ValueError(f"not a number or text: {value!r}")
+    if spec is not None and spec.startswith("/"):  # "/1e3:.2f": ns shown in µs
+        divisor, _, spec = spec[1:].partition(":")
+        if not isinstance(value, (int, float)) or not spec:
+            raise ValueError(f"a scaled format needs a number and a spec after ':', got {value!r} and {spec!r}")
+        value = value / float(divisor)
     if spec is not None:
         text = re.sub(r"e([+-])0(\d)", r"e\1\2", format(value, spec))  # 1.70e-5, as the pages write it
         return text[:-1] + " %" if spec.endswith("%") else text

@@ -125,6 +125,9 @@ def test_figures_are_formatted_as_the_pages_write_them(hooks: ModuleType) -> Non
     assert hooks.format_figure(0.08855, ".1%") == "8.9 %"
     assert hooks.format_figure(4.8e-12, ".1e") == "4.8e-12"
     assert hooks.format_figure(1.7e-5, ".2e") == "1.70e-5"
+    assert hooks.format_figure(1030.4, "/1e3:.2f") == "1.03"
+    with pytest.raises(ValueError, match="scaled format"):
+        hooks.format_figure(1030.4, "/1e3")
     assert hooks.format_figure(True, None) == "yes"
 
 
