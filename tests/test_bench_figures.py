@@ -137,6 +137,12 @@ def _digits(text: str) -> int:
     return sum(c.isdigit() for c in mantissa)
 
 
+#: literals of a page that equal a figure of the last run by chance, with what they are
+COINCIDENCES = {
+    ("docs/benchmarks.md", "1,113"),  # the core's operation count at L = 16 (counted, not measured)
+}
+
+
 def test_no_page_quotes_by_hand_a_figure_the_docs_take_from_a_results_file(hooks: ModuleType) -> None:
     """A figure with 4 digits or more that any page takes from a results file does not also stand
     in a page as a literal: a hand copy (or a reference replaced by its value) would go stale
@@ -148,6 +154,8 @@ def test_no_page_quotes_by_hand_a_figure_the_docs_take_from_a_results_file(hooks
     for page in PAGES:
         bare = hooks.BENCH_REF.sub(" ", page.read_text(encoding="utf-8"))
         for text, what in shown.items():
+            if (page.relative_to(ROOT).as_posix(), text) in COINCIDENCES:
+                continue
             if re.search(rf"(?<![\d.,]){re.escape(text)}(?![\d]|,\d)", bare):
                 copies.append(f"{page.relative_to(ROOT)}: {text} ({what}) written by hand")
     assert not copies, "\n".join(sorted(copies))
