@@ -20,11 +20,16 @@ once they exist.
 :func:`on_page_content` shows the docstrings' reST roles as plain code, and
 :func:`on_page_markdown` replaces each ``{{ NAME }}`` of a page with a figure
 measured as the site is built (:func:`_measured`: ``sizeof(rhonn_t)`` for the
-capacities the pages discuss), so no page quotes a stale size.
+capacities the pages discuss), so no page quotes a stale size, and each
+``{{ bench("NAME", "a.b.c") }}`` with the figure ``a.b.c`` of the results file
+``bench/results/NAME.json`` that ``bench/bench_NAME.py --results`` writes
+(:func:`bench_figure`), so no page quotes a stale benchmark figure. A missing
+file or figure fails the build, naming both.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import re
 from pathlib import Path
 from typing import Any
@@ -259,7 +264,82 @@ def on_files(files: Files, config: Any) -> Files:
     return files
 
 
+RESULTS = ROOT / "bench" / "results"
+#: ``{{ bench("NAME", "a.b.c") }}`` or ``{{ bench("NAME", "a.b.c", "SPEC") }}``, SPEC a format spec
+#: ``{{ bench_run("NAME", "load.start.0") }}``: the same from the run's record (date, command, machine, load)
+BENCH_REF = re.compile(r'\{\{ bench(_run)?\("(\w+)", "([^"]+)"(?:, "([^"]*)")?\) \}\}')
+_RESULTS_CACHE: dict[Path, dict[str, Any]] = {}
+
+
+def _results(name: str, folder: Path) -> dict[str, Any]:
+    file = folder / f"{name}.json"
+    if file not in _RESULTS_CACHE:
+        if not file.is_file():
+            raise ValueError(f"bench/results/{name}.json: no such results file "
+                             f"(python bench/bench_{name}.py --results writes it)")
+        data = json.loads(file.read_text(encoding="utf-8"))
+        if not isinstance(data, dict) or not isinstance(data.get("figures"), dict):
+            raise ValueError(f"bench/results/{name}.json: no 'figures' mapping")
+        _RESULTS_CACHE[file] = data
+    return _RESULTS_CACHE[file]
+
+
+def format_figure(value: Any, spec: str | None) -> str:
+    """A figure as a page shows it: ``spec`` is a Python format spec (a trailing ``%`` is
+    written `` %``, as the pages do), after a divisor if it starts with one (``/1e3:.2f``: a
+    time in ns shown in µs); without one, an integer with thousands separators,
+    a float with none of its decimals from 100 on and 3 significant digits below."""
+    if isinstance(value, bool) or value is None or isinstance(value, (dict, list)):
+        if spec is None and isinstance(value, bool):
+            return "yes" if value else "no"
+        raise ValueError(f"not a number or text: {value!r}")
+    if spec is not None and spec.startswith("/"):  # "/1e3:.2f": ns shown in µs
+        divisor, _, spec = spec[1:].partition(":")
+        if not isinstance(value, (int, float)) or not spec:
+            raise ValueError(f"a scaled format needs a number and a spec after ':', got {value!r} and {spec!r}")
+        value = value / float(divisor)
+    if spec is not None:
+        text = re.sub(r"e([+-])0(\d)", r"e\1\2", format(value, spec))  # 1.70e-5, as the pages write it
+        return text[:-1] + " %" if spec.endswith("%") else text
+    if isinstance(value, int):
+        return f"{value:,}"
+    if isinstance(value, float):
+        return f"{value:,.0f}" if abs(value) >= 100 else f"{value:.3g}"
+    return str(value)
+
+
+def bench_figure(name: str, path: str, spec: str | None = None, folder: Path | None = None,
+                 run: bool = False) -> str:
+    """The figure ``path`` (keys joined by dots) of ``bench/results/NAME.json``, formatted; with
+    ``run``, ``path`` is read from the run's record around the figures (``load.start.0``)."""
+    record = _results(name, folder or RESULTS)
+    value: Any = record if run else record["figures"]
+    for part in path.split("."):
+        if isinstance(value, dict) and part in value:
+            value = value[part]
+        elif isinstance(value, list) and part.isdigit() and int(part) < len(value):
+            value = value[int(part)]
+        else:
+            raise ValueError(f"bench/results/{name}.json: no figure {path!r} (no {part!r})")
+    try:
+        return format_figure(value, spec)
+    except ValueError as exc:
+        raise ValueError(f"bench/results/{name}.json: figure {path!r}: {exc}") from None
+
+
+def render_bench(markdown: str, folder: Path | None = None) -> str:
+    """``markdown`` with every ``{{ bench(...) }}`` replaced by its figure."""
+    return BENCH_REF.sub(lambda m: bench_figure(m.group(2), m.group(3), m.group(4), folder, bool(m.group(1))),
+                         markdown)
+
+
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Files) -> str:
+    if "{{ " not in markdown:
+        return markdown
+    try:
+        markdown = render_bench(markdown)
+    except ValueError as exc:
+        raise ValueError(f"{page.file.src_uri}: {exc}") from None
     if "{{ " not in markdown:
         return markdown
     global _MEASURED
@@ -267,7 +347,7 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Files) -> str
         _MEASURED = _measured()
     for key, value in _MEASURED.items():
         markdown = markdown.replace("{{ " + key + " }}", value)
-    left = re.findall(r"\{\{ [\w.]+ \}\}", markdown)
+    left = re.findall(r"\{\{ [\w.]+ \}\}|\{\{ bench\(.*?\}\}", markdown)
     if left:
         raise ValueError(f"{page.file.src_uri}: no measured figure for {', '.join(left)}")
     return markdown

@@ -47,6 +47,7 @@ machine load (os.getloadavg) is printed beside every row.
     python bench/bench_core_vs_dense.py --quick       # smoke run
     python bench/bench_core_vs_dense.py --covariance full   # every neuron of the core in eq. 7's full form
     python bench/bench_core_vs_dense.py --json out.json
+    python bench/bench_core_vs_dense.py --results     # also bench/results/core_vs_dense.json, which the docs quote
 """
 from __future__ import annotations
 
@@ -62,6 +63,7 @@ import sys
 import tempfile
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -356,7 +358,11 @@ def main(argv: list[str] | None = None) -> int:
                     help="the core's covariance form for every neuron (default: as each config says; "
                          "the dense EKF is always the full textbook form)")
     ap.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
+    ap.add_argument("--results", action="store_true",
+                    help="also write the figures to bench/results/core_vs_dense.json (by config, dtype, opt, kernel)")
     args = ap.parse_args(argv)
+    if args.results:  # imported now: it notes the load average at the start of the run
+        from results_file import save  # noqa: E402 - beside this script
     T = args.samples or (1_000 if args.quick else 10_000)
     repeats = args.repeats or (3 if args.quick else 15)
     if T < 2 or repeats < 1:
@@ -394,14 +400,18 @@ def main(argv: list[str] | None = None) -> int:
           "is); Ir: instructions per step (callgrind); dense diff, gen. diff: max over states of "
           "max_k |dense - core| / max_k |core|, and the same for generic.")
     print(f"load average at the end {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    figures = [dict(asdict(r), ratio=r.ratio, ir_ratio=r.ir_ratio, generic_ratio=r.generic_ratio,
+                    core_learn_ns=r.core_learn_ns, dense_learn_ns=r.dense_learn_ns,
+                    core_learn_ir=r.core_learn_ir, dense_learn_ir=r.dense_learn_ir,
+                    learn_ratio=r.learn_ratio, learn_ir_ratio=r.learn_ir_ratio,
+                    generic_ir_ratio=r.generic_ir_ratio) for r in rows]
     if args.json:
-        atomic.write_text(args.json, json.dumps([dict(asdict(r), ratio=r.ratio, ir_ratio=r.ir_ratio,
-                                                     generic_ratio=r.generic_ratio,
-                                                     core_learn_ns=r.core_learn_ns, dense_learn_ns=r.dense_learn_ns,
-                                                     core_learn_ir=r.core_learn_ir, dense_learn_ir=r.dense_learn_ir,
-                                                     learn_ratio=r.learn_ratio, learn_ir_ratio=r.learn_ir_ratio,
-                                                     generic_ir_ratio=r.generic_ir_ratio) for r in rows],
-                                                indent=2))
+        atomic.write_text(args.json, json.dumps(figures, indent=2))
+    if args.results:
+        nested: dict[str, Any] = {"samples": T, "repeats": repeats, "compiler": version[0] if version else "?"}
+        for f in figures:
+            nested.setdefault(f["config"], {}).setdefault(f["dtype"], {}).setdefault(f["opt"], {})[f["kernel"]] = f
+        save("core_vs_dense", nested, argv)
     return 0
 
 

@@ -19,7 +19,10 @@ Cycles are estimates (firmware_sim/cortex_m4/cycles.py): every executed
 instruction weighted by the Cortex-M4 timing table printed below, with no
 flash wait states and no pipelining effects beyond the table.
 
-    python bench/bench_cortex_m4.py [--frames N]
+    python bench/bench_cortex_m4.py [--frames N] [--results]
+
+``--results`` also writes every figure to bench/results/cortex_m4.json,
+which the docs quote (see bench/results_file.py).
 """
 from __future__ import annotations
 
@@ -31,12 +34,16 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+STEP_TARGET = 5000  # estimated cycles aimed at for a learning step inside the application
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=1000, help="Measurements in the application's stream (default 1000)")
+    ap.add_argument("--results", action="store_true", help="also write the figures to bench/results/cortex_m4.json")
     args = ap.parse_args(argv)
+    if args.results:  # imported now: it notes the load average at the start of the run
+        from results_file import save  # noqa: E402 - beside this script
     if args.frames < 20:
         ap.error(f"--frames: at least 20, got {args.frames}")
     with tempfile.TemporaryDirectory() as tmp:
@@ -63,7 +70,18 @@ def main(argv: list[str] | None = None) -> int:
     print(f"budget = {budget} cycles (0.3 ms at 168 MHz); capacities {report['capacities']}")
     print_cycle_table()
     application(report["application"], budget)
-    return covariance_forms(budget)
+    forms: dict[str, dict[str, float]] = {}
+    code = covariance_forms(budget, forms)
+    if code == 0 and args.results:
+        c = report["application"]["cycles"]
+        shares = {"step_p99_share": c["step_p99"] / budget, "step_max_share": c["step_max"] / budget,
+                  "measurement_frame_max_share": c["measurement_frame_max"] / budget,
+                  "step_median_over_step_target": c["step_median"] / STEP_TARGET,
+                  "step_margin_to_step_target": STEP_TARGET - c["step_median"], "step_target": STEP_TARGET,
+                  "application_flash_kb": report["application"]["flash_bytes"] / 1000,
+                  "core_flash_kb": sum(report["application"]["objects"]["rhonn"][k] for k in ("text", "rodata")) / 1000}
+        save("cortex_m4", {**report, "covariance_forms": forms, "derived": shares}, argv)
+    return code
 
 
 def print_cycle_table() -> None:
@@ -111,7 +129,8 @@ def application(app: dict, budget: int) -> None:
           f".data {im['data']} B, .bss {im['bss']} B")
 
 
-def covariance_forms(budget: int) -> int:
+def covariance_forms(budget: int, out: dict[str, dict[str, float]]) -> int:
+    """Print (and put into ``out``, by form) the estimated cycles per step of each covariance form."""
     sys.path.insert(0, str(ROOT / "firmware_sim" / "cortex_m4"))
     import cycles  # noqa: E402 - the estimator beside the image
     import run_m4  # noqa: E402
@@ -129,6 +148,9 @@ def covariance_forms(budget: int) -> int:
             except (run_m4.ToolError, RuntimeError) as exc:
                 print(f"bench_cortex_m4: {exc}", file=sys.stderr)
                 return 2
+            out[form] = {"instructions_per_step": est["instructions_per_call"],
+                         "estimated_cycles_per_step": est["estimated_cycles_per_call"],
+                         "share_of_budget": est["estimated_cycles_per_call"] / budget}
             shares = ", ".join(f"{k} {v:.0%}" for k, v in list(est["cycle_share_by_class"].items())[:3])
             print(f"{label:28} {est['instructions_per_call']:11.0f} {est['estimated_cycles_per_call']:12.0f} "
                   f"{est['estimated_cycles_per_call'] / budget:9.3f}  {shares}")

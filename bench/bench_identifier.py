@@ -13,6 +13,7 @@ the machine's limit.
     python bench/bench_identifier.py            # full run (about a minute)
     python bench/bench_identifier.py --quick    # smoke run (CI)
     python bench/bench_identifier.py --json out.json
+    python bench/bench_identifier.py --results  # also bench/results/identifier.json, which the docs quote
 """
 from __future__ import annotations
 
@@ -199,7 +200,11 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="small smoke run")
     ap.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
+    ap.add_argument("--results", action="store_true",
+                    help="also write the figures to bench/results/identifier.json (by size and dtype)")
     args = ap.parse_args(argv)
+    if args.results:  # imported now: it notes the load average at the start of the run
+        from results_file import save  # noqa: E402 - beside this script
     T_batch, T_call, T_slow, reps = (20_000, 5_000, 200, 2) if args.quick else (400_000, 100_000, 2_000, 5)
 
     print(f"pyrhonn identifier benchmark on {platform.machine()} / {platform.processor() or 'cpu'}, "
@@ -233,6 +238,11 @@ def main(argv: list[str] | None = None) -> int:
           " lanes = run() and step() put the neurons side by side in the vector lanes on this CPU.")
     if args.json:
         atomic.write_text(args.json, json.dumps([r.as_dict() for r in rows], indent=2))
+    if args.results:
+        figures: dict[str, object] = {"batched_steps": T_batch, "call_steps": T_call, "repeats": reps}
+        for r in rows:
+            figures.setdefault(r.size, {})[r.dtype] = r.as_dict()  # type: ignore[union-attr]
+        save("identifier", figures, argv)
     return 0
 
 

@@ -27,6 +27,7 @@ The machine load (1-minute load average, cores) is printed with the figures.
 
     python bench/bench_population.py            # 20,000 samples, 7 repeats
     python bench/bench_population.py --quick    # 3,000 samples, 3 repeats
+    python bench/bench_population.py --results  # also bench/results/population.json, which the docs quote
 """
 from __future__ import annotations
 
@@ -63,8 +64,12 @@ def best(fn, repeats: int) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="3,000 samples, 3 repeats")
+    parser.add_argument("--results", action="store_true", help="also write the figures to bench/results/population.json")
     args = parser.parse_args()
+    if args.results:  # imported now: it notes the load average at the start of the run
+        from results_file import save  # noqa: E402 - beside this script
     T, repeats = (3000, 3) if args.quick else (20000, 7)
+    figures: dict = {"samples": T, "repeats": repeats, "runs": {}, "tune": {}, "structure": {}}
     tr = lim.simulate(dt=3e-4, horizon=T * 3e-4, inputs=lim.LimInput(start=0.0), holds=lim.paper_holds())
     load = os.getloadavg()[0]
     print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, load average {load:.2f} "
@@ -91,16 +96,22 @@ def main() -> None:
                 pop_core = min(pop_core, best(lambda: run_identifiers(group, X, U, V), 1))
                 seq_all = min(seq_all, best(lambda: [Identifier(c).run(X, U, V) for c in cfgs], 1))
                 pop_all = min(pop_all, best(lambda: run_population(cfgs, X, U, V), 1))
+            figures["runs"].setdefault(name, {})[dtype] = {
+                "members": N, "core_runs_ms": seq_core * 1e3, "core_population_ms": pop_core * 1e3,
+                "core_ratio": seq_core / pop_core, "end_to_end_runs_ms": seq_all * 1e3,
+                "end_to_end_population_ms": pop_all * 1e3, "end_to_end_ratio": seq_all / pop_all}
             print(f"{name:<14}{dtype:<9}{N:>3}  {seq_core * 1e3:>10.1f} ms {pop_core * 1e3:>8.1f} ms "
                   f"{seq_core / pop_core:>5.2f}x  {seq_all * 1e3:>16.1f} ms {pop_all * 1e3:>8.1f} ms "
                   f"{seq_all / pop_all:>5.2f}x")
-    tune_ratio(tr, T, repeats)
-    structure_ratio(tr, T, repeats)
+    tune_ratio(tr, T, repeats, figures["tune"])
+    structure_ratio(tr, T, repeats, figures["structure"])
     print(f"load average {os.getloadavg()[0]:.2f} (1 min) at the end")
+    if args.results:
+        save("population", figures)
 
 
-def tune_ratio(tr, T: int, repeats: int) -> None:
-    """A whole tune search, batch 8 against batch 1, same trials count, same run."""
+def tune_ratio(tr, T: int, repeats: int, out: dict) -> None:
+    """A whole tune search, batch 8 against batch 1, same trials count, same run (into ``out`` by dtype)."""
     import optuna
 
     from pyrhonn import tuning
@@ -114,11 +125,12 @@ def tune_ratio(tr, T: int, repeats: int) -> None:
         for _ in range(max(1, repeats // 2)):
             one = min(one, best(lambda: tuning.tune(base, X, U, V, n_trials=trials, batch=1), 1))
             eight = min(eight, best(lambda: tuning.tune(base, X, U, V, n_trials=trials, batch=8), 1))
+        out[dtype] = {"trials": trials, "batch_1_s": one, "batch_8_s": eight, "ratio": one / eight}
         print(f"tune example3 {dtype}, {trials} trials over {T} samples: batch 1 {one:.2f} s, batch 8 "
               f"{eight:.2f} s: {one / eight:.2f}x")
 
 
-def structure_ratio(tr, T: int, repeats: int) -> None:
+def structure_ratio(tr, T: int, repeats: int, out: dict) -> None:
     """The structure search's trials: 8 tunings of one selection (the terms
     pyrhonn select picks on the training part, at three max_terms settings),
     scored as a batch of ``tune --structure --batch 8`` scores them (one
@@ -149,12 +161,16 @@ def structure_ratio(tr, T: int, repeats: int) -> None:
             if [s.value for s in problem.score_folds_many(trials)] != [problem.score_folds(t).value for t in trials]:
                 raise SystemExit(f"structure trials {dtype}: a batched score differs from its trial alone")
             sizes = sorted({nr.n_terms for nr in selected[0].neurons})
+            out.setdefault(dtype, {})[f"max_terms_{max_terms}"] = {
+                "terms_min": sizes[0], "terms_max": sizes[-1], "one_by_one_ms": alone * 1e3,
+                "batched_ms": batched * 1e3, "ratio": alone / batched}
             print(f"structure trials {dtype}, 8 tunings of a selection with {sizes[0]}-{sizes[-1]} terms per neuron: "
                   f"one by one {alone * 1e3:.1f} ms, batched {batched * 1e3:.1f} ms: {alone / batched:.2f}x")
         one = eight = float("inf")
         for _ in range(max(1, repeats // 2)):
             one = min(one, best(lambda: tuning.tune(base, X, U, V, n_trials=32, batch=1, structure=search), 1))
             eight = min(eight, best(lambda: tuning.tune(base, X, U, V, n_trials=32, batch=8, structure=search), 1))
+        out[dtype]["search"] = {"trials": 32, "batch_1_s": one, "batch_8_s": eight, "ratio": one / eight}
         print(f"tune --structure example3 {dtype}, 32 trials over {T} samples: batch 1 {one:.2f} s, batch 8 "
               f"{eight:.2f} s: {one / eight:.2f}x")
 

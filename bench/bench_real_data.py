@@ -90,6 +90,7 @@ diverged (with the sample where it left), not as a number.
     python bench/bench_real_data.py                 # the full run (a few minutes)
     python bench/bench_real_data.py --quick         # smoke run: shorter simulated records, smaller grid
     python bench/bench_real_data.py --json out.json --keep work/
+    python bench/bench_real_data.py --results       # also bench/results/real_data.json, which the docs quote
 """
 from __future__ import annotations
 
@@ -473,7 +474,11 @@ def main(argv: list[str] | None = None) -> int:
                     help="smoke run: shorter simulated records, FROLS lags 1..2")
     ap.add_argument("--json", metavar="FILE", help="also write every figure as JSON")
     ap.add_argument("--keep", metavar="DIR", help="keep the CSV files, configs and select reports in DIR")
+    ap.add_argument("--results", action="store_true",
+                    help="also write every figure to bench/results/real_data.json, which the docs quote")
     args = ap.parse_args(argv)
+    if args.results:  # imported now: it notes the load average at the start of the run
+        from results_file import save  # noqa: E402 - beside this script
     sysidentpy = _sysidentpy()
     if sysidentpy is None:
         print("bench_real_data: SysIdentPy is needed for the baseline (pip install 'sysidentpy>=0.9', or the "
@@ -517,6 +522,8 @@ def main(argv: list[str] | None = None) -> int:
           f"{results['seconds']:.0f} s in all")
     if args.json:
         atomic.write_text(args.json, json.dumps(results, indent=2, allow_nan=False) + "\n")
+    if args.results:
+        save("real_data", results, argv)
     return 0
 
 

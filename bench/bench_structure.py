@@ -44,11 +44,14 @@ classic NARX benchmarks, simulated here:
     python bench/bench_structure.py            # all cases
     python bench/bench_structure.py --quick    # the smallest cases only
     python bench/bench_structure.py --speed    # also the 10^4-sample, 4-state, 2-input, delay-20 timing
+    python bench/bench_structure.py --results  # also bench/results/structure.json, which the docs quote
+                                               # (each case under its name in letters, digits, _ and -)
 """
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -211,7 +214,10 @@ def example1_full_run(case: Case, paper: str) -> dict[str, list[float]]:
               f"x{nr.state + 1}" for nr in sel.neurons if any(d == tap for _, d in nr.delays))
              if tap <= case.space.max_delay else
              f"; tau / T = {tap} samples is beyond the candidate delays (up to {case.space.max_delay})"))
-    return {"rmse": rmse.tolist(), "absolute_deviation": ad.tolist()}
+    return {"rmse": rmse.tolist(), "absolute_deviation": ad.tolist(),
+            "rmse_over_paper": [None if f is None else float(r / f) for r, f in zip(rmse, fig.identifier_rmse)],
+            "absolute_deviation_over_paper": [float(a / f) for a, f in zip(ad, fig.identifier_ad)],
+            "delays": [None if d is None else int(d) for d in sel.state_delays()]}
 
 
 def speed() -> float:
@@ -237,7 +243,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="the smallest cases only")
     ap.add_argument("--speed", action="store_true", help="also time the 10^4-sample selection target")
     ap.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
+    ap.add_argument("--results", action="store_true", help="also write the figures to bench/results/structure.json")
     args = ap.parse_args(argv)
+    if args.results:  # imported now: it notes the load average at the start of the run
+        from results_file import save  # noqa: E402 - beside this script
     if FROLS is None:
         print("SysIdentPy is not installed (pip install sysidentpy): its columns are skipped")
     cases = [c for c in CASES if not args.quick or c.name in ("example1 T=0.2 s", "Narendra-Parthasarathy ex. 2")]
@@ -266,6 +275,8 @@ def main(argv: list[str] | None = None) -> int:
         results["speed_seconds"] = speed()
     if args.json:
         atomic.write_text(args.json, json.dumps(results, indent=2))
+    if args.results:  # a reference's keys are joined by dots: "example1 T=0.2 s" is example1_T_0_2_s there
+        save("structure", {re.sub(r"[^\w-]+", "_", k).strip("_"): v for k, v in results.items()}, argv)
     return 0
 
 

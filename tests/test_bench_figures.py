@@ -1,0 +1,193 @@
+"""The benchmark figures the docs quote come from the results files the benchmarks
+write (bench/results/NAME.json, by ``bench/bench_NAME.py --results``): every
+``{{ bench("NAME", "a.b.c") }}`` of a page resolves, the built page shows the file's
+value, a missing figure fails the build naming it, and no page quotes by hand a
+figure it also takes from a results file."""
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+import re
+import shutil
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "bench" / "results"
+PAGES = sorted((ROOT / "docs").rglob("*.md"))
+
+
+def _load(name: str, path: Path) -> ModuleType:
+    spec = importlib.util.spec_from_file_location(name, path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def hooks() -> ModuleType:
+    pytest.importorskip("mkdocs")
+    return _load("docs_hooks", ROOT / "docs_hooks.py")
+
+
+def _references(hooks: ModuleType) -> list[tuple[Path, str, str, str | None, bool]]:
+    """(page, results name, path, format spec, from the run's record) of every reference."""
+    return [(page, m.group(2), m.group(3), m.group(4), bool(m.group(1))) for page in PAGES
+            for m in hooks.BENCH_REF.finditer(page.read_text(encoding="utf-8"))]
+
+
+def test_the_docs_quote_benchmark_figures_through_references(hooks: ModuleType) -> None:
+    names = {name for _, name, _, _, _ in _references(hooks)}
+    assert {"cortex_m4", "core_vs_dense", "real_data", "identifier", "xcp", "structure", "population"} <= names
+
+
+def test_every_figure_reference_in_the_docs_resolves_against_bench_results(hooks: ModuleType) -> None:
+    unresolved = []
+    for page, name, path, spec, run in _references(hooks):
+        try:
+            hooks.bench_figure(name, path, spec, run=run)
+        except ValueError as exc:
+            unresolved.append(f"{page.relative_to(ROOT)}: {exc}")
+    assert not unresolved, "\n".join(unresolved)
+
+
+def test_a_reference_that_looks_like_one_but_does_not_parse_is_left_for_the_build_to_refuse(hooks: ModuleType) -> None:
+    # a malformed reference (single quotes) is not replaced, so on_page_markdown's leftover check refuses it
+    text = "{{ bench('cortex_m4', 'unrolled.instructions_per_step') }}"
+    assert hooks.render_bench(text) == text
+    assert re.findall(r"\{\{ bench\(.*?\}\}", text)
+
+
+def _set(record: Any, path: str, k: int) -> int | str:
+    """Replace the figure at ``path`` (keys and list indices joined by dots) by a marker of the
+    same kind (a number, or a 10-character text for a text such as a date); the marker."""
+    *parents, last = path.split(".")
+    for part in parents:
+        record = record[int(part)] if isinstance(record, list) else record[part]
+    key: Any = int(last) if isinstance(record, list) else last
+    marker: int | str = f"marker{k:04d}" if isinstance(record[key], str) else 900_001 + k
+    record[key] = marker
+    return marker
+
+
+def test_the_built_page_shows_the_results_file_value(hooks: ModuleType, tmp_path: Path) -> None:
+    """Change every figure a page references in a copy of the results: the page follows the copy."""
+    for file in RESULTS.glob("*.json"):
+        shutil.copy(file, tmp_path / file.name)
+    for page in PAGES:
+        text = page.read_text(encoding="utf-8")
+        refs = list(hooks.BENCH_REF.finditer(text))
+        if not refs:
+            continue
+        marked: dict[tuple[str, str, str], int | str] = {}  # each figure referenced gets a value of its own
+        for m in refs:
+            key = (m.group(1) or "", m.group(2), m.group(3))
+            if key in marked:
+                continue
+            copy = tmp_path / f"{m.group(2)}.json"
+            data = json.loads(copy.read_text(encoding="utf-8"))
+            marked[key] = _set(data if m.group(1) else data["figures"], m.group(3), len(marked))
+            copy.write_text(json.dumps(data), encoding="utf-8")
+        hooks._RESULTS_CACHE.clear()
+        shown = hooks.render_bench(text, tmp_path)
+        assert "{{ bench" not in shown
+        for m in refs:
+            expected = hooks.format_figure(marked[(m.group(1) or "", m.group(2), m.group(3))], m.group(4))
+            assert expected in shown, f"{page.name}: {m.group(0)} does not show {expected}"
+        for file in RESULTS.glob("*.json"):  # back to the committed figures for the next page
+            shutil.copy(file, tmp_path / file.name)
+    hooks._RESULTS_CACHE.clear()
+
+
+def test_a_missing_figure_or_results_file_fails_naming_it(hooks: ModuleType, tmp_path: Path) -> None:
+    (tmp_path / "demo.json").write_text(json.dumps({"figures": {"step": {"cycles": 4901}}}), encoding="utf-8")
+    assert hooks.render_bench('{{ bench("demo", "step.cycles") }} cycles', tmp_path) == "4,901 cycles"
+    (tmp_path / "run.json").write_text(json.dumps({"figures": {"x": 1}, "load": {"start": [9.5, 8, 7]}}),
+                                       encoding="utf-8")
+    assert hooks.render_bench('at load {{ bench_run("run", "load.start.0", ".1f") }}', tmp_path) == "at load 9.5"
+    with pytest.raises(ValueError, match=r"demo\.json: no figure 'step\.median' \(no 'median'\)"):
+        hooks.render_bench('{{ bench("demo", "step.median") }}', tmp_path)
+    with pytest.raises(ValueError, match=r"bench/results/absent\.json: no such results file"):
+        hooks.render_bench('{{ bench("absent", "x") }}', tmp_path)
+    with pytest.raises(ValueError, match=r"figure 'step': not a number or text"):
+        hooks.render_bench('{{ bench("demo", "step") }}', tmp_path)
+
+
+def test_figures_are_formatted_as_the_pages_write_them(hooks: ModuleType) -> None:
+    assert hooks.format_figure(4463, None) == "4,463"
+    assert hooks.format_figure(6672.4, None) == "6,672"
+    assert hooks.format_figure(3.7512, None) == "3.75"
+    assert hooks.format_figure(0.08855, ".1%") == "8.9 %"
+    assert hooks.format_figure(4.8e-12, ".1e") == "4.8e-12"
+    assert hooks.format_figure(1.7e-5, ".2e") == "1.70e-5"
+    assert hooks.format_figure(1030.4, "/1e3:.2f") == "1.03"
+    with pytest.raises(ValueError, match="scaled format"):
+        hooks.format_figure(1030.4, "/1e3")
+    assert hooks.format_figure(True, None) == "yes"
+
+
+def _digits(text: str) -> int:
+    """Significant digits of a figure as shown (``4,906``: 4; ``0.041``: 2; ``1.3e+03``: 2)."""
+    mantissa = re.split(r"[eE]", text)[0].lstrip("-0.,")
+    return sum(c.isdigit() for c in mantissa)
+
+
+#: literals of a page that equal a figure of the last run by chance, with what they are
+COINCIDENCES = {
+    ("docs/benchmarks.md", "1,113"),  # the core's operation count at L = 16 (counted, not measured)
+}
+
+
+def test_no_page_quotes_by_hand_a_figure_the_docs_take_from_a_results_file(hooks: ModuleType) -> None:
+    """A figure with 4 digits or more that any page takes from a results file does not also stand
+    in a page as a literal: a hand copy (or a reference replaced by its value) would go stale
+    when the benchmark is rerun."""
+    shown = {hooks.bench_figure(name, path, spec, run=run): f"{name}: {path}"
+             for _, name, path, spec, run in _references(hooks)}
+    shown = {text: what for text, what in shown.items() if _digits(text) >= 4}
+    copies = []
+    for page in PAGES:
+        bare = hooks.BENCH_REF.sub(" ", page.read_text(encoding="utf-8"))
+        for text, what in shown.items():
+            if (page.relative_to(ROOT).as_posix(), text) in COINCIDENCES:
+                continue
+            if re.search(rf"(?<![\d.,]){re.escape(text)}(?![\d]|,\d)", bare):
+                copies.append(f"{page.relative_to(ROOT)}: {text} ({what}) written by hand")
+    assert not copies, "\n".join(sorted(copies))
+
+
+def test_every_results_file_says_when_where_under_what_load_and_how_it_ran() -> None:
+    files = sorted(RESULTS.glob("*.json"))
+    assert files
+    for file in files:
+        data = json.loads(file.read_text(encoding="utf-8"))
+        assert data["bench"] == file.stem
+        assert re.match(r"\d{4}-\d\d-\d\dT", data["date"])
+        assert data["machine"]["cpu"] and data["machine"]["nproc"] >= 1
+        assert len(data["load"]["start"]) == 3 and len(data["load"]["end"]) == 3
+        assert data["command"].startswith(f"python bench/bench_{file.stem}.py")
+        assert isinstance(data["figures"], dict) and data["figures"]
+
+
+def test_results_writer_replaces_the_file_whole_and_refuses_bad_figures(tmp_path: Path) -> None:
+    writer = _load("results_file", ROOT / "bench" / "results_file.py")
+    path = writer.save("demo", {"step": {"cycles": 4901}}, ["--frames", "20"], folder=tmp_path)
+    data = json.loads(path.read_text(encoding="utf-8"))
+    assert data["figures"] == {"step": {"cycles": 4901}} and data["bench"] == "demo"
+    assert data["command"].endswith("--frames 20") and data["machine"]["nproc"] >= 1
+    before = path.read_bytes()
+    with pytest.raises(TypeError):  # not a JSON value: refused, the previous file kept
+        writer.save("demo", {"step": object()}, [], folder=tmp_path)
+    with pytest.raises(ValueError, match="name"):
+        writer.save("../demo", {"x": 1}, [], folder=tmp_path)
+    with pytest.raises(ValueError, match="figures"):
+        writer.save("demo", {}, [], folder=tmp_path)
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["demo.json"]
+    writer.save("demo", {"free_run": [math.inf, math.nan, 0.5]}, [], folder=tmp_path)  # a diverged run
+    assert json.loads(path.read_text(encoding="utf-8"))["figures"] == {"free_run": ["inf", "nan", 0.5]}
