@@ -34,7 +34,8 @@ try:
     }
 finally:
     session.close()
-json.dump(out, sys.stdout, default=str)
+with open(sys.argv[2], "w", encoding="utf-8") as fh:  # not stdout: pya2ldb prints there
+    json.dump(out, fh, default=str)
 """
 
 
@@ -44,8 +45,10 @@ def read_a2l(path: Path) -> dict[str, Any]:
     without pya2ldb."""
     if importlib.util.find_spec("pya2l") is None:
         pytest.skip("pya2ldb is not installed")
-    res = subprocess.run([sys.executable, "-c", _CHILD, str(path)], capture_output=True, text=True, timeout=300)
+    target = Path(str(path) + ".json")
+    res = subprocess.run([sys.executable, "-c", _CHILD, str(path), str(target)], capture_output=True, text=True,
+                         timeout=300)
     assert res.returncode == 0, f"pya2ldb could not read {path}:\n{res.stderr[-3000:]}"
-    data: dict[str, Any] = json.loads(res.stdout)
+    data: dict[str, Any] = json.loads(target.read_text(encoding="utf-8"))
     data["measurements"] = {k: tuple(v) for k, v in data["measurements"].items()}
     return data
