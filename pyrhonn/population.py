@@ -4,14 +4,15 @@
 extension was built otherwise; :func:`max_population`) configurations that
 share their structure -- the states, inputs, and every neuron's terms,
 activation and covariance form -- and differ in their tuning (x0, beta, eta,
-R, Q, w0, P0, forgetting, p_trace_max, reset_after, gate), over the same
+R, Q, w0, P0, forgetting, p_trace_max, reset_after, skip_refused, gate), over the same
 ``X``, ``U``, ``valid``. It calls ``rhonn_run_population``
 (``csrc/include/rhonn_population.h``): every member performs exactly the
 floating-point operations of :meth:`pyrhonn.Identifier.run`, in the same
 order, so each member's predictions are bit for bit those of running its
 config alone; the full-form EKF arithmetic is laid out across members so the
 compiler can vectorise it, and the regressor is formed once when it is the
-same for every member (when some member has an innovation gate on, the core
+same for every member (a neuron with ``skip_refused`` skips its refused
+update in the lanes too; when some member has an innovation gate on, the core
 runs the members one after the other instead, with the same results).
 :func:`run_identifiers` does the same for existing
 identifiers, which continue from their current state.

@@ -11,7 +11,7 @@ import pytest
 
 from pyrhonn import Identifier, IdentifierConfig, IdentifierError
 from pyrhonn.configfile import dumps, loads
-from pyrhonn.population import run_population
+from pyrhonn.population import run_identifiers_outcomes, run_population
 from pyrhonn.reference import ReferenceIdentifier
 
 DTYPES = ["float32", "float64"]
@@ -113,12 +113,53 @@ def test_skip_refused_follows_the_numpy_reference() -> None:
     np.testing.assert_allclose(Y, Yr, rtol=1e-9, atol=1e-12)
 
 
+def observed(ident: Identifier) -> list[bytes]:
+    """What an identifier exposes after a run, as bytes: its prediction,
+    weights, covariances as stored, steps and health records."""
+    out = [ident.prediction.tobytes(), repr(ident.steps).encode()]
+    out += [w.tobytes() for w in ident.weights]
+    out += [ident._stored_covariance(i).tobytes() for i in range(ident.n_states)]
+    return out + [repr(h).encode() for h in ident.healths]
+
+
 @pytest.mark.parametrize("dtype", DTYPES)
-def test_a_population_with_skip_refused_runs_each_member_as_its_own_run(dtype: str) -> None:
+def test_a_population_skips_refusals_member_by_member_as_their_own_runs(dtype: str) -> None:
+    """Members that skip their refusals (with and without reset_after) run in
+    the lanes beside a well-posed member and one without skip_refused, which
+    stops at its first refusal: each is its own run, bit for bit."""
     X, U = data(dtype)
-    configs = [config(dtype, overflowing=True, skip=True, reset_after=r) for r in (0, 2, 5)]
-    for cfg, Y in zip(configs, run_population(configs, X, U)):
+    configs = [config(dtype, overflowing=False, skip=False)]
+    configs += [config(dtype, overflowing=True, skip=True, reset_after=r) for r in (0, 2, 5)]
+    configs += [config(dtype, overflowing=True, skip=False)]
+    for cfg, Y in zip(configs[:4], run_population(configs[:4], X, U)):
         np.testing.assert_array_equal(Y, Identifier(cfg).run(X, U))
+    members, alone = [Identifier(c) for c in configs], [Identifier(c) for c in configs]
+    outcomes = run_identifiers_outcomes(members, X, U)
+    for k, (member, single) in enumerate(zip(members, alone)):
+        if k == 4:
+            assert isinstance(outcomes[k], IdentifierError)  # stops at the first refusal, as alone
+            with pytest.raises(IdentifierError):
+                single.run(X, U)
+        else:
+            np.testing.assert_array_equal(outcomes[k], single.run(X, U))
+        assert observed(member) == observed(single), f"member {k}: state differs"
+    assert [members[k].health(0).rejected for k in range(4)] == [0, T - 1, T - 1, T - 1]
+    assert [members[k].health(0).resets for k in range(4)] == [0, 0, (T - 1) // 2, (T - 1) // 5]
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_neurons_side_by_side_skip_refusals_as_the_single_run(dtype: str) -> None:
+    """The vector lanes holding one identifier's neurons (rhonn_run_wide, and
+    steps lent to the lanes) skip a refused neuron bit for bit as rhonn_run."""
+    X, U = data(dtype)
+    cfg = config(dtype, overflowing=True, skip=True, reset_after=4)
+    lanes, single, stepped = Identifier(cfg), Identifier(cfg), Identifier(cfg)
+    lanes._wide, single._wide, stepped._wide = True, False, True
+    Y = lanes.run(X, U)
+    np.testing.assert_array_equal(Y, single.run(X, U))
+    np.testing.assert_array_equal(np.array([stepped.step(X[k], U[k]) for k in range(T)]), Y)
+    assert observed(lanes) == observed(single) == observed(stepped)
+    assert lanes.health(0).resets == (T - 1) // 4
 
 
 def test_skip_refused_round_trips_through_the_config_file_and_rejects_non_booleans() -> None:

@@ -6,7 +6,8 @@
  * Input: a structure (1..6 states, 0..2 inputs, 1..8 terms per neuron of
  * any factors, delays included, each neuron's activation and covariance
  * form), 1..RHONN_MAX_POPULATION members of it, each tuned apart (R, eta,
- * Q, P(0), w(0), forgetting, the trace ceiling, reset_after, x(0); the
+ * Q, P(0), w(0), forgetting, the trace ceiling, reset_after, skip_refused,
+ * x(0); the
  * slope beta apart or as member 0's, so that the regressor is shared or
  * not) and stepped a number of samples of its own first, then the
  * trajectory: per sample a dropout mask, the states and the inputs (reals
@@ -65,6 +66,7 @@ static void tune_member(reader *r, rhonn_config *c, const rhonn_config *first)
         nc->forgetting = (flags & 0x04u) ? (rhonn_real)0.5 + (rhonn_real)(byte(r) % 100u) / (rhonn_real)200
                                          : (rhonn_real)0;
         nc->reset_after = (uint16_t)((flags & 0x08u) ? 1u + byte(r) % 4u : 0u);
+        nc->skip_refused = (uint8_t)(flags >> 7); /* a refused update skips this neuron only */
         memset(nc->p0, 0, sizeof nc->p0);
         for (t = 0, k = 0; t < L; k += L - t, ++t) {
             nc->q[t] = (flags & 0x10u) ? (rhonn_real)0 : positive(r, -14, 3);

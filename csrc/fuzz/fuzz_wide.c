@@ -6,7 +6,7 @@
  * Input: a configuration header whose neurons share their size and
  * covariance form (1..8 neurons of 1..8 terms, so that the lanes do run it;
  * every neuron tuned apart: R, eta, Q, P(0), w(0), forgetting, the trace
- * ceiling, reset_after), a number of samples stepped first with rhonn_step,
+ * ceiling, reset_after, skip_refused), a number of samples stepped first with rhonn_step,
  * then the trajectory: per sample a dropout mask, the states and the inputs
  * (reals as fuzz_input.h reads them: hostile values included).
  *
@@ -62,6 +62,7 @@ static void make_uniform_config(reader *r, rhonn_config *c)
         if (flags & 0x08u) {
             nc->reset_after = (uint16_t)(1u + byte(r) % 4u);
         }
+        nc->skip_refused = (uint8_t)((flags >> 6) & 1u); /* a refused update skips this neuron only */
         for (t = 0, k = 0; t < L; k += L - t, ++t) {
             nc->q[t] = (flags & 0x10u) ? (rhonn_real)0 : positive(r, -14, 3);
             nc->w0[t] = real(r, -3, 1);

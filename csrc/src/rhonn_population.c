@@ -1252,6 +1252,19 @@ static void recover_lane(rhonn_population_work *wk, const rhonn_t *net, size_t n
     wk->recovered[i][m] = 1;
 }
 
+/* A refused update skipped (skip_refused): w(k+1) = w(k) into the
+ * candidates of slot i, lane m; the lane is not updated, so its P(k) is
+ * kept as for a lane that did not learn (rhonn.c refused()). */
+static void skip_lane(rhonn_population_work *wk, size_t i, size_t L, size_t m)
+{
+    size_t t;
+    for (t = 0; t < L; ++t) {
+        wk->w[wk->wb ^ 1u][i][t][m] = wk->w[wk->wb][i][t][m];
+    }
+    wk->updated[i][m] = 0;
+    wk->bounded[i][m] = 0;
+}
+
 /* ------------------------------------------------------------------------ */
 /* Loading and storing a member's lane */
 
@@ -1656,15 +1669,15 @@ POP_LANES void commit_alike(rhonn_population_work *wk, size_t i, uint8_t measure
     }
 }
 
-/* Does some member have an innovation gate or skip_refused on in some
- * neuron? The lanes run neither (rhonn_population.h). */
+/* Does some member have an innovation gate on in some neuron? The lanes
+ * do not run it (rhonn_population.h). */
 static int any_by_neuron(rhonn_t *const *nets, size_t N)
 {
     size_t m, i;
     for (m = 0; m < N; ++m) {
         const rhonn_config *cfg = CFG(nets[m]);
         for (i = 0; i < cfg->n_states; ++i) {
-            if (cfg->neurons[i].gate > R(0.0) || cfg->neurons[i].skip_refused != 0u) {
+            if (cfg->neurons[i].gate > R(0.0)) {
                 return 1;
             }
         }
@@ -1672,8 +1685,7 @@ static int any_by_neuron(rhonn_t *const *nets, size_t N)
     return 0;
 }
 
-/* The population as N calls of rhonn_run (members with a gate or
- * skip_refused): member m's
+/* The population as N calls of rhonn_run (members with a gate): member m's
  * predictions at Xhat[m T n ...], its status and steps; returns the status
  * of the lowest-indexed member that stopped, else RHONN_OK. */
 static rhonn_status run_one_by_one(rhonn_t *const *nets, size_t N, rhonn_population_work *work, size_t T,
@@ -1874,6 +1886,10 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                     wk->run_ended[i][m] = 0;
                 }
                 if (!rhonn_internal_count_refusal(net, i)) {
+                    if (CFG(net)->neurons[i].skip_refused != 0u) {
+                        skip_lane(wk, i, L, m); /* this neuron's update skipped, the member goes on */
+                        continue;
+                    }
                     fail[m] = 1;
                     ready[m] = 0;
                     st[m] = (rhonn_status)wk->kstatus[m];
@@ -2082,9 +2098,8 @@ static int wide_fits(const rhonn_t *net)
 #endif
     for (i = 0; i < cfg->n_states; ++i) {
         if (cfg->neurons[i].n_terms != cfg->neurons[0].n_terms ||
-            cfg->neurons[i].covariance != cfg->neurons[0].covariance || cfg->neurons[i].gate > R(0.0) ||
-            cfg->neurons[i].skip_refused != 0u) {
-            return 0; /* the innovation gate and skip_refused run neuron by neuron (rhonn_step) */
+            cfg->neurons[i].covariance != cfg->neurons[0].covariance || cfg->neurons[i].gate > R(0.0)) {
+            return 0; /* the innovation gate runs neuron by neuron (rhonn_step) */
         }
     }
     return 1;
@@ -2232,17 +2247,23 @@ static rhonn_status wide_learn(rhonn_population_work *wk, rhonn_t *net, const rh
         if (!wk->learn[0][i]) {
             continue;
         }
-        wk->updated[0][i] = 1;
-        *moved = 1;
         if (wk->kstatus[i] == (uint8_t)RHONN_OK) {
+            wk->updated[0][i] = 1;
+            *moved = 1;
             continue;
         }
         /* a refused update: rhonn.c's refused() */
         net->fault_neuron = (uint8_t)i;
         if (!rhonn_internal_count_refusal(net, i)) {
+            if (cfg->neurons[i].skip_refused != 0u) {
+                wk->bounded[0][i] = 0; /* skipped: not updated, the step goes on (w kept by wide_step) */
+                continue;
+            }
             return (rhonn_status)wk->kstatus[i];
         }
         recover_lane(wk, net, i, 0u, i);
+        wk->updated[0][i] = 1;
+        *moved = 1;
     }
     return RHONN_OK;
 }

@@ -1014,6 +1014,96 @@ static void gated_members_and_neurons_run_as_single_runs(void)
     add_outlier = 0;
 }
 
+/* rhonn.h REFUSALS, NEURON BY NEURON in the lanes: forgetting with
+ * lambda = 1e-3 up to a ceiling near the top of the range takes P out of
+ * definiteness, so updates are refused step after step. Member 1 skips
+ * every refused neuron and runs to the end, member 2 skips and recovers
+ * every third refusal in a row (reset_after 3), member 3 skips only in
+ * neurons 1..3 and stops at the first refusal of another, member 0 is well
+ * tuned: each is its own rhonn_run, bit for bit, and the lanes ran them
+ * (no fall back to single runs). */
+static void skipped_refusals_in_the_lanes_equal_single_runs(void)
+{
+    rhonn_config cfg[MAXN];
+    rhonn_health h;
+    size_t m, i, rejected[4] = {0, 0, 0, 0}, resets = 0;
+    int ud;
+    for (ud = 0; ud < 2; ++ud) {
+        for (m = 0; m < 4; ++m) {
+            cfg[m] = lim_config((unsigned)m, 1, ud);
+        }
+        for (m = 1; m < 4; ++m) {
+            for (i = 0; i < 6; ++i) {
+                cfg[m].neurons[i].forgetting = (rhonn_real)1e-3;
+                cfg[m].neurons[i].p_trace_max = (rhonn_real)(BIG / 8);
+                cfg[m].neurons[i].skip_refused = (uint8_t)(m < 3u || (i >= 1u && i <= 3u));
+                cfg[m].neurons[i].reset_after = (uint16_t)(m == 2u ? 3u : 0u);
+            }
+        }
+        memset(&work, 0, sizeof work);
+        (void)compare(cfg, 4, NULL, 1);
+        for (m = 0; m < 4; ++m) {
+            /* the lanes were loaded: the members ran in them */
+            CHECK(memcmp(&work.r[1][m], &cfg[m].neurons[1].r, sizeof work.r[1][m]) == 0);
+            for (i = 0; i < 6; ++i) {
+                CHECK_STATUS(rhonn_get_health(&members[m], i, &h), RHONN_OK);
+                rejected[m] += h.rejected;
+                resets += m == 2u ? h.resets : 0u;
+            }
+        }
+        /* skipping every refusal, the full form runs to the end (the U D U^T
+         * form's prediction may overflow, which no neuron can skip) */
+        CHECK(ud || members[1].steps >= POP_T);
+    }
+    /* the scenario reaches what it is about: refusals skipped, recovered */
+    CHECK(rejected[0] == 0u && rejected[1] > 2u && rejected[2] > 2u && resets > 0u);
+}
+
+/* The same in one identifier's lanes (rhonn_run_wide, stepping in the
+ * lanes): neurons 2 and 4 are refused step after step; neuron 4 skips,
+ * neuron 2 skips and recovers every second refusal in a row. */
+static void skipped_refusals_in_a_wide_run_equal_a_single_run(void)
+{
+    rhonn_config cfg;
+    rhonn_health h;
+    rhonn_real ya[8], yb[8];
+    size_t i, k, rejected = 0;
+    int ud, same;
+    for (ud = 0; ud < 2; ++ud) {
+        cfg = uniform_config(0, 6, 1, ud);
+        for (i = 0; i < 6; ++i) {
+            cfg.neurons[i].forgetting = (i == 2u || i == 4u) ? (rhonn_real)1e-3 : (rhonn_real)0.0;
+            cfg.neurons[i].p_trace_max = (i == 2u || i == 4u) ? (rhonn_real)(BIG / 8) : (rhonn_real)0.0;
+            cfg.neurons[i].reset_after = (uint16_t)(i == 2u ? 2u : 0u);
+            cfg.neurons[i].skip_refused = (uint8_t)(i == 2u || i == 4u);
+        }
+        memset(&work, 0, sizeof work);
+        CHECK_STATUS(wide_compare(&cfg, 0, 1), RHONN_OK);
+        CHECK(ran_in_lanes(&cfg) == (!ud || RHONN_WIDE_UD));
+        for (i = 0; i < 6; ++i) {
+            CHECK_STATUS(rhonn_get_health(&members[0], i, &h), RHONN_OK);
+            rejected += h.rejected;
+            CHECK(h.rejected == 0u || i == 2u || i == 4u);
+        }
+        /* step by step in the lanes */
+        CHECK_STATUS(rhonn_init(&alone[0], &cfg, NULL), RHONN_OK);
+        stepped = alone[0];
+        if (!ud || RHONN_WIDE_UD) {
+            CHECK_STATUS(rhonn_wide_begin(&stepped, &lend), RHONN_OK);
+            for (k = 0, same = 1; k < 60 && same; ++k) {
+                const rhonn_status sa = rhonn_step(&alone[0], WX + 6 * k, WU + 2 * k, WV + 6 * k, ya);
+                const rhonn_status sb = rhonn_wide_step(&stepped, &lend, WX + 6 * k, WU + 2 * k, WV + 6 * k, yb);
+                same = sa == RHONN_OK && sb == RHONN_OK && memcmp(ya, yb, sizeof ya[0] * 6) == 0;
+            }
+            CHECK(same);
+            CHECK_STATUS(rhonn_wide_end(&stepped, &lend), RHONN_OK);
+            CHECK(same_proofs(&stepped, &alone[0]));
+            CHECK(same_state(&stepped, &alone[0], WX, WU));
+        }
+    }
+    CHECK(rejected > 2u); /* refusals were skipped */
+}
+
 static double seconds(void)
 {
     return (double)clock() / (double)CLOCKS_PER_SEC;
@@ -1075,6 +1165,8 @@ int main(void)
     RUN(wide_steps_go_on_after_a_refusal_as_single_steps);
     RUN(bounded_forgetting_at_its_ceiling_equals_single_runs);
     RUN(gated_members_and_neurons_run_as_single_runs);
+    RUN(skipped_refusals_in_the_lanes_equal_single_runs);
+    RUN(skipped_refusals_in_a_wide_run_equal_a_single_run);
     if (b != NULL) {
         bench((size_t)strtoul(b, NULL, 10));
     }
