@@ -73,9 +73,13 @@ region, and the search goes on.
 The search space
 ----------------
 ``params`` (default all of :data:`PARAMETERS`) are searched log-uniformly.
-Each searched value is a scalar: P0 and Q become ``value * I`` (as in the
-paper's eq. 20), replacing any diagonal or matrix of the base config; a
-parameter that is not searched keeps the base config's value (arrays too).
+Each searched value is a scalar. A scalar P0 or Q becomes ``value * I`` (as
+in the paper's eq. 20); a diagonal or matrix of the base config (``select``
+writes P0 as the fit's covariance of the weights) is scaled so that the
+geometric mean of its diagonal is the value, keeping its shape: the weights'
+own uncertainties and the matrix's conditioning, which keep a few learning
+steps from moving the directions the fit determined well. A parameter that
+is not searched keeps the base config's value (arrays too).
 Values are rounded to 3 significant digits *before* they are evaluated, so
 the written config holds short numbers and scores exactly what the study
 recorded.

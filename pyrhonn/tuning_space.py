@@ -146,7 +146,9 @@ def search_space(config: IdentifierConfig, *, params: Sequence[str] = PARAMETERS
 
 def apply_values(config: IdentifierConfig, space: Sequence[Dimension], values: Mapping[str, float]) -> IdentifierConfig:
     """``config`` with every dimension of ``space`` set to ``values[name]``
-    rounded to 3 significant digits (the config :func:`tune` evaluates)."""
+    rounded to 3 significant digits (the config :func:`tune` evaluates); a
+    P0 or Q array is scaled so that its diagonal's geometric mean is the
+    value, keeping its shape."""
     return _apply(config, space, values, relative=False)
 
 
@@ -165,12 +167,25 @@ def _apply(config: IdentifierConfig, space: Sequence[Dimension], values: Mapping
             raise fail("values", f"missing {dim.name!r}")
         v = _round(check_real(f"values[{dim.name!r}]", values[dim.name], positive=True))
         for i in dim.neurons:
-            if not relative:
-                changes[i][dim.param] = v
-                continue
-            own = getattr(config.neurons[i], dim.param)
-            if isinstance(own, np.ndarray):
-                raise fail(f"config.neurons[{i}].{dim.param}", "a factor applies to a scalar value, not an array")
-            changes[i][dim.param] = float(own) * v
+            changes[i][dim.param] = _applied(config.neurons[i], dim.param, v, relative)
     neurons = tuple(replace(nr, **ch) if ch else nr for nr, ch in zip(config.neurons, changes))
     return config.replace(neurons=neurons)
+
+
+def _applied(neuron: NeuronConfig, param: str, v: float, relative: bool) -> float | np.ndarray:
+    """One neuron's new value of ``param`` for the trial value ``v``. A P0 or
+    Q array (a matrix or a diagonal with some positive entry) is scaled, so
+    that its shape -- the directions the fit determined well and their
+    conditioning -- is kept: by ``v`` as a factor (``relative``), else so
+    that the geometric mean of its positive diagonal becomes ``v``. A scalar
+    (or a Q array of zeros) is set to ``v``, or multiplied by it."""
+    own = getattr(neuron, param)
+    if isinstance(own, np.ndarray) and np.any(own > 0):
+        scale = v if relative else v / _center(neuron, param)[0]
+        scaled: np.ndarray = own * scale
+        return scaled
+    if not relative:
+        return v
+    if isinstance(own, np.ndarray):  # a Q of zeros: a factor leaves it at zero
+        return own
+    return float(own) * v

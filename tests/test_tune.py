@@ -413,3 +413,29 @@ def test_the_free_run_score_is_the_held_out_free_run_rrse(traj: Trajectory, base
     e = traj.X_meas[N:] - sim.free_run[N:]
     rrse = np.sqrt(np.sum(e ** 2, axis=0) / np.sum((traj.X_meas[N:] - traj.X_meas[N:].mean(axis=0)) ** 2, axis=0))
     assert problem.free_run_score(base) == pytest.approx(float(np.mean(rrse)), rel=1e-12)
+
+
+def test_a_tuned_select_config_keeps_each_neuron_s_p0_shape(traj: Trajectory) -> None:
+    """select's P0 is the fit's covariance of the weights (a matrix): a trial
+    scales it (its diagonal's geometric mean becomes the trial value), so the
+    tuned config keeps every weight's own P0 and the matrix's conditioning
+    instead of a multiple of the identity; a factor (structure search)
+    scales it too."""
+    from pyrhonn.structure import CandidateSpace, select
+    sel = select(traj.X_meas[:, :2], traj.U, traj.valid[:, :2], space=CandidateSpace(max_delay=1, degree=1),
+                 max_terms=4)
+    cfg = sel.config()
+    assert all(isinstance(nr.p0, np.ndarray) and nr.p0.ndim == 2 for nr in cfg.neurons)
+    r = tuning.tune(cfg, traj.X_meas[:, :2], traj.U, traj.valid[:, :2], n_trials=3, seed=0, params=("p0", "q"))
+    assert r.best_values is not None
+    for nr, nb in zip(r.config.neurons, cfg.neurons):
+        assert isinstance(nr.p0, np.ndarray) and nr.p0.shape == nb.p0.shape
+        ratio = nr.p0 / nb.p0
+        np.testing.assert_allclose(ratio, ratio[0, 0], rtol=1e-12)  # one factor: the shape kept
+        geo = float(np.exp(np.mean(np.log(np.diag(nr.p0)))))
+        assert geo == pytest.approx(r.best_values["p0"], rel=1e-12)
+        assert nr.q == r.best_values["q"]  # select's Q is a scalar: set, as before
+    space = tuning.search_space(cfg, params=("p0",), relative=True)
+    scaled = tuning.apply_factors(cfg, space, {"p0": 3.0})
+    for nr, nb in zip(scaled.neurons, cfg.neurons):
+        np.testing.assert_allclose(nr.p0, 3.0 * nb.p0, rtol=1e-15)
