@@ -9,7 +9,10 @@ estimation record validates, the validation record untouched). Every
 command runs through the installed command line. For each written config
 the table gives the free-run and one-step RMSE on the validation record
 with its weights learnt online on the estimation record, then frozen; and
-for ``select``'s config also with its weights frozen at its w0.
+for ``select``'s config also with its weights frozen at its w0. The same
+for ``select --dtype float32``'s config, and for both configs the weights
+learnt through the first 10 and 100 samples only, then frozen (how far a
+few learning steps move a model that simulated well).
 
     python bench/bench_tune_validation.py [--keep DIR]
 """
@@ -33,6 +36,7 @@ from pyrhonn.search import Validation, validate
 from pyrhonn.tuning_validation import learnt
 
 OBJECTIVES = ("one-step", "free-run", "mix", "k-step:10")
+STEPS = (10, 100)  # learning steps from the start of the estimation record, then frozen
 
 
 def _cli(folder: Path, *args: str) -> float:
@@ -59,6 +63,8 @@ def main(argv: list[str] | None = None) -> int:
         write_record(folder / "est.csv", ds.est, ds.sampling_period)
         write_record(folder / "val.csv", ds.val, ds.sampling_period)
         seconds = {"select": _cli(folder, "select", "est.csv", "--states", "y", "--inputs", "u", "--out", "sel.toml")}
+        seconds["select --dtype float32"] = _cli(folder, "select", "est.csv", "--states", "y", "--inputs", "u",
+                                                 "--out", "sel32.toml", "--dtype", "float32")
         runs = {f"tune --validate val.csv --objective {o}": ("--validate", "val.csv", "--objective", o)
                 for o in OBJECTIVES}
         runs["tune --fit-rows 0:700"] = ("--fit-rows", "0:700")
@@ -76,6 +82,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{'model (validation record)':44} {'free RMSE':>9} {'RRSE':>7} {'1-step':>9}  seconds / result")
         print(_row("select, weights frozen at w0", validate(cf.config, [val], data_range), f"{seconds['select']:.1f} s"))
         print(_row("select, learnt online on est, then frozen", validate(learnt(cf.config, [est]), [val], data_range)))
+        # the float32 config: learning keeps what the fit determined well (its P0's conditioning)
+        cf32 = load_named(str(folder / "sel32.toml"))
+        print(_row("select --dtype float32, frozen at w0", validate(cf32.config, [val], data_range),
+                   f"{seconds['select --dtype float32']:.1f} s"))
+        for cfg, what in ((cf.config, "float64"), (cf32.config, "float32")):
+            for steps in STEPS:
+                start = Experiment(est.X[:steps], est.U[:steps], est.valid[:steps], name=f"est rows 0:{steps}")
+                print(_row(f"{what}, learnt on est rows 0:{steps}, then frozen",
+                           validate(learnt(cfg, [start]), [val], data_range)))
+        print(_row("select --dtype float32, learnt online on est, then frozen",
+                   validate(learnt(cf32.config, [est]), [val], data_range)))
         for k, label in enumerate(runs):
             cfg = load_named(str(folder / f"tuned{k}.toml")).config
             result = json.loads((folder / f"tuned{k}.json").read_text(encoding="utf-8"))

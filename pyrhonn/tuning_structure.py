@@ -121,7 +121,7 @@ class _Selector:
         return hit
 
     def configs(self, settings: Mapping[str, int]) -> list[IdentifierConfig]:
-        """The selected config of every fold (its own P0, Q, R, w0; the problem's dtype)."""
-        # the scalar P0 form: trials scale each neuron's P0 by a factor
-        return [self.selection(f, settings).config(dtype=self.problem.dtype, p0_form="scalar")
+        """The selected config of every fold (its own P0, Q, R, w0; the problem's dtype): P0 the fit's
+        covariance of the weights, which trials scale by a factor (its shape kept)."""
+        return [self.selection(f, settings).config(dtype=self.problem.dtype)
                 for f in range(len(self.problem.folds))]

@@ -68,12 +68,13 @@ def test_structure_search_selects_on_the_training_part_and_scores_what_it_writes
     # The written config is the selection on samples 0..N-1 alone, with the best factors applied ...
     sel = select(traj.X_meas[:N], traj.U[:N], traj.valid[:N], space=search.space(settings["max_delay"],
                  settings["degree"]), criterion=search.criterion, max_terms=settings["max_terms"])
-    base = sel.config(p0_form="scalar")  # the structure search's form: trials scale each neuron's P0
+    base = sel.config()  # P0 the fit's covariance of the weights, which trials scale (its shape kept)
     expected = refit_w0(tuning.apply_factors(base, r.space, r.best_values), traj.X_meas, traj.U, traj.valid,
                         N, base)  # a beta factor other than 1 refits w0 on the same samples
     assert [nr.terms for nr in r.config.neurons] == [nr.terms for nr in expected.neurons]
     for got, want in zip(r.config.neurons, expected.neurons):
-        assert (got.p0, got.q, got.r, got.eta, got.beta) == (want.p0, want.q, want.r, want.eta, want.beta)
+        assert (got.q, got.r, got.eta, got.beta) == (want.q, want.r, want.eta, want.beta)
+        np.testing.assert_array_equal(got.p0, want.p0)
         np.testing.assert_array_equal(got.w0, want.w0)
     # ... so the held-out part cannot have steered the terms, and its score is what the study recorded.
     assert tuning.held_out_score(r.config, traj.X_meas, traj.U, traj.valid, truth=traj.X).value == r.best.value
