@@ -17,7 +17,6 @@ import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 pytest.importorskip("can")
@@ -32,7 +31,6 @@ from hil.score import score  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 FW = ROOT / "firmware_sim"
-PERIOD = 3e-4
 
 
 def _module(path: Path, name: str):
@@ -41,30 +39,6 @@ def _module(path: Path, name: str):
     assert spec.loader is not None
     spec.loader.exec_module(module)
     return module
-
-
-def _write_plant(path: Path, n: int = 1200) -> None:
-    """x1(k+1) = 0.95 x1 + 0.05 x2, x2(k+1) = 0.9 x2 + 0.1 tanh(u(k-2)), u a random staircase."""
-    rng = np.random.default_rng(1)
-    u = np.repeat(rng.uniform(-1, 1, n // 100 + 1), 100)[:n]
-    x = np.zeros((n, 2))
-    for k in range(n - 1):
-        x[k + 1, 0] = 0.95 * x[k, 0] + 0.05 * x[k, 1]
-        x[k + 1, 1] = 0.9 * x[k, 1] + 0.1 * np.tanh(u[k - 2] if k >= 2 else 0.0)
-    rows = [f"{float(k * PERIOD)!r},{float(x[k, 0])!r},{float(x[k, 1])!r},{float(u[k])!r}" for k in range(n)]
-    path.write_text("t,y1,y2,u\n" + "\n".join(rows) + "\n")
-
-
-@pytest.fixture(scope="module")
-def exported(tmp_path_factory) -> dict[str, Path]:
-    """The user's workflow: select a config (float32) from the recording, export it with its DBC."""
-    d = tmp_path_factory.mktemp("identifier")
-    _write_plant(d / "data.csv")
-    assert pyrhonn_main(["select", str(d / "data.csv"), "--states", "y1,y2", "--inputs", "u",
-                         "--input-max-delay", "3", "--dtype", "float32", "--out", str(d / "cfg.toml")]) == 0
-    assert pyrhonn_main(["export", "--config", str(d / "cfg.toml"), "--data", str(d / "data.csv"),
-                         "--dbc", str(d / "id.dbc"), "--out", str(d / "id.h")]) == 0
-    return {"dir": d, "config": d / "cfg.toml", "dbc": d / "id.dbc", "data": d / "data.csv"}
 
 
 @pytest.fixture(scope="module")
