@@ -176,10 +176,50 @@ def test_an_identifier_scenario_refuses_a_dbc_of_other_signals_and_the_lim_encod
     f64.write_text(exported["config"].read_text().replace('dtype = "float32"', 'dtype = "float64"'))
     with pytest.raises(ValueError, match="identifier: .*dtype is 'float64'; the firmware runs the float32 core"):
         Scenario(**{**base, "identifier": str(f64)})
-    err = cli_error(["hil", "replay", "--transport", "udp_multicast", "--firmware", "python", "--identifier",
-                     str(exported["config"]), "--dbc", str(exported["dbc"]), "--trajectory", str(exported["data"]),
-                     "--duration", "0.1", "--quiet"])
-    assert "runs the LIM only" in err
+
+
+@pytest.mark.parametrize("firmware, process", [("runner", "rhonn_runner"), ("python", "hil.firmware_node")])
+def test_hil_bench_and_the_python_node_run_another_identifier_bit_exact(exported, twin, firmware, process,
+                                                                        capsys) -> None:
+    argv = ["hil", "bench", "--cycles", "200", "--firmware", firmware, "--identifier", str(exported["config"]),
+            "--dbc", str(exported["dbc"]), "--trajectory", str(exported["data"]), "--json"]
+    try:
+        assert pyrhonn_main(argv) == 0
+    except Exception as exc:  # noqa: BLE001 - only where no runner can be built
+        if firmware == "runner" and "cannot build rhonn_runner" in str(exc):
+            pytest.skip(str(exc))
+        raise
+    r = json.loads(capsys.readouterr().out)
+    assert r["firmware_side"]["firmware"] == process and "fallback" not in r["firmware_side"]
+    assert r["states"] == ["y1", "y2"] and r["frames"]["sent"] == 200 and r["frames"]["accounted"]
+    assert r["bit_exact"]["equal"] and r["bit_exact"]["checked"] == r["frames"]["answered"] == 200
+    assert r["firmware"]["measurements"] == 200
+
+
+def test_hil_bench_and_the_python_node_refuse_a_half_given_or_mismatched_identifier(exported, twin, tmp_path,
+                                                                                      cli_error, capsys) -> None:
+    from hil import firmware_node
+
+    base = ["hil", "bench", "--cycles", "200", "--transport", "virtual"]
+    assert "--dbc: only with --identifier" in cli_error([*base, "--dbc", str(exported["dbc"])])
+    err = cli_error([*base, "--identifier", str(exported["config"]), "--trajectory", str(exported["data"])])
+    assert "--dbc: an identifier's config file and its DBC go together" in err
+    err = cli_error([*base, "--identifier", str(exported["config"]), "--dbc", str(exported["dbc"])])
+    assert "--trajectory: an identifier's plant is a recording" in err
+    err = cli_error(["hil", "bench", "--cycles", "5000", "--transport", "virtual", "--identifier",
+                     str(exported["config"]), "--dbc", str(exported["dbc"]), "--trajectory", str(exported["data"])])
+    assert "--trajectory:" in err and "covers t = 0..0.3597 s" in err
+    node = ["--channel", "239.74.163.2", "--port", "29999", "--duration", "0"]
+    assert firmware_node.main([*node, "--identifier", str(exported["config"])]) == 2
+    assert "--identifier, --dbc: an identifier's config file and its DBC go together" in capsys.readouterr().err
+    lim = ROOT / "pyrhonn" / "configs" / "firmware-lim.toml"   # 6 states, 2 inputs: not the DBC's
+    assert firmware_node.main([*node, "--identifier", str(lim), "--dbc", str(exported["dbc"])]) == 2
+    assert "--dbc: " in capsys.readouterr().err
+    f64 = tmp_path / "f64.toml"
+    f64.write_text(exported["config"].read_text().replace('dtype = "float32"', 'dtype = "float64"'))
+    assert firmware_node.main([*node, "--identifier", str(f64), "--dbc", str(exported["dbc"])]) == 2
+    err = capsys.readouterr().err
+    assert "--identifier: " in err and "the firmware runs the float32 core" in err
 
 
 @pytest.mark.skipif(any(shutil.which(t) is None for t in ("arm-none-eabi-gcc", "qemu-system-arm", "cmake"))
