@@ -178,6 +178,50 @@ def test_an_identifier_scenario_refuses_a_dbc_of_other_signals_and_the_lim_encod
         Scenario(**{**base, "identifier": str(f64)})
 
 
+def test_the_updates_the_innovation_gate_skipped_show_in_the_health_frames_the_runner_json_and_the_report(
+        exported, twin, tmp_path, monkeypatch) -> None:
+    # a gate of 0.5 on e^2/s: about half the updates of a consistent filter exceed it
+    gated = tmp_path / "gated.toml"
+    gated.write_text(exported["config"].read_text().replace("\nr = ", "\ngate = 0.5\nr = "))
+    assert Scenario(identifier=str(gated), dbc=str(exported["dbc"]), trajectory=str(exported["data"]),
+                    encoder_resolution=0.0, velocity_from_position=False).reference_config().neurons[1].gate == 0.5
+    build_runner = _module(FW / "linux" / "build_runner.py", "_test_build_runner")
+    try:
+        exe = build_runner.cached_for(gated, exported["dbc"])
+    except RuntimeError as exc:
+        pytest.skip(f"no C compiler: {exc}")
+    monkeypatch.chdir(tmp_path)
+    for transport in ("virtual", "udp_multicast"):
+        out = tmp_path / transport
+        argv = ["hil", "replay", "--transport", transport, "--identifier", str(gated), "--dbc", str(exported["dbc"]),
+                "--trajectory", str(exported["data"]), "--duration", "0.15", "--quiet", "--out", str(out), "--log",
+                str(tmp_path / f"{transport}.blf")]
+        if transport == "udp_multicast":
+            argv += ["--runner", str(exe)]
+        assert pyrhonn_main(argv) == 0
+        report = json.loads((out / "report.json").read_text())
+        assert report["bit_exact"]["equal"]      # the offline Identifier gates the same updates
+        health = report["health"]                # the Health frames after the final Diagnostics
+        assert [h["neuron"] for h in health] == [0, 1] and all(h["gated"] > 0 for h in health)
+        rec = read_log(tmp_path / f"{transport}.blf")
+        r = score(rec, reference=rec.scenario.reference_config())   # the offline twin, on the frames sent
+        assert r["_series"]["health"]["gated"][-1].tolist() == [h["gated"] for h in health]
+        text = (out / "report.txt").read_text()
+        assert f"gated {health[0]['gated']}" in text and f"gated {health[1]['gated']}" in text
+        assert (out / "health.png").is_file()
+        if transport == "udp_multicast":             # the runner's own JSON summary
+            stats = report["firmware_side"]["stats"]
+            assert [h["gated"] for h in stats["health"]] == [h["gated"] for h in health]
+    import matplotlib.pyplot as plt
+
+    from hil.figures import build_figures
+
+    figs = build_figures(r)
+    assert f"gated updates {sum(h['gated'] for h in health)}" in figs["health.png"].axes[2].get_title()
+    for fig in figs.values():
+        plt.close(fig)
+
+
 @pytest.mark.parametrize("firmware, process", [("runner", "rhonn_runner"), ("python", "hil.firmware_node")])
 def test_hil_bench_and_the_python_node_run_another_identifier_bit_exact(exported, twin, firmware, process,
                                                                         capsys) -> None:
