@@ -71,6 +71,10 @@ def test_the_generated_layout_names_the_dbc_signals_and_refuses_a_scale_the_floa
     bad.write_text(exported["dbc"].read_text().replace("(5e-05,0)", "(0.1,0)", 1))
     with pytest.raises(ValueError, match=r"Measurement\.y\d: scale 0\.1 is not 1/N"):
         gen.layout_header(bad)
+    old = tmp_path / "old.dbc"           # exported before rhonn_id 2.2: its Health has no Gated
+    old.write_text("\n".join(line for line in exported["dbc"].read_text().splitlines() if " Gated " not in line))
+    with pytest.raises(ValueError, match="Health: no Gated signal .*export it again"):
+        gen.layout_header(old)
     with pytest.raises(SystemExit):   # never over the committed LIM files
         gen.main(["--dbc", str(exported["dbc"]), "-o", str(FW / "generated")])
 
