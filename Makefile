@@ -10,7 +10,8 @@
 #   make test    set up .venv, lint, build the docs, run the Python tests, then again with every
 #                CPU busy (stress-ng; SKIP_LOADED=1 skips it), then the C tests
 #                under CTest (plain, then with AddressSanitizer + UBSan), then
-#                the SocketCAN tests inside a VM with vcan0 (SKIP_VM=1 skips it)
+#                the SocketCAN tests inside a VM with vcan0 (SKIP_VM=1 skips it; the
+#                runners they start are built on the host first)
 PYTHON ?= python3
 VENV   ?= .venv
 BUILD  ?= build
@@ -191,8 +192,10 @@ else
 	  | sed -n 's|^tests/||; s|::.*||p' | sort -u | tr '\n' ' '); \
 	  [ -n "$$files" ] || { echo "test-vm: no vcan tests collected"; exit 1; }; \
 	  echo "test-vm: $$files"; \
+	  $(VENV)/bin/python tests/test_vcan_identifier.py $(BUILD)/vm/identifier >/dev/null && \
 	  python3 hil/vm/run_in_vm.py --out $(BUILD)/vm --venv $(BUILD)/virtme-venv -- \
 	    sh -c "cd tests && RHONN_RUNNER=$(abspath $(BUILD))/release/firmware_sim/rhonn_runner \
+	      PYRHONN_VM_IDENTIFIER=$(abspath $(BUILD))/vm/identifier \
 	      ../$(VENV)/bin/python -m pytest -q -p no:cacheprovider -m vcan $$files"
 endif
 

@@ -4,7 +4,7 @@
     pyrhonn hil replay [--transport virtual|udp_multicast|socketcan] [--channel CH] [--duration S]
                        [--seed N] [--frame-loss P] [--out DIR] [--log FILE.blf] [--progress | --quiet]
     pyrhonn hil score LOG [--out DIR] [--json]
-    pyrhonn hil bench --cycles N [--transport udp_multicast]
+    pyrhonn hil bench --cycles N [--transport udp_multicast] [--identifier CFG --dbc DBC --trajectory FILE]
 
 Exit codes: 0 run complete (every frame accounted for, estimates bit-exact),
 1 a run that completed but is not (see the report), 2 bad input or a run that
@@ -132,6 +132,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     b = hs.add_parser("bench", help="cyclictest-style timing of both sides at 0.3 ms")
     _transport_args(b, default="udp_multicast", bench=True)
     b.add_argument("--cycles", type=_positive_int, required=True)
+    b.add_argument("--identifier", type=Path, default=None, metavar="CFG.toml",
+                   help="time another identifier than the LIM (at rest): the config file (float32) it was selected "
+                        "or tuned into; needs --dbc and --trajectory, as hil replay")
+    b.add_argument("--dbc", type=Path, default=None, metavar="FILE.dbc",
+                   help="with --identifier: the protocol DBC pyrhonn export --dbc wrote for it")
+    b.add_argument("--trajectory", type=Path, default=None, metavar="FILE.csv",
+                   help="with --identifier: the recording replayed from its start, covering --cycles periods "
+                        "(a CSV with t and the config's states and inputs)")
     b.add_argument("--fifo", type=_fifo_priority, metavar="PRIO",
                    help="run the rig (and the firmware process it starts) under SCHED_FIFO at PRIO (1..99), "
                         "as a real-time test would; refused without root / CAP_SYS_NICE (then said so)")
@@ -548,17 +556,33 @@ def _cpu_pair(text: str) -> tuple[int, int]:
     return cpus
 
 
-def _bench_scenario(cycles: int):
-    """The bench's at-rest Scenario of ``cycles`` periods; a ValueError naming --cycles when it is longer
-    than a scenario may be."""
-    from .scenario import Scenario
+def _bench_scenario(cycles: int, args=None):
+    """The bench's Scenario of ``cycles`` periods: the LIM at rest, or with ``args.identifier`` that
+    identifier's recording (``args.dbc``, ``args.trajectory``) from its start, built; a ValueError naming
+    --cycles when it is longer than a scenario (or the recording) may be, or the option that is missing
+    or refused."""
+    from pyrhonn.cli.options import options_named
 
+    from .scenario import Scenario, identifier_defaults
+
+    paths = {name: getattr(args, name, None) for name in ("identifier", "dbc", "trajectory")}
+    if paths["identifier"] is None:
+        given = next((name for name, v in paths.items() if v is not None), None)
+        if given is not None:
+            raise ValueError(f"--{given}: only with --identifier (the LIM's bench runs it at rest, with no recording)")
     try:
-        return Scenario.at_rest(cycles)
+        if paths["identifier"] is None:
+            return Scenario.at_rest(cycles)
+        duration = cycles * Scenario().period
     except (ValueError, OverflowError) as exc:  # OverflowError: an int beyond float64 times the period
         shown = str(cycles) if len(str(cycles)) <= 24 else f"a {len(str(cycles))}-digit number of"
         raise ValueError(f"--cycles: {shown} cycles of {Scenario().period * 1e3:g} ms are longer than a run may be "
                          f"({exc})") from None
+    fields_ = {name: str(v) for name, v in paths.items() if v is not None}
+    with options_named(identifier="--identifier", dbc="--dbc", trajectory="--trajectory", duration="--cycles"):
+        sc = Scenario(**identifier_defaults({**fields_, "duration": duration}))
+        sc.build()   # a recording shorter than --cycles periods ends here, before anything starts
+    return sc
 
 
 def _bench(args) -> int:
@@ -571,7 +595,7 @@ def _bench(args) -> int:
     if args.cpus is not None and args.transport == "virtual":
         raise ValueError("--cpus: the virtual bus's firmware is a thread of the rig's process; use "
                          "udp_multicast or socketcan")
-    sc = _bench_scenario(args.cycles)
+    sc = _bench_scenario(args.cycles, args)
     spin = _runner_spin(args, bench=True)
     policy = use_fifo(args.fifo)
     firmware_cpu = None
@@ -590,7 +614,7 @@ def _bench(args) -> int:
                          reply_timeout=args.timeout, drain=args.drain, firmware_cpu=firmware_cpu)
     finally:
         os.sched_setaffinity(0, cpus_before)
-    r = score(rec)
+    r = score(rec, reference=sc.reference_config() if sc.identifier else None)
     r["host_steal"] = steal.stop()
     side = rec.meta.get("firmware_side") or {}
     if "spin_us" in side.get("stats", {}):  # a runner started here
@@ -610,8 +634,9 @@ def _bench(args) -> int:
                 f"p99.9 {st['p99.9']:8.1f}  max {st.get('max', st.get('max_abs', 0.0)):9.1f}")
 
     lat = r["latency_us"]
-    print(f"pyrhonn hil bench: {args.cycles} cycles at 0.3 ms over {args.transport} ({r['channel']}), {policy}, "
-          "all in us")
+    what = "" if not sc.identifier else f" of {sc.identifier}"
+    print(f"pyrhonn hil bench: {args.cycles} cycles{what} at 0.3 ms over {args.transport} ({r['channel']}), "
+          f"{policy}, all in us")
     print(row("rig: wake-up lateness (deadline)", r["rig_lateness_us"]))
     print(row("rig: period jitter |dt - T|", {**r["rig_period_jitter_us"],
                                                  "max": r["rig_period_jitter_us"].get("max_abs", 0.0)}))

@@ -8,15 +8,22 @@ signals after it up by one byte. Logs recorded before (sidecar format 2 and
 earlier) hold ``rhonn_id 2.0`` Diagnostics frames, decoded here with that
 layout, kept as it was, so that those logs still score. Measurement,
 Estimate, Control and Health frames did not change.
+
+Protocol ``rhonn_id 2.2`` widened Health from 32 to 48 bytes to carry Gated
+(the updates the innovation gate skipped); its Diagnostics frame is 2.1's,
+so logs of 2.1 (SAME_DIAGNOSTICS) decode with this build's DBC, their
+Health frames without Gated (pyrhonn.firmware.decode_health).
 """
 from __future__ import annotations
 
 import functools
 from typing import Any
 
-__all__ = ["LEGACY_PROTOCOL", "TIMES", "decode", "saturated_names"]
+__all__ = ["LEGACY_PROTOCOL", "SAME_DIAGNOSTICS", "TIMES", "decode", "saturated_names"]
 
 LEGACY_PROTOCOL = "rhonn_id 2.0"
+#: earlier protocols whose Diagnostics frame is this build's (only Health changed since)
+SAME_DIAGNOSTICS = ("rhonn_id 2.1",)
 TIMES = ("CycleTime", "StepTime", "StepTimeMax")  #: the times in us; every other signal is a count or a flag
 
 # The Diagnostics frame of rhonn_id 2.0, as its DBC defined it (frozen: only old logs use it).
@@ -54,14 +61,14 @@ def _message(protocol: str) -> Any:
     from pyrhonn.firmware import database
 
     db = database()
-    if protocol == db.version:
+    if protocol == db.version or protocol in SAME_DIAGNOSTICS:
         return db.get_message_by_name("Diagnostics")
     if protocol == LEGACY_PROTOCOL:
         legacy = cantools.database.load_string(_LEGACY_DBC, database_format="dbc")
         assert isinstance(legacy, cantools.database.can.Database)  # a DBC is a CAN database
         return legacy.get_message_by_name("Diagnostics")
-    raise ValueError(f"protocol: Diagnostics of {protocol!r} cannot be decoded (this hil knows {db.version!r} "
-                     f"and {LEGACY_PROTOCOL!r})")
+    raise ValueError(f"protocol: Diagnostics of {protocol!r} cannot be decoded (this hil knows {db.version!r}, "
+                     f"{', '.join(map(repr, SAME_DIAGNOSTICS))} and {LEGACY_PROTOCOL!r})")
 
 
 def decode(data: bytes, protocol: str | None = None) -> dict[str, Any]:

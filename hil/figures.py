@@ -8,7 +8,7 @@
 - ``health.png``: the filter's health over the run, per neuron: the
   normalised innovation squared e^2/s with the 95 % band of a chi-square
   with one degree of freedom (where a consistent filter's NIS falls 95 % of
-  the time), trace P, and the refused updates and covariance resets (marked
+  the time), trace P, the refused and gated updates and the covariance resets (marked
   on every panel). From the offline twin that the bit-exact check runs on
   the frames the firmware stepped on: the firmware's own numbers, bit for
   bit, at every sample, where its Health frames come only at the end;
@@ -191,13 +191,14 @@ def _frames_panel(ax: Any, s: dict[str, Any], j: int, name: str, unit: str) -> N
 
 
 def _health_figure(report: dict[str, Any]) -> Any:
-    """NIS with its chi-square band, trace P, refused updates and resets, per neuron over the run."""
+    """NIS with its chi-square band, trace P, refused, reset and gated updates, per neuron over the run."""
     import matplotlib.pyplot as plt
 
     s, sc = report["_series"], report["scenario"]
     h = s["health"]
     t = np.asarray(s["t"])[h["cycle"]]
-    nis, trace, rejected, resets = (np.asarray(h[key]) for key in ("nis", "trace_p", "rejected", "resets"))
+    nis, trace, rejected, resets, gated = (np.asarray(h[key]) for key in ("nis", "trace_p", "rejected", "resets",
+                                                                           "gated"))
     fig, (a_nis, a_p, a_n) = plt.subplots(3, 1, figsize=(10, 9), sharex=True, gridspec_kw={"hspace": 0.35})
     a_nis.axhspan(*NIS_BAND, color="tab:green", alpha=0.12, label="95 % band of chi-square(1)")
     tiny = 1e-12                                  # a NIS of 0 (no update yet) on a log axis
@@ -206,6 +207,8 @@ def _health_figure(report: dict[str, Any]) -> Any:
         a_p.plot(t, np.maximum(trace[:, i], tiny), lw=0.9, label=f"neuron {i}")
         a_n.step(t, rejected[:, i], where="post", lw=0.9, label=f"refused, neuron {i}")
         a_n.step(t, resets[:, i], where="post", lw=0.9, ls="--", label=f"resets, neuron {i}")
+        if gated[:, i].any():
+            a_n.step(t, gated[:, i], where="post", lw=0.9, ls=":", label=f"gated, neuron {i}")
     reset_at = t[1:][np.any(np.diff(resets, axis=0) > 0, axis=1)] if t.size > 1 else t[:0]
     for ax in (a_nis, a_p, a_n):
         if sc["hold_duration"] > 0:
@@ -222,10 +225,12 @@ def _health_figure(report: dict[str, Any]) -> Any:
     from matplotlib.ticker import MaxNLocator
 
     a_n.yaxis.set_major_locator(MaxNLocator(integer=True))
-    a_n.set_ylim(0, 1.15 * max(1, int(rejected.max(initial=0)), int(resets.max(initial=0))))
+    a_n.set_ylim(0, 1.15 * max(1, int(rejected.max(initial=0)), int(resets.max(initial=0)),
+                               int(gated.max(initial=0))))
     a_n.set_ylabel("count (updates)")
     a_n.set_title(f"refused updates {int(rejected[-1].sum()) if t.size else 0}, covariance resets "
-                  f"{int(resets[-1].sum()) if t.size else 0} (cumulative)", fontsize=9)
+                  f"{int(resets[-1].sum()) if t.size else 0}, gated updates {int(gated[-1].sum()) if t.size else 0} "
+                  "(cumulative)", fontsize=9)
     a_n.set_xlabel("time (s)")
     for ax in (a_nis, a_p, a_n):
         ax.legend(loc="upper left", fontsize=6, ncol=4)

@@ -1,10 +1,13 @@
 """The firmware as a process on a python-can bus (the udp_multicast transport).
 
     python -m hil.firmware_node --channel GROUP --port PORT [--interface udp_multicast] [--duration S]
-                                [--receive-buffer BYTES]
+                                [--receive-buffer BYTES] [--identifier CFG.toml --dbc ID.dbc]
 
 Runs :class:`pyrhonn.firmware.FirmwareApp` (the exact firmware logic) with
-firmware_sim's LIM identifier, prints ``ready`` on stdout once its socket is
+firmware_sim's LIM identifier, or with ``--identifier`` and ``--dbc`` another
+identifier (a config file, float32, and the DBC ``pyrhonn export --dbc`` wrote
+for it: the firmware application compiled for that DBC, firmware_sim/tools/
+build_twin.py, cached; exit 2 naming the option when either is refused), prints ``ready`` on stdout once its socket is
 bound, serves until SIGTERM/SIGINT or ``--duration``, then prints one JSON
 line: the firmware's counters and cyclictest-style statistics of its own side
 (interval between Measurement arrivals, handling time per frame).
@@ -23,6 +26,7 @@ import json
 import signal
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -34,6 +38,33 @@ def _stats(v: list[int]) -> dict:
     return stats_us(np.asarray(v, dtype=np.int64))
 
 
+def _firmware(identifier: Path | None, dbc: Path | None) -> tuple[Any, Any]:
+    """(config, protocol) FirmwareApp runs: the LIM's, or those of ``identifier`` and ``dbc``; ValueError
+    naming the option when one is missing or refused (FirmwareUnavailable when the twin cannot be built)."""
+    from pyrhonn.configfile import load_config
+    from pyrhonn.firmware import FirmwareApp
+
+    from .transport import lim_config, twin_protocol
+
+    if (identifier is None) != (dbc is None):
+        raise ValueError("--identifier, --dbc: an identifier's config file and its DBC go together (give both, "
+                         "or neither for the LIM)")
+    if identifier is None or dbc is None:
+        return lim_config(), None
+    try:
+        config = load_config(identifier).config
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"--identifier: {identifier}: {exc}") from None
+    if config.dtype != "float32":
+        raise ValueError(f"--identifier: {identifier}: dtype is {config.dtype!r}; the firmware runs the float32 core")
+    try:
+        protocol = twin_protocol(dbc)
+        FirmwareApp(None, config, protocol=protocol)   # the shapes agree
+    except ValueError as exc:
+        raise ValueError(f"--dbc: {dbc}: {exc}") from None
+    return config, protocol
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m hil.firmware_node", description=__doc__.splitlines()[0])
     ap.add_argument("--interface", default="udp_multicast")
@@ -42,13 +73,23 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--duration", type=float, default=3600.0)
     ap.add_argument("--receive-buffer", type=int, default=None, metavar="BYTES",
                     help="the socket's receive buffer (default: hil.transport's deep one)")
+    ap.add_argument("--identifier", type=Path, default=None, metavar="CFG.toml",
+                    help="another identifier than the LIM: its config file (float32); needs --dbc")
+    ap.add_argument("--dbc", type=Path, default=None, metavar="ID.dbc",
+                    help="with --identifier: the protocol DBC pyrhonn export --dbc wrote for it")
     args = ap.parse_args(argv)
     import can
 
     from pyrhonn.firmware import FirmwareApp
 
     from .rig import ids
-    from .transport import _deep_receive_buffer, lim_config
+    from .transport import FirmwareUnavailable, _deep_receive_buffer
+
+    try:
+        config, protocol = _firmware(args.identifier, args.dbc)
+    except (ValueError, FirmwareUnavailable) as exc:
+        print(f"firmware_node: {exc}", file=sys.stderr)
+        return 2
 
     kw: dict[str, Any] = {"fd": True}
     if args.port is not None:
@@ -66,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
         import socket
 
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, args.receive_buffer)
-    app = FirmwareApp(bus, lim_config())
+    app = FirmwareApp(bus, config, protocol=protocol)
     own = {v for k, v in ids().items() if k in ("Estimate", "ControlAck", "Diagnostics", "Health")}
     meas_id = ids()["Measurement"]
     stop = False

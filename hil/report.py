@@ -132,7 +132,8 @@ def table(report: dict[str, Any], *, timing_note: str | None = None) -> str:
             return "saturated" if v is None else f"{v:.3g}"
         lines.append(f"{_label('filter health' if h['neuron'] == 0 else '')}neuron {h['neuron']}  e^2/s {num(h['nis'])}  "
                      f"trace P {num(h['trace_p'])}  updates {h['updates']}  refused {h['rejected']}  "
-                     f"resets {h['resets']}  bounded {h['bounded']}")
+                     f"resets {h['resets']}  bounded {h['bounded']}"
+                     + ("" if h.get("gated") is None else f"  gated {h['gated']}"))
     ident = report.get("identification")
     if ident:
         lines += ["", f"{_label('identification')}{'RMSE':>11}{'abs. dev.':>11}{'Table 7':>11}{'Table 7':>11}"

@@ -67,7 +67,7 @@ from typing import Any, Callable
 import can
 import numpy as np
 
-from .diagnostics import LEGACY_PROTOCOL
+from .diagnostics import LEGACY_PROTOCOL, SAME_DIAGNOSTICS
 from .scenario import Plan, Scenario
 
 __all__ = ["BusLost", "FirmwareTimeout", "Interrupted", "LogWriteError", "Recording", "Rig", "ids", "read_log",
@@ -726,9 +726,9 @@ def _read_protocol(meta: dict[str, Any], version: int, sc_path: Path) -> None:
     if version < LOG_FORMAT_VERSION:
         meta["protocol"] = LEGACY_PROTOCOL
     proto = meta.get("protocol")
-    if proto not in (current, LEGACY_PROTOCOL):
+    if proto not in (current, *SAME_DIAGNOSTICS, LEGACY_PROTOCOL):
         raise ValueError(f"log: {sc_path}: recorded in protocol {json.dumps(proto)[:60]}; this hil decodes "
-                         f"{current!r} and {LEGACY_PROTOCOL!r}; refused")
+                         f"{current!r}, {', '.join(map(repr, SAME_DIAGNOSTICS))} and {LEGACY_PROTOCOL!r}; refused")
 
 
 def _read_frames(path: Path, suffix: str) -> tuple[list[can.Message], Exception | None]:

@@ -483,10 +483,12 @@ def _reference_check(config: Any, meas_data: dict[int, bytes], accepted: np.ndar
 def _health_series(samples: list[tuple[int, list[Any]]]) -> dict[str, Any]:
     """The offline twin's filter health (Identifier.healths, the firmware's rhonn_get_health bit for bit)
     after each chunk of frames: ``cycle`` (S,), and per field (S, neurons): ``nis`` (the last update's
-    e^2 / s), ``trace_p``, and the counters ``rejected`` (refused updates), ``resets`` and ``updates``."""
+    e^2 / s), ``trace_p``, and the counters ``rejected`` (refused updates), ``resets``, ``updates`` and
+    ``gated`` (updates the innovation gate skipped)."""
     cycles = np.array([k for k, _ in samples], dtype=np.int64)
     out: dict[str, Any] = {"cycle": cycles}
-    for name in ("nis", "trace_p", "rejected", "resets", "updates"):
+    counts = ("rejected", "resets", "updates", "gated")
+    for name in ("nis", "trace_p", *counts):
         out[name] = np.array([[getattr(h, name) for h in hs] for _, hs in samples],
-                             dtype=np.int64 if name in ("rejected", "resets", "updates") else np.float64)
+                             dtype=np.int64 if name in counts else np.float64)
     return out

@@ -9,7 +9,8 @@ the same on each, only the channel changes.
   names the executable, else one built from the source tree with cc and
   cached, see firmware_sim/linux/build_runner.py), or with
   ``firmware="python"`` a ``python -m hil.firmware_node`` process (the same
-  firmware logic through cffi: where there is no C compiler). Each run gets
+  firmware logic through cffi: where there is no C compiler; another
+  identifier's twin is compiled for its DBC, so it needs one). Each run gets
   its own UDP port, so parallel runs do not cross.
 - ``socketcan``: vcan0 or a real can0; the firmware is firmware_sim's Linux
   runner (``rhonn_runner --interface IF``), started here when ``runner`` is
@@ -40,7 +41,7 @@ from .rig import FirmwareTimeout, Recording, Rig
 from .scenario import Scenario
 
 __all__ = ["FIRMWARES", "TRANSPORTS", "FirmwareUnavailable", "free_port", "lim_config", "parse_cpu_pair", "run_replay",
-           "udp_runner", "use_fifo"]
+           "twin_protocol", "udp_runner", "use_fifo"]
 
 TRANSPORTS = ("virtual", "udp_multicast", "socketcan")
 FIRMWARES = ("runner", "python")  # udp_multicast: the C runner (default) or the Python node
@@ -104,12 +105,18 @@ def identifier_twin(scenario: Scenario) -> tuple[Any, Any]:
 
     if not scenario.identifier:
         return lim_config(), lim_protocol()
-    module = _source_module("firmware_sim/tools/build_twin.py", "_pyrhonn_build_twin",
-                            f"firmware twin for {scenario.dbc}")
+    return scenario.reference_config(), twin_protocol(scenario.dbc)
+
+
+def twin_protocol(dbc: str | os.PathLike) -> Any:
+    """The protocol of ``dbc`` with the firmware application compiled for it (firmware_sim/tools/build_twin.py,
+    once per DBC, cached): what FirmwareApp runs for another identifier. FirmwareUnavailable when that cannot
+    be built, ValueError naming the DBC when it has not the protocol's shape."""
+    module = _source_module("firmware_sim/tools/build_twin.py", "_pyrhonn_build_twin", f"firmware twin for {dbc}")
     try:
-        return scenario.reference_config(), module.protocol(scenario.dbc)
+        return module.protocol(dbc)
     except (RuntimeError, OSError, subprocess.CalledProcessError) as exc:
-        raise FirmwareUnavailable(f"cannot build the firmware twin for {scenario.dbc} ({exc})") from exc
+        raise FirmwareUnavailable(f"cannot build the firmware twin for {dbc} ({exc})") from exc
 
 
 @contextmanager
@@ -355,10 +362,11 @@ def _stop_runner(proc: subprocess.Popen | None, report: Path | None) -> None:
 
 @contextmanager
 def _udp(channel: str | None, port: int | None, firmware: str | None, runner: str | None = None,
-         cpu: int | None = None,
-         spin_us: float = RUNNER_SPIN_US) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
+         cpu: int | None = None, spin_us: float = RUNNER_SPIN_US,
+         scenario: Scenario | None = None) -> Iterator[tuple[can.BusABC, str, Callable[[], dict]]]:
     """The udp_multicast bus; ``firmware`` "runner" starts ``runner`` (a path
-    udp_runner resolved), "python" the Python node, None nothing."""
+    udp_runner resolved), "python" the Python node (for ``scenario``'s identifier
+    when it names one), None nothing."""
     channel = channel or UDP_GROUP
     port = port or free_port()
     proc = None
@@ -373,8 +381,11 @@ def _udp(channel: str | None, port: int | None, firmware: str | None, runner: st
                                      f"udp_multicast {group}:{port}", cpu, spin_us)
     elif firmware == "python":
         env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-        proc = subprocess.Popen([sys.executable, "-m", "hil.firmware_node", "--channel", channel, "--port", str(port)],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=str(ROOT))
+        node = [sys.executable, "-m", "hil.firmware_node", "--channel", channel, "--port", str(port)]
+        if scenario is not None and scenario.identifier:
+            node += ["--identifier", str(Path(scenario.identifier).resolve()), "--dbc",
+                     str(Path(scenario.dbc).resolve())]
+        proc = subprocess.Popen(node, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=str(ROOT))
         _pin(proc, cpu)
         line = proc.stdout.readline() if proc.stdout else ""
         if line.strip() != "ready":
@@ -489,8 +500,8 @@ def open_transport(transport: str, channel: str | None = None, *, port: int | No
         fallback = None
         other = scenario is not None and bool(scenario.identifier)
         if kind == "python" and other:
-            raise ValueError("firmware: the Python node over udp_multicast runs the LIM only; another identifier's "
-                             "firmware there is rhonn_runner (or replay it on the virtual bus)")
+            assert scenario is not None
+            twin_protocol(scenario.dbc)   # built here (cached), so the node only loads it; an error ends here
         if kind == "runner":
             try:
                 runner = udp_runner(runner, scenario)
@@ -498,7 +509,7 @@ def open_transport(transport: str, channel: str | None = None, *, port: int | No
                 if firmware is not True or runner is not None or other:
                     raise                   # the runner was asked for by name, or none other runs the identifier
                 kind, fallback = "python", f"rhonn_runner unavailable ({exc}): the firmware is the Python node"
-        with _udp(channel, port, kind, runner, firmware_cpu, runner_spin_us) as (bus, where, side):
+        with _udp(channel, port, kind, runner, firmware_cpu, runner_spin_us, scenario) as (bus, where, side):
             def side_noted() -> dict:
                 report = side()
                 report["firmware"] = {"runner": "rhonn_runner", "python": "hil.firmware_node"}.get(kind or "", None)

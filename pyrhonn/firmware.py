@@ -366,7 +366,9 @@ class Health:
     """A decoded Health frame: the filter health of one neuron, as the
     firmware's rhonn_get_health gave it. ``innovation``, ``nis`` and
     ``trace_p`` are None when the firmware flagged the value as saturated
-    (it did not fit the frame's float32): a limit, not a measurement."""
+    (it did not fit the frame's float32): a limit, not a measurement.
+    ``gated``: the updates the innovation gate skipped; None in a 32-byte
+    frame of rhonn_id 2.1 and before, which did not carry it."""
 
     neuron: int
     innovation: float | None
@@ -377,21 +379,33 @@ class Health:
     resets: int
     bounded: int
     fail_run: int
+    gated: int | None = None
 
 
 def decode_health(msg: can.Message) -> Health:
-    """Decode a Health frame (ValueError for any other frame)."""
+    """Decode a Health frame (ValueError for any other frame); a 32-byte one
+    (rhonn_id 2.1 and before) without ``gated``."""
     m = database().get_message_by_name("Health")
     if msg.arbitration_id != m.frame_id or msg.is_extended_id:
         raise ValueError(f"msg: not a Health frame (id 0x{msg.arbitration_id:x})")
-    d = m.decode(bytes(msg.data), decode_choices=False)
+    data = bytes(msg.data)
+    old = len(data) == HEALTH_LENGTH_2_1
+    if len(data) not in (HEALTH_LENGTH_2_1, m.length):
+        raise ValueError(f"msg: a Health frame is {m.length} bytes ({HEALTH_LENGTH_2_1} before rhonn_id 2.2), "
+                         f"got {len(data)}")
+    d = m.decode(data + bytes(m.length - len(data)), decode_choices=False)
 
     def value(name: str) -> float | None:
         return None if d[f"{name}Sat"] else float(d[name])
 
     return Health(neuron=int(d["Neuron"]), innovation=value("Innovation"), nis=value("Nis"),
                   trace_p=value("TraceP"), updates=int(d["Updates"]), rejected=int(d["Rejected"]),
-                  resets=int(d["Resets"]), bounded=int(d["Bounded"]), fail_run=int(d["FailRun"]))
+                  resets=int(d["Resets"]), bounded=int(d["Bounded"]), fail_run=int(d["FailRun"]),
+                  gated=None if old else int(d["Gated"]))
+
+
+#: the Health frame's length up to rhonn_id 2.1 (then without Gated)
+HEALTH_LENGTH_2_1 = 32
 
 
 def _secured(name: str, values: dict[str, Any], sender: SecOCSender, *, strict: bool = True) -> can.Message:

@@ -82,3 +82,33 @@ def population_calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
 
     monkeypatch.setattr(population, "run_identifiers_outcomes", counted)
     return calls
+
+
+def write_two_state_plant(path: Path, n: int = 1200, period: float = 3e-4) -> None:
+    """A recording of a small plant for the any-identifier tests (2 states, 1 input acting 2 samples
+    late): x1(k+1) = 0.95 x1 + 0.05 x2, x2(k+1) = 0.9 x2 + 0.1 tanh(u(k-2)), u a random staircase."""
+    import numpy as np
+
+    rng = np.random.default_rng(1)
+    u = np.repeat(rng.uniform(-1, 1, n // 100 + 1), 100)[:n]
+    x = np.zeros((n, 2))
+    for k in range(n - 1):
+        x[k + 1, 0] = 0.95 * x[k, 0] + 0.05 * x[k, 1]
+        x[k + 1, 1] = 0.9 * x[k, 1] + 0.1 * np.tanh(u[k - 2] if k >= 2 else 0.0)
+    rows = [f"{float(k * period)!r},{float(x[k, 0])!r},{float(x[k, 1])!r},{float(u[k])!r}" for k in range(n)]
+    path.write_text("t,y1,y2,u\n" + "\n".join(rows) + "\n")
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Another identifier than the LIM, as a user makes it: a config (float32) selected from the
+    recording of :func:`write_two_state_plant`, exported with its DBC (pyrhonn export --dbc)."""
+    from pyrhonn.cli import main as pyrhonn_main
+
+    d = tmp_path_factory.mktemp("identifier")
+    write_two_state_plant(d / "data.csv")
+    assert pyrhonn_main(["select", str(d / "data.csv"), "--states", "y1,y2", "--inputs", "u",
+                         "--input-max-delay", "3", "--dtype", "float32", "--out", str(d / "cfg.toml")]) == 0
+    assert pyrhonn_main(["export", "--config", str(d / "cfg.toml"), "--data", str(d / "data.csv"),
+                         "--dbc", str(d / "id.dbc"), "--out", str(d / "id.h")]) == 0
+    return {"dir": d, "config": d / "cfg.toml", "dbc": d / "id.dbc", "data": d / "data.csv"}

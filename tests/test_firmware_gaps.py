@@ -205,6 +205,7 @@ def test_health_frames_follow_every_diagnostics_frame_with_the_cores_health() ->
         want = ref.health(i)
         assert h.neuron == i and h.updates == want.updates == 39 and h.rejected == want.rejected
         assert h.resets == want.resets and h.bounded == want.bounded and h.fail_run == want.fail_run
+        assert h.gated == want.gated == 0     # no innovation gate in the LIM's config
         # float32 on the wire: the firmware's float32 values exactly
         assert (h.innovation, h.nis, h.trace_p) == (want.innovation, want.nis, want.trace_p)
         assert h.trace_p is not None and h.trace_p > 0 and h.nis is not None and h.nis >= 0
@@ -215,23 +216,56 @@ def _trace_p0(neuron) -> float:
     return float(np.trace(p0)) if p0.ndim == 2 else float(np.sum(np.broadcast_to(p0, (neuron.n_terms,))))
 
 
+def _stepped(config: IdentifierConfig, frames: int) -> tuple[FirmwareApp, Identifier]:
+    """The firmware twin and the offline Identifier of ``config``, both stepped on the first ``frames`` frames."""
+    app = FirmwareApp(None, config)
+    ref = Identifier(config)
+    for t in range(frames):
+        msg = _frame(t, t)
+        app.handle(msg)
+        ref.step(*_decoded(msg))
+    return app, ref
+
+
 def test_health_frames_carry_the_bounded_covariance_count_of_a_trace_ceiling() -> None:
     # a large Q piles up in P_i each step (forgetting stops at the ceiling, rhonn.h); the
     # ceiling scales P_i back: "bounded" counts it
     config = CONFIG.replace(neurons=tuple(dataclasses.replace(n, forgetting=0.9, p_trace_max=1.5 * _trace_p0(n),
                                                               q=_trace_p0(n) / n.n_terms)
                                           for n in CONFIG.neurons))
-    app = FirmwareApp(None, config)
-    ref = Identifier(config)
-    for t in range(60):
-        msg = _frame(t, t)
-        app.handle(msg)
-        ref.step(*_decoded(msg))
+    app, ref = _stepped(config, 60)
     _, health = _diag_and_health(app.send_diagnostics())
     assert sum(h.bounded for h in health) > 0
     for i, h in enumerate(health):
         want = ref.health(i)
         assert (h.bounded, h.resets, h.updates, h.trace_p) == (want.bounded, want.resets, want.updates, want.trace_p)
+
+
+def test_health_frames_carry_the_updates_the_innovation_gate_skipped() -> None:
+    # the LIM's filter sees e^2/s of 1e-5..1e-2 on this stretch (its R is generous): a gate of 1e-5 skips most
+    config = CONFIG.replace(neurons=tuple(dataclasses.replace(n, gate=1e-5) for n in CONFIG.neurons))
+    app, ref = _stepped(config, 60)
+    frames = app.send_diagnostics()
+    _, health = _diag_and_health(frames)
+    assert all(len(m.data) == HEALTH.length == 48 for m in frames[1:])
+    assert all(h.gated is not None and h.gated > 0 for h in health)
+    for i, h in enumerate(health):
+        want = ref.health(i)
+        assert (h.gated, h.updates, h.nis) == (want.gated, want.updates, want.nis)
+        assert h.gated + h.updates == 59     # every step but the first learns or is gated
+
+
+def test_a_health_frame_of_rhonn_id_2_1_decodes_without_the_gated_count_and_other_lengths_are_refused() -> None:
+    app, _ = _stepped(CONFIG.replace(neurons=tuple(dataclasses.replace(n, gate=1e-5) for n in CONFIG.neurons)), 60)
+    health = app.send_diagnostics()[5]    # neuron 4's
+    now = firmware.decode_health(health)
+    assert now.gated is not None and now.gated > 0
+    old = firmware.decode_health(can.Message(arbitration_id=HEALTH.frame_id, data=bytes(health.data[:32]),
+                                             is_extended_id=False, is_fd=True))
+    assert old.gated is None and dataclasses.replace(old, gated=now.gated) == now
+    with pytest.raises(ValueError, match="a Health frame is 48 bytes .32 before rhonn_id 2.2., got 24"):
+        firmware.decode_health(can.Message(arbitration_id=HEALTH.frame_id, data=bytes(health.data[:24]),
+                                           is_extended_id=False, is_fd=True))
 
 
 def test_a_health_value_that_does_not_fit_is_flagged_saturated_never_sent_as_a_value() -> None:

@@ -67,7 +67,7 @@ def test_the_twin_is_built_with_authentication_on_and_the_public_test_key() -> N
     assert firmware.SECOC_ENABLED
     assert firmware.TEST_KEY == b"pyrhonn-TEST-key"
     assert CONTROL.length == 16 and WEIGHTS.length == 64 and firmware.WEIGHTS_PER_FRAME == 12
-    assert DB.version == "rhonn_id 2.1"
+    assert DB.version == "rhonn_id 2.2"
 
 
 @FAST

@@ -17,7 +17,6 @@ import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 pytest.importorskip("can")
@@ -32,7 +31,6 @@ from hil.score import score  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 FW = ROOT / "firmware_sim"
-PERIOD = 3e-4
 
 
 def _module(path: Path, name: str):
@@ -41,30 +39,6 @@ def _module(path: Path, name: str):
     assert spec.loader is not None
     spec.loader.exec_module(module)
     return module
-
-
-def _write_plant(path: Path, n: int = 1200) -> None:
-    """x1(k+1) = 0.95 x1 + 0.05 x2, x2(k+1) = 0.9 x2 + 0.1 tanh(u(k-2)), u a random staircase."""
-    rng = np.random.default_rng(1)
-    u = np.repeat(rng.uniform(-1, 1, n // 100 + 1), 100)[:n]
-    x = np.zeros((n, 2))
-    for k in range(n - 1):
-        x[k + 1, 0] = 0.95 * x[k, 0] + 0.05 * x[k, 1]
-        x[k + 1, 1] = 0.9 * x[k, 1] + 0.1 * np.tanh(u[k - 2] if k >= 2 else 0.0)
-    rows = [f"{float(k * PERIOD)!r},{float(x[k, 0])!r},{float(x[k, 1])!r},{float(u[k])!r}" for k in range(n)]
-    path.write_text("t,y1,y2,u\n" + "\n".join(rows) + "\n")
-
-
-@pytest.fixture(scope="module")
-def exported(tmp_path_factory) -> dict[str, Path]:
-    """The user's workflow: select a config (float32) from the recording, export it with its DBC."""
-    d = tmp_path_factory.mktemp("identifier")
-    _write_plant(d / "data.csv")
-    assert pyrhonn_main(["select", str(d / "data.csv"), "--states", "y1,y2", "--inputs", "u",
-                         "--input-max-delay", "3", "--dtype", "float32", "--out", str(d / "cfg.toml")]) == 0
-    assert pyrhonn_main(["export", "--config", str(d / "cfg.toml"), "--data", str(d / "data.csv"),
-                         "--dbc", str(d / "id.dbc"), "--out", str(d / "id.h")]) == 0
-    return {"dir": d, "config": d / "cfg.toml", "dbc": d / "id.dbc", "data": d / "data.csv"}
 
 
 @pytest.fixture(scope="module")
@@ -97,6 +71,10 @@ def test_the_generated_layout_names_the_dbc_signals_and_refuses_a_scale_the_floa
     bad.write_text(exported["dbc"].read_text().replace("(5e-05,0)", "(0.1,0)", 1))
     with pytest.raises(ValueError, match=r"Measurement\.y\d: scale 0\.1 is not 1/N"):
         gen.layout_header(bad)
+    old = tmp_path / "old.dbc"           # exported before rhonn_id 2.2: its Health has no Gated
+    old.write_text("\n".join(line for line in exported["dbc"].read_text().splitlines() if " Gated " not in line))
+    with pytest.raises(ValueError, match="Health: no Gated signal .*export it again"):
+        gen.layout_header(old)
     with pytest.raises(SystemExit):   # never over the committed LIM files
         gen.main(["--dbc", str(exported["dbc"]), "-o", str(FW / "generated")])
 
@@ -202,10 +180,94 @@ def test_an_identifier_scenario_refuses_a_dbc_of_other_signals_and_the_lim_encod
     f64.write_text(exported["config"].read_text().replace('dtype = "float32"', 'dtype = "float64"'))
     with pytest.raises(ValueError, match="identifier: .*dtype is 'float64'; the firmware runs the float32 core"):
         Scenario(**{**base, "identifier": str(f64)})
-    err = cli_error(["hil", "replay", "--transport", "udp_multicast", "--firmware", "python", "--identifier",
-                     str(exported["config"]), "--dbc", str(exported["dbc"]), "--trajectory", str(exported["data"]),
-                     "--duration", "0.1", "--quiet"])
-    assert "runs the LIM only" in err
+
+
+def test_the_updates_the_innovation_gate_skipped_show_in_the_health_frames_the_runner_json_and_the_report(
+        exported, twin, tmp_path, monkeypatch) -> None:
+    # a gate of 0.5 on e^2/s: about half the updates of a consistent filter exceed it
+    gated = tmp_path / "gated.toml"
+    gated.write_text(exported["config"].read_text().replace("\nr = ", "\ngate = 0.5\nr = "))
+    assert Scenario(identifier=str(gated), dbc=str(exported["dbc"]), trajectory=str(exported["data"]),
+                    encoder_resolution=0.0, velocity_from_position=False).reference_config().neurons[1].gate == 0.5
+    build_runner = _module(FW / "linux" / "build_runner.py", "_test_build_runner")
+    try:
+        exe = build_runner.cached_for(gated, exported["dbc"])
+    except RuntimeError as exc:
+        pytest.skip(f"no C compiler: {exc}")
+    monkeypatch.chdir(tmp_path)
+    for transport in ("virtual", "udp_multicast"):
+        out = tmp_path / transport
+        argv = ["hil", "replay", "--transport", transport, "--identifier", str(gated), "--dbc", str(exported["dbc"]),
+                "--trajectory", str(exported["data"]), "--duration", "0.15", "--quiet", "--out", str(out), "--log",
+                str(tmp_path / f"{transport}.blf")]
+        if transport == "udp_multicast":
+            argv += ["--runner", str(exe)]
+        assert pyrhonn_main(argv) == 0
+        report = json.loads((out / "report.json").read_text())
+        assert report["bit_exact"]["equal"]      # the offline Identifier gates the same updates
+        health = report["health"]                # the Health frames after the final Diagnostics
+        assert [h["neuron"] for h in health] == [0, 1] and all(h["gated"] > 0 for h in health)
+        rec = read_log(tmp_path / f"{transport}.blf")
+        r = score(rec, reference=rec.scenario.reference_config())   # the offline twin, on the frames sent
+        assert r["_series"]["health"]["gated"][-1].tolist() == [h["gated"] for h in health]
+        text = (out / "report.txt").read_text()
+        assert f"gated {health[0]['gated']}" in text and f"gated {health[1]['gated']}" in text
+        assert (out / "health.png").is_file()
+        if transport == "udp_multicast":             # the runner's own JSON summary
+            stats = report["firmware_side"]["stats"]
+            assert [h["gated"] for h in stats["health"]] == [h["gated"] for h in health]
+    import matplotlib.pyplot as plt
+
+    from hil.figures import build_figures
+
+    figs = build_figures(r)
+    assert f"gated updates {sum(h['gated'] for h in health)}" in figs["health.png"].axes[2].get_title()
+    for fig in figs.values():
+        plt.close(fig)
+
+
+@pytest.mark.parametrize("firmware, process", [("runner", "rhonn_runner"), ("python", "hil.firmware_node")])
+def test_hil_bench_and_the_python_node_run_another_identifier_bit_exact(exported, twin, firmware, process,
+                                                                        capsys) -> None:
+    argv = ["hil", "bench", "--cycles", "200", "--firmware", firmware, "--identifier", str(exported["config"]),
+            "--dbc", str(exported["dbc"]), "--trajectory", str(exported["data"]), "--json"]
+    try:
+        assert pyrhonn_main(argv) == 0
+    except Exception as exc:  # noqa: BLE001 - only where no runner can be built
+        if firmware == "runner" and "cannot build rhonn_runner" in str(exc):
+            pytest.skip(str(exc))
+        raise
+    r = json.loads(capsys.readouterr().out)
+    assert r["firmware_side"]["firmware"] == process and "fallback" not in r["firmware_side"]
+    assert r["states"] == ["y1", "y2"] and r["frames"]["sent"] == 200 and r["frames"]["accounted"]
+    assert r["bit_exact"]["equal"] and r["bit_exact"]["checked"] == r["frames"]["answered"] == 200
+    assert r["firmware"]["measurements"] == 200
+
+
+def test_hil_bench_and_the_python_node_refuse_a_half_given_or_mismatched_identifier(exported, twin, tmp_path,
+                                                                                      cli_error, capsys) -> None:
+    from hil import firmware_node
+
+    base = ["hil", "bench", "--cycles", "200", "--transport", "virtual"]
+    assert "--dbc: only with --identifier" in cli_error([*base, "--dbc", str(exported["dbc"])])
+    err = cli_error([*base, "--identifier", str(exported["config"]), "--trajectory", str(exported["data"])])
+    assert "--dbc: an identifier's config file and its DBC go together" in err
+    err = cli_error([*base, "--identifier", str(exported["config"]), "--dbc", str(exported["dbc"])])
+    assert "--trajectory: an identifier's plant is a recording" in err
+    err = cli_error(["hil", "bench", "--cycles", "5000", "--transport", "virtual", "--identifier",
+                     str(exported["config"]), "--dbc", str(exported["dbc"]), "--trajectory", str(exported["data"])])
+    assert "--trajectory:" in err and "covers t = 0..0.3597 s" in err
+    node = ["--channel", "239.74.163.2", "--port", "29999", "--duration", "0"]
+    assert firmware_node.main([*node, "--identifier", str(exported["config"])]) == 2
+    assert "--identifier, --dbc: an identifier's config file and its DBC go together" in capsys.readouterr().err
+    lim = ROOT / "pyrhonn" / "configs" / "firmware-lim.toml"   # 6 states, 2 inputs: not the DBC's
+    assert firmware_node.main([*node, "--identifier", str(lim), "--dbc", str(exported["dbc"])]) == 2
+    assert "--dbc: " in capsys.readouterr().err
+    f64 = tmp_path / "f64.toml"
+    f64.write_text(exported["config"].read_text().replace('dtype = "float32"', 'dtype = "float64"'))
+    assert firmware_node.main([*node, "--identifier", str(f64), "--dbc", str(exported["dbc"])]) == 2
+    err = capsys.readouterr().err
+    assert "--identifier: " in err and "the firmware runs the float32 core" in err
 
 
 @pytest.mark.skipif(any(shutil.which(t) is None for t in ("arm-none-eabi-gcc", "qemu-system-arm", "cmake"))

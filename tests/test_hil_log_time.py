@@ -201,3 +201,23 @@ def test_a_sidecar_of_a_newer_format_or_an_unknown_protocol_is_refused_by_name(t
     assert 'recorded in protocol "rhonn_id 9.9"; this hil decodes' in err and "refused" in err
     sidecar(path).write_text(json.dumps({**side, "wall_time_ns": "yesterday"}))
     assert "not a hil log sidecar (wall_time_ns:" in cli_error(["hil", "score", str(path)])
+
+
+def test_a_log_of_rhonn_id_2_1_scores_the_same_with_its_32_byte_health_frames_and_no_gated_count(tmp_path) -> None:
+    from hil.report import table
+
+    rec, _, _ = _run()
+    health_id = DB.get_message_by_name("Health").frame_id
+    events = [(t, d, m if m.arbitration_id != health_id else
+               can.Message(arbitration_id=health_id, is_extended_id=False, is_fd=True, is_rx=True,
+                           data=bytes(m.data[:32])))            # Gated (bits 256-287) was not there
+              for t, d, m in rec.events]
+    path = tmp_path / "old.blf"
+    write_log(Recording(scenario=rec.scenario, events=events, meta={**rec.meta, "protocol": "rhonn_id 2.1"}), path)
+    old = read_log(path)
+    assert old.meta["protocol"] == "rhonn_id 2.1"
+    live, again = score(rec), score(old)
+    assert again["frames"] == live["frames"] and again["firmware"]["measurements"] == live["firmware"]["measurements"]
+    assert [h["gated"] for h in live["health"]] == [0] * 6 and [h["gated"] for h in again["health"]] == [None] * 6
+    assert [{**h, "gated": 0} for h in again["health"]] == live["health"]
+    assert "gated 0" in table(live) and "gated" not in table(again)

@@ -74,14 +74,14 @@ def test_a_step_beyond_the_24_bit_range_is_sent_saturated_and_decoded_as_such() 
     d = _step_time_max_after_a_step_of(400_000_000)  # 0.4 s: a process frozen by the host
     assert d["StepTimeMax"] == pytest.approx(167_772.15) and "StepTimeMax" in d["saturated"]
     assert DIAG.get_signal_by_name("StepTimeMax").length == 24 and DIAG.length == 32
-    assert DB.version == "rhonn_id 2.1"
+    assert DB.version == "rhonn_id 2.2"
 
 
 def test_the_diagnostics_frame_uses_every_bit_once_and_keeps_the_other_frames() -> None:
     bits = sorted(b for s in DIAG.signals for b in range(s.start, s.start + s.length))
     assert bits == list(range(256))  # 32 bytes, no overlap, nothing left over
     assert [DB.get_message_by_name(n).length for n in ("Measurement", "Estimate", "Control", "WeightLoad",
-                                                       "ControlAck", "Health")] == [20, 16, 16, 64, 8, 32]
+                                                       "ControlAck", "Health")] == [20, 16, 16, 64, 8, 48]
 
 
 def test_a_saturated_step_time_max_is_printed_as_a_lower_bound_never_as_a_measurement() -> None:

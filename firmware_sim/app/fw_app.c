@@ -561,6 +561,7 @@ static fw_status send_health(fw_app *app)
         h.rejected = nh.rejected;
         h.resets = nh.resets;
         h.bounded = nh.bounded;
+        h.gated = nh.gated;
         if (rhonn_id_health_pack(frame, &h, sizeof frame) != (int)RHONN_ID_HEALTH_LENGTH) {
             return FW_E_LENGTH; /* not reached */
         }

@@ -2255,11 +2255,11 @@ int rhonn_id_health_pack(
     uint32_t nis;
     uint32_t trace_p;
 
-    if (size < 32u) {
+    if (size < 48u) {
         return (-EINVAL);
     }
 
-    memset(&dst_p[0], 0, 32);
+    memset(&dst_p[0], 0, 48);
 
     dst_p[0] |= pack_left_shift_u8(src_p->neuron, 0u, 0xffu);
     dst_p[1] |= pack_left_shift_u8(src_p->innovation_sat, 0u, 0x01u);
@@ -2298,8 +2298,12 @@ int rhonn_id_health_pack(
     dst_p[29] |= pack_right_shift_u32(src_p->bounded, 8u, 0xffu);
     dst_p[30] |= pack_right_shift_u32(src_p->bounded, 16u, 0xffu);
     dst_p[31] |= pack_right_shift_u32(src_p->bounded, 24u, 0xffu);
+    dst_p[32] |= pack_left_shift_u32(src_p->gated, 0u, 0xffu);
+    dst_p[33] |= pack_right_shift_u32(src_p->gated, 8u, 0xffu);
+    dst_p[34] |= pack_right_shift_u32(src_p->gated, 16u, 0xffu);
+    dst_p[35] |= pack_right_shift_u32(src_p->gated, 24u, 0xffu);
 
-    return (32);
+    return (48);
 }
 
 int rhonn_id_health_unpack(
@@ -2311,7 +2315,7 @@ int rhonn_id_health_unpack(
     uint32_t nis;
     uint32_t trace_p;
 
-    if (size < 32u) {
+    if (size < 48u) {
         return (-EINVAL);
     }
 
@@ -2352,6 +2356,10 @@ int rhonn_id_health_unpack(
     dst_p->bounded |= unpack_left_shift_u32(src_p[29], 8u, 0xffu);
     dst_p->bounded |= unpack_left_shift_u32(src_p[30], 16u, 0xffu);
     dst_p->bounded |= unpack_left_shift_u32(src_p[31], 24u, 0xffu);
+    dst_p->gated = unpack_right_shift_u32(src_p[32], 0u, 0xffu);
+    dst_p->gated |= unpack_left_shift_u32(src_p[33], 8u, 0xffu);
+    dst_p->gated |= unpack_left_shift_u32(src_p[34], 16u, 0xffu);
+    dst_p->gated |= unpack_left_shift_u32(src_p[35], 24u, 0xffu);
 
     return (0);
 }
@@ -2611,6 +2619,28 @@ bool rhonn_id_health_bounded_is_in_range(uint32_t value)
 }
 
 bool rhonn_id_health_bounded_is_in_phys_range(double value)
+{
+    return ((value >= 0.0) && (value <= 4294967295.0));
+}
+
+uint32_t rhonn_id_health_gated_encode(double value)
+{
+    return (uint32_t)(cantools_unsigned_from_double(value));
+}
+
+double rhonn_id_health_gated_decode(uint32_t value)
+{
+    return ((double)value);
+}
+
+bool rhonn_id_health_gated_is_in_range(uint32_t value)
+{
+    (void)value;
+
+    return (true);
+}
+
+bool rhonn_id_health_gated_is_in_phys_range(double value)
 {
     return ((value >= 0.0) && (value <= 4294967295.0));
 }

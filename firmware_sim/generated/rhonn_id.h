@@ -60,7 +60,7 @@ extern "C" {
 #define RHONN_ID_CONTROL_ACK_LENGTH (8u)
 #define RHONN_ID_WEIGHT_LOAD_LENGTH (64u)
 #define RHONN_ID_DIAGNOSTICS_LENGTH (32u)
-#define RHONN_ID_HEALTH_LENGTH (32u)
+#define RHONN_ID_HEALTH_LENGTH (48u)
 
 /* Extended or standard frame types. */
 #define RHONN_ID_MEASUREMENT_IS_EXTENDED (0)
@@ -240,6 +240,7 @@ extern "C" {
 #define RHONN_ID_HEALTH_REJECTED_NAME "Rejected"
 #define RHONN_ID_HEALTH_RESETS_NAME "Resets"
 #define RHONN_ID_HEALTH_BOUNDED_NAME "Bounded"
+#define RHONN_ID_HEALTH_GATED_NAME "Gated"
 
 /**
  * Signals in message Measurement.
@@ -891,7 +892,7 @@ struct rhonn_id_diagnostics_t {
 /**
  * Signals in message Health.
  *
- * Filter health of one neuron (rhonn_get_health), one frame per neuron after every Diagnostics frame. A value that does not fit its float32 signal (beyond +-3.4e38, or not a number) is sent as the nearest limit of the range (0 for not a number) with its Sat flag set: it is not a measurement.
+ * Filter health of one neuron (rhonn_get_health), one frame per neuron after every Diagnostics frame. A value that does not fit its float32 signal (beyond +-3.4e38, or not a number) is sent as the nearest limit of the range (0 for not a number) with its Sat flag set: it is not a measurement. Since rhonn_id 2.2 the frame is 48 bytes (it was 32, every bit but 11-15 used): Gated follows Bounded, bits 288-383 are reserved (sent as 0).
  *
  * All signal values are as on the CAN bus.
  */
@@ -1003,6 +1004,15 @@ struct rhonn_id_health_t {
      * Offset: 0
      */
     uint32_t bounded;
+
+    /**
+     * Learning updates skipped by the innovation gate (e_i^2 / s_i above the neuron's gate: w_i and P_i kept) since start (Reset keeps it); 0 while the gate is off; wraps.
+     *
+     * Range: 0..4294967295 (0..4294967295 -)
+     * Scale: 1
+     * Offset: 0
+     */
+    uint32_t gated;
 };
 
 /**
@@ -4503,6 +4513,46 @@ bool rhonn_id_health_bounded_is_in_range(uint32_t value);
  * @return true if in range, false otherwise.
  */
 bool rhonn_id_health_bounded_is_in_phys_range(double value);
+
+/**
+ * Encode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to encode.
+ *
+ * @return Encoded signal.
+ */
+uint32_t rhonn_id_health_gated_encode(double value);
+
+/**
+ * Decode given signal by applying scaling and offset.
+ *
+ * @param[in] value Signal to decode.
+ *
+ * @return Decoded signal.
+ */
+double rhonn_id_health_gated_decode(uint32_t value);
+
+/**
+ * Check that given signal is in allowed range.
+ *
+ * @param[in] value Signal to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_gated_is_in_range(uint32_t value);
+
+/**
+ * Check that given physical value is in allowed range before encoding.
+ *
+ * Use this BEFORE calling _encode() to avoid silent integer overflow:
+ *   encode(-1.0) on a [0,100] signal wraps to 255 and passes is_in_range().
+ *   is_in_phys_range(-1.0) correctly returns false.
+ *
+ * @param[in] value Physical signal value to check.
+ *
+ * @return true if in range, false otherwise.
+ */
+bool rhonn_id_health_gated_is_in_phys_range(double value);
 
 
 #ifdef __cplusplus

@@ -1173,11 +1173,12 @@ static void print_health(FILE *f)
     if (fw_app_get_identifier(&app, &net) != FW_OK) {
         return;
     }
-    fprintf(f, "health:  neuron %12s %12s %12s %10s %8s %6s %7s %8s\n", "innovation", "e^2/s", "trace P", "updates",
-            "refused", "resets", "bounded", "fail run");
+    fprintf(f, "health:  neuron %12s %12s %12s %10s %8s %6s %7s %8s %8s\n", "innovation", "e^2/s", "trace P",
+            "updates", "refused", "resets", "bounded", "gated", "fail run");
     for (i = 0; rhonn_get_health(net, i, &h) == RHONN_OK; ++i) {
-        fprintf(f, "         %6zu %12.4g %12.4g %12.4g %10u %8u %6u %7u %8u\n", i, (double)h.innovation, (double)h.nis,
-                (double)h.trace_p, h.updates, h.rejected, h.resets, h.bounded, (unsigned)h.fail_run);
+        fprintf(f, "         %6zu %12.4g %12.4g %12.4g %10u %8u %6u %7u %8u %8u\n", i, (double)h.innovation,
+                (double)h.nis, (double)h.trace_p, h.updates, h.rejected, h.resets, h.bounded, h.gated,
+                (unsigned)h.fail_run);
     }
 }
 
@@ -1205,8 +1206,8 @@ static void json_health(FILE *f)
             json_number(f, (double)h.nis);
             fprintf(f, ", \"trace_p\": ");
             json_number(f, (double)h.trace_p);
-            fprintf(f, ", \"updates\": %u, \"rejected\": %u, \"resets\": %u, \"bounded\": %u, \"fail_run\": %u}",
-                    h.updates, h.rejected, h.resets, h.bounded, (unsigned)h.fail_run);
+            fprintf(f, ", \"updates\": %u, \"rejected\": %u, \"resets\": %u, \"bounded\": %u, \"gated\": %u, "
+                    "\"fail_run\": %u}", h.updates, h.rejected, h.resets, h.bounded, h.gated, (unsigned)h.fail_run);
         }
     }
     fprintf(f, "]");

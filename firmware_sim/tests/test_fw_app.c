@@ -106,6 +106,7 @@ static void pop_health(void)
         CHECK_STATUS(rhonn_get_health(net_of(&app), i, &want), RHONN_OK);
         CHECK(h.neuron == i && h.updates == want.updates && h.rejected == want.rejected);
         CHECK(h.resets == want.resets && h.bounded == want.bounded && h.fail_run == want.fail_run);
+        CHECK(h.gated == want.gated);
         CHECK(h.innovation_sat == 0 && h.nis_sat == 0 && h.trace_p_sat == 0);
         CHECK(h.innovation == (float)want.innovation && h.nis == (float)want.nis);
         CHECK(h.trace_p == (float)want.trace_p);

@@ -178,6 +178,10 @@ def layout(db) -> tuple[list[str], list[str]]:
         if (m.length, m.is_signed, m.scale, m.offset, m.minimum, m.maximum) != \
                 (e.length, e.is_signed, e.scale, e.offset, e.minimum, e.maximum):
             raise ValueError(f"Estimate.{s}Hat: must have Measurement.{s}'s length, scale and range")
+    health = db.get_message_by_name("Health")
+    if "Gated" not in [s.name for s in health.signals]:
+        raise ValueError(f"Health: no Gated signal (a DBC of protocol {db.version!r}, before rhonn_id 2.2, whose "
+                         "Health frame did not carry the gated updates): export it again with pyrhonn export --dbc")
     snake = [camel_to_snake_case(n) for n in names]
     if len(set(snake)) != len(snake):
         raise ValueError("Measurement: two signals have the same C name in cantools' generated code")
