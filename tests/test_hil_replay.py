@@ -388,6 +388,19 @@ def test_firmware_not_running_is_a_clear_timeout(transport) -> None:
         run_replay(SCENARIO.replace(duration=0.03), transport, firmware=False, reply_timeout=0.3)
 
 
+def test_a_rig_behind_its_schedule_still_takes_the_frames_already_waiting() -> None:
+    # on a slow host the loop may never get ahead of its deadlines: it must read what has arrived anyway,
+    # or it would count no answer and call a running firmware silent
+    with can.Bus(interface="virtual", channel="behind", receive_own_messages=False) as bus, \
+            can.Bus(interface="virtual", channel="behind") as firmware_side:
+        rig = Rig(bus, SCENARIO.build(), transport="virtual", channel="behind", spin_ns=0)
+        for _ in range(3):
+            firmware_side.send(can.Message(arbitration_id=EST.frame_id, is_extended_id=False, is_fd=True,
+                                  data=bytes(EST.length)))
+        rig._wait_until(0)  # a deadline long past: no waiting, but the waiting frames are taken
+        assert rig._n_rx == 3 and rig._n_est == 3
+
+
 def test_a_bus_that_disappears_mid_run_is_a_clear_error_and_the_frames_so_far_are_kept(tmp_path) -> None:
     sc = SCENARIO.replace(duration=0.06, frame_loss=0.0)
     with open_transport("virtual") as (bus, where, _side):
