@@ -11,6 +11,7 @@ import dataclasses
 import importlib.util
 import json
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -30,6 +31,8 @@ from hil.rig import read_log  # noqa: E402
 from hil.scenario import Scenario  # noqa: E402
 from hil.score import score  # noqa: E402
 
+from docs_blocks import blocks_by, commands  # noqa: E402
+
 ROOT = Path(__file__).resolve().parent.parent
 FW = ROOT / "firmware_sim"
 PERIOD = 3e-4
@@ -43,8 +46,10 @@ def _module(path: Path, name: str):
     return module
 
 
-def _write_plant(path: Path, n: int = 1200) -> None:
-    """x1(k+1) = 0.95 x1 + 0.05 x2, x2(k+1) = 0.9 x2 + 0.1 tanh(u(k-2)), u a random staircase."""
+def _write_plant(path: Path, n: int = 2000) -> None:
+    """x1(k+1) = 0.95 x1 + 0.05 x2, x2(k+1) = 0.9 x2 + 0.1 tanh(u(k-2)), u a random staircase: the
+    data.csv of docs/hil-any-identifier.md, so that the twin and the runner built here are the ones
+    the page's commands find in the build cache."""
     rng = np.random.default_rng(1)
     u = np.repeat(rng.uniform(-1, 1, n // 100 + 1), 100)[:n]
     x = np.zeros((n, 2))
@@ -208,17 +213,47 @@ def test_an_identifier_scenario_refuses_a_dbc_of_other_signals_and_the_lim_encod
     assert "runs the LIM only" in err
 
 
+def test_the_firmware_for_the_identifier_builds_by_hand_as_the_page_shows(exported, tmp_path) -> None:
+    # docs/hil-any-identifier.md's commands, run as written from a folder holding the page's files and
+    # the firmware sources: the protocol code, the runner and the twin, each in its own folder
+    [body] = blocks_by("docs/hil-any-identifier.md",
+                       "test_hil_identifier.py::test_the_firmware_for_the_identifier_builds_by_hand_as_the_page_shows")
+    if shutil.which("cc") is None:
+        pytest.skip("no C compiler")
+    for name in ("cfg.toml", "id.dbc"):
+        shutil.copy(exported["dir"] / name, tmp_path / name)
+    (tmp_path / "firmware_sim").symlink_to(FW, target_is_directory=True)
+    env = dict(os.environ)
+    env.pop("PYTHONPATH", None)
+    for line in commands(body):
+        argv = shlex.split(line)
+        proc = subprocess.run([sys.executable, *argv[1:]], capture_output=True, text=True, timeout=900,
+                              cwd=str(tmp_path), env=env)
+        assert proc.returncode == 0, f"`{line}`: {proc.stderr}{proc.stdout[-2000:]}"
+    assert (tmp_path / "build" / "id-protocol" / "rhonn_id_layout.h").exists()
+    assert (tmp_path / "build" / "id-runner" / "rhonn_runner").exists()
+    assert any((tmp_path / "build" / "id-twin").iterdir())
+
+
 @pytest.mark.skipif(any(shutil.which(t) is None for t in ("arm-none-eabi-gcc", "qemu-system-arm", "cmake"))
                     and os.environ.get("PYRHONN_REQUIRE_CORTEX_M4") != "1", reason="Cortex-M4 toolchain missing")
 def test_the_cortex_m4_image_of_the_identifier_sends_exactly_the_twins_frames(exported, tmp_path) -> None:
-    proc = subprocess.run([sys.executable, str(FW / "cortex_m4" / "run_m4.py"), "--identifier", str(exported["config"]),
-                           "--dbc", str(exported["dbc"]), "--trajectory", str(exported["data"]), "--out",
-                           str(tmp_path / "m4"), "--frames", "200", "--cycle-frames", "0", "--json",
-                           str(tmp_path / "m4.json")], capture_output=True, text=True, timeout=900, cwd=str(tmp_path))
+    # docs/hil-any-identifier.md's command, run as written on the page's file names (the fixture's), its
+    # report written to a JSON file as well
+    [body] = blocks_by("docs/hil-any-identifier.md",
+                       "test_hil_identifier.py::test_the_cortex_m4_image_of_the_identifier_sends_exactly_the_twins_frames")
+    [line] = commands(body)
+    argv = shlex.split(line)
+    assert argv[:2] == ["python", "firmware_sim/cortex_m4/run_m4.py"], line
+    for name in ("cfg.toml", "id.dbc", "data.csv"):
+        shutil.copy(exported["dir"] / name, tmp_path / name)
+    frames = int(argv[argv.index("--frames") + 1])
+    proc = subprocess.run([sys.executable, str(ROOT / argv[1]), *argv[2:], "--json", str(tmp_path / "m4.json")],
+                          capture_output=True, text=True, timeout=900, cwd=str(tmp_path))
     assert proc.returncode == 0, proc.stderr + proc.stdout[-2000:]
     report = json.loads((tmp_path / "m4.json").read_text())
     app = report["application"]
-    assert app["identical_to_host"] and app["lines_compared"] > 400
-    assert app["status_counts"] == {"FW_OK": 200, "FW_E_SEQ_REPEAT": 1, "FW_E_SEQ_JUMP": 1}
+    assert app["identical_to_host"] and app["lines_compared"] > 2 * frames
+    assert app["status_counts"] == {"FW_OK": frames, "FW_E_SEQ_REPEAT": 1, "FW_E_SEQ_JUMP": 1}
     assert report["capacities"]["RHONN_MAX_STATES"] == 2 and report["capacities"]["RHONN_MAX_DELAY"] >= 2
     assert app["soft_double_routines"] == []
