@@ -191,8 +191,8 @@ def test_a_shared_study_command_of_the_docs_runs_on_the_server(postgres_url: str
     [line] = commands(body)
     assert "postgresql://tuner@db.example/tuning" in line, line
     _plant_csv(tmp_path / "run.csv", 300, 4, 3)
-    run(["pyrhonn", "select", "run.csv", "--states", "x1,x2,x3,x4", "--inputs", "u", "--out", "base.toml"],
-        tmp_path, "a base config")
+    run(["pyrhonn", "select", "run.csv", "--states", "x1,x2,x3,x4", "--inputs", "u", "--max-delay", "1", "--degree", "1",
+         "--out", "base.toml"], tmp_path, "a base config")
     import sqlalchemy
 
     engine = sqlalchemy.create_engine(postgres_url, isolation_level="AUTOCOMMIT")
