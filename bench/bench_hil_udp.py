@@ -6,7 +6,7 @@ and once busy-polling (``hil bench``'s default, 149 us: it never sleeps) and,
 as the baseline in the same run, against the Python firmware node (the same
 firmware logic through cffi).
 
-    python bench/bench_hil_udp.py [--cycles N] [--rounds R] [--fifo PRIO] [--cpus RIG,FIRMWARE]
+    python bench/bench_hil_udp.py [--cycles N] [--rounds R] [--fifo PRIO] [--cpus RIG,FIRMWARE] [--results]
 
 For each it reports the share of estimates back within one period (at the
 rig's socket, by the kernel's receive timestamp, and picked up by the rig
@@ -95,7 +95,10 @@ def main(argv: list[str] | None = None) -> int:
                          "minute-to-minute noise falls on both (default 4)")
     ap.add_argument("--fifo", type=int, default=None, metavar="PRIO")
     ap.add_argument("--cpus", type=parse_cpu_pair, default=None, metavar="RIG,FIRMWARE")
+    ap.add_argument("--results", action="store_true", help="also write the figures to bench/results/hil_udp.json")
     args = ap.parse_args(argv)
+    if args.results:  # imported now: it notes the load average at the start of the run
+        from results_file import save  # noqa: E402 - beside this script
     policy = use_fifo(args.fifo)
     allowed = os.sched_getaffinity(0)
     if args.cpus is not None and not set(args.cpus) <= allowed:
@@ -130,6 +133,13 @@ def main(argv: list[str] | None = None) -> int:
     best = max(rows, key=lambda n: rows[n]["within"])
     print(f"(target: 99.9 % within one period; best here: {best}, {100 * rows[best]['within']:.3f} %; steal: "
           "what the hypervisor took from all CPUs during the variant's rounds)")
+    if args.results:
+        figures: dict = {"settings": {"cycles": args.cycles, "rounds": args.rounds, "policy": policy}}
+        for name, r in rows.items():
+            figures[name.replace(" ", "_").replace("-", "_")] = {
+                "within": r["within"], "picked_up": r["picked_up"], "p50_us": r["p50"], "p999_us": r["p999"],
+                "handling_us": r["handling"], "steal_ms": r["steal_ms"], "accounted": r["accounted"]}
+        save("hil_udp", figures, argv)
     return 0 if all(r["accounted"] for r in rows.values()) else 1
 
 

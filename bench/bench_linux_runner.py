@@ -5,7 +5,9 @@ is read against the 0.3 ms period (target: under 10 %), overruns against
 the cycle count (target on this shared VM: at most 0.1 %; zero on a
 real-time kernel).
 
-    python bench/bench_linux_runner.py [--cycles N] [--runner PATH]
+    python bench/bench_linux_runner.py [--cycles N] [--runner PATH] [--results]
+
+``--results`` also writes the figures to bench/results/linux_runner.json, which the docs quote.
 
 Builds the runner with cc when no --runner is given. Needs root (or
 CAP_SYS_NICE) for the SCHED_FIFO row; without it the runner says so and
@@ -38,7 +40,12 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cycles", type=int, default=100_000)
     ap.add_argument("--runner", type=Path)
+    ap.add_argument("--results", action="store_true", help="also write the figures to bench/results/linux_runner.json")
     args = ap.parse_args(argv)
+    if args.cycles < 1:
+        ap.error("--cycles: at least 1")
+    if args.results:  # imported now: it notes the load average at the start of the run
+        from results_file import save  # noqa: E402 - beside this script
     with tempfile.TemporaryDirectory() as tmp:
         runner = args.runner or build_runner(Path(tmp))
         rows = []
@@ -61,6 +68,16 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{r['policy']:14} {st['p99_us']:8.2f}u {st['p999_us']:10.2f}u {st['p999_us'] / PERIOD_US:12.2%} "
               f"{st['max_us']:8.1f}u {wk['p999_us']:10.1f}u {wk['max_us']:8.1f}u {r['overruns']:9d} "
               f"{100 * r['overruns'] / max(r['cycles'], 1):9.3f}%")
+    if args.results:
+        figures: dict = {"settings": {"cycles": args.cycles, "period_us": PERIOD_US}}
+        for label, r in rows:
+            st, wk = r["step"], r["wake-up"]
+            figures["fifo" if "FIFO" in label else "other"] = {
+                "policy": r["policy"], "step_p99_us": st["p99_us"], "step_p999_us": st["p999_us"],
+                "step_p999_of_period": st["p999_us"] / PERIOD_US, "step_max_us": st["max_us"],
+                "wake_p999_us": wk["p999_us"], "wake_max_us": wk["max_us"], "overruns": r["overruns"],
+                "overrun_share": r["overruns"] / max(r["cycles"], 1)}
+        save("linux_runner", figures, argv)
     return 0
 
 

@@ -16,6 +16,7 @@ an outlier.
 
     python bench/bench_soak.py            # 10^7 steps per precision (a few minutes)
     python bench/bench_soak.py --quick    # 10^6
+    python bench/bench_soak.py --results  # also write bench/results/soak.json (the docs quote it)
 """
 from __future__ import annotations
 
@@ -117,9 +118,14 @@ def outlier(config: IdentifierConfig, X: np.ndarray, U: np.ndarray) -> dict:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="10^6 steps per precision instead of 10^7")
+    ap.add_argument("--results", action="store_true", help="also write the figures to bench/results/soak.json")
     args = ap.parse_args(argv)
+    if args.results:  # imported now: it notes the load average at the start of the run
+        from results_file import save  # noqa: E402 - beside this script
     runs = 10 if args.quick else 100
     quiet = 1_000_000
+    figures: dict = {"settings": {"runs": runs, "run_samples": CHUNK, "steps": runs * CHUNK, "quiet_steps": quiet,
+                                  "quick": args.quick}}
     X64, U64 = lim_run()
     print(f"exciting data: {runs} runs of {CHUNK} LIM samples per config and precision "
           f"({runs * CHUNK:.0e} steps); quiet stretch {quiet:.0e} steps")
@@ -130,11 +136,13 @@ def main(argv: list[str] | None = None) -> int:
         for name, config in configs(dtype).items():
             t0 = time.perf_counter()
             r = exciting(config, X, U, runs)
+            entry = figures.setdefault(name.replace("-", "_"), {})[dtype] = {"exciting": r}
             print(f"{name:13} {dtype:7} {'(a) exciting':34} {r['max_w']:10.4g} {r['min_eig']:10.3g} "
                   f"{r['rejected']:8d} {r['resets']:7d} {time.perf_counter() - t0:8.1f}")
             for label, cfg in (("(c) outlier 1e6, no recovery", config),
                                ("(c) outlier 1e6, reset_after = 1", protected(config, reset_after=1))):
                 r = outlier(cfg, X, U)
+                entry["outlier_reset_after" if "reset_after" in label else "outlier"] = r
                 print(f"{name:13} {dtype:7} {label:34} {r['max_w']:10.4g} {r['min_eig']:10.3g} "
                       f"{r['rejected']:8d} {r['resets']:7d}")
             base = burst(config, X, U, 0)
@@ -143,6 +151,10 @@ def main(argv: list[str] | None = None) -> int:
             base_on = burst(protected(config, p_trace_max="trace0"), X, U, 0)
             print(f"{name:13} {dtype:7} (b) burst after quiet: no quiet {base:.3g} / {base_on:.3g} (off/on), "
                   f"protection off {off:.3g} ({off / base:.1f}x), on {on:.3g} ({on / base_on:.2f}x)")
+            entry["burst"] = {"no_quiet_off": base, "no_quiet_on": base_on, "off": off, "on": on,
+                              "off_ratio": off / base, "on_ratio": on / base_on}
+    if args.results:
+        save("soak", figures, argv)
     return 0
 
 

@@ -14,6 +14,7 @@ about speed. Best of several interleaved repeats, ratios from one run.
 
     python bench/bench_wide.py            # full run (about a minute)
     python bench/bench_wide.py --quick    # smoke run (CI)
+    python bench/bench_wide.py --results  # also write bench/results/wide.json (the docs quote it)
 """
 from __future__ import annotations
 
@@ -75,25 +76,35 @@ def ratio(cfg: IdentifierConfig, T: int, repeats: int, per_step: bool = False) -
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="small smoke run")
+    ap.add_argument("--results", action="store_true", help="also write the figures to bench/results/wide.json")
     args = ap.parse_args(argv)
+    if args.results:  # imported now: it notes the load average at the start of the run
+        from results_file import save  # noqa: E402 - beside this script
     T, T_step, repeats = (500, 200, 2) if args.quick else (20000, 5000, 5)
     sizes = range(2, 9)
     disagree = 0
+    figures: dict = {"settings": {"run_samples": T, "step_calls": T_step, "repeats": repeats, "quick": args.quick}}
     for per_step, samples, what in ((False, T, "Identifier.run"), (True, T_step, "Identifier.step, one call a sample")):
+        table = figures["step" if per_step else "run"] = {"load_1min": os.getloadavg()[0]}
         print(f"{what}: load average {os.getloadavg()[0]:.2f} (1 min); {samples} samples, best of {repeats}; "
               "ratio = neuron by neuron / side by side (* = rhonn_wide_pays sends it into the lanes)")
         print(f"{'dtype':<9}{'form':<6}" + "".join(f"{n:>9}" for n in sizes))
         for dtype in ("float64", "float32"):
             for form in (CovarianceForm.FULL, CovarianceForm.UD):
                 cells = []
+                row = table.setdefault(dtype, {})[form.value] = {}
                 for n in sizes:
                     r, advised = ratio(uniform_config(n, dtype, form), samples, repeats, per_step)
+                    row[str(n)] = {"ratio": r, "advised": advised}
                     # noise margin: a 10 % loss or gain either way is not a wrong call
                     wrong = (advised and r < 0.9) or (not advised and r > 1.1)
                     disagree += wrong
                     cells.append(f"{r:>7.2f}{'*' if advised else ' '}{'!' if wrong else ' '}")
                 print(f"{dtype:<9}{form.value:<6}" + "".join(cells))
     print(f"{disagree} advice(s) off by more than 10 % (!)" if disagree else "the advice agrees with the times")
+    if args.results:
+        figures["advice_off"] = disagree
+        save("wide", figures, argv)
     return 0
 
 

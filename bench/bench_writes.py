@@ -10,6 +10,7 @@ load); the comparison is their ratio.
 
     python bench/bench_writes.py              # in a temporary folder
     python bench/bench_writes.py --dir DIR    # on the disk that holds DIR
+    python bench/bench_writes.py --results    # also write bench/results/writes.json (the docs quote it)
 """
 from __future__ import annotations
 
@@ -85,15 +86,27 @@ def main() -> None:
     ap.add_argument("--dir", type=Path, default=None, help="folder to write in (default: a temporary one)")
     ap.add_argument("--repeats", type=int, default=20)
     ap.add_argument("--duration", type=float, default=4.0, help="seconds of the replayed run (default 4)")
+    ap.add_argument("--results", action="store_true", help="also write the figures to bench/results/writes.json")
     args = ap.parse_args()
+    if args.repeats < 1 or not args.duration > 0:
+        ap.error("--repeats: at least 1; --duration: above 0")
+    if args.results:  # imported now: it notes the load average at the start of the run
+        from results_file import save  # noqa: E402 - beside this script
     with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
         folder = Path(tmp)
         plain, whole = bench_save(folder, args.repeats)
         print(f"Identifier.save (example1): plain {plain * 1e3:.2f} ms, whole "
               f"{whole * 1e3:.2f} ms, x{whole / plain:.2f}")
+        save_ms = {"plain_ms": plain * 1e3, "whole_ms": whole * 1e3, "ratio": whole / plain}
         frames, plain, whole = bench_log(folder, max(3, args.repeats // 4), args.duration)
         print(f"hil log ({frames} frames, BLF): plain {plain * 1e3:.0f} ms, whole with SHA-256 "
               f"{whole * 1e3:.0f} ms, x{whole / plain:.2f}")
+    if args.results:
+        save("writes", {"settings": {"repeats": args.repeats, "log_repeats": max(3, args.repeats // 4),
+                                     "duration_s": args.duration, "folder": "given" if args.dir else "temporary"},
+                        "identifier_save": save_ms,
+                        "hil_log": {"frames": frames, "plain_ms": plain * 1e3, "whole_ms": whole * 1e3,
+                                    "ratio": whole / plain}})
 
 
 if __name__ == "__main__":

@@ -84,9 +84,11 @@ def population_calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     return calls
 
 
-def write_two_state_plant(path: Path, n: int = 1200, period: float = 3e-4) -> None:
+def write_two_state_plant(path: Path, n: int = 2000, period: float = 3e-4) -> None:
     """A recording of a small plant for the any-identifier tests (2 states, 1 input acting 2 samples
-    late): x1(k+1) = 0.95 x1 + 0.05 x2, x2(k+1) = 0.9 x2 + 0.1 tanh(u(k-2)), u a random staircase."""
+    late): x1(k+1) = 0.95 x1 + 0.05 x2, x2(k+1) = 0.9 x2 + 0.1 tanh(u(k-2)), u a random staircase.
+    By default the data.csv of docs/hil-any-identifier.md, so that the twin and the runner built by the
+    tests are the ones the page's commands find in the build cache."""
     import numpy as np
 
     rng = np.random.default_rng(1)

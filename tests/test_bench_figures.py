@@ -43,7 +43,8 @@ def _references(hooks: ModuleType) -> list[tuple[Path, str, str, str | None, boo
 
 def test_the_docs_quote_benchmark_figures_through_references(hooks: ModuleType) -> None:
     names = {name for _, name, _, _, _ in _references(hooks)}
-    assert {"cortex_m4", "core_vs_dense", "real_data", "identifier", "xcp", "structure", "population"} <= names
+    assert {"cortex_m4", "core_vs_dense", "real_data", "identifier", "xcp", "structure", "population", "writes",
+            "wide", "linux_runner", "soak", "hil_udp"} <= names
 
 
 def test_every_figure_reference_in_the_docs_resolves_against_bench_results(hooks: ModuleType) -> None:
@@ -191,3 +192,24 @@ def test_results_writer_replaces_the_file_whole_and_refuses_bad_figures(tmp_path
     assert sorted(p.name for p in tmp_path.iterdir()) == ["demo.json"]
     writer.save("demo", {"free_run": [math.inf, math.nan, 0.5]}, [], folder=tmp_path)  # a diverged run
     assert json.loads(path.read_text(encoding="utf-8"))["figures"] == {"free_run": ["inf", "nan", 0.5]}
+
+
+def test_bench_commands_of_the_docs_write_the_results_files_they_name() -> None:
+    # each script of docs/contributing-docs.md's list takes --results and writes the file the line
+    # names (results_file.save with that name), and that file is committed; the runs themselves take
+    # minutes to an hour, so they are not repeated here
+    from docs_blocks import blocks_by, commands
+
+    lines = [line for body in blocks_by("docs/contributing-docs.md",
+                                        "test_bench_figures.py::test_bench_commands_of_the_docs_write_the_results_files_they_name")
+             for line in commands(body)]
+    assert len(lines) >= 7
+    for line in lines:
+        m = re.fullmatch(r"python (bench/bench_(\w+)\.py)(?: [^#]*)? --results(?: [^#]*)?\s*# (bench/results/(\w+)\.json)", line)
+        assert m, f"docs/contributing-docs.md: `{line}` is not `python bench/bench_NAME.py ... --results  # bench/results/NAME.json`"
+        script, name, results, named = m.groups()
+        assert name == named, line
+        source = (ROOT / script).read_text(encoding="utf-8")
+        assert '"--results"' in source and re.search(rf'save\(\s*"{name}"', source), f"{script} does not write {results}"
+        assert (ROOT / results).exists(), f"{results} is not committed"
+        assert json.loads((ROOT / results).read_text(encoding="utf-8"))["bench"] == name

@@ -14,12 +14,14 @@ from pathlib import Path
 
 import pytest
 
+from docs_blocks import blocks_by, commands
+
 ROOT = Path(__file__).resolve().parent.parent
 CMAKE = shutil.which("cmake")
 CC = shutil.which("cc")
 pytestmark = pytest.mark.skipif(CMAKE is None or CC is None, reason="needs cmake and cc")
 # Capacities other than the defaults, so that a consumer missing them would see another rhonn_t.
-CAPACITIES = "RHONN_MAX_STATES=6;RHONN_MAX_TERMS=7;RHONN_MAX_DELAY=2"
+CAPACITIES = "RHONN_MAX_STATES=6;RHONN_MAX_TERMS=7"
 
 USE_C = ('#include <stdio.h>\n#include "rhonn.h"\n'
          "int main(void) { static rhonn_t net;\n"
@@ -34,13 +36,24 @@ def cmake(*args: str) -> str:
     return proc.stdout
 
 
+LABEL = "test_cmake_install.py::test_the_firmware_pages_commands_install_the_library_and_build_a_program"
+
+
+def _moved(line: str, tmp: Path) -> str:
+    """A command of docs/firmware.md with its `build` folder and its /opt/rhonn prefix in ``tmp``."""
+    return line.replace("/opt/rhonn", str(tmp / "prefix")).replace(" build", f" {tmp / 'build'}")
+
+
 @pytest.fixture(scope="module")
 def prefix(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The library built and installed by docs/firmware.md's commands, as written (its build folder and
+    prefix moved to a temporary folder), with the page's capacities."""
     tmp = tmp_path_factory.mktemp("install")
-    cmake("-S", str(ROOT), "-B", str(tmp / "build"), "-DRHONN_BUILD_TESTS=OFF",
-          f"-DRHONN_CAPACITY_DEFINES={CAPACITIES}")
-    cmake("--build", str(tmp / "build"), "-j", "2")
-    cmake("--install", str(tmp / "build"), "--prefix", str(tmp / "prefix"))
+    install = blocks_by("docs/firmware.md", LABEL)[0]
+    assert CAPACITIES in install, "docs/firmware.md builds with other capacities than this test reads"
+    for line in commands(install):
+        proc = subprocess.run(["bash", "-ec", _moved(line, tmp)], cwd=ROOT, capture_output=True, text=True)
+        assert proc.returncode == 0, f"docs/firmware.md: `{line}`: {proc.stdout}{proc.stderr}"
     return tmp / "prefix"
 
 
@@ -131,3 +144,18 @@ def test_as_a_subproject_it_builds_no_tests_unless_asked(tmp_path: Path) -> None
     # on its own (top level) the default stays on
     cmake("-S", str(ROOT), "-B", str(tmp_path / "top"))
     assert "RHONN_BUILD_TESTS:BOOL=ON" in (tmp_path / "top" / "CMakeCache.txt").read_text()
+
+
+@pytest.mark.skipif(shutil.which("pkg-config") is None, reason="no pkg-config")
+def test_the_firmware_pages_commands_install_the_library_and_build_a_program(tmp_path: Path, prefix: Path) -> None:
+    # the page's first block built `prefix` (the fixture); its second compiles a program against it
+    install, compile_ = blocks_by(
+        "docs/firmware.md", "test_cmake_install.py::test_the_firmware_pages_commands_install_the_library_and_build_a_program")
+    assert install == blocks_by("docs/firmware.md", LABEL)[0]   # the block the fixture ran
+    assert "cmake --install" in install and (prefix / "lib" / "pkgconfig" / "rhonn_f32.pc").exists()
+    (tmp_path / "app.c").write_text(USE_C)
+    script = "\n".join(_moved(line, prefix.parent) for line in commands(compile_))
+    proc = subprocess.run(["bash", "-ec", script], cwd=tmp_path, capture_output=True, text=True)
+    assert proc.returncode == 0, f"docs/firmware.md: {script}: {proc.stdout}{proc.stderr}"
+    out = subprocess.run([str(tmp_path / "a.out")], capture_output=True, text=True, check=True).stdout
+    assert out.split()[:2] == ["4", "6"]   # float (rhonn_f32), the page's RHONN_MAX_STATES

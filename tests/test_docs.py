@@ -5,7 +5,7 @@ README and the docs runs as written, and the README links only to files that
 exist."""
 from __future__ import annotations
 
-import os
+import ast
 import re
 import shlex
 import shutil
@@ -17,6 +17,8 @@ from pathlib import Path
 import pytest
 
 from pyrhonn.plants import lim, robot
+
+from docs_blocks import code_blocks, run, transcript_matches
 
 ROOT = Path(__file__).resolve().parents[1]
 PLANTS_MD = ROOT / "docs" / "plants.md"
@@ -150,38 +152,36 @@ def test_plants_md_lim_constants_match_the_code():
 # The convention (stated in docs/contributing-docs.md):
 # - ```python blocks are executed, ```bash blocks run with `bash -e`, ```c blocks compiled against the
 #   core (csrc/include); a page's blocks run in order in one fresh folder (a later block may use a file
-#   an earlier one wrote), with `csrc` linked into it and the installed `pyrhonn` on PATH.
+#   an earlier one wrote), with `csrc` and `firmware_sim` linked into it and the installed `pyrhonn` on PATH.
 # - `<!-- docs-test: file NAME -->` on the line before a block writes the block to NAME instead (a C
 #   file a later ```bash block builds, a CSV a command reads); an unnamed ```c block is compiled alone.
-# - `<!-- docs-test: skip REASON -->` before a block leaves it out; a REASON is required.
 # - `<!-- docs-test: transcript -->` before a ```console block runs each `$ ` command in it and
-#   requires the lines after it, up to the next `$ ` line, to be exactly what the command prints.
-# - ```console (a transcript: a `$ ` command and its output), ```sh (a command that needs what a test
-#   does not have: your own recordings, a CAN interface, a database, a long run), ```toml and ```csv
-#   are shown, not run.
+#   requires the lines after it, up to the next `$ ` line, to be what the command prints (a line
+#   `...` stands for lines left out).
+# - `<!-- docs-test: by FILE::TEST -->` before a block whose command needs what this test process
+#   does not have (a CAN interface, the VM tier, a database, a running runner, a long run): the named
+#   test of tests/FILE reads this block from the page (docs_blocks.blocks_by) and runs or checks it.
+# - `<!-- docs-test: skip REASON -->` before a block that is not a command (an excerpt of a written
+#   file); a REASON is required.
+# - ```toml, ```csv, ```text and unnamed blocks are shown, not run. No page holds a ```sh block or a
+#   ```console block that is not a transcript: each command is run by one of the rules above.
 
 PAGES = sorted([ROOT / "README.md", *(ROOT / "docs").glob("*.md")])
 RUNNABLE = ("python", "bash", "c")
-BLOCK = re.compile(r"(?:^<!-- docs-test: (?P<marker>[a-z]+)(?: (?P<arg>[^\n]*?))? -->\n)?"
-                   r"^```(?P<lang>[A-Za-z0-9_+-]*)[^\n]*\n(?P<body>.*?)^```[ \t]*$", re.M | re.S)
+MARKERS = ("skip", "file", "transcript", "by")
 CC = shutil.which("cc") or shutil.which("gcc")
 
 
-def code_blocks(markdown: str) -> list[tuple[str, str, str | None, str | None]]:
-    """``(lang, body, marker, arg)`` of every fenced block of a page, in order."""
-    return [(m["lang"], m["body"], m["marker"], m["arg"]) for m in BLOCK.finditer(markdown)]
-
-
 def test_code_block_reader_reads_languages_markers_and_bodies():
-    text = ("intro\n```python\nprint(1)\n```\n<!-- docs-test: skip needs a CAN bus -->\n```bash\ncandump x\n```\n"
+    text = ("intro\n```python\nprint(1)\n```\n<!-- docs-test: by test_x.py::test_y -->\n```bash\ncandump x\n```\n"
             "<!-- docs-test: file app.c -->\n```c\nint main(void) { return 0; }\n```\n```console\n$ ls\n```\n")
-    assert code_blocks(text) == [("python", "print(1)\n", None, None), ("bash", "candump x\n", "skip", "needs a CAN bus"),
+    assert code_blocks(text) == [("python", "print(1)\n", None, None), ("bash", "candump x\n", "by", "test_x.py::test_y"),
                                  ("c", "int main(void) { return 0; }\n", "file", "app.c"),
                                  ("console", "$ ls\n", None, None)]
 
 
 def _runnable_pages() -> list[Path]:
-    return [p for p in PAGES if any((lang in RUNNABLE and marker != "skip") or marker == "transcript"
+    return [p for p in PAGES if any((lang in RUNNABLE and marker not in ("skip", "by")) or marker == "transcript"
                                     for lang, _, marker, _ in code_blocks(p.read_text(encoding="utf-8")))]
 
 
@@ -200,17 +200,88 @@ def test_transcript_reader_pairs_commands_with_their_output():
     assert transcript_steps("$ a x\none\ntwo  \n$ b\n") == [("a x", "one\ntwo"), ("b", "")]
 
 
+def test_a_transcript_line_of_dots_stands_for_lines_left_out_and_nothing_else():
+    printed = "head\n  a 1\n  b 2\n  c 3  \n"
+    assert transcript_matches(printed, "head\n  a 1\n  b 2\n  c 3")
+    assert transcript_matches(printed, "head\n  a 1\n  ...")
+    assert transcript_matches(printed, "head\n...\n  c 3")
+    assert transcript_matches(printed, "head\n  a 1\n...\n  b 2\n  c 3")      # none left out
+    assert not transcript_matches(printed, "head\n  a 1")                     # the rest is not shown
+    assert not transcript_matches(printed, "head\n  a 9\n  ...")             # a shown line differs
+    assert not transcript_matches(printed, "...\n  b 2")
+
+
 def test_markers_name_a_known_action_with_its_argument():
     for page in PAGES:
         for lang, body, marker, arg in code_blocks(page.read_text(encoding="utf-8")):
             where = f"{page.relative_to(ROOT)}: a ```{lang} block"
-            assert marker in (None, "skip", "file", "transcript"), f"{where}: unknown marker {marker!r}"
+            assert marker in (None, *MARKERS), f"{where}: unknown marker {marker!r}"
             assert (marker in (None, "transcript")) == (not arg), \
                 f"{where}: `docs-test: {marker}` takes {'no argument' if marker == 'transcript' else 'a reason or file name'}"
             if marker == "transcript":
                 assert lang == "console" and body.startswith("$ "), f"{where}: a transcript is a ```console block of `$ ` lines"
             if marker == "file":
                 assert "/" not in arg and not arg.startswith("."), f"{where}: file {arg!r} must be a plain name"
+            if marker == "by":
+                assert re.fullmatch(r"test_\w+\.py::test_\w+", arg), f"{where}: `by` names FILE.py::TEST, not {arg!r}"
+
+
+#: Blocks still shown without a test, by page and first line: the HIL recording's transcript (a 4 s
+#: replay) and the recordings benchmark's commands. The list only shrinks: an entry whose block is gone
+#: or runs fails the test below.
+NOT_YET_RUN = {
+    ("docs/can-log.md", "$ pyrhonn identify --can-log lim.blf --dbc firmware_sim/rhonn_id.dbc --config lim.toml --out id"),
+    ("docs/recordings.md", "python bench/bench_recordings.py                      # 10,001 lossy frames in every format, then 10^6 samples"),
+}
+
+
+def test_no_page_shows_a_command_that_no_test_runs():
+    # a ```sh block or a bare ```console block would be shown and never run: it would go stale
+    shown = {(page.relative_to(ROOT).as_posix(), body.splitlines()[0] if body else "")
+             for page in PAGES for lang, body, marker, _ in code_blocks(page.read_text(encoding="utf-8"))
+             if lang in ("sh", "shell", "zsh") or (lang == "console" and marker != "transcript")}
+    new = sorted(shown - NOT_YET_RUN)
+    assert not new, "commands no test runs (see docs/contributing-docs.md):\n" + "\n".join(f"{p}: {f}" for p, f in new)
+    assert not NOT_YET_RUN - shown, f"run now or gone, take them off NOT_YET_RUN: {sorted(NOT_YET_RUN - shown)}"
+
+
+def _test_reads_block(source: str, test: str, page: str, label: str) -> bool:
+    """Whether the function ``test`` of a test file's ``source`` calls ``blocks_by`` and names both
+    ``page`` and ``label`` (as string literals: directly in the call, or in a variable it passes)."""
+    for node in ast.parse(source).body:
+        if isinstance(node, ast.FunctionDef) and node.name == test:
+            calls = any(isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "blocks_by"
+                        for n in ast.walk(node))
+            literals = {n.value for n in ast.walk(node) if isinstance(n, ast.Constant)}
+            return calls and {page, label} <= literals
+    return False
+
+
+def test_reader_of_by_markers_finds_the_call_in_the_named_test():
+    src = ('def test_a():\n    body = blocks_by("docs/x.md", "test_f.py::test_a")\n\ndef test_b():\n    pass\n'
+           'def test_c():\n    label = "test_f.py::test_c"\n    return [blocks_by(p, label) for p in ("docs/x.md",)]\n'
+           'def test_d():\n    return "docs/x.md", "test_f.py::test_d"\n')
+    assert _test_reads_block(src, "test_a", "docs/x.md", "test_f.py::test_a")
+    assert _test_reads_block(src, "test_c", "docs/x.md", "test_f.py::test_c")
+    assert not _test_reads_block(src, "test_b", "docs/x.md", "test_f.py::test_b")
+    assert not _test_reads_block(src, "test_a", "docs/y.md", "test_f.py::test_a")
+    assert not _test_reads_block(src, "test_d", "docs/x.md", "test_f.py::test_d")   # names it, reads nothing
+
+
+def test_every_by_marker_names_a_test_that_reads_the_block_from_the_page():
+    found = 0
+    for page in PAGES:
+        name = page.relative_to(ROOT).as_posix()
+        for _, _, marker, arg in code_blocks(page.read_text(encoding="utf-8")):
+            if marker != "by":
+                continue
+            found += 1
+            file, test = arg.split("::")
+            path = ROOT / "tests" / file
+            assert path.exists(), f"{name}: `docs-test: by {arg}`: there is no tests/{file}"
+            assert _test_reads_block(path.read_text(encoding="utf-8"), test, name, arg), \
+                f"{name}: `docs-test: by {arg}`: tests/{file} has no {test} that calls blocks_by({name!r}, {arg!r})"
+    assert found, "no block is marked `docs-test: by`"
 
 
 def test_readme_and_docs_hold_runnable_examples():
@@ -221,44 +292,36 @@ def test_readme_and_docs_hold_runnable_examples():
     assert len(_runnable_pages()) >= 3
 
 
-def _run(cmd: list[str], cwd: Path, what: str) -> str:
-    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}",
-               MPLBACKEND="Agg")
-    env.pop("PYTHONPATH", None)
-    res = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=300, check=False)
-    assert res.returncode == 0, f"{what} failed (exit {res.returncode}):\n{res.stdout[-3000:]}\n{res.stderr[-3000:]}"
-    return res.stdout + res.stderr
-
-
 @pytest.mark.parametrize("page", _runnable_pages(), ids=lambda p: p.relative_to(ROOT).as_posix())
 def test_code_examples_run_as_written(page: Path, tmp_path: Path) -> None:
     if CC is None:
         pytest.skip("no C compiler (cc) on PATH")
-    (tmp_path / "csrc").symlink_to(ROOT / "csrc", target_is_directory=True)
+    for folder in ("csrc", "firmware_sim"):   # the top folder of a checkout, as the pages' commands expect
+        (tmp_path / folder).symlink_to(ROOT / folder, target_is_directory=True)
     for n, (lang, body, marker, arg) in enumerate(code_blocks(page.read_text(encoding="utf-8"))):
         what = f"{page.relative_to(ROOT)}, block {n + 1} (```{lang})"
-        if marker == "skip":
+        if marker in ("skip", "by"):
             continue
         if marker == "file":
             (tmp_path / arg).write_text(body, encoding="utf-8")
             continue
         if marker == "transcript":
             for cmd, expected in transcript_steps(body):
-                printed = "\n".join(line.rstrip() for line in _run(["bash", "-ec", cmd], tmp_path, what).splitlines())
-                assert printed.strip("\n") == expected, f"{what}: `{cmd}` prints\n{printed}\nnot\n{expected}"
+                printed = run(["bash", "-ec", cmd], tmp_path, what)
+                assert transcript_matches(printed, expected), f"{what}: `{cmd}` prints\n{printed}\nnot\n{expected}"
             continue
         if lang == "python":
             script = tmp_path / f"block{n + 1}.py"
             script.write_text(body, encoding="utf-8")
-            _run([sys.executable, script.name], tmp_path, what)
+            run([sys.executable, script.name], tmp_path, what)
         elif lang == "bash":
             script = tmp_path / f"block{n + 1}.sh"
             script.write_text(body, encoding="utf-8")
-            _run(["bash", "-e", script.name], tmp_path, what)
+            run(["bash", "-e", script.name], tmp_path, what)
         elif lang == "c":
             source = tmp_path / f"block{n + 1}.c"
             source.write_text(body, encoding="utf-8")
-            _run([*shlex.split(CC), "-std=c99", "-Wall", "-Werror", "-fsyntax-only", f"-I{ROOT / 'csrc' / 'include'}",
+            run([*shlex.split(CC), "-std=c99", "-Wall", "-Werror", "-fsyntax-only", f"-I{ROOT / 'csrc' / 'include'}",
                   "-I.", source.name], tmp_path, what)
 
 

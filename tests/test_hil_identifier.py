@@ -11,6 +11,7 @@ import dataclasses
 import importlib.util
 import json
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -28,6 +29,8 @@ from pyrhonn.firmware import FirmwareApp, Protocol, lim_protocol  # noqa: E402
 from hil.rig import read_log  # noqa: E402
 from hil.scenario import Scenario  # noqa: E402
 from hil.score import score  # noqa: E402
+
+from docs_blocks import blocks_by, commands  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 FW = ROOT / "firmware_sim"
@@ -256,7 +259,7 @@ def test_hil_bench_and_the_python_node_refuse_a_half_given_or_mismatched_identif
     assert "--trajectory: an identifier's plant is a recording" in err
     err = cli_error(["hil", "bench", "--cycles", "5000", "--transport", "virtual", "--identifier",
                      str(exported["config"]), "--dbc", str(exported["dbc"]), "--trajectory", str(exported["data"])])
-    assert "--trajectory:" in err and "covers t = 0..0.3597 s" in err
+    assert "--trajectory:" in err and "covers t = 0..0.5997 s" in err
     node = ["--channel", "239.74.163.2", "--port", "29999", "--duration", "0"]
     assert firmware_node.main([*node, "--identifier", str(exported["config"])]) == 2
     assert "--identifier, --dbc: an identifier's config file and its DBC go together" in capsys.readouterr().err
@@ -270,17 +273,47 @@ def test_hil_bench_and_the_python_node_refuse_a_half_given_or_mismatched_identif
     assert "--identifier: " in err and "the firmware runs the float32 core" in err
 
 
+def test_the_firmware_for_the_identifier_builds_by_hand_as_the_page_shows(exported, tmp_path) -> None:
+    # docs/hil-any-identifier.md's commands, run as written from a folder holding the page's files and
+    # the firmware sources: the protocol code, the runner and the twin, each in its own folder
+    [body] = blocks_by("docs/hil-any-identifier.md",
+                       "test_hil_identifier.py::test_the_firmware_for_the_identifier_builds_by_hand_as_the_page_shows")
+    if shutil.which("cc") is None:
+        pytest.skip("no C compiler")
+    for name in ("cfg.toml", "id.dbc"):
+        shutil.copy(exported["dir"] / name, tmp_path / name)
+    (tmp_path / "firmware_sim").symlink_to(FW, target_is_directory=True)
+    env = dict(os.environ)
+    env.pop("PYTHONPATH", None)
+    for line in commands(body):
+        argv = shlex.split(line)
+        proc = subprocess.run([sys.executable, *argv[1:]], capture_output=True, text=True, timeout=900,
+                              cwd=str(tmp_path), env=env)
+        assert proc.returncode == 0, f"`{line}`: {proc.stderr}{proc.stdout[-2000:]}"
+    assert (tmp_path / "build" / "id-protocol" / "rhonn_id_layout.h").exists()
+    assert (tmp_path / "build" / "id-runner" / "rhonn_runner").exists()
+    assert any((tmp_path / "build" / "id-twin").iterdir())
+
+
 @pytest.mark.skipif(any(shutil.which(t) is None for t in ("arm-none-eabi-gcc", "qemu-system-arm", "cmake"))
                     and os.environ.get("PYRHONN_REQUIRE_CORTEX_M4") != "1", reason="Cortex-M4 toolchain missing")
 def test_the_cortex_m4_image_of_the_identifier_sends_exactly_the_twins_frames(exported, tmp_path) -> None:
-    proc = subprocess.run([sys.executable, str(FW / "cortex_m4" / "run_m4.py"), "--identifier", str(exported["config"]),
-                           "--dbc", str(exported["dbc"]), "--trajectory", str(exported["data"]), "--out",
-                           str(tmp_path / "m4"), "--frames", "200", "--cycle-frames", "0", "--json",
-                           str(tmp_path / "m4.json")], capture_output=True, text=True, timeout=900, cwd=str(tmp_path))
+    # docs/hil-any-identifier.md's command, run as written on the page's file names (the fixture's), its
+    # report written to a JSON file as well
+    [body] = blocks_by("docs/hil-any-identifier.md",
+                       "test_hil_identifier.py::test_the_cortex_m4_image_of_the_identifier_sends_exactly_the_twins_frames")
+    [line] = commands(body)
+    argv = shlex.split(line)
+    assert argv[:2] == ["python", "firmware_sim/cortex_m4/run_m4.py"], line
+    for name in ("cfg.toml", "id.dbc", "data.csv"):
+        shutil.copy(exported["dir"] / name, tmp_path / name)
+    frames = int(argv[argv.index("--frames") + 1])
+    proc = subprocess.run([sys.executable, str(ROOT / argv[1]), *argv[2:], "--json", str(tmp_path / "m4.json")],
+                          capture_output=True, text=True, timeout=900, cwd=str(tmp_path))
     assert proc.returncode == 0, proc.stderr + proc.stdout[-2000:]
     report = json.loads((tmp_path / "m4.json").read_text())
     app = report["application"]
-    assert app["identical_to_host"] and app["lines_compared"] > 400
-    assert app["status_counts"] == {"FW_OK": 200, "FW_E_SEQ_REPEAT": 1, "FW_E_SEQ_JUMP": 1}
+    assert app["identical_to_host"] and app["lines_compared"] > 2 * frames
+    assert app["status_counts"] == {"FW_OK": frames, "FW_E_SEQ_REPEAT": 1, "FW_E_SEQ_JUMP": 1}
     assert report["capacities"]["RHONN_MAX_STATES"] == 2 and report["capacities"]["RHONN_MAX_DELAY"] >= 2
     assert app["soft_double_routines"] == []

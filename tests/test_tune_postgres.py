@@ -24,6 +24,9 @@ from typing import Iterator
 
 import pytest
 
+from docs_blocks import blocks_by, commands, run
+from test_docs_commands import _few_trials, _plant_csv
+
 REQUIRED = os.environ.get("PYRHONN_REQUIRE_POSTGRES") == "1"
 TRIALS = 24
 
@@ -178,3 +181,25 @@ def test_an_unreachable_database_is_named_as_the_study_option(tmp_path: Path) ->
     assert proc.returncode == 2
     assert f"--study: cannot use the database '{url}'" in proc.stderr, proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_a_shared_study_command_of_the_docs_runs_on_the_server(postgres_url: str, tmp_path: Path) -> None:
+    # docs/selection-and-tuning.md's command with its database URL pointed at this server and 2 trials;
+    # the record is a small stand-in and base.toml a config selected from it
+    [body] = blocks_by("docs/selection-and-tuning.md",
+                       "test_tune_postgres.py::test_a_shared_study_command_of_the_docs_runs_on_the_server")
+    [line] = commands(body)
+    assert "postgresql://tuner@db.example/tuning" in line, line
+    _plant_csv(tmp_path / "run.csv", 300, 4, 3)
+    run(["pyrhonn", "select", "run.csv", "--states", "x1,x2,x3,x4", "--inputs", "u", "--max-delay", "1", "--degree", "1",
+         "--out", "base.toml"], tmp_path, "a base config")
+    import sqlalchemy
+
+    engine = sqlalchemy.create_engine(postgres_url, isolation_level="AUTOCOMMIT")
+    with engine.connect() as conn:   # the page's database, on this server (its own study)
+        conn.execute(sqlalchemy.text("CREATE DATABASE tuning"))
+    engine.dispose()
+    url = postgres_url.rsplit("/", 1)[0] + "/tuning"
+    out = run(["bash", "-ec", _few_trials(line.replace("postgresql://tuner@db.example/tuning", url))],
+              tmp_path, f"docs/selection-and-tuning.md: `{line}`", timeout=600)
+    assert re.search(r"^ran 2 trials; the study has 2", out, re.M), out[-2000:]
