@@ -383,9 +383,12 @@ static void test_daq_sends_one_sample_per_step_with_timestamp(void)
         CHECK(ts == (uint32_t)(now / 1000u) && meas == (uint32_t)k + 1u);
         CHECK_STATUS(rhonn_get_weights(net, 0, w, LIM_IDENTIFIER.neurons[0].n_terms), RHONN_OK);
         {
-            float f0;
+            float f0, x0;
+            rhonn_real xhat[FW_N_STATES];
             memcpy(&f0, pkts[1] + 1, 4);
-            CHECK(f0 == (float)w[0]);
+            memcpy(&x0, pkts[1] + 1 + 48, 4);
+            CHECK_STATUS(rhonn_get_prediction(net, xhat, FW_N_STATES), RHONN_OK);
+            CHECK(f0 == (float)w[0] && x0 == (float)xhat[0]); /* the entries' signals refreshed */
         }
     }
     CHECK(img.signals.daq_dto_sent == 40u && img.signals.daq_dto_lost == 0u && img.signals.events == 20u);
@@ -405,6 +408,51 @@ static void test_daq_sends_one_sample_per_step_with_timestamp(void)
         CHECK(step() == FW_OK);
     }
     CHECK(n_pkts == 6u);
+}
+
+/* Deferred: the step event sends nothing; fw_xcp_poll, or else the next
+ * frame, sends the same bytes the event would have sent. */
+static void test_a_deferred_sample_equals_the_one_sent_inside_the_step(void)
+{
+    uint8_t eager[3][2][FW_XCP_MAX_DTO];
+    size_t eager_len[3][2];
+    int k;
+    now = 1000000u;
+    setup();
+    connect();
+    CHECK_FW(unlock(0x04, 1), FW_OK);
+    program_daq(1);
+    for (k = 0; k < 3; ++k) {
+        n_pkts = 0;
+        CHECK(step() == FW_OK && n_pkts == 2u);
+        memcpy(eager[k], pkts, sizeof eager[k]);
+        eager_len[k][0] = pkt_len[0];
+        eager_len[k][1] = pkt_len[1];
+    }
+    now = 1000000u;
+    setup();
+    connect();
+    CHECK_FW(unlock(0x04, 1), FW_OK);
+    program_daq(1);
+    CHECK_FW(fw_xcp_set_deferred(&xcp, 1), FW_OK);
+    n_pkts = 0;
+    CHECK(step() == FW_OK && n_pkts == 0u); /* noted, not sent */
+    CHECK_FW(fw_xcp_poll(&xcp, &app), FW_OK);
+    CHECK(n_pkts == 2u && pkt_len[0] == eager_len[0][0] && pkt_len[1] == eager_len[0][1]);
+    CHECK(memcmp(pkts[0], eager[0][0], pkt_len[0]) == 0 && memcmp(pkts[1], eager[0][1], pkt_len[1]) == 0);
+    n_pkts = 0;
+    CHECK_FW(fw_xcp_poll(&xcp, &app), FW_OK); /* nothing left */
+    CHECK(n_pkts == 0u);
+    CHECK(step() == FW_OK && n_pkts == 0u);
+    CHECK(step() == FW_OK && n_pkts == 2u); /* no poll between: the frame sent the first before stepping */
+    CHECK(memcmp(pkts[0], eager[1][0], pkt_len[0]) == 0 && memcmp(pkts[1], eager[1][1], pkt_len[1]) == 0);
+    n_pkts = 0;
+    CHECK_FW(fw_xcp_poll(&xcp, &app), FW_OK);
+    CHECK(n_pkts == 2u && memcmp(pkts[0], eager[2][0], pkt_len[0]) == 0 &&
+          memcmp(pkts[1], eager[2][1], pkt_len[1]) == 0);
+    CHECK_FW(fw_xcp_set_deferred(NULL, 1), FW_E_NULL);
+    CHECK_FW(fw_xcp_poll(NULL, &app), FW_E_NULL);
+    CHECK_FW(fw_xcp_poll(&xcp, NULL), FW_E_NULL);
 }
 
 static void test_daq_commands_refuse_bad_sequences_and_sizes(void)
@@ -498,6 +546,7 @@ int main(void)
     RUN(test_only_the_signals_and_the_calibration_page_are_reachable);
     RUN(test_learning_off_takes_effect_at_the_next_step);
     RUN(test_daq_sends_one_sample_per_step_with_timestamp);
+    RUN(test_a_deferred_sample_equals_the_one_sent_inside_the_step);
     RUN(test_daq_commands_refuse_bad_sequences_and_sizes);
     RUN(test_init_refuses_bad_arguments);
     return CHECK_SUMMARY();
