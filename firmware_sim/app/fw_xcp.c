@@ -34,9 +34,11 @@ FW_XCP_STATIC_ASSERT(off_events, offsetof(fw_xcp_signals, events) == FW_XCP_OFF_
 FW_XCP_STATIC_ASSERT(off_dto_sent, offsetof(fw_xcp_signals, daq_dto_sent) == FW_XCP_OFF_DAQ_DTO_SENT);
 FW_XCP_STATIC_ASSERT(off_dto_lost, offsetof(fw_xcp_signals, daq_dto_lost) == FW_XCP_OFF_DAQ_DTO_LOST);
 FW_XCP_STATIC_ASSERT(signals_size, sizeof(fw_xcp_signals) == FW_XCP_SIGNALS_SIZE);
+FW_XCP_STATIC_ASSERT(cal_ceiling, offsetof(fw_xcp_calibration, trace_ceiling) == FW_XCP_CAL_OFF_TRACE_CEILING);
+FW_XCP_STATIC_ASSERT(cal_gate, offsetof(fw_xcp_calibration, gate) == FW_XCP_CAL_OFF_GATE);
+FW_XCP_STATIC_ASSERT(cal_size, sizeof(fw_xcp_calibration) == FW_XCP_CALIBRATION_SIZE);
 #endif
 FW_XCP_STATIC_ASSERT(cal_learning, offsetof(fw_xcp_calibration, learning) == FW_XCP_CAL_OFF_LEARNING);
-FW_XCP_STATIC_ASSERT(cal_size, sizeof(fw_xcp_calibration) == FW_XCP_CALIBRATION_SIZE);
 FW_XCP_STATIC_ASSERT(float32, sizeof(float) == 4u);
 FW_XCP_STATIC_ASSERT(max_odt_pid, FW_XCP_MAX_ODT <= 0xFCu);       /* PIDs 0x00..0xFB are DTOs */
 FW_XCP_STATIC_ASSERT(entry_fits, FW_XCP_MAX_ENTRY_SIZE + 5u <= FW_XCP_MAX_DTO);
@@ -134,9 +136,9 @@ static int resolve(const fw_xcp *x, uint8_t ext, uint32_t addr, size_t n, uint8_
             return -1;
         }
         *region = REGION_SIGNALS;
-    } else if (addr >= x->cal_address && addr - x->cal_address < FW_XCP_CALIBRATION_SIZE) {
+    } else if (addr >= x->cal_address && addr - x->cal_address < sizeof(fw_xcp_calibration)) {
         off = addr - x->cal_address;
-        if (n > FW_XCP_CALIBRATION_SIZE - off) {
+        if (n > sizeof(fw_xcp_calibration) - off) {
             return -1;
         }
         *region = REGION_CAL;
@@ -175,6 +177,22 @@ static uint8_t read_mta(fw_xcp *x, uint8_t *out, size_t n)
 }
 
 #define ALL_NEURONS ((uint32_t)((1ull << FW_N_STATES) - 1u))
+
+/* The calibration page from the values in force. */
+static void show_in_force(fw_xcp *x, const fw_app *app)
+{
+    rhonn_real v;
+    uint8_t i;
+    x->calibration->learning = app->learning;
+    for (i = 0; i < FW_N_STATES; ++i) {
+        if (rhonn_get_trace_ceiling(&app->net, i, &v) == RHONN_OK) {
+            x->calibration->trace_ceiling[i] = (float)v;
+        }
+        if (rhonn_get_gate(&app->net, i, &v) == RHONN_OK) {
+            x->calibration->gate[i] = (float)v;
+        }
+    }
+}
 FW_XCP_STATIC_ASSERT(need_bits, FW_N_STATES <= 32u);
 
 /* The signals from the identifier and the application's counters: the
@@ -231,7 +249,7 @@ static void refresh_some(fw_xcp *x, const fw_app *app, uint32_t need_weights, ui
     s->learning = app->learning;
     s->step_status = app->counters.last_step_status;
     if (!x->cal_dirty) {
-        x->calibration->learning = app->learning; /* the page shows the state until written */
+        show_in_force(x, app); /* the page shows the state until written */
     }
 }
 
@@ -339,8 +357,13 @@ static void disconnect(fw_xcp *x)
 static void before_step(void *ctx, fw_app *app)
 {
     fw_xcp *x = (fw_xcp *)ctx;
+    uint8_t i;
     if (x->cal_dirty) {
         (void)fw_app_set_learning(app, x->calibration->learning);
+        for (i = 0; i < FW_N_STATES; ++i) { /* checked by DOWNLOAD: accepted */
+            (void)rhonn_set_trace_ceiling(&app->net, i, (rhonn_real)x->calibration->trace_ceiling[i]);
+            (void)rhonn_set_gate(&app->net, i, (rhonn_real)x->calibration->gate[i]);
+        }
         x->cal_dirty = 0;
     }
 }
@@ -468,7 +491,7 @@ fw_status fw_xcp_init(fw_xcp *x, const fw_xcp_config *cfg)
     sig = (uintptr_t)cfg->signals;
     cal = (uintptr_t)cfg->calibration;
     if (sig < cfg->address_base || sig - cfg->address_base > 0xFFFFFFFFu - FW_XCP_SIGNALS_SIZE ||
-        cal < cfg->address_base || cal - cfg->address_base > 0xFFFFFFFFu - FW_XCP_CALIBRATION_SIZE) {
+        cal < cfg->address_base || cal - cfg->address_base > 0xFFFFFFFFu - sizeof(fw_xcp_calibration)) {
         return FW_E_CONFIG;
     }
     memset(x, 0, sizeof *x);
@@ -625,7 +648,29 @@ static fw_status cmd_short_upload(fw_xcp *x, const uint8_t *c, size_t len)
     return cmd_upload(x, c, 2u);
 }
 
-static fw_status cmd_download(fw_xcp *x, const uint8_t *c, size_t len)
+/* Whether the core takes every trace ceiling and gate of the page: each
+ * setter tried, and the value in force put back at once (bit for bit: the
+ * setters derive nothing else), between steps as every command runs. */
+static int core_accepts(fw_app *app, const fw_xcp_calibration *page)
+{
+    rhonn_real was;
+    uint8_t i;
+    int ok = 1;
+    for (i = 0; i < FW_N_STATES && ok; ++i) {
+        if (rhonn_get_trace_ceiling(&app->net, i, &was) != RHONN_OK) {
+            return 0;
+        }
+        ok = rhonn_set_trace_ceiling(&app->net, i, (rhonn_real)page->trace_ceiling[i]) == RHONN_OK;
+        (void)rhonn_set_trace_ceiling(&app->net, i, was);
+        if (ok && rhonn_get_gate(&app->net, i, &was) == RHONN_OK) {
+            ok = rhonn_set_gate(&app->net, i, (rhonn_real)page->gate[i]) == RHONN_OK;
+            (void)rhonn_set_gate(&app->net, i, was);
+        }
+    }
+    return ok;
+}
+
+static fw_status cmd_download(fw_xcp *x, fw_app *app, const uint8_t *c, size_t len)
 {
     fw_xcp_calibration page;
     uint8_t n, region;
@@ -652,7 +697,8 @@ static fw_status cmd_download(fw_xcp *x, const uint8_t *c, size_t len)
     /* every value checked on a copy: all or nothing */
     page = *x->calibration;
     memcpy((uint8_t *)&page + off, c + 2, n);
-    if (page.learning > 1u || page.reserved[0] != 0u || page.reserved[1] != 0u || page.reserved[2] != 0u) {
+    if (page.learning > 1u || page.reserved[0] != 0u || page.reserved[1] != 0u || page.reserved[2] != 0u ||
+        !core_accepts(app, &page)) {
         return error(x, ERR_OUT_OF_RANGE);
     }
     *x->calibration = page;
@@ -971,7 +1017,7 @@ fw_status fw_xcp_on_command(fw_xcp *x, fw_app *app, const uint8_t *c, size_t len
         }
         return c[0] == CC_UPLOAD ? cmd_upload(x, c, len) : cmd_short_upload(x, c, len);
     case CC_DOWNLOAD:
-        return cmd_download(x, c, len);
+        return cmd_download(x, app, c, len);
     default:
         return cmd_daq(x, c, len, now_ns);
     }

@@ -36,9 +36,10 @@
  * ERR_SEQUENCE. Reading (UPLOAD, SHORT_UPLOAD) is not protected.
  *
  * CALIBRATION. DOWNLOAD writes the calibration page after checking every
- * value (learning 0 or 1: else ERR_OUT_OF_RANGE, nothing written). The
- * identifier takes the page before its next step (the application's
- * before-step hook), never inside one.
+ * value (learning 0 or 1; a trace ceiling or a gate the core accepts:
+ * finite, >= 0, a ceiling 0 or >= trace P_i(0); else ERR_OUT_OF_RANGE,
+ * nothing written). The identifier takes the page before its next step (the
+ * application's before-step hook), never inside one.
  *
  * DAQ. One event channel, FW_XCP_EVENT_STEP: once per identifier step
  * (every accepted Measurement), after the Estimate went out. While a DAQ
@@ -134,16 +135,20 @@ typedef struct {
 #define FW_XCP_OFF_DAQ_DTO_LOST 540u
 #define FW_XCP_SIGNALS_SIZE 544u
 
-/* The calibration page (RAM). The LIM identifier has neither a trace
- * ceiling nor an innovation gate, and the core takes them from its
- * configuration only, so learning is the one calibratable. */
+/* The calibration page (RAM): the learning switch, and every neuron's trace
+ * ceiling and innovation gate (rhonn_set_trace_ceiling, rhonn_set_gate: 0
+ * off). Until written, the page shows the values in force. */
 typedef struct {
     uint8_t learning;       /* 1 learn, 0 freeze; taken before the next step */
     uint8_t reserved[3];    /* written as 0 */
+    float trace_ceiling[FW_N_STATES]; /* 0 off, else >= trace P_i(0); taken before the next step */
+    float gate[FW_N_STATES];          /* 0 off, else the largest e^2 / s learned; likewise */
 } fw_xcp_calibration;
 
 #define FW_XCP_CAL_OFF_LEARNING 0u
-#define FW_XCP_CALIBRATION_SIZE 4u
+#define FW_XCP_CAL_OFF_TRACE_CEILING 4u
+#define FW_XCP_CAL_OFF_GATE 28u
+#define FW_XCP_CALIBRATION_SIZE 52u
 
 /* The transport: send one XCP packet (a response, an error or a DTO),
  * without the transport's header. FW_OK, or FW_E_HAL when it was not sent. */

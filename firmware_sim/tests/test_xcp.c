@@ -15,6 +15,7 @@
  *     the prescaler, and DTOs the transport refuses counted as lost;
  *   - the DAQ commands' sequence and capacity errors.
  */
+#include <math.h>
 #include <string.h>
 
 #include "fw_check.h"
@@ -188,6 +189,17 @@ static fw_status download1(uint8_t v)
     return cmd(c, sizeof c);
 }
 
+static fw_status download_float(uint32_t addr, float v)
+{
+    uint8_t c[6] = {0xF0, 4};
+    fw_status st = set_mta(addr);
+    if (st != FW_OK) {
+        return st;
+    }
+    memcpy(c + 2, &v, 4);
+    return cmd(c, sizeof c);
+}
+
 /* ---- tests ----------------------------------------------------------------- */
 
 static void test_connect_status_and_get_id_name_the_a2l(void)
@@ -322,6 +334,55 @@ static void test_learning_off_takes_effect_at_the_next_step(void)
     CHECK(step() == FW_OK);
     CHECK_STATUS(rhonn_get_weights(net, 4, w1, LIM_IDENTIFIER.neurons[4].n_terms), RHONN_OK);
     CHECK(memcmp(w0, w1, sizeof(rhonn_real) * LIM_IDENTIFIER.neurons[4].n_terms) != 0);
+}
+
+/* DOWNLOAD of a gate or a trace ceiling: checked by the core's rules, taken
+ * before the next step (not before), and acting from that step on. */
+static void test_a_downloaded_gate_and_trace_ceiling_act_from_the_next_step(void)
+{
+    rhonn_real w0[RHONN_MAX_TERMS], w1[RHONN_MAX_TERMS], v;
+    rhonn_health h0, h1;
+    const rhonn_t *net;
+    fw_xcp_calibration page;
+    int k;
+    setup();
+    for (k = 0; k < 5; ++k) {
+        CHECK(step() == FW_OK);
+    }
+    connect();
+    CHECK_FW(unlock(0x01, 1), FW_OK);
+    CHECK_FW(fw_app_get_identifier(&app, &net), FW_OK);
+    CHECK(img.calibration.gate[4] == 0.0f && img.calibration.trace_ceiling[4] == 0.0f); /* in force: off */
+    /* refused, nothing written: NaN, negative, a ceiling below trace P(0) */
+    page = img.calibration;
+    CHECK_FW(download_float(cal_addr + FW_XCP_CAL_OFF_GATE + 16u, (float)NAN), FW_E_RANGE);
+    CHECK(answered_error(0x22));
+    CHECK_FW(download_float(cal_addr + FW_XCP_CAL_OFF_GATE + 16u, -1.0f), FW_E_RANGE);
+    CHECK_FW(download_float(cal_addr + FW_XCP_CAL_OFF_TRACE_CEILING + 16u, 1e-30f), FW_E_RANGE);
+    CHECK(memcmp(&page, &img.calibration, sizeof page) == 0);
+    CHECK_STATUS(rhonn_get_weights(net, 4, w0, LIM_IDENTIFIER.neurons[4].n_terms), RHONN_OK);
+    CHECK_STATUS(rhonn_get_health(net, 4, &h0), RHONN_OK);
+    /* a gate that skips every update of neuron 4, and a ceiling on neuron 5 */
+    CHECK_FW(download_float(cal_addr + FW_XCP_CAL_OFF_GATE + 16u, 1e-30f), FW_OK);
+    CHECK_FW(download_float(cal_addr + FW_XCP_CAL_OFF_TRACE_CEILING + 20u, 1e30f), FW_OK);
+    CHECK_STATUS(rhonn_get_gate(net, 4, &v), RHONN_OK);
+    CHECK(v == (rhonn_real)0.0); /* written, not yet taken: no step ran */
+    CHECK(step() == FW_OK);
+    CHECK_STATUS(rhonn_get_gate(net, 4, &v), RHONN_OK);
+    CHECK(v == (rhonn_real)1e-30f);
+    CHECK_STATUS(rhonn_get_trace_ceiling(net, 5, &v), RHONN_OK);
+    CHECK(v == (rhonn_real)1e30f);
+    CHECK_STATUS(rhonn_get_health(net, 4, &h1), RHONN_OK);
+    CHECK_STATUS(rhonn_get_weights(net, 4, w1, LIM_IDENTIFIER.neurons[4].n_terms), RHONN_OK);
+    CHECK(h1.gated == h0.gated + 1u && h1.updates == h0.updates);
+    CHECK(memcmp(w0, w1, sizeof(rhonn_real) * LIM_IDENTIFIER.neurons[4].n_terms) == 0);
+    CHECK_FW(download_float(cal_addr + FW_XCP_CAL_OFF_GATE + 16u, 0.0f), FW_OK); /* off again */
+    CHECK(step() == FW_OK);
+    CHECK_STATUS(rhonn_get_weights(net, 4, w1, LIM_IDENTIFIER.neurons[4].n_terms), RHONN_OK);
+    CHECK(memcmp(w0, w1, sizeof(rhonn_real) * LIM_IDENTIFIER.neurons[4].n_terms) != 0);
+    CHECK_FW(short_upload(4, 0, cal_addr + FW_XCP_CAL_OFF_TRACE_CEILING + 20u), FW_OK); /* the page reads back */
+    memcpy(&page.gate[0], pkts[0] + 1, 4);
+    CHECK(page.gate[0] == 1e30f);
 }
 
 /* Program one DAQ list: ODT 0 the measurement counter, ODT 1 neuron 0's
@@ -545,6 +606,7 @@ int main(void)
     RUN(test_seed_and_key_unlock_and_a_wrong_key_disconnects);
     RUN(test_only_the_signals_and_the_calibration_page_are_reachable);
     RUN(test_learning_off_takes_effect_at_the_next_step);
+    RUN(test_a_downloaded_gate_and_trace_ceiling_act_from_the_next_step);
     RUN(test_daq_sends_one_sample_per_step_with_timestamp);
     RUN(test_a_deferred_sample_equals_the_one_sent_inside_the_step);
     RUN(test_daq_commands_refuse_bad_sequences_and_sizes);
