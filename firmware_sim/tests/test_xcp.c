@@ -299,10 +299,9 @@ static void test_only_the_signals_and_the_calibration_page_are_reachable(void)
     CHECK(answered_error(0x22) && img.calibration.reserved[0] == 0u);
 }
 
-static void test_learning_off_takes_effect_at_the_next_step(void)
+/* A fresh application after five steps, a master connected, CAL/PAG unlocked. */
+static void calibrating_after_five_steps(void)
 {
-    rhonn_real w0[RHONN_MAX_TERMS], w1[RHONN_MAX_TERMS];
-    const rhonn_t *net;
     int k;
     setup();
     for (k = 0; k < 5; ++k) {
@@ -310,6 +309,14 @@ static void test_learning_off_takes_effect_at_the_next_step(void)
     }
     connect();
     CHECK_FW(unlock(0x01, 1), FW_OK);
+}
+
+static void test_learning_off_takes_effect_at_the_next_step(void)
+{
+    rhonn_real w0[RHONN_MAX_TERMS], w1[RHONN_MAX_TERMS];
+    const rhonn_t *net;
+    int k;
+    calibrating_after_five_steps();
     CHECK_FW(set_mta(cal_addr + FW_XCP_CAL_OFF_LEARNING), FW_OK);
     CHECK_FW(download1(0), FW_OK);
     CHECK(answered_ok() && img.calibration.learning == 0u);
@@ -344,13 +351,7 @@ static void test_a_downloaded_gate_and_trace_ceiling_act_from_the_next_step(void
     rhonn_health h0, h1;
     const rhonn_t *net;
     fw_xcp_calibration page;
-    int k;
-    setup();
-    for (k = 0; k < 5; ++k) {
-        CHECK(step() == FW_OK);
-    }
-    connect();
-    CHECK_FW(unlock(0x01, 1), FW_OK);
+    calibrating_after_five_steps();
     CHECK_FW(fw_app_get_identifier(&app, &net), FW_OK);
     CHECK(img.calibration.gate[4] == 0.0f && img.calibration.trace_ceiling[4] == 0.0f); /* in force: off */
     /* refused, nothing written: NaN, negative, a ceiling below trace P(0) */
