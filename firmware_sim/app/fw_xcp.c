@@ -178,12 +178,12 @@ static uint8_t read_mta(fw_xcp *x, uint8_t *out, size_t n)
 
 #define ALL_NEURONS ((uint32_t)((1ull << FW_N_STATES) - 1u))
 
-/* The calibration page from the values in force. */
+/* The calibration page's ceilings and gates from the values in force (only
+ * a DOWNLOAD, taken before a step, changes those: a step event need not). */
 static void show_in_force(fw_xcp *x, const fw_app *app)
 {
     rhonn_real v;
     uint8_t i;
-    x->calibration->learning = app->learning;
     for (i = 0; i < FW_N_STATES; ++i) {
         if (rhonn_get_trace_ceiling(&app->net, i, &v) == RHONN_OK) {
             x->calibration->trace_ceiling[i] = (float)v;
@@ -249,7 +249,7 @@ static void refresh_some(fw_xcp *x, const fw_app *app, uint32_t need_weights, ui
     s->learning = app->learning;
     s->step_status = app->counters.last_step_status;
     if (!x->cal_dirty) {
-        show_in_force(x, app); /* the page shows the state until written */
+        x->calibration->learning = app->learning; /* the page shows the state until written */
     }
 }
 
@@ -257,6 +257,9 @@ static void refresh_some(fw_xcp *x, const fw_app *app, uint32_t need_weights, ui
 static void refresh(fw_xcp *x, const fw_app *app)
 {
     refresh_some(x, app, ALL_NEURONS, ALL_NEURONS, 1);
+    if (!x->cal_dirty) {
+        show_in_force(x, app);
+    }
 }
 
 /* Which signals the bytes [off, off + n) of the signals region show. */
@@ -651,18 +654,23 @@ static fw_status cmd_short_upload(fw_xcp *x, const uint8_t *c, size_t len)
 /* Whether the core takes every trace ceiling and gate of the page: each
  * setter tried, and the value in force put back at once (bit for bit: the
  * setters derive nothing else), between steps as every command runs. */
-static int core_accepts(fw_app *app, const fw_xcp_calibration *page)
+static int core_accepts(fw_app *app, const fw_xcp_calibration *page, const fw_xcp_calibration *old)
 {
     rhonn_real was;
     uint8_t i;
     int ok = 1;
-    for (i = 0; i < FW_N_STATES && ok; ++i) {
-        if (rhonn_get_trace_ceiling(&app->net, i, &was) != RHONN_OK) {
-            return 0;
+    for (i = 0; i < FW_N_STATES && ok; ++i) { /* the values this write changes */
+        if (memcmp(&page->trace_ceiling[i], &old->trace_ceiling[i], sizeof(float)) != 0) {
+            if (rhonn_get_trace_ceiling(&app->net, i, &was) != RHONN_OK) {
+                return 0;
+            }
+            ok = rhonn_set_trace_ceiling(&app->net, i, (rhonn_real)page->trace_ceiling[i]) == RHONN_OK;
+            (void)rhonn_set_trace_ceiling(&app->net, i, was);
         }
-        ok = rhonn_set_trace_ceiling(&app->net, i, (rhonn_real)page->trace_ceiling[i]) == RHONN_OK;
-        (void)rhonn_set_trace_ceiling(&app->net, i, was);
-        if (ok && rhonn_get_gate(&app->net, i, &was) == RHONN_OK) {
+        if (ok && memcmp(&page->gate[i], &old->gate[i], sizeof(float)) != 0) {
+            if (rhonn_get_gate(&app->net, i, &was) != RHONN_OK) {
+                return 0;
+            }
             ok = rhonn_set_gate(&app->net, i, (rhonn_real)page->gate[i]) == RHONN_OK;
             (void)rhonn_set_gate(&app->net, i, was);
         }
@@ -698,7 +706,7 @@ static fw_status cmd_download(fw_xcp *x, fw_app *app, const uint8_t *c, size_t l
     page = *x->calibration;
     memcpy((uint8_t *)&page + off, c + 2, n);
     if (page.learning > 1u || page.reserved[0] != 0u || page.reserved[1] != 0u || page.reserved[2] != 0u ||
-        !core_accepts(app, &page)) {
+        !core_accepts(app, &page, x->calibration)) {
         return error(x, ERR_OUT_OF_RANGE);
     }
     *x->calibration = page;
