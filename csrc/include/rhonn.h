@@ -393,6 +393,7 @@ typedef struct {
      * rhonn_set_gate (kept by rhonn_reset and rhonn_restart). */
     rhonn_real trace_max[RHONN_MAX_STATES];
     rhonn_real gate[RHONN_MAX_STATES];
+    uint8_t ceilings;                         /* some neuron has a trace ceiling in force */
 } rhonn_t;
 
 /* Check a configuration against the capacities and the paper's constraints.
@@ -448,7 +449,13 @@ rhonn_status rhonn_set_learning(rhonn_t *net, int on);
  * a value that is NaN, infinite or negative, or a ceiling above 0 but below
  * trace P_i(0) (the limits rhonn_validate_config puts on the configuration);
  * on any refusal nothing changes. With RHONN_FIXED_CONFIG too. The getters
- * read the values in force. */
+ * read the values in force.
+ * RHONN_CALIBRATE (an option of the core's source file, like
+ * RHONN_FIXED_CONFIG; default 1): 0 compiles the step with the
+ * configuration's ceilings and gates, as before these setters existed (with
+ * RHONN_FIXED_CONFIG, no code for a neuron that has neither: the firmware's
+ * LIM step on the Cortex-M4 is about 150 cycles shorter); the setters then
+ * refuse any other value than the configuration's with RHONN_E_CONFIG. */
 rhonn_status rhonn_set_trace_ceiling(rhonn_t *net, size_t neuron, rhonn_real value);
 rhonn_status rhonn_set_gate(rhonn_t *net, size_t neuron, rhonn_real value);
 rhonn_status rhonn_get_trace_ceiling(const rhonn_t *net, size_t neuron, rhonn_real *value);

@@ -56,6 +56,12 @@
 #define RHONN_CERTIFY 1
 #endif
 
+/* RHONN_CALIBRATE=1 (the default): the trace ceilings and gates in force
+ * are rhonn_t's, which the setters change; 0: the configuration's (rhonn.h). */
+#ifndef RHONN_CALIBRATE
+#define RHONN_CALIBRATE 1
+#endif
+
 /* RHONN_WITH_UD=1 (the default) builds the factored covariance update
  * (RHONN_COV_UD); 0 leaves it out for the smallest code, and a config that
  * asks for it is refused as RHONN_FIELD_COVARIANCE. */
@@ -454,15 +460,29 @@ RHONN_INLINE uint8_t q_zero_of(const rhonn_neuron_config *nc)
 
 #define FORGET_CEILING(net, i) ((net)->forget_ceiling[i])
 
-/* Whether neuron i's update may be gated: whether any neuron has a gate in
- * force (rhonn_t.gates; rhonn_set_gate can set one where the configuration
- * had none, also with RHONN_FIXED_CONFIG), so that an identifier without
- * gates pays one test of a flag. The gate and the trace ceiling in force are
- * rhonn_t's (rhonn_set_gate, rhonn_set_trace_ceiling), not the
- * configuration's. */
+/* The gate and the trace ceiling in force. RHONN_CALIBRATE=1 (rhonn.h):
+ * rhonn_t's (rhonn_set_gate, rhonn_set_trace_ceiling can set one where the
+ * configuration had none, also with RHONN_FIXED_CONFIG), each behind one
+ * test of a flag (rhonn_t.gates, .ceilings: some neuron has one in force),
+ * so that an identifier without them pays little. RHONN_CALIBRATE=0: the
+ * configuration's, which RHONN_FIXED_CONFIG folds into constants (a neuron
+ * without a gate or a ceiling then has no code for it), as before the
+ * setters existed. */
+#if RHONN_CALIBRATE
 #define GATE_ON(net, i) ((net)->gates != 0u)
 #define GATE(net, i) ((net)->gate[i])
+#define CEILING_ON(net, i) ((net)->ceilings != 0u)
 #define TRACE_MAX(net, i) ((net)->trace_max[i])
+#else
+#ifdef RHONN_FIXED_CONFIG
+#define GATE_ON(net, i) (CFG(net)->neurons[i].gate > R(0.0))
+#else
+#define GATE_ON(net, i) ((net)->gates != 0u)
+#endif
+#define GATE(net, i) (CFG(net)->neurons[i].gate)
+#define CEILING_ON(net, i) 1
+#define TRACE_MAX(net, i) (CFG(net)->neurons[i].p_trace_max)
+#endif
 
 /* Where a factor's value sits in a sample (its delay and power aside), for
  * a neuron whose activation group is group. */
@@ -506,6 +526,7 @@ static void compile_terms(rhonn_t *net)
     net->n_entries = 0;
     net->max_delay = 0;
     net->gates = 0;
+    net->ceilings = 0;
     for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
         net->own_need[i] = 0;
         net->first_run[i] = 0xFFu;
@@ -521,6 +542,7 @@ static void compile_terms(rhonn_t *net)
         net->forget_ceiling[i] = forget_ceiling_of(&cfg->neurons[i]);
         net->gates = (uint8_t)(net->gates | (cfg->neurons[i].gate > R(0.0)));
         net->trace_max[i] = cfg->neurons[i].p_trace_max;
+        net->ceilings = (uint8_t)(net->ceilings | (cfg->neurons[i].p_trace_max > R(0.0)));
         net->gate[i] = cfg->neurons[i].gate;
         net->q_zero[i] = q_zero_of(&cfg->neurons[i]);
         net->first_run[i] = (uint8_t)(cfg->neurons[i].wait_for_history != 0u ? 0u : 0xFFu);
@@ -830,6 +852,7 @@ rhonn_status rhonn_set_trace_ceiling(rhonn_t *net, size_t neuron, rhonn_real val
 {
     rhonn_status st = check_neuron(net, neuron);
     const rhonn_neuron_config *nc;
+    size_t i;
     if (st != RHONN_OK) {
         return st;
     }
@@ -837,8 +860,15 @@ rhonn_status rhonn_set_trace_ceiling(rhonn_t *net, size_t neuron, rhonn_real val
     if (!is_finite(value) || value < R(0.0) || (value > R(0.0) && value < full_trace(nc->p0, nc->n_terms))) {
         return RHONN_E_VALUE;
     }
+    if (!RHONN_CALIBRATE && value != nc->p_trace_max) {
+        return RHONN_E_CONFIG; /* compiled without calibration: the configuration's only */
+    }
     net->trace_max[neuron] = value;
     net->forget_ceiling[neuron] = value > R(0.0) ? value : full_trace(nc->p0, nc->n_terms);
+    net->ceilings = 0;
+    for (i = 0; i < CFG(net)->n_states; ++i) {
+        net->ceilings = (uint8_t)(net->ceilings | (net->trace_max[i] > R(0.0)));
+    }
     return RHONN_OK;
 }
 
@@ -851,6 +881,9 @@ rhonn_status rhonn_set_gate(rhonn_t *net, size_t neuron, rhonn_real value)
     }
     if (!is_finite(value) || value < R(0.0)) {
         return RHONN_E_VALUE;
+    }
+    if (!RHONN_CALIBRATE && value != CFG(net)->neurons[neuron].gate) {
+        return RHONN_E_CONFIG; /* compiled without calibration: the configuration's only */
     }
     net->gate[neuron] = value;
     net->gates = 0;
@@ -1354,7 +1387,7 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
         }
         row += len;
     }
-    if (TRACE_MAX(net, i) > R(0.0)) {
+    if (RHONN_UNLIKELY(CEILING_ON(net, i) && TRACE_MAX(net, i) > R(0.0))) {
         bound_trace(Pn, L, TRACE_MAX(net, i), bounded);
     }
     /* The committed P must be definite. Proven in O(L) from the old P's
@@ -1561,7 +1594,7 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
             return neuron_fault(net, i, RHONN_E_NOT_PD);
         }
     }
-    if (TRACE_MAX(net, i) > R(0.0)) {
+    if (RHONN_UNLIKELY(CEILING_ON(net, i) && TRACE_MAX(net, i) > R(0.0))) {
         const rhonn_real tr = ud_trace(Fn, L);
         if (tr > TRACE_MAX(net, i)) {
             const rhonn_real scale = TRACE_MAX(net, i) / tr;
