@@ -29,6 +29,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 can = pytest.importorskip("can")
@@ -101,7 +102,8 @@ def test_the_a2l_places_every_signal_at_the_runners_symbols_and_pya2ldb_reads_it
     assert m["w0_0"] == (sig, "FLOAT32_IEEE") and m["w4_5"] == (sig + 4 * (4 * 12 + 5), "FLOAT32_IEEE")
     assert m["xhat_ia"][0] == sig + 288 + 16 and m["measurements"] == (sig + 504, "ULONG")
     assert {"nis_5", "trace_p_0", "innovation_qm", "updates_3", "gated_2", "daq_dto_lost"} <= set(m)
-    assert a2l["characteristics"] == {"learning": cal}
+    assert a2l["characteristics"] == {"learning": cal, **{f"trace_ceiling_{i}": cal + 4 + 4 * i for i in range(6)},
+                                      **{f"gate_{i}": cal + 28 + 4 * i for i in range(6)}}
     assert a2l["units"]["CM_IA"] == "A" and a2l["units"]["CM_QM"] == "m"
     xcp = a2l["if_data"]["XCP"][0]
     assert xcp["XCP_ON_UDP_IP"] == [0x0104, 5555, {"ADDRESS": "127.0.0.1"}]
@@ -198,15 +200,31 @@ def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None
 
             policy.setup()
             policy.start()
-            answered = _replay(bus, frames[:800])
+            cal = a2l["characteristics"]
+            answered = _replay(bus, frames[:600])
+            gated_on = int.from_bytes(x.shortUpload(4, m["measurements"][0]), "little")
+            x.setMta(cal["gate_0"])
+            x.download(struct.pack("<6f", *[1e-30] * 6))  # every update gated: taken before the next step
+            answered += _replay(bus, frames[600:1000])
+            gated_off = int.from_bytes(x.shortUpload(4, m["measurements"][0]), "little")
+            x.setMta(cal["gate_0"])
+            x.download(bytes(24))                          # gates off again
+            x.setMta(cal["trace_ceiling_3"])
+            with pytest.raises(XcpResponseError, match="OUT_OF_RANGE"):
+                x.download(struct.pack("<f", 1e-30))      # below trace P(0): the core refuses it
+            x.download(struct.pack("<f", 1e30))
+            answered += _replay(bus, frames[1000:1200])
             stepped_on = int.from_bytes(x.shortUpload(4, m["measurements"][0]), "little")
-            x.setMta(a2l["characteristics"]["learning"])
+            x.setMta(cal["learning"])
             x.download(b"\x00")                            # learning off: taken before the next step
-            answered += _replay(bus, frames[800:])
+            answered += _replay(bus, frames[1200:])
             time.sleep(0.3)
             policy.stop()
             counters = {k: int.from_bytes(x.shortUpload(4, m[k][0]), "little")
-                        for k in ("measurements", "events", "daq_dto_sent", "daq_dto_lost", "learning_state")}
+                        for k in ("measurements", "events", "daq_dto_sent", "daq_dto_lost", "learning_state",
+                                  "gated_0", "gated_5", "updates_0")}
+            x.setMta(cal["trace_ceiling_3"])
+            assert struct.unpack("<f", x.upload(4))[0] == np.float32(1e30)  # the page reads back what was taken
             x.setMta(a2l["characteristics"]["learning"])
             assert x.upload(1) == b"\x00"
             drops = xcp_master.udp_drops(local_port) - drops0
@@ -256,10 +274,17 @@ def test_pyxcp_watches_and_tunes_the_runner_during_a_replay(runner, a2l) -> None
             assert steps == list(range(1, len(frames) + 1))  # DAQ ran from the first step to the last
         stamps = [r[1] for r in rows]
         assert all(b > a for a, b in zip(stamps, stamps[1:]))  # the slave's 1 us step timestamps
-    # learning on: the weights move; learning off from step stepped_on + 1: frozen
-    before = [r[2] for r in by_list[0] if r[0] <= stepped_on]
+    # learning on: the weights move; every update gated from step gated_on + 1 to gated_off: frozen,
+    # each step's update counted as gated; gates off: they move again; learning off from
+    # stepped_on + 1: frozen
+    before = [r[2] for r in by_list[0] if r[0] <= gated_on]
+    gated = [r[2] for r in by_list[0] if gated_on <= r[0] <= gated_off]
+    moving = [r[2] for r in by_list[0] if gated_off < r[0] <= stepped_on]
     after = [r[2] for r in by_list[0] if r[0] >= stepped_on]
     assert len({tuple(w) for w in before}) > 100
-    assert len(after) > 400 and all(w == after[0] for w in after)
+    assert len(gated) > 300 and all(w == gated[0] for w in gated)
+    assert min(counters["gated_0"], counters["gated_5"]) > (gated_off - gated_on) // 2
+    assert len({tuple(w) for w in moving}) > 50
+    assert len(after) > 300 and all(w == after[0] for w in after)
     # the health list: trace P of every neuron positive
     assert all(all(v > 0 for v in r[2][6:]) for r in by_list[1])

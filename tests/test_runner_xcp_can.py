@@ -104,7 +104,7 @@ def test_the_a2l_describes_xcp_on_can_fd_and_pya2ldb_reads_it(runner_exe: Path, 
     assert make_a2l.main([str(runner_exe), str(out), "--can", "0x7F0,2033", "--can-data-bitrate", "5000000"]) == 0
     read = read_a2l(out)
     xcp = read["if_data"]["XCP"][0]
-    (learning,) = read["characteristics"].values()
+    learning = read["characteristics"]["learning"]
     assert "XCP_ON_UDP_IP" not in xcp
     version, params = xcp["XCP_ON_CAN"]
     assert version == 0x0104

@@ -5,7 +5,9 @@
  * Input: a configuration header, then records, each [op][payload...]:
  *   op % 8 == 0..4  rhonn_step with x, u and valid flags from the next bytes
  *   op % 8 == 5     rhonn_restart
- *   op % 8 == 6     rhonn_set_learning (on or off from the op's high bit)
+ *   op % 8 == 6     by bits 3-4: rhonn_set_learning (on or off from the op's
+ *                   high bit), or rhonn_set_trace_ceiling or rhonn_set_gate
+ *                   of neuron (op >> 5) with a real from the next bytes
  *   op % 8 == 7     rhonn_set_covariance with a matrix from the next bytes
  * Reals come from two bytes each: a sign, a mantissa byte and an exponent
  * spread over 10^-12..10^12 (and, for a few codes, 0, NaN, +-Inf and values
@@ -41,6 +43,11 @@
  *     (health rejected) that was not a recovery (health resets) is one whose
  *     neuron has skip_refused set, and that neuron kept its weights and
  *     covariance;
+ *   - the calibration setters: a ceiling or gate is accepted exactly when it
+ *     is finite and >= 0 (a ceiling 0 or >= trace P_i(0), summed as the core
+ *     sums it), the getter then reads it bit for bit, and the filter is not
+ *     changed either way; the gate and ceiling checks above use the values
+ *     in force;
  *   - bounded forgetting: without Q and without a trace bound, a step's
  *     trace P_i is at most max(c_i, the trace before) (c_i = trace P_i(0)),
  *     to rounding: forgetting never lifts it above its ceiling.
@@ -276,8 +283,8 @@ static void check_invariants(const rhonn_t *net, const uint32_t *updates_before)
                 abort(); /* an update committed with s below R */
             }
         }
-        if (updates_before != NULL && h.updates != updates_before[i] && nc->gate > 0 && h.nis > nc->gate) {
-            abort(); /* an update the gate should have skipped was committed */
+        if (updates_before != NULL && h.updates != updates_before[i] && net->gate[i] > 0 && h.nis > net->gate[i]) {
+            abort(); /* an update the gate in force should have skipped was committed */
         }
     }
 }
@@ -344,7 +351,7 @@ static void check_gate_and_ceiling(const rhonn_t *net, const filter_state *befor
         for (t = 0; t < L; ++t) {
             q_zero &= nc->q[t] == 0;
         }
-        if (q_zero && nc->p_trace_max == 0 && nc->forgetting > 0 && nc->forgetting < 1 &&
+        if (q_zero && net->trace_max[i] == 0 && nc->forgetting > 0 && nc->forgetting < 1 &&
             h.trace_p - h.trace_p == 0 && traces[i] - traces[i] == 0) {
             long double c = 0, bound;
             for (t = 0, k = 0; t < L; k += L - t, ++t) {
@@ -393,9 +400,36 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         case 5:
             st = rhonn_restart(&net);
             break;
-        case 6:
-            st = rhonn_set_learning(&net, op >> 7);
+        case 6: {
+            const size_t i = (size_t)(op >> 5) % cfg.n_states;
+            const unsigned which = (op >> 3) & 3u;
+            if (which < 2u) {
+                st = rhonn_set_learning(&net, op >> 7);
+            } else {
+                const rhonn_real v = real(&r, -6, 6);
+                rhonn_real was, now, p0 = 0;
+                int valid;
+                size_t t, k;
+                for (t = 0, k = 0; t < cfg.neurons[i].n_terms; k += cfg.neurons[i].n_terms - t, ++t) {
+                    p0 += cfg.neurons[i].p0[k]; /* trace P_i(0) in the core's order */
+                }
+                if ((which == 2u ? rhonn_get_trace_ceiling(&net, i, &was) : rhonn_get_gate(&net, i, &was)) != RHONN_OK) {
+                    abort();
+                }
+                st = which == 2u ? rhonn_set_trace_ceiling(&net, i, v) : rhonn_set_gate(&net, i, v);
+                valid = v - v == 0 && v >= 0 && (which == 3u || v == 0 || v >= p0);
+                if ((which == 2u ? rhonn_get_trace_ceiling(&net, i, &now) : rhonn_get_gate(&net, i, &now)) != RHONN_OK ||
+                    (st == RHONN_OK) != valid || (st != RHONN_OK && st != RHONN_E_VALUE) ||
+                    memcmp(&now, st == RHONN_OK ? &v : &was, sizeof now) != 0) {
+                    abort(); /* accepted what is invalid, refused what is valid, or read back another value */
+                }
+                capture(&net, &after);
+                if (memcmp(&before, &after, sizeof before) != 0) {
+                    abort(); /* a setter changed the filter */
+                }
+            }
             break;
+        }
         case 7: {
             const size_t i = (size_t)(op >> 3) % cfg.n_states;
             const size_t L = cfg.neurons[i].n_terms;

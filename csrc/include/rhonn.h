@@ -388,6 +388,12 @@ typedef struct {
     uint32_t steps;                 /* steps since init/reset (wraps) */
     uint8_t fault_neuron;           /* diagnostics: neuron of the last E_INNOVATION/COVARIANCE/DIVERGED/NOT_PD */
     rhonn_health health[RHONN_MAX_STATES];  /* per neuron; trace_p is filled on reading */
+    /* The trace ceilings and innovation gates in force: the configuration's
+     * p_trace_max and gate from rhonn_init, then rhonn_set_trace_ceiling and
+     * rhonn_set_gate (kept by rhonn_reset and rhonn_restart). */
+    rhonn_real trace_max[RHONN_MAX_STATES];
+    rhonn_real gate[RHONN_MAX_STATES];
+    uint8_t ceilings;                         /* some neuron has a trace ceiling in force */
 } rhonn_t;
 
 /* Check a configuration against the capacities and the paper's constraints.
@@ -432,6 +438,28 @@ rhonn_status rhonn_get_health(const rhonn_t *net, size_t neuron, rhonn_health *o
 
 /* Freeze (0) or resume (nonzero) learning; predictions continue either way. */
 rhonn_status rhonn_set_learning(rhonn_t *net, int on);
+
+/* Calibrate neuron's trace ceiling (WINDUP PROTECTION's p_trace_max: 0 off,
+ * else >= trace P_i(0)) or innovation gate (INNOVATION GATE: 0 off, else the
+ * largest e_i^2 / s_i learned), between steps: the next step's learning
+ * update uses the new value (a ceiling also bounds forgetting, as c_i).
+ * They start as the configuration's p_trace_max and gate (rhonn_init) and
+ * are kept by rhonn_reset and rhonn_restart; the configuration itself is
+ * not changed. RHONN_E_ARGUMENT for a neuron >= n_states; RHONN_E_VALUE for
+ * a value that is NaN, infinite or negative, or a ceiling above 0 but below
+ * trace P_i(0) (the limits rhonn_validate_config puts on the configuration);
+ * on any refusal nothing changes. With RHONN_FIXED_CONFIG too. The getters
+ * read the values in force.
+ * RHONN_CALIBRATE (an option of the core's source file, like
+ * RHONN_FIXED_CONFIG; default 1): 0 compiles the step with the
+ * configuration's ceilings and gates, as before these setters existed (with
+ * RHONN_FIXED_CONFIG, no code for a neuron that has neither: the firmware's
+ * LIM step on the Cortex-M4 is about 150 cycles shorter); the setters then
+ * refuse any other value than the configuration's with RHONN_E_CONFIG. */
+rhonn_status rhonn_set_trace_ceiling(rhonn_t *net, size_t neuron, rhonn_real value);
+rhonn_status rhonn_set_gate(rhonn_t *net, size_t neuron, rhonn_real value);
+rhonn_status rhonn_get_trace_ceiling(const rhonn_t *net, size_t neuron, rhonn_real *value);
+rhonn_status rhonn_get_gate(const rhonn_t *net, size_t neuron, rhonn_real *value);
 
 /* Read or replace one neuron's weights (len must equal L_i) and covariance
  * (packed upper triangle, len must equal L_i (L_i + 1) / 2). The setters

@@ -56,6 +56,12 @@
 #define RHONN_CERTIFY 1
 #endif
 
+/* RHONN_CALIBRATE=1 (the default): the trace ceilings and gates in force
+ * are rhonn_t's, which the setters change; 0: the configuration's (rhonn.h). */
+#ifndef RHONN_CALIBRATE
+#define RHONN_CALIBRATE 1
+#endif
+
 /* RHONN_WITH_UD=1 (the default) builds the factored covariance update
  * (RHONN_COV_UD); 0 leaves it out for the smallest code, and a config that
  * asks for it is refused as RHONN_FIELD_COVARIANCE. */
@@ -454,13 +460,28 @@ RHONN_INLINE uint8_t q_zero_of(const rhonn_neuron_config *nc)
 
 #define FORGET_CEILING(net, i) ((net)->forget_ceiling[i])
 
-/* Whether neuron i's update may be gated: its own gate, a constant, with
- * RHONN_FIXED_CONFIG; else whether any neuron has one (rhonn_t.gates), so
- * that a configuration without gates pays one test of a flag. */
+/* The gate and the trace ceiling in force. RHONN_CALIBRATE=1 (rhonn.h):
+ * rhonn_t's (rhonn_set_gate, rhonn_set_trace_ceiling can set one where the
+ * configuration had none, also with RHONN_FIXED_CONFIG), each behind one
+ * test of a flag (rhonn_t.gates, .ceilings: some neuron has one in force),
+ * so that an identifier without them pays little. RHONN_CALIBRATE=0: the
+ * configuration's, which RHONN_FIXED_CONFIG folds into constants (a neuron
+ * without a gate or a ceiling then has no code for it), as before the
+ * setters existed. */
+#if RHONN_CALIBRATE
+#define GATE_ON(net, i) ((net)->gates != 0u)
+#define GATE(net, i) ((net)->gate[i])
+#define CEILING_ON(net, i) ((net)->ceilings != 0u)
+#define TRACE_MAX(net, i) ((net)->trace_max[i])
+#else
 #ifdef RHONN_FIXED_CONFIG
 #define GATE_ON(net, i) (CFG(net)->neurons[i].gate > R(0.0))
 #else
 #define GATE_ON(net, i) ((net)->gates != 0u)
+#endif
+#define GATE(net, i) (CFG(net)->neurons[i].gate)
+#define CEILING_ON(net, i) 1
+#define TRACE_MAX(net, i) (CFG(net)->neurons[i].p_trace_max)
 #endif
 
 /* Where a factor's value sits in a sample (its delay and power aside), for
@@ -505,6 +526,7 @@ static void compile_terms(rhonn_t *net)
     net->n_entries = 0;
     net->max_delay = 0;
     net->gates = 0;
+    net->ceilings = 0;
     for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
         net->own_need[i] = 0;
         net->first_run[i] = 0xFFu;
@@ -512,11 +534,16 @@ static void compile_terms(rhonn_t *net)
         net->inv_lambda[i] = R(0.0);
         net->forget_ceiling[i] = R(0.0);
         net->q_zero[i] = 1u;
+        net->trace_max[i] = R(0.0);
+        net->gate[i] = R(0.0);
     }
     for (i = 0; i < cfg->n_states; ++i) {
         net->inv_lambda[i] = inverse_forgetting(&cfg->neurons[i]);
         net->forget_ceiling[i] = forget_ceiling_of(&cfg->neurons[i]);
         net->gates = (uint8_t)(net->gates | (cfg->neurons[i].gate > R(0.0)));
+        net->trace_max[i] = cfg->neurons[i].p_trace_max;
+        net->ceilings = (uint8_t)(net->ceilings | (cfg->neurons[i].p_trace_max > R(0.0)));
+        net->gate[i] = cfg->neurons[i].gate;
         net->q_zero[i] = q_zero_of(&cfg->neurons[i]);
         net->first_run[i] = (uint8_t)(cfg->neurons[i].wait_for_history != 0u ? 0u : 0xFFu);
         net->q_min[i] = q_min_of(&cfg->neurons[i]);
@@ -805,6 +832,88 @@ rhonn_status rhonn_set_learning(rhonn_t *net, int on)
     }
     net->learning = on ? 1u : 0u;
     return RHONN_OK;
+}
+
+/* Calibration between steps (rhonn.h): the value is checked as
+ * rhonn_validate_config checks p_trace_max and gate, and only then stored,
+ * so a refusal changes nothing. A new ceiling is also the bounded
+ * forgetting's c_i (rhonn.h WINDUP PROTECTION: p_trace_max when set, else
+ * trace P_i(0)), as forget_ceiling_of derives it at rhonn_init. */
+static rhonn_status check_neuron(const rhonn_t *net, size_t neuron)
+{
+    rhonn_status st = check_net(net);
+    if (st == RHONN_OK && neuron >= CFG(net)->n_states) {
+        st = RHONN_E_ARGUMENT;
+    }
+    return st;
+}
+
+rhonn_status rhonn_set_trace_ceiling(rhonn_t *net, size_t neuron, rhonn_real value)
+{
+    rhonn_status st = check_neuron(net, neuron);
+    const rhonn_neuron_config *nc;
+    size_t i;
+    if (st != RHONN_OK) {
+        return st;
+    }
+    nc = &CFG(net)->neurons[neuron];
+    if (!is_finite(value) || value < R(0.0) || (value > R(0.0) && value < full_trace(nc->p0, nc->n_terms))) {
+        return RHONN_E_VALUE;
+    }
+    if (!RHONN_CALIBRATE && value != nc->p_trace_max) {
+        return RHONN_E_CONFIG; /* compiled without calibration: the configuration's only */
+    }
+    net->trace_max[neuron] = value;
+    net->forget_ceiling[neuron] = value > R(0.0) ? value : full_trace(nc->p0, nc->n_terms);
+    net->ceilings = 0;
+    for (i = 0; i < CFG(net)->n_states; ++i) {
+        net->ceilings = (uint8_t)(net->ceilings | (net->trace_max[i] > R(0.0)));
+    }
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_set_gate(rhonn_t *net, size_t neuron, rhonn_real value)
+{
+    rhonn_status st = check_neuron(net, neuron);
+    size_t i;
+    if (st != RHONN_OK) {
+        return st;
+    }
+    if (!is_finite(value) || value < R(0.0)) {
+        return RHONN_E_VALUE;
+    }
+    if (!RHONN_CALIBRATE && value != CFG(net)->neurons[neuron].gate) {
+        return RHONN_E_CONFIG; /* compiled without calibration: the configuration's only */
+    }
+    net->gate[neuron] = value;
+    net->gates = 0;
+    for (i = 0; i < CFG(net)->n_states; ++i) {
+        net->gates = (uint8_t)(net->gates | (net->gate[i] > R(0.0)));
+    }
+    return RHONN_OK;
+}
+
+/* One neuron's entry of a table of values in force (trace_max, gate). */
+static rhonn_status get_in_force(const rhonn_t *net, size_t neuron, const rhonn_real *table, rhonn_real *value)
+{
+    rhonn_status st = check_neuron(net, neuron);
+    if (st == RHONN_OK && value == NULL) {
+        st = RHONN_E_NULL;
+    }
+    if (st == RHONN_OK) {
+        *value = table[neuron];
+    }
+    return st;
+}
+
+rhonn_status rhonn_get_trace_ceiling(const rhonn_t *net, size_t neuron, rhonn_real *value)
+{
+    return get_in_force(net, neuron, net != NULL ? net->trace_max : NULL, value);
+}
+
+rhonn_status rhonn_get_gate(const rhonn_t *net, size_t neuron, rhonn_real *value)
+{
+    return get_in_force(net, neuron, net != NULL ? net->gate : NULL, value);
 }
 
 /* ------------------------------------------------------------------------ */
@@ -1226,7 +1335,7 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
     *nis = e * (e * inv_s);
     /* The innovation gate: an update with e^2 / s (eq. 8-9) above it is
      * skipped, nothing written (rhonn.h INNOVATION GATE). */
-    if (RHONN_UNLIKELY(GATE_ON(net, i) && nc->gate > R(0.0) && *nis > nc->gate)) {
+    if (RHONN_UNLIKELY(GATE_ON(net, i) && GATE(net, i) > R(0.0) && *nis > GATE(net, i))) {
         *gated = 1;
         return RHONN_OK;
     }
@@ -1278,8 +1387,8 @@ RHONN_INLINE rhonn_status ekf_kernel(rhonn_t *net, size_t i, rhonn_real e, const
         }
         row += len;
     }
-    if (nc->p_trace_max > R(0.0)) {
-        bound_trace(Pn, L, nc->p_trace_max, bounded);
+    if (RHONN_UNLIKELY(CEILING_ON(net, i) && TRACE_MAX(net, i) > R(0.0))) {
+        bound_trace(Pn, L, TRACE_MAX(net, i), bounded);
     }
     /* The committed P must be definite. Proven in O(L) from the old P's
      * proof when it has one; else by the shifted factorisation, which also
@@ -1402,7 +1511,7 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
     }
     *nis = e * (e * inv_prev);
     /* the innovation gate (rhonn.h INNOVATION GATE): skipped, nothing written */
-    if (RHONN_UNLIKELY(GATE_ON(net, i) && nc->gate > R(0.0) && *nis > nc->gate)) {
+    if (RHONN_UNLIKELY(GATE_ON(net, i) && GATE(net, i) > R(0.0) && *nis > GATE(net, i))) {
         *gated = 1;
         return RHONN_OK;
     }
@@ -1485,10 +1594,10 @@ RHONN_INLINE rhonn_status ekf_ud(rhonn_t *net, size_t i, rhonn_real e, const rho
             return neuron_fault(net, i, RHONN_E_NOT_PD);
         }
     }
-    if (nc->p_trace_max > R(0.0)) {
+    if (RHONN_UNLIKELY(CEILING_ON(net, i) && TRACE_MAX(net, i) > R(0.0))) {
         const rhonn_real tr = ud_trace(Fn, L);
-        if (tr > nc->p_trace_max) {
-            const rhonn_real scale = nc->p_trace_max / tr;
+        if (tr > TRACE_MAX(net, i)) {
+            const rhonn_real scale = TRACE_MAX(net, i) / tr;
             RHONN_UD_UNROLL_LOOP
             for (j = 0; j < L; ++j) {
                 Fn[rs[j]] *= scale;

@@ -330,6 +330,94 @@ static void learning_off_freezes_weights_and_still_predicts(void)
     CHECK_STATUS(rhonn_set_learning(NULL, 1), RHONN_E_NULL);
 }
 
+/* rhonn_set_trace_ceiling / rhonn_set_gate: set right after init they run
+ * bit for bit as a configuration holding the same values; set mid-run they
+ * act from the next step on; bad values are refused, nothing changed. */
+static void calibrated_trace_ceiling_and_gate_act_from_the_next_step(void)
+{
+    rhonn_t net, twin, plain;
+    rhonn_config c = small_config(), cc = small_config();
+    rhonn_health h0, h1;
+    rhonn_real x[2], u[1], y[2], v;
+    observed before, after;
+    size_t i;
+
+    for (i = 0; i < 2; ++i) {
+        size_t t;
+        for (t = 0; t < 4; ++t) { /* a Q that pushes trace P above trace P(0) at once */
+            c.neurons[i].q[t] = cc.neurons[i].q[t] = (rhonn_real)5.0;
+        }
+    }
+    cc.neurons[1].p_trace_max = (rhonn_real)40.0; /* = trace P(0) */
+    cc.neurons[0].gate = (rhonn_real)1e-30;       /* gates every update */
+    CHECK_STATUS(rhonn_init(&net, &c, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_init(&twin, &cc, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_get_trace_ceiling(&net, 1, &v), RHONN_OK);
+    CHECK(v == (rhonn_real)0.0);
+    CHECK_STATUS(rhonn_get_gate(&twin, 1, &v), RHONN_OK);
+    CHECK(v == (rhonn_real)0.0);
+    CHECK_STATUS(rhonn_get_gate(&twin, 0, &v), RHONN_OK);
+    CHECK(v == (rhonn_real)1e-30);
+    CHECK_STATUS(rhonn_set_trace_ceiling(&net, 1, (rhonn_real)40.0), RHONN_OK);
+    CHECK_STATUS(rhonn_set_gate(&net, 0, (rhonn_real)1e-30), RHONN_OK);
+    CHECK(same_future(&net, &twin, 0, 60));
+    CHECK(memcmp(observe(&net).p, observe(&twin).p, sizeof before.p) == 0);
+    CHECK_STATUS(rhonn_get_health(&net, 0, &h0), RHONN_OK);
+    CHECK_STATUS(rhonn_get_health(&net, 1, &h1), RHONN_OK);
+    CHECK(h0.gated > 0u && h0.updates == 0u && h1.bounded > 0u); /* both acted */
+
+    /* mid-run: the gate closed to almost nothing freezes the weights from the next step on */
+    CHECK_STATUS(rhonn_init(&net, &c, NULL), RHONN_OK);
+    CHECK_STATUS(rhonn_init(&plain, &c, NULL), RHONN_OK);
+    CHECK(same_future(&net, &plain, 0, 10));
+    CHECK_STATUS(rhonn_set_gate(&net, 0, (rhonn_real)1e-30), RHONN_OK);
+    CHECK_STATUS(rhonn_set_trace_ceiling(&net, 1, (rhonn_real)40.0), RHONN_OK);
+    CHECK(memcmp(observe(&net).w, observe(&plain).w, sizeof before.w) == 0); /* nothing yet */
+    CHECK_STATUS(rhonn_get_health(&net, 0, &h0), RHONN_OK);
+    before = observe(&net);
+    sample(10, x, u);
+    CHECK_STATUS(rhonn_step(&net, x, u, NULL, y), RHONN_OK);
+    after = observe(&net);
+    CHECK_STATUS(rhonn_get_health(&net, 0, &h1), RHONN_OK);
+    CHECK(h1.gated == h0.gated + 1u && memcmp(before.w[0], after.w[0], sizeof before.w[0]) == 0);
+    CHECK_STATUS(rhonn_get_health(&net, 1, &h1), RHONN_OK);
+    CHECK(h1.bounded == 1u && h1.trace_p <= (rhonn_real)40.0 * (rhonn_real)1.0001);
+    CHECK_STATUS(rhonn_set_gate(&net, 0, (rhonn_real)0.0), RHONN_OK); /* off again: learns */
+    sample(11, x, u);
+    CHECK_STATUS(rhonn_step(&net, x, u, NULL, y), RHONN_OK);
+    CHECK(memcmp(after.w[0], observe(&net).w[0], sizeof after.w[0]) != 0);
+    CHECK_STATUS(rhonn_reset(&net), RHONN_OK); /* kept by reset */
+    CHECK_STATUS(rhonn_get_trace_ceiling(&net, 1, &v), RHONN_OK);
+    CHECK(v == (rhonn_real)40.0);
+
+    /* refusals name the argument or the value and change nothing */
+    before = observe(&net);
+    CHECK_STATUS(rhonn_set_trace_ceiling(&net, 2, (rhonn_real)50.0), RHONN_E_ARGUMENT);
+    CHECK_STATUS(rhonn_set_gate(&net, 2, (rhonn_real)9.0), RHONN_E_ARGUMENT);
+    CHECK_STATUS(rhonn_set_trace_ceiling(&net, 1, (rhonn_real)NAN), RHONN_E_VALUE);
+    CHECK_STATUS(rhonn_set_trace_ceiling(&net, 1, (rhonn_real)INFINITY), RHONN_E_VALUE);
+    CHECK_STATUS(rhonn_set_trace_ceiling(&net, 1, (rhonn_real)-1.0), RHONN_E_VALUE);
+    CHECK_STATUS(rhonn_set_trace_ceiling(&net, 1, (rhonn_real)39.0), RHONN_E_VALUE); /* below trace P(0) */
+    CHECK_STATUS(rhonn_set_gate(&net, 0, (rhonn_real)NAN), RHONN_E_VALUE);
+    CHECK_STATUS(rhonn_set_gate(&net, 0, (rhonn_real)-INFINITY), RHONN_E_VALUE);
+    CHECK_STATUS(rhonn_set_gate(&net, 0, (rhonn_real)-0.5), RHONN_E_VALUE);
+    CHECK_STATUS(rhonn_set_gate(NULL, 0, (rhonn_real)1.0), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_set_trace_ceiling(NULL, 0, (rhonn_real)50.0), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_get_gate(&net, 0, NULL), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_get_trace_ceiling(&net, 5, &v), RHONN_E_ARGUMENT);
+    CHECK_STATUS(rhonn_get_trace_ceiling(&net, 1, &v), RHONN_OK);
+    CHECK(v == (rhonn_real)40.0);
+    CHECK_STATUS(rhonn_get_gate(&net, 0, &v), RHONN_OK);
+    CHECK(v == (rhonn_real)0.0);
+    after = observe(&net);
+    CHECK(memcmp(&before, &after, sizeof before) == 0);
+    {
+        rhonn_t blank;
+        memset(&blank, 0, sizeof blank);
+        CHECK_STATUS(rhonn_set_gate(&blank, 0, (rhonn_real)1.0), RHONN_E_NOT_INIT);
+    }
+}
+
 static void indefinite_covariance_is_refused_by_the_setters_and_by_the_step(void)
 {
     rhonn_t net, twin;
@@ -1351,6 +1439,7 @@ int main(void)
     RUN(nonfinite_input_leaves_filter_unchanged);
     RUN(invalid_measurement_may_be_nan_and_is_not_learned);
     RUN(learning_off_freezes_weights_and_still_predicts);
+    RUN(calibrated_trace_ceiling_and_gate_act_from_the_next_step);
     RUN(indefinite_covariance_is_refused_by_the_setters_and_by_the_step);
     RUN(factored_form_tracks_the_full_form);
     RUN(restart_learns_nothing_on_the_next_step);

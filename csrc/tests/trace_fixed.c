@@ -6,7 +6,9 @@
  * size, never a bit. The stream has dropouts of single states and of all of
  * them, a non-finite input (refused), learning frozen and resumed, a break
  * (rhonn_restart), a reset, weights and a covariance set from outside (the
- * definiteness proof starts over), and a covariance the full form refuses. */
+ * definiteness proof starts over), a covariance the full form refuses, and
+ * gates and trace ceilings calibrated mid-run (rhonn_set_gate,
+ * rhonn_set_trace_ceiling: the fixed build takes them at run time too). */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -51,9 +53,9 @@ static void print_state(const rhonn_t *net)
             print_reals(" f", buf, L * (L + 1u) / 2u);
         }
         if (rhonn_get_health(net, i, &h) == RHONN_OK) {
-            printf(" h %a %a %a %lu %lu %lu %lu %u\n", (double)h.innovation, (double)h.nis, (double)h.trace_p,
+            printf(" h %a %a %a %lu %lu %lu %lu %lu %u\n", (double)h.innovation, (double)h.nis, (double)h.trace_p,
                    (unsigned long)h.updates, (unsigned long)h.rejected, (unsigned long)h.resets,
-                   (unsigned long)h.bounded, (unsigned)h.fail_run);
+                   (unsigned long)h.bounded, (unsigned long)h.gated, (unsigned)h.fail_run);
         }
     }
 }
@@ -96,6 +98,18 @@ int main(void)
         }
         if (k == 1100u) {
             rhonn_set_learning(&net, 1);
+        }
+        if (k == 1200u || k == 1400u) { /* calibrated: on, then off again */
+            for (j = 0; j < N; ++j) {
+                const rhonn_neuron_config *nc = &LIM_IDENTIFIER.neurons[j];
+                rhonn_real trace0 = (rhonn_real)0.0;
+                size_t t, d = 0;
+                for (t = 0; t < nc->n_terms; d += nc->n_terms - t, ++t) {
+                    trace0 += nc->p0[d];
+                }
+                printf("calibrate %d %d\n", (int)rhonn_set_gate(&net, j, k == 1200u && j % 2u == 0u ? (rhonn_real)0.5 : 0),
+                       (int)rhonn_set_trace_ceiling(&net, j, k == 1200u && j % 2u == 1u ? trace0 : 0));
+            }
         }
         if (k == 2000u) {
             printf("restart %d\n", (int)rhonn_restart(&net));

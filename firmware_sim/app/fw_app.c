@@ -470,6 +470,9 @@ fw_status fw_app_on_frame(fw_app *app, uint32_t id, const uint8_t *data, size_t 
     if (data == NULL && len != 0u) {
         return FW_E_NULL;
     }
+    if (app->hooks.before_frame != NULL) {
+        app->hooks.before_frame(app->hooks.ctx, app);
+    }
     ++app->counters.frames_in;
     switch (id) {
     case RHONN_ID_MEASUREMENT_FRAME_ID:

@@ -143,11 +143,13 @@ struct fw_app;
  * protocol (fw_xcp.h): before_step runs after a Measurement was accepted
  * and before its rhonn_step, so what it changes takes effect between two
  * steps; after_step runs once the step's Estimate went out, with the
- * Measurement's reception time. Either may be NULL. */
+ * Measurement's reception time; before_frame runs first in every
+ * fw_app_on_frame, before the frame can change anything. Any may be NULL. */
 typedef struct {
     void *ctx;
     void (*before_step)(void *ctx, struct fw_app *app);
     void (*after_step)(void *ctx, struct fw_app *app, uint64_t now_ns);
+    void (*before_frame)(void *ctx, struct fw_app *app);
 } fw_step_hooks;
 
 /* The application. Caller-owned (static on a target); treat the fields as

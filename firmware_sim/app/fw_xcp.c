@@ -34,9 +34,11 @@ FW_XCP_STATIC_ASSERT(off_events, offsetof(fw_xcp_signals, events) == FW_XCP_OFF_
 FW_XCP_STATIC_ASSERT(off_dto_sent, offsetof(fw_xcp_signals, daq_dto_sent) == FW_XCP_OFF_DAQ_DTO_SENT);
 FW_XCP_STATIC_ASSERT(off_dto_lost, offsetof(fw_xcp_signals, daq_dto_lost) == FW_XCP_OFF_DAQ_DTO_LOST);
 FW_XCP_STATIC_ASSERT(signals_size, sizeof(fw_xcp_signals) == FW_XCP_SIGNALS_SIZE);
+FW_XCP_STATIC_ASSERT(cal_ceiling, offsetof(fw_xcp_calibration, trace_ceiling) == FW_XCP_CAL_OFF_TRACE_CEILING);
+FW_XCP_STATIC_ASSERT(cal_gate, offsetof(fw_xcp_calibration, gate) == FW_XCP_CAL_OFF_GATE);
+FW_XCP_STATIC_ASSERT(cal_size, sizeof(fw_xcp_calibration) == FW_XCP_CALIBRATION_SIZE);
 #endif
 FW_XCP_STATIC_ASSERT(cal_learning, offsetof(fw_xcp_calibration, learning) == FW_XCP_CAL_OFF_LEARNING);
-FW_XCP_STATIC_ASSERT(cal_size, sizeof(fw_xcp_calibration) == FW_XCP_CALIBRATION_SIZE);
 FW_XCP_STATIC_ASSERT(float32, sizeof(float) == 4u);
 FW_XCP_STATIC_ASSERT(max_odt_pid, FW_XCP_MAX_ODT <= 0xFCu);       /* PIDs 0x00..0xFB are DTOs */
 FW_XCP_STATIC_ASSERT(entry_fits, FW_XCP_MAX_ENTRY_SIZE + 5u <= FW_XCP_MAX_DTO);
@@ -134,9 +136,9 @@ static int resolve(const fw_xcp *x, uint8_t ext, uint32_t addr, size_t n, uint8_
             return -1;
         }
         *region = REGION_SIGNALS;
-    } else if (addr >= x->cal_address && addr - x->cal_address < FW_XCP_CALIBRATION_SIZE) {
+    } else if (addr >= x->cal_address && addr - x->cal_address < sizeof(fw_xcp_calibration)) {
         off = addr - x->cal_address;
-        if (n > FW_XCP_CALIBRATION_SIZE - off) {
+        if (n > sizeof(fw_xcp_calibration) - off) {
             return -1;
         }
         *region = REGION_CAL;
@@ -174,11 +176,33 @@ static uint8_t read_mta(fw_xcp *x, uint8_t *out, size_t n)
     return 0;
 }
 
-/* The signals from the identifier and the application's counters. The
- * slave is a protocol layer of the application, as fw_app.c's CAN protocol
- * is: it reads the application's fields in place (no copy of the counters
- * per step event) and changes nothing but through fw_app_set_learning. */
-static void refresh(fw_xcp *x, const fw_app *app)
+#define ALL_NEURONS ((uint32_t)((1ull << FW_N_STATES) - 1u))
+
+/* The calibration page's ceilings and gates from the values in force (only
+ * a DOWNLOAD, taken before a step, changes those: a step event need not). */
+static void show_in_force(fw_xcp *x, const fw_app *app)
+{
+    rhonn_real v;
+    uint8_t i;
+    for (i = 0; i < FW_N_STATES; ++i) {
+        if (rhonn_get_trace_ceiling(&app->net, i, &v) == RHONN_OK) {
+            x->calibration->trace_ceiling[i] = (float)v;
+        }
+        if (rhonn_get_gate(&app->net, i, &v) == RHONN_OK) {
+            x->calibration->gate[i] = (float)v;
+        }
+    }
+}
+FW_XCP_STATIC_ASSERT(need_bits, FW_N_STATES <= 32u);
+
+/* The signals from the identifier and the application's counters: the
+ * weights of the neurons in need_weights (bit i: neuron i), the health of
+ * those in need_health, the prediction when need_xhat, the counters always.
+ * The slave is a protocol layer of the application, as fw_app.c's CAN
+ * protocol is: it reads the application's fields in place (no copy of the
+ * counters per step event) and changes nothing but through
+ * fw_app_set_learning. */
+static void refresh_some(fw_xcp *x, const fw_app *app, uint32_t need_weights, uint32_t need_health, int need_xhat)
 {
     fw_xcp_signals *s = x->signals;
     rhonn_real v[RHONN_MAX_TERMS > FW_N_STATES ? RHONN_MAX_TERMS : FW_N_STATES];
@@ -186,12 +210,22 @@ static void refresh(fw_xcp *x, const fw_app *app)
     uint8_t i, t;
 
     for (i = 0; i < FW_N_STATES; ++i) {
-        if (app->n_terms[i] <= FW_XCP_TERMS && rhonn_get_weights(&app->net, i, v, app->n_terms[i]) == RHONN_OK) {
-            for (t = 0; t < app->n_terms[i]; ++t) {
-                s->weights[i][t] = (float)v[t];
+        const uint32_t bit = (uint32_t)1u << i;
+        if ((need_weights & bit) != 0u && app->n_terms[i] <= FW_XCP_TERMS) {
+#ifdef RHONN_SINGLE
+            /* float core: the weights land in the signals as they are */
+            (void)v;
+            (void)t;
+            (void)rhonn_get_weights(&app->net, i, s->weights[i], app->n_terms[i]);
+#else
+            if (rhonn_get_weights(&app->net, i, v, app->n_terms[i]) == RHONN_OK) {
+                for (t = 0; t < app->n_terms[i]; ++t) {
+                    s->weights[i][t] = (float)v[t];
+                }
             }
+#endif
         }
-        if (rhonn_get_health(&app->net, i, &h) == RHONN_OK) {
+        if ((need_health & bit) != 0u && rhonn_get_health(&app->net, i, &h) == RHONN_OK) {
             s->innovation[i] = (float)h.innovation;
             s->nis[i] = (float)h.nis;
             s->trace_p[i] = (float)h.trace_p;
@@ -202,7 +236,7 @@ static void refresh(fw_xcp *x, const fw_app *app)
             s->resets[i] = h.resets;
         }
     }
-    if (rhonn_get_prediction(&app->net, v, FW_N_STATES) == RHONN_OK) {
+    if (need_xhat && rhonn_get_prediction(&app->net, v, FW_N_STATES) == RHONN_OK) {
         for (i = 0; i < FW_N_STATES; ++i) {
             s->xhat[i] = (float)v[i];
         }
@@ -216,6 +250,69 @@ static void refresh(fw_xcp *x, const fw_app *app)
     s->step_status = app->counters.last_step_status;
     if (!x->cal_dirty) {
         x->calibration->learning = app->learning; /* the page shows the state until written */
+    }
+}
+
+/* Every signal (a read between steps: UPLOAD, CONNECT, attach). */
+static void refresh(fw_xcp *x, const fw_app *app)
+{
+    refresh_some(x, app, ALL_NEURONS, ALL_NEURONS, 1);
+    if (!x->cal_dirty) {
+        show_in_force(x, app);
+    }
+}
+
+/* Which signals the bytes [off, off + n) of the signals region show. */
+static void note_needs(fw_xcp *x, uint16_t off, uint8_t n)
+{
+    uint32_t o;
+    for (o = off & ~3u; o < (uint32_t)off + n; o += 4u) {
+        if (o < offsetof(fw_xcp_signals, xhat)) {
+            x->need_weights |= (uint32_t)1u << (o / (4u * FW_XCP_TERMS));
+        } else if (o < offsetof(fw_xcp_signals, innovation)) {
+            x->need_xhat = 1;
+        } else if (o < offsetof(fw_xcp_signals, measurements)) {
+            x->need_health |= (uint32_t)1u << (((o - offsetof(fw_xcp_signals, innovation)) / 4u) % FW_N_STATES);
+        }
+    }
+}
+
+/* The running lists' ODTs as runs of contiguous bytes (entries that follow
+ * each other in one region merged), and the signals they need: once, when
+ * a list starts, not at every event. At most FW_XCP_MAX_ENTRIES runs and
+ * FW_XCP_MAX_ENTRIES * FW_XCP_MAX_ENTRY_SIZE / 4 words looked at. */
+static void compile_daq(fw_xcp *x)
+{
+    uint16_t runs = 0;
+    uint8_t d, o, e;
+    x->need_weights = 0;
+    x->need_health = 0;
+    x->need_xhat = 0;
+    for (d = 0; d < x->n_daq; ++d) {
+        const fw_xcp_daq *q = &x->daq[d];
+        if (!q->running) {
+            continue;
+        }
+        for (o = 0; o < q->n_odt; ++o) {
+            fw_xcp_odt *t = &x->odt[q->first_odt + o];
+            t->first_run = runs;
+            t->n_runs = 0;
+            for (e = 0; e < t->n_entries; ++e) {
+                const fw_xcp_entry *en = &x->entry[t->first_entry + e];
+                const uint16_t off = (uint16_t)(en->offset | (en->region == REGION_CAL ? 0x8000u : 0u));
+                if (en->region == REGION_SIGNALS) {
+                    note_needs(x, en->offset, en->size);
+                }
+                if (t->n_runs != 0u && (uint32_t)x->run_off[runs - 1u] + x->run_len[runs - 1u] == off) {
+                    x->run_len[runs - 1u] = (uint8_t)(x->run_len[runs - 1u] + en->size); /* one ODT: <= MAX_DTO */
+                } else {
+                    x->run_off[runs] = off;
+                    x->run_len[runs] = en->size;
+                    ++runs;
+                    ++t->n_runs;
+                }
+            }
+        }
     }
 }
 
@@ -263,25 +360,27 @@ static void disconnect(fw_xcp *x)
 static void before_step(void *ctx, fw_app *app)
 {
     fw_xcp *x = (fw_xcp *)ctx;
+    uint8_t i;
     if (x->cal_dirty) {
         (void)fw_app_set_learning(app, x->calibration->learning);
+        for (i = 0; i < FW_N_STATES; ++i) { /* checked by DOWNLOAD: accepted */
+            (void)rhonn_set_trace_ceiling(&app->net, i, (rhonn_real)x->calibration->trace_ceiling[i]);
+            (void)rhonn_set_gate(&app->net, i, (rhonn_real)x->calibration->gate[i]);
+        }
         x->cal_dirty = 0;
     }
 }
 
-/* The step event: refresh the signals, sample the running DAQ lists. */
-static void after_step(void *ctx, fw_app *app, uint64_t now_ns)
+/* One DAQ sample of the step at now_ns: refresh the signals the running
+ * lists read, send each due list's ODTs. */
+static void sample(fw_xcp *x, const fw_app *app, uint64_t now_ns)
 {
-    fw_xcp *x = (fw_xcp *)ctx;
+    const uint8_t *sig = (const uint8_t *)x->signals;
+    const uint8_t *cal = (const uint8_t *)x->calibration;
     uint32_t stamp;
-    uint8_t d, o, b;
-    uint16_t e;
+    uint8_t d, o, r;
 
-    ++x->signals->events;
-    if (!x->connected || !daq_running(x)) {
-        return; /* a read refreshes the signals itself (fw_xcp_on_command) */
-    }
-    refresh(x, app);
+    refresh_some(x, app, x->need_weights, x->need_health, x->need_xhat);
     stamp = (uint32_t)(now_ns / 1000u); /* one 64-bit division an event */
     for (d = 0; d < x->n_daq; ++d) {
         fw_xcp_daq *q = &x->daq[d];
@@ -295,32 +394,90 @@ static void after_step(void *ctx, fw_app *app, uint64_t now_ns)
         q->countdown = q->prescaler;
         for (o = 0; o < q->n_odt; ++o) {
             const fw_xcp_odt *t = &x->odt[q->first_odt + o];
-            size_t n = 1u;
+            uint8_t *out = x->pkt + 1;
             x->pkt[0] = (uint8_t)(q->first_odt + o);
             if (o == 0u && (q->mode & DAQ_MODE_TIMESTAMP)) {
-                wr32(x->pkt + 1, stamp);
-                n += TS_BYTES;
+                wr32(out, stamp);
+                out += TS_BYTES;
             }
-            for (e = 0; e < t->n_entries; ++e) {
-                /* entries are a few bytes: copied 4 at a time by fixed-size
-                 * copies the compiler inlines, not a memcpy call each */
-                const fw_xcp_entry *en = &x->entry[t->first_entry + e];
-                const uint8_t *src = region_bytes(x, en->region) + en->offset;
-                for (b = 0; b + 4u <= en->size; b = (uint8_t)(b + 4u)) {
-                    memcpy(x->pkt + n + b, src + b, 4u);
+            for (r = 0; r < t->n_runs; ++r) {
+                /* a run's bytes at once: 4 at a time by fixed-size copies the
+                 * compiler turns into word moves, the rest by bytes */
+                const uint16_t off = x->run_off[t->first_run + r];
+                const uint8_t *src = ((off & 0x8000u) != 0u ? cal : sig) + (off & 0x7FFFu);
+                const uint8_t *end = src + x->run_len[t->first_run + r];
+                for (; src + 4 <= end; src += 4, out += 4) {
+                    memcpy(out, src, 4u);
                 }
-                for (; b < en->size; ++b) {
-                    x->pkt[n + b] = src[b];
+                while (src < end) {
+                    *out++ = *src++;
                 }
-                n += en->size;
             }
-            if (send_packet(x, n) == FW_OK) {
+            if (send_packet(x, (size_t)(out - x->pkt)) == FW_OK) {
                 ++x->signals->daq_dto_sent;
             } else {
                 ++x->signals->daq_dto_lost;
             }
         }
     }
+}
+
+/* The noted sample (deferred mode), while a list still runs. */
+static void flush(fw_xcp *x, const fw_app *app)
+{
+    if (x->pending) {
+        x->pending = 0;
+        if (x->connected && daq_running(x)) {
+            sample(x, app, x->pending_ns);
+        }
+    }
+}
+
+/* The step event: count it; sample the running lists now or note it. */
+static void after_step(void *ctx, fw_app *app, uint64_t now_ns)
+{
+    fw_xcp *x = (fw_xcp *)ctx;
+    ++x->signals->events;
+    if (!x->connected || !daq_running(x)) {
+        return; /* a read refreshes the signals itself (fw_xcp_on_command) */
+    }
+    if (x->deferred) {
+        flush(x, app); /* not left by before_frame: kept in order */
+        x->pending = 1;
+        x->pending_ns = now_ns;
+    } else {
+        sample(x, app, now_ns);
+    }
+}
+
+/* Before any frame can change the identifier: a noted sample goes out. */
+static void before_frame(void *ctx, fw_app *app)
+{
+    flush((fw_xcp *)ctx, app);
+}
+
+fw_status fw_xcp_set_deferred(fw_xcp *x, int on)
+{
+    if (x == NULL) {
+        return FW_E_NULL;
+    }
+    if (x->magic != FW_XCP_MAGIC) {
+        return FW_E_NOT_INIT;
+    }
+    x->deferred = on ? 1u : 0u;
+    return FW_OK;
+}
+
+fw_status fw_xcp_poll(fw_xcp *x, fw_app *app)
+{
+    if (x == NULL || app == NULL) {
+        return FW_E_NULL;
+    }
+    if (x->magic != FW_XCP_MAGIC) {
+        return FW_E_NOT_INIT;
+    }
+    flush(x, app);
+    return FW_OK;
 }
 
 fw_status fw_xcp_init(fw_xcp *x, const fw_xcp_config *cfg)
@@ -337,7 +494,7 @@ fw_status fw_xcp_init(fw_xcp *x, const fw_xcp_config *cfg)
     sig = (uintptr_t)cfg->signals;
     cal = (uintptr_t)cfg->calibration;
     if (sig < cfg->address_base || sig - cfg->address_base > 0xFFFFFFFFu - FW_XCP_SIGNALS_SIZE ||
-        cal < cfg->address_base || cal - cfg->address_base > 0xFFFFFFFFu - FW_XCP_CALIBRATION_SIZE) {
+        cal < cfg->address_base || cal - cfg->address_base > 0xFFFFFFFFu - sizeof(fw_xcp_calibration)) {
         return FW_E_CONFIG;
     }
     memset(x, 0, sizeof *x);
@@ -375,6 +532,7 @@ fw_status fw_xcp_attach(fw_xcp *x, fw_app *app)
     hooks.ctx = x;
     hooks.before_step = before_step;
     hooks.after_step = after_step;
+    hooks.before_frame = before_frame;
     if (fw_app_set_step_hooks(app, &hooks) != FW_OK) {
         return FW_E_NOT_INIT;
     }
@@ -493,7 +651,34 @@ static fw_status cmd_short_upload(fw_xcp *x, const uint8_t *c, size_t len)
     return cmd_upload(x, c, 2u);
 }
 
-static fw_status cmd_download(fw_xcp *x, const uint8_t *c, size_t len)
+/* Whether the core takes every trace ceiling and gate of the page: each
+ * setter tried, and the value in force put back at once (bit for bit: the
+ * setters derive nothing else), between steps as every command runs. */
+static int core_accepts(fw_app *app, const fw_xcp_calibration *page, const fw_xcp_calibration *old)
+{
+    rhonn_real was;
+    uint8_t i;
+    int ok = 1;
+    for (i = 0; i < FW_N_STATES && ok; ++i) { /* the values this write changes */
+        if (memcmp(&page->trace_ceiling[i], &old->trace_ceiling[i], sizeof(float)) != 0) {
+            if (rhonn_get_trace_ceiling(&app->net, i, &was) != RHONN_OK) {
+                return 0;
+            }
+            ok = rhonn_set_trace_ceiling(&app->net, i, (rhonn_real)page->trace_ceiling[i]) == RHONN_OK;
+            (void)rhonn_set_trace_ceiling(&app->net, i, was);
+        }
+        if (ok && memcmp(&page->gate[i], &old->gate[i], sizeof(float)) != 0) {
+            if (rhonn_get_gate(&app->net, i, &was) != RHONN_OK) {
+                return 0;
+            }
+            ok = rhonn_set_gate(&app->net, i, (rhonn_real)page->gate[i]) == RHONN_OK;
+            (void)rhonn_set_gate(&app->net, i, was);
+        }
+    }
+    return ok;
+}
+
+static fw_status cmd_download(fw_xcp *x, fw_app *app, const uint8_t *c, size_t len)
 {
     fw_xcp_calibration page;
     uint8_t n, region;
@@ -520,7 +705,8 @@ static fw_status cmd_download(fw_xcp *x, const uint8_t *c, size_t len)
     /* every value checked on a copy: all or nothing */
     page = *x->calibration;
     memcpy((uint8_t *)&page + off, c + 2, n);
-    if (page.learning > 1u || page.reserved[0] != 0u || page.reserved[1] != 0u || page.reserved[2] != 0u) {
+    if (page.learning > 1u || page.reserved[0] != 0u || page.reserved[1] != 0u || page.reserved[2] != 0u ||
+        !core_accepts(app, &page, x->calibration)) {
         return error(x, ERR_OUT_OF_RANGE);
     }
     *x->calibration = page;
@@ -736,6 +922,7 @@ static fw_status cmd_daq(fw_xcp *x, const uint8_t *c, size_t len, uint64_t now_n
         } else {
             q->selected = 1;
         }
+        compile_daq(x);
         x->pkt[1] = q->first_odt;
         return respond(x, 2u);
     }
@@ -757,6 +944,7 @@ static fw_status cmd_daq(fw_xcp *x, const uint8_t *c, size_t len, uint64_t now_n
             }
             q->selected = 0;
         }
+        compile_daq(x);
         return respond(x, 1u);
     }
     default:
@@ -837,7 +1025,7 @@ fw_status fw_xcp_on_command(fw_xcp *x, fw_app *app, const uint8_t *c, size_t len
         }
         return c[0] == CC_UPLOAD ? cmd_upload(x, c, len) : cmd_short_upload(x, c, len);
     case CC_DOWNLOAD:
-        return cmd_download(x, c, len);
+        return cmd_download(x, app, c, len);
     default:
         return cmd_daq(x, c, len, now_ns);
     }

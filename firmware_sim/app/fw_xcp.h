@@ -36,18 +36,23 @@
  * ERR_SEQUENCE. Reading (UPLOAD, SHORT_UPLOAD) is not protected.
  *
  * CALIBRATION. DOWNLOAD writes the calibration page after checking every
- * value (learning 0 or 1: else ERR_OUT_OF_RANGE, nothing written). The
- * identifier takes the page before its next step (the application's
- * before-step hook), never inside one.
+ * value (learning 0 or 1; a trace ceiling or a gate the core accepts:
+ * finite, >= 0, a ceiling 0 or >= trace P_i(0); else ERR_OUT_OF_RANGE,
+ * nothing written). The identifier takes the page before its next step (the
+ * application's before-step hook), never inside one.
  *
  * DAQ. One event channel, FW_XCP_EVENT_STEP: once per identifier step
  * (every accepted Measurement), after the Estimate went out. While a DAQ
- * list runs, the signals are refreshed from the identifier, then every
+ * list runs, the signals its entries read are refreshed from the identifier
+ * (the neurons' weights, health and the prediction only where an entry
+ * reads them; the counters always), then every
  * running list on the event (prescaler counted) sends its ODTs (without
  * DAQ, UPLOAD and SHORT_UPLOAD refresh them before they read, so a step
  * costs the slave nothing but a counter): PID = absolute ODT number, a
  * 4-byte timestamp (1 us, the Measurement's reception time) after the
- * first ODT's PID, then the entries' bytes. A DTO the transport refuses is
+ * first ODT's PID, then the entries' bytes. Starting a list (START_STOP_DAQ_LIST,
+ * START_STOP_SYNCH) compiles the running lists' ODTs into runs of
+ * contiguous bytes, so an event copies each run at once. A DTO the transport refuses is
  * counted in fw_xcp_signals.daq_dto_lost (also readable over XCP).
  */
 #ifndef FW_XCP_H
@@ -130,16 +135,20 @@ typedef struct {
 #define FW_XCP_OFF_DAQ_DTO_LOST 540u
 #define FW_XCP_SIGNALS_SIZE 544u
 
-/* The calibration page (RAM). The LIM identifier has neither a trace
- * ceiling nor an innovation gate, and the core takes them from its
- * configuration only, so learning is the one calibratable. */
+/* The calibration page (RAM): the learning switch, and every neuron's trace
+ * ceiling and innovation gate (rhonn_set_trace_ceiling, rhonn_set_gate: 0
+ * off). Until written, the page shows the values in force. */
 typedef struct {
     uint8_t learning;       /* 1 learn, 0 freeze; taken before the next step */
     uint8_t reserved[3];    /* written as 0 */
+    float trace_ceiling[FW_N_STATES]; /* 0 off, else >= trace P_i(0); taken before the next step */
+    float gate[FW_N_STATES];          /* 0 off, else the largest e^2 / s learned; likewise */
 } fw_xcp_calibration;
 
 #define FW_XCP_CAL_OFF_LEARNING 0u
-#define FW_XCP_CALIBRATION_SIZE 4u
+#define FW_XCP_CAL_OFF_TRACE_CEILING 4u
+#define FW_XCP_CAL_OFF_GATE 28u
+#define FW_XCP_CALIBRATION_SIZE 52u
 
 /* The transport: send one XCP packet (a response, an error or a DTO),
  * without the transport's header. FW_OK, or FW_E_HAL when it was not sent. */
@@ -176,6 +185,8 @@ typedef struct {
     uint16_t first_entry;
     uint8_t n_entries;
     uint8_t bytes;      /* written so far */
+    uint16_t first_run; /* its runs in run_off/run_len (compiled when a list starts) */
+    uint8_t n_runs;
 } fw_xcp_odt;
 
 typedef struct {
@@ -204,6 +215,18 @@ typedef struct {
     fw_xcp_daq daq[FW_XCP_MAX_DAQ];
     fw_xcp_odt odt[FW_XCP_MAX_ODT];
     fw_xcp_entry entry[FW_XCP_MAX_ENTRIES];
+    /* The running lists compiled when one starts: each ODT's entries as runs
+     * of bytes contiguous in one region (run_off: offset, bit 15 set for the
+     * calibration page), and the signals they read, refreshed at the event
+     * (need_*: bit i for neuron i's weights, health; need_xhat). */
+    uint16_t run_off[FW_XCP_MAX_ENTRIES];
+    uint8_t run_len[FW_XCP_MAX_ENTRIES];
+    uint32_t need_weights;
+    uint32_t need_health;
+    uint8_t need_xhat;
+    uint8_t deferred;                   /* fw_xcp_set_deferred */
+    uint8_t pending;                    /* a step event's sample not sent yet (deferred) */
+    uint64_t pending_ns;                /* its Measurement's reception time */
     uint8_t last_error;                 /* XCP code of the last error packet (0: none) */
     uint8_t pkt[FW_XCP_MAX_DTO];        /* the packet being built (response or DTO) */
 } fw_xcp;
@@ -224,6 +247,21 @@ fw_status fw_xcp_attach(fw_xcp *x, fw_app *app);
  * an error packet, FW_E_STATE when ignored (not connected), FW_E_HAL when
  * the response could not be sent, FW_E_NULL, FW_E_NOT_INIT. */
 fw_status fw_xcp_on_command(fw_xcp *x, fw_app *app, const uint8_t *cto, size_t len, uint64_t now_ns);
+
+/* Where the step event's DAQ sample is built and sent. Off (the default):
+ * inside the step event, so inside the Measurement's fw_app_on_frame.
+ * On: the step event only notes the sample (its time); the signals are
+ * refreshed and the DTOs built and sent by the next fw_xcp_poll, which the
+ * platform calls once the frame is handled (its main loop), or at the
+ * latest before the next frame is handled (the before_frame hook): either
+ * way before anything can change the identifier, so the sample holds the
+ * same values and timestamp as one sent inside the event. The frame's
+ * deadline then carries none of the DAQ work. FW_E_NULL, FW_E_NOT_INIT. */
+fw_status fw_xcp_set_deferred(fw_xcp *x, int on);
+
+/* Send the noted DAQ sample, if any (deferred mode): FW_OK, also when there
+ * is none. FW_E_NULL, FW_E_NOT_INIT. */
+fw_status fw_xcp_poll(fw_xcp *x, fw_app *app);
 
 /* The XCP error code of the last error packet sent (0 when none). */
 uint8_t fw_xcp_last_error(const fw_xcp *x);

@@ -6,11 +6,13 @@
  *                          recorded stream (frames.h, make_frames.py: the
  *                          LIM at the rig's period), the application alone
  *   xcp_m4.elf connected N the slave attached and a master connected, no DAQ
- *   xcp_m4.elf daq N       the slave attached, connected, unlocked, two DAQ
- *                          lists running on the step event (the 29 weights
- *                          and the measurement counter: 3 ODTs; NIS and
- *                          trace P of every neuron: 1 ODT), then the same
- *                          Measurements
+ *   xcp_m4.elf daq N       the slave attached, connected, unlocked, one DAQ
+ *                          list running on the step event (the measurement
+ *                          counter, the 29 weights, NIS and trace P of every
+ *                          neuron: 3 ODTs), then the same Measurements
+ *   xcp_m4.elf deferred N  the same list, its sample deferred
+ *                          (fw_xcp_set_deferred): the step event notes it and
+ *                          fw_xcp_poll, called after each frame, sends it
  *   xcp_m4.elf commands N  after the same set-up, N commands, cycling through
  *                          SHORT_UPLOAD of 4 and of 56 bytes, SET_MTA,
  *                          DOWNLOAD of 1 byte, GET_STATUS
@@ -95,74 +97,60 @@ static int unlock(uint8_t resource)
     return expect_ok(un, sizeof un);
 }
 
-/* DAQ list 0: the measurement counter and every weight (3 ODTs); list 1:
- * the counter, NIS and trace P of every neuron (1 ODT). */
+/* The one DAQ list: the measurement counter, every weight, NIS and trace P
+ * of every neuron (41 values, 164 bytes), packed greedily into ODTs that
+ * each fit a DTO (the first after its 4-byte timestamp): 3 ODTs. */
+#define LIST_MAX 48u
 static int program_daq(void)
 {
     static const uint8_t connect[] = {0xFF, 0x00};
     static const uint8_t free_daq[] = {0xD6};
-    static const uint8_t alloc_daq[] = {0xD5, 0, 2, 0};
-    static const uint8_t synch[] = {0xDD, 0x01};
+    static const uint8_t alloc_daq[] = {0xD5, 0, 1, 0};
+    static const uint8_t mode[8] = {0xE0, 0x10, 0, 0, 0, 0, 1, 0};
+    static const uint8_t start[4] = {0xDE, 0x01, 0, 0};
     const uint32_t base = (uint32_t)(uintptr_t)&signals;
+    uint32_t addr[LIST_MAX];
+    uint8_t size[LIST_MAX], odt_of[LIST_MAX], per_odt[FW_XCP_MAX_ODT] = {0};
     uint8_t c[8];
-    uint8_t i, t, odt, entry;
+    unsigned n = 0, k, i, t, n_odt = 1, used = 0;
+    addr[n] = base + FW_XCP_OFF_MEASUREMENTS; size[n++] = 4;
+    for (i = 0; i < FW_N_STATES; ++i) {
+        for (t = 0; t < LIM_IDENTIFIER.neurons[i].n_terms; ++t) {
+            addr[n] = base + FW_XCP_OFF_WEIGHTS + 4u * (i * FW_XCP_TERMS + t); size[n++] = 4;
+        }
+    }
+    addr[n] = base + FW_XCP_OFF_NIS; size[n++] = 4u * FW_N_STATES;
+    addr[n] = base + FW_XCP_OFF_TRACE_P; size[n++] = 4u * FW_N_STATES;
+    for (k = 0; k < n; ++k) { /* greedy: the next ODT when this one is full */
+        unsigned room = FW_XCP_MAX_DTO - 1u - (n_odt == 1u ? 4u : 0u);
+        if (used + size[k] > room) {
+            ++n_odt;
+            used = 0;
+        }
+        used += size[k];
+        odt_of[k] = (uint8_t)(n_odt - 1u);
+        ++per_odt[n_odt - 1u];
+    }
     if (expect_ok(connect, sizeof connect) < 0 || unlock(0x04) < 0 || unlock(0x01) < 0 ||
         expect_ok(free_daq, sizeof free_daq) < 0 || expect_ok(alloc_daq, sizeof alloc_daq) < 0) {
         return -1;
     }
-    c[0] = 0xD4; c[1] = 0; c[2] = 0; c[3] = 0; c[4] = 3;
+    c[0] = 0xD4; c[1] = 0; c[2] = 0; c[3] = 0; c[4] = (uint8_t)n_odt;
     if (expect_ok(c, 5) < 0) return -1;
-    c[2] = 1; c[4] = 1;
-    if (expect_ok(c, 5) < 0) return -1;
-    /* list 0: ODT 0 the counter + 11 weights, ODT 1 and 2 the others */
-    for (odt = 0; odt < 3; ++odt) {
-        static const uint8_t n_entries[3] = {12, 10, 8};
-        c[0] = 0xD3; c[1] = 0; c[2] = 0; c[3] = 0; c[4] = odt; c[5] = n_entries[odt];
+    for (k = 0; k < n_odt; ++k) {
+        c[0] = 0xD3; c[1] = 0; c[2] = 0; c[3] = 0; c[4] = (uint8_t)k; c[5] = per_odt[k];
         if (expect_ok(c, 6) < 0) return -1;
     }
-    c[0] = 0xD3; c[2] = 1; c[4] = 0; c[5] = 3;
-    if (expect_ok(c, 6) < 0) return -1;
-    odt = 0;
-    entry = 0;
-    c[0] = 0xE2; c[1] = 0; c[2] = 0; c[3] = 0; c[4] = 0; c[5] = 0;
-    if (expect_ok(c, 6) < 0) return -1;
-    c[0] = 0xE1; c[1] = 0xFF; c[2] = 4; c[3] = 0;
-    put32(c + 4, base + FW_XCP_OFF_MEASUREMENTS);
-    if (expect_ok(c, 8) < 0) return -1;
-    ++entry;
-    for (i = 0; i < FW_N_STATES; ++i) {
-        for (t = 0; t < LIM_IDENTIFIER.neurons[i].n_terms; ++t) {
-            static const uint8_t n_entries[3] = {12, 10, 8};
-            if (entry == n_entries[odt]) {
-                ++odt;
-                entry = 0;
-                c[0] = 0xE2; c[1] = 0; c[2] = 0; c[3] = 0; c[4] = odt; c[5] = 0;
-                if (expect_ok(c, 6) < 0) return -1;
-            }
-            c[0] = 0xE1; c[1] = 0xFF; c[2] = 4; c[3] = 0;
-            put32(c + 4, base + FW_XCP_OFF_WEIGHTS + 4u * (i * FW_XCP_TERMS + t));
-            if (expect_ok(c, 8) < 0) return -1;
-            ++entry;
+    for (k = 0; k < n; ++k) {
+        if (k == 0u || odt_of[k] != odt_of[k - 1u]) {
+            c[0] = 0xE2; c[1] = 0; c[2] = 0; c[3] = 0; c[4] = odt_of[k]; c[5] = 0;
+            if (expect_ok(c, 6) < 0) return -1;
         }
+        c[0] = 0xE1; c[1] = 0xFF; c[2] = size[k]; c[3] = 0;
+        put32(c + 4, addr[k]);
+        if (expect_ok(c, 8) < 0) return -1;
     }
-    c[0] = 0xE2; c[1] = 0; c[2] = 1; c[3] = 0; c[4] = 0; c[5] = 0;
-    if (expect_ok(c, 6) < 0) return -1;
-    c[0] = 0xE1; c[1] = 0xFF; c[2] = 4; c[3] = 0;
-    put32(c + 4, base + FW_XCP_OFF_MEASUREMENTS);
-    if (expect_ok(c, 8) < 0) return -1;
-    c[2] = 24;
-    put32(c + 4, base + FW_XCP_OFF_NIS);
-    if (expect_ok(c, 8) < 0) return -1;
-    put32(c + 4, base + FW_XCP_OFF_TRACE_P);
-    if (expect_ok(c, 8) < 0) return -1;
-    for (i = 0; i < 2; ++i) {
-        uint8_t mode[8] = {0xE0, 0x10, 0, 0, 0, 0, 1, 0};
-        uint8_t sel[4] = {0xDE, 0x02, 0, 0};
-        mode[2] = i;
-        sel[2] = i;
-        if (expect_ok(mode, 8) < 0 || expect_ok(sel, 4) < 0) return -1;
-    }
-    return expect_ok(synch, sizeof synch);
+    return expect_ok(mode, sizeof mode) < 0 ? -1 : expect_ok(start, sizeof start);
 }
 
 int main(int argc, char **argv)
@@ -187,7 +175,8 @@ int main(int argc, char **argv)
     if (strcmp(mode, "plain") != 0) {
         static const uint8_t connect[] = {0xFF, 0x00};
         if (fw_xcp_init(&xcp, &xc) != FW_OK || fw_xcp_attach(&xcp, &app) != FW_OK ||
-            (strcmp(mode, "connected") == 0 ? expect_ok(connect, sizeof connect) : program_daq()) < 0) {
+            (strcmp(mode, "connected") == 0 ? expect_ok(connect, sizeof connect) : program_daq()) < 0 ||
+            fw_xcp_set_deferred(&xcp, strcmp(mode, "deferred") == 0) != FW_OK) {
             printf("error xcp\n");
             return 1;
         }
@@ -225,6 +214,7 @@ int main(int argc, char **argv)
                 continue; /* the stream's commands and foreign frames: not this figure */
             }
             (void)feed((uint32_t)k);
+            (void)fw_xcp_poll(&xcp, &app); /* the main loop's turn (no-op unless deferred) */
             while (fw_mem_hal_pop(&mem, &out) == FW_OK) {
             }
         }

@@ -16,11 +16,13 @@
  * Besides crashes and sanitizer reports, the target aborts when:
  *   - a command changes the identifier (only steps may);
  *   - the calibration page changes while CAL/PAG was never unlocked by the
- *     harness, or takes a value the page does not allow;
+ *     harness, or takes a value the page does not allow (learning not 0 or
+ *     1, a trace ceiling or gate NaN, infinite or negative);
  *   - a packet longer than MAX_DTO is sent, or a response that is neither
  *     positive, an error, nor a DTO;
  *   - any byte outside the two regions changes (the guards around them).
  */
+#include <float.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -115,6 +117,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     uint16_t seq = 0;
     int cal_unlocked = 0;
     fw_xcp_calibration page;
+    uint8_t i;
 
     memset(&img, 0, sizeof img);
     cfg.identifier = &LIM_IDENTIFIER;
@@ -181,6 +184,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         }
         if (img.calibration.learning > 1u || !zero(img.calibration.reserved, sizeof img.calibration.reserved)) {
             abort();
+        }
+        for (i = 0; i < FW_N_STATES; ++i) { /* only what the core takes: finite, >= 0 */
+            const float c = img.calibration.trace_ceiling[i], g = img.calibration.gate[i];
+            if (!(c >= 0.0f && c <= FLT_MAX) || !(g >= 0.0f && g <= FLT_MAX)) {
+                abort();
+            }
         }
         if (!zero(img.guard0, sizeof img.guard0) || !zero(img.guard1, sizeof img.guard1)) {
             abort();

@@ -15,6 +15,7 @@
  *     the prescaler, and DTOs the transport refuses counted as lost;
  *   - the DAQ commands' sequence and capacity errors.
  */
+#include <math.h>
 #include <string.h>
 
 #include "fw_check.h"
@@ -188,6 +189,17 @@ static fw_status download1(uint8_t v)
     return cmd(c, sizeof c);
 }
 
+static fw_status download_float(uint32_t addr, float v)
+{
+    uint8_t c[6] = {0xF0, 4};
+    fw_status st = set_mta(addr);
+    if (st != FW_OK) {
+        return st;
+    }
+    memcpy(c + 2, &v, 4);
+    return cmd(c, sizeof c);
+}
+
 /* ---- tests ----------------------------------------------------------------- */
 
 static void test_connect_status_and_get_id_name_the_a2l(void)
@@ -287,10 +299,9 @@ static void test_only_the_signals_and_the_calibration_page_are_reachable(void)
     CHECK(answered_error(0x22) && img.calibration.reserved[0] == 0u);
 }
 
-static void test_learning_off_takes_effect_at_the_next_step(void)
+/* A fresh application after five steps, a master connected, CAL/PAG unlocked. */
+static void calibrating_after_five_steps(void)
 {
-    rhonn_real w0[RHONN_MAX_TERMS], w1[RHONN_MAX_TERMS];
-    const rhonn_t *net;
     int k;
     setup();
     for (k = 0; k < 5; ++k) {
@@ -298,6 +309,14 @@ static void test_learning_off_takes_effect_at_the_next_step(void)
     }
     connect();
     CHECK_FW(unlock(0x01, 1), FW_OK);
+}
+
+static void test_learning_off_takes_effect_at_the_next_step(void)
+{
+    rhonn_real w0[RHONN_MAX_TERMS], w1[RHONN_MAX_TERMS];
+    const rhonn_t *net;
+    int k;
+    calibrating_after_five_steps();
     CHECK_FW(set_mta(cal_addr + FW_XCP_CAL_OFF_LEARNING), FW_OK);
     CHECK_FW(download1(0), FW_OK);
     CHECK(answered_ok() && img.calibration.learning == 0u);
@@ -322,6 +341,49 @@ static void test_learning_off_takes_effect_at_the_next_step(void)
     CHECK(step() == FW_OK);
     CHECK_STATUS(rhonn_get_weights(net, 4, w1, LIM_IDENTIFIER.neurons[4].n_terms), RHONN_OK);
     CHECK(memcmp(w0, w1, sizeof(rhonn_real) * LIM_IDENTIFIER.neurons[4].n_terms) != 0);
+}
+
+/* DOWNLOAD of a gate or a trace ceiling: checked by the core's rules, taken
+ * before the next step (not before), and acting from that step on. */
+static void test_a_downloaded_gate_and_trace_ceiling_act_from_the_next_step(void)
+{
+    rhonn_real w0[RHONN_MAX_TERMS], w1[RHONN_MAX_TERMS], v;
+    rhonn_health h0, h1;
+    const rhonn_t *net;
+    fw_xcp_calibration page;
+    calibrating_after_five_steps();
+    CHECK_FW(fw_app_get_identifier(&app, &net), FW_OK);
+    CHECK(img.calibration.gate[4] == 0.0f && img.calibration.trace_ceiling[4] == 0.0f); /* in force: off */
+    /* refused, nothing written: NaN, negative, a ceiling below trace P(0) */
+    page = img.calibration;
+    CHECK_FW(download_float(cal_addr + FW_XCP_CAL_OFF_GATE + 16u, (float)NAN), FW_E_RANGE);
+    CHECK(answered_error(0x22));
+    CHECK_FW(download_float(cal_addr + FW_XCP_CAL_OFF_GATE + 16u, -1.0f), FW_E_RANGE);
+    CHECK_FW(download_float(cal_addr + FW_XCP_CAL_OFF_TRACE_CEILING + 16u, 1e-30f), FW_E_RANGE);
+    CHECK(memcmp(&page, &img.calibration, sizeof page) == 0);
+    CHECK_STATUS(rhonn_get_weights(net, 4, w0, LIM_IDENTIFIER.neurons[4].n_terms), RHONN_OK);
+    CHECK_STATUS(rhonn_get_health(net, 4, &h0), RHONN_OK);
+    /* a gate that skips every update of neuron 4, and a ceiling on neuron 5 */
+    CHECK_FW(download_float(cal_addr + FW_XCP_CAL_OFF_GATE + 16u, 1e-30f), FW_OK);
+    CHECK_FW(download_float(cal_addr + FW_XCP_CAL_OFF_TRACE_CEILING + 20u, 1e30f), FW_OK);
+    CHECK_STATUS(rhonn_get_gate(net, 4, &v), RHONN_OK);
+    CHECK(v == (rhonn_real)0.0); /* written, not yet taken: no step ran */
+    CHECK(step() == FW_OK);
+    CHECK_STATUS(rhonn_get_gate(net, 4, &v), RHONN_OK);
+    CHECK(v == (rhonn_real)1e-30f);
+    CHECK_STATUS(rhonn_get_trace_ceiling(net, 5, &v), RHONN_OK);
+    CHECK(v == (rhonn_real)1e30f);
+    CHECK_STATUS(rhonn_get_health(net, 4, &h1), RHONN_OK);
+    CHECK_STATUS(rhonn_get_weights(net, 4, w1, LIM_IDENTIFIER.neurons[4].n_terms), RHONN_OK);
+    CHECK(h1.gated == h0.gated + 1u && h1.updates == h0.updates);
+    CHECK(memcmp(w0, w1, sizeof(rhonn_real) * LIM_IDENTIFIER.neurons[4].n_terms) == 0);
+    CHECK_FW(download_float(cal_addr + FW_XCP_CAL_OFF_GATE + 16u, 0.0f), FW_OK); /* off again */
+    CHECK(step() == FW_OK);
+    CHECK_STATUS(rhonn_get_weights(net, 4, w1, LIM_IDENTIFIER.neurons[4].n_terms), RHONN_OK);
+    CHECK(memcmp(w0, w1, sizeof(rhonn_real) * LIM_IDENTIFIER.neurons[4].n_terms) != 0);
+    CHECK_FW(short_upload(4, 0, cal_addr + FW_XCP_CAL_OFF_TRACE_CEILING + 20u), FW_OK); /* the page reads back */
+    memcpy(&page.gate[0], pkts[0] + 1, 4);
+    CHECK(page.gate[0] == 1e30f);
 }
 
 /* Program one DAQ list: ODT 0 the measurement counter, ODT 1 neuron 0's
@@ -383,9 +445,12 @@ static void test_daq_sends_one_sample_per_step_with_timestamp(void)
         CHECK(ts == (uint32_t)(now / 1000u) && meas == (uint32_t)k + 1u);
         CHECK_STATUS(rhonn_get_weights(net, 0, w, LIM_IDENTIFIER.neurons[0].n_terms), RHONN_OK);
         {
-            float f0;
+            float f0, x0;
+            rhonn_real xhat[FW_N_STATES];
             memcpy(&f0, pkts[1] + 1, 4);
-            CHECK(f0 == (float)w[0]);
+            memcpy(&x0, pkts[1] + 1 + 48, 4);
+            CHECK_STATUS(rhonn_get_prediction(net, xhat, FW_N_STATES), RHONN_OK);
+            CHECK(f0 == (float)w[0] && x0 == (float)xhat[0]); /* the entries' signals refreshed */
         }
     }
     CHECK(img.signals.daq_dto_sent == 40u && img.signals.daq_dto_lost == 0u && img.signals.events == 20u);
@@ -405,6 +470,51 @@ static void test_daq_sends_one_sample_per_step_with_timestamp(void)
         CHECK(step() == FW_OK);
     }
     CHECK(n_pkts == 6u);
+}
+
+/* Deferred: the step event sends nothing; fw_xcp_poll, or else the next
+ * frame, sends the same bytes the event would have sent. */
+static void test_a_deferred_sample_equals_the_one_sent_inside_the_step(void)
+{
+    uint8_t eager[3][2][FW_XCP_MAX_DTO];
+    size_t eager_len[3][2];
+    int k;
+    now = 1000000u;
+    setup();
+    connect();
+    CHECK_FW(unlock(0x04, 1), FW_OK);
+    program_daq(1);
+    for (k = 0; k < 3; ++k) {
+        n_pkts = 0;
+        CHECK(step() == FW_OK && n_pkts == 2u);
+        memcpy(eager[k], pkts, sizeof eager[k]);
+        eager_len[k][0] = pkt_len[0];
+        eager_len[k][1] = pkt_len[1];
+    }
+    now = 1000000u;
+    setup();
+    connect();
+    CHECK_FW(unlock(0x04, 1), FW_OK);
+    program_daq(1);
+    CHECK_FW(fw_xcp_set_deferred(&xcp, 1), FW_OK);
+    n_pkts = 0;
+    CHECK(step() == FW_OK && n_pkts == 0u); /* noted, not sent */
+    CHECK_FW(fw_xcp_poll(&xcp, &app), FW_OK);
+    CHECK(n_pkts == 2u && pkt_len[0] == eager_len[0][0] && pkt_len[1] == eager_len[0][1]);
+    CHECK(memcmp(pkts[0], eager[0][0], pkt_len[0]) == 0 && memcmp(pkts[1], eager[0][1], pkt_len[1]) == 0);
+    n_pkts = 0;
+    CHECK_FW(fw_xcp_poll(&xcp, &app), FW_OK); /* nothing left */
+    CHECK(n_pkts == 0u);
+    CHECK(step() == FW_OK && n_pkts == 0u);
+    CHECK(step() == FW_OK && n_pkts == 2u); /* no poll between: the frame sent the first before stepping */
+    CHECK(memcmp(pkts[0], eager[1][0], pkt_len[0]) == 0 && memcmp(pkts[1], eager[1][1], pkt_len[1]) == 0);
+    n_pkts = 0;
+    CHECK_FW(fw_xcp_poll(&xcp, &app), FW_OK);
+    CHECK(n_pkts == 2u && memcmp(pkts[0], eager[2][0], pkt_len[0]) == 0 &&
+          memcmp(pkts[1], eager[2][1], pkt_len[1]) == 0);
+    CHECK_FW(fw_xcp_set_deferred(NULL, 1), FW_E_NULL);
+    CHECK_FW(fw_xcp_poll(NULL, &app), FW_E_NULL);
+    CHECK_FW(fw_xcp_poll(&xcp, NULL), FW_E_NULL);
 }
 
 static void test_daq_commands_refuse_bad_sequences_and_sizes(void)
@@ -497,7 +607,9 @@ int main(void)
     RUN(test_seed_and_key_unlock_and_a_wrong_key_disconnects);
     RUN(test_only_the_signals_and_the_calibration_page_are_reachable);
     RUN(test_learning_off_takes_effect_at_the_next_step);
+    RUN(test_a_downloaded_gate_and_trace_ceiling_act_from_the_next_step);
     RUN(test_daq_sends_one_sample_per_step_with_timestamp);
+    RUN(test_a_deferred_sample_equals_the_one_sent_inside_the_step);
     RUN(test_daq_commands_refuse_bad_sequences_and_sizes);
     RUN(test_init_refuses_bad_arguments);
     return CHECK_SUMMARY();

@@ -9,7 +9,9 @@ A2L has, for a calibration and measurement tool (CANape, INCA, pyxcp):
 - MEASUREMENTs: every weight ``w<i>_<t>`` of the identifier, the prediction
   ``xhat_<state>``, the health ``innovation_<state>``, ``nis_<i>``,
   ``trace_p_<i>`` and counters, the application's counters and the XCP ones;
-- the CHARACTERISTIC ``learning`` (the calibration page);
+- the CHARACTERISTICs of the calibration page: ``learning``, and every
+  neuron's trace ceiling ``trace_ceiling_<i>`` and innovation gate
+  ``gate_<i>`` (0 off; the slave refuses what the core refuses);
 - COMPU_METHODs with units (the states' units from the DBC's scalings), a
   verbal table for the learning switch;
 - the event list (one event, ``step``: once per identifier step) and
@@ -359,16 +361,24 @@ def a2l_text(layout: Layout, addresses: dict[str, int], host: str, port: int,
         + (can.if_data() if can is not None else
            f'      /begin XCP_ON_UDP_IP 0x0104 {port} ADDRESS "{host}" /end XCP_ON_UDP_IP\n')
         + "    /end IF_DATA\n")
+    tuned = [(f"{key}_{i}", f"neuron {i}: {text}, taken before the next step",
+              cal + layout.calibration_offsets[key] + 4 * i)
+             for key, text in (("trace_ceiling", "trace ceiling of P (0 off, else at least trace P(0))"),
+                               ("gate", "innovation gate on e^2/s (0 off)"))
+             for i in range(len(STATES))]
     characteristic = (
         f'    /begin CHARACTERISTIC learning "learning switch: 0 freezes the weights from the next step,'
         f' 1 resumes" VALUE 0x{cal + layout.calibration_offsets["learning"]:X} RL_UBYTE 0 CM_LEARNING 0 1\n'
         "    /end CHARACTERISTIC\n"
-        "    /begin RECORD_LAYOUT RL_UBYTE FNC_VALUES 1 UBYTE ROW_DIR DIRECT /end RECORD_LAYOUT\n")
+        + "".join(f'    /begin CHARACTERISTIC {name} "{text}" VALUE 0x{addr:X} RL_FLOAT32 0 CM_ONE 0 {f32}\n'
+                  "    /end CHARACTERISTIC\n" for name, text, addr in tuned)
+        + "    /begin RECORD_LAYOUT RL_UBYTE FNC_VALUES 1 UBYTE ROW_DIR DIRECT /end RECORD_LAYOUT\n"
+        "    /begin RECORD_LAYOUT RL_FLOAT32 FNC_VALUES 1 FLOAT32_IEEE ROW_DIR DIRECT /end RECORD_LAYOUT\n")
     group_text = "".join(
         f'    /begin GROUP {g} "{g}" /begin REF_MEASUREMENT {" ".join(names)} /end REF_MEASUREMENT /end GROUP\n'
         for g, names in groups.items())
-    group_text += ('    /begin GROUP calibration "calibratables" /begin REF_CHARACTERISTIC learning'
-                   ' /end REF_CHARACTERISTIC /end GROUP\n')
+    group_text += ('    /begin GROUP calibration "calibratables" /begin REF_CHARACTERISTIC learning '
+                   + " ".join(name for name, _, _ in tuned) + ' /end REF_CHARACTERISTIC /end GROUP\n')
     return ("ASAP2_VERSION 1 71\n"
             f'/begin PROJECT {layout.name} "RHONN identifier of the LIM, firmware over XCP"\n'
             f'  /begin HEADER "" VERSION "1" PROJECT_NO {layout.name} /end HEADER\n'
