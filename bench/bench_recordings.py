@@ -10,7 +10,9 @@
    (``Identifier.run`` over the segments), as a same-run ratio.
 3. With ``--huge N`` (12,000,000: an hour at 0.3 ms), a CSV of N samples (``--loss`` lost, written
    straight from the arrays, about 1.9 GB in ``--huge-dir``, deleted afterwards) through ``identify``
-   (plots included): its time and peak memory.
+   (plots included), then the same samples without the lost ones through ``select --search fixed``
+   (the default candidate space; a record longer than ``--max-fit-rows`` fits on windows of it and
+   is validated on every row): the time and peak memory of each.
 
     python bench/bench_recordings.py [--frames 10001] [--loss 0.005] [--long 1000000] [--long-formats log,csv]
         [--huge 12000000 --huge-dir /tmp] [--results]
@@ -69,7 +71,7 @@ def _samples_at(a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
     k = np.arange(a, b)[:, None]
     X = np.hstack([np.sin(k * w) * a for w, a in ((1e-3, 1.0), (7e-4, 2.0), (3e-3, 1.0), (2e-3, 1.0), (5e-3, 20.0),
                                                   (4e-3, 20.0))])
-    U = np.hstack([np.sin(k * 5e-3) * 150.0, np.cos(k * 5e-3) * 150.0])
+    U = np.hstack([np.sin(k * 6.1e-3) * 150.0, np.cos(k * 3.7e-3) * 150.0])
     return X, U
 
 
@@ -158,11 +160,30 @@ def _huge(n: int, loss: float, folder: Path, d: Path, seed: int) -> dict[str, fl
         size = path.stat().st_size
         r = _identify(["identify", str(path), "--config", str(d / "lim.toml"), "--out", str(d / "out-huge")], d)
         metrics = json.loads((d / "out-huge" / "metrics.json").read_text())
-        return {"samples": n, "file_mib": size / 2**20, "seconds": r["seconds"], "peak_mib": r["peak_mib"],
-                "lost": metrics["gaps"]["lost_samples"] if "gaps" in metrics else 0}
+        (d / "out-huge" / "predictions.csv").unlink()
+        found = {"samples": n, "file_mib": size / 2**20, "seconds": r["seconds"], "peak_mib": r["peak_mib"],
+                 "lost": metrics["gaps"]["lost_samples"] if "gaps" in metrics else 0}
+        print(f"3. {n:,} samples ({found['lost']:,} lost) as a {found['file_mib']:,.0f} MiB CSV: identify "
+              f"{r['seconds']:.0f} s, peak {r['peak_mib']:.0f} MiB (plots included)")
+        # select has no lost samples to read: the same signals without the lost column
+        clean = folder / f"pyrhonn-bench-huge-{n}-select.csv"
+        with path.open() as src, clean.open("w") as out:
+            for block in iter(lambda: src.readlines(1 << 22), []):
+                out.writelines(line.rsplit(",", 1)[0] + "\n" for line in block if not line.endswith(",1\n"))
+        path.unlink()
+        sel = _identify(["select", str(clean), "--states", ",".join(STATES), "--inputs", "u_a,u_b", "--search",
+                         "fixed", "--out", str(d / "huge-select.toml"), "--json", str(d / "huge-select.json")], d)
+        rows = json.loads((d / "huge-select.json").read_text())["long_records"][0]
+        clean.unlink()
+        print(f"   select --search fixed: {sel['seconds']:.0f} s, peak {sel['peak_mib']:.0f} MiB; fitted on "
+              f"{len(rows['windows'])} windows, {rows['budget']:,} rows, validated on all {rows['rows']:,}")
+        return {**found, "select": {"seconds": sel["seconds"], "peak_mib": sel["peak_mib"], "rows": rows["rows"],
+                                    "budget": rows["budget"], "windows": len(rows["windows"]),
+                                    "settings": "--search fixed (the default candidate space), "
+                                                "--max-fit-rows default"}}
     finally:
-        path.unlink(missing_ok=True)
-        path.with_suffix(".part").unlink(missing_ok=True)
+        for leftover in (path, path.with_suffix(".part"), folder / f"pyrhonn-bench-huge-{n}-select.csv"):
+            leftover.unlink(missing_ok=True)
 
 
 def _recorded(frames: list[can.Message], n: int, path: Path, d: Path) -> dict[str, float]:
@@ -265,10 +286,7 @@ def main() -> None:
         if args.results:  # saved now, and again with part 3 if it runs
             results_file.save("recordings", figures)
         if args.huge:
-            h = _huge(args.huge, args.loss, args.huge_dir, d, args.seed)
-            print(f"3. {h['samples']:,} samples ({h['lost']:,} lost) as a {h['file_mib']:,.0f} MiB CSV: identify "
-                  f"{h['seconds']:.0f} s, peak {h['peak_mib']:.0f} MiB (plots included)")
-            figures["huge"] = h
+            figures["huge"] = _huge(args.huge, args.loss, args.huge_dir, d, args.seed)
     if args.results:
         results_file.save("recordings", figures)
 
