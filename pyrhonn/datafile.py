@@ -1,6 +1,8 @@
 """Measurement files: a CSV of states and inputs named by an identifier config.
 
-Read by ``pyrhonn identify`` and ``pyrhonn tune --data``; written by
+Read whole by :func:`read_data` (``pyrhonn tune --data``, ``select``, ``validate``) or a chunk of rows at
+a time by :class:`DataReader` (``pyrhonn identify``, ``select`` on a long record), which reads the file
+in blocks of whole lines and parses a plain block column by column in C; written by
 :func:`write_data` (``pyrhonn identify --can-log`` writes the samples it
 aligned from a bus log so).
 

@@ -55,7 +55,19 @@ Outputs (in ``--out``, default ``identify-<file stem>``)
 - ``<state>.png`` per state (unless ``--no-plots``, which removes an earlier
   run's ``<state>.png`` for these states): measured vs identified
   (one step, free run, H steps ahead), and the one-step error, against
-  ``t`` (or the sample index).
+  ``t`` (or the sample index). A record of more than 2,048 samples is drawn
+  as its min-max envelope (:mod:`pyrhonn.envelope`), which the title says.
+
+Long records
+------------
+Without ``--free-run-from`` and ``--steps-ahead`` the record is streamed: a
+CSV file is read a block at a time (:class:`pyrhonn.datafile.DataReader`),
+the core runs chunk by chunk keeping its state (the predictions are the
+whole record's, bit for bit), gaps are found chunk by chunk
+(:class:`pyrhonn.gaps.SegmentTracker`), ``predictions.csv`` is written as
+the chunks come and the metrics are running sums
+(:mod:`pyrhonn.streamscores`): memory does not grow with the record. With a
+free run or k-step predictions the record is held whole.
 
 Each file is written to a temporary file and renamed into place, and the
 folder holds a file ``INCOMPLETE`` from before the first output until after

@@ -11,7 +11,11 @@ Reads the data files of ``pyrhonn identify`` (:mod:`pyrhonn.datafile`), with
 the columns named by ``--states`` and ``--inputs``. Every DATA file is an
 estimation experiment (merged: no regressor reads across two files); with
 ``--fit-rows A:B`` only samples A..B-1 of each fit, and ``--validate-rest``
-makes the samples outside them validation experiments. ``--validate`` names
+makes the samples outside them validation experiments. A file longer than
+``--max-fit-rows`` (default 100,000) fits on 10 evenly spaced windows of it,
+read a chunk at a time and printed with the reason (and in ``--json``'s
+``long_records``); the structure chosen is then validated, weights frozen,
+on every row of the record, streamed. ``--validate`` names
 validation recordings: they never fit a weight.
 
 By default (``--search auto``, and whenever no candidate-space option is
