@@ -8,8 +8,16 @@
 2. A long recording (``--long``, default 10^6 samples) as a candump log and as CSV: ``identify``'s
    end-to-end time and peak memory against the C core's own time on the same samples
    (``Identifier.run`` over the segments), as a same-run ratio.
+3. With ``--huge N`` (12,000,000: an hour at 0.3 ms), a CSV of N samples (``--loss`` lost, written
+   straight from the arrays, about 1.9 GB in ``--huge-dir``, deleted afterwards) through ``identify``
+   (plots included), then the same samples without the lost ones through ``select --search fixed``
+   (the default candidate space; a record longer than ``--max-fit-rows`` fits on windows of it and
+   is validated on every row): the time and peak memory of each.
 
     python bench/bench_recordings.py [--frames 10001] [--loss 0.005] [--long 1000000] [--long-formats log,csv]
+        [--huge 12000000 --huge-dir /tmp] [--results]
+
+``--results`` writes the figures to bench/results/recordings.json (bench/results_file.py).
 
 Needs python-can, cantools and asammdf (pyrhonn's dependencies).
 """
@@ -27,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 import can
+import results_file
 from pyrhonn import Identifier, firmware
 from pyrhonn.configfile import load_shipped, shipped_text
 from pyrhonn.gaps import segments_of
@@ -39,12 +48,14 @@ BUS = "\n[bus]\nsample_period = 0.0003\nclock = \"Measurement\"\n\n[bus.signals]
     f"{n} = \"Measurement.{s}\"\n" for n, s in zip(STATES + ("u_a", "u_b"), firmware.STATE_SIGNALS
                                                     + firmware.INPUT_SIGNALS)) + "\n[bus.valid]\n" + "".join(
     f"{n} = \"Measurement.{s}\"\n" for n, s in zip(STATES, firmware.VALID_SIGNALS))
-RUN = ("import json, resource, sys, time\n"
+# peak memory: the process's own high-water mark (VmHWM). Not getrusage's ru_maxrss, which a child
+# started by fork and exec inherits from its parent: this bench, holding 10^6 frames, would be counted.
+RUN = ("import json, sys, time\n"
        "from pyrhonn.cli import main\n"
        "t = time.perf_counter()\n"
        "code = main(sys.argv[1:])\n"
-       "print(json.dumps({'code': code, 'seconds': time.perf_counter() - t,\n"
-       "                  'peak_mib': resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))\n")
+       "hwm = [l for l in open('/proc/self/status') if l.startswith('VmHWM:')][0].split()[1]\n"
+       "print(json.dumps({'code': code, 'seconds': time.perf_counter() - t, 'peak_mib': int(hwm) / 1024}))\n")
 
 
 def _samples(n: int, synthetic: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -54,10 +65,15 @@ def _samples(n: int, synthetic: bool) -> tuple[np.ndarray, np.ndarray]:
         traj = lim.simulate(dt=PERIOD, horizon=2.0 + n * PERIOD + 0.01)
         k0 = int(round(2.0 / PERIOD))
         return traj.X[k0:k0 + n].copy(), traj.U[k0:k0 + n].copy()
-    k = np.arange(n)[:, None]
+    return _samples_at(0, n)
+
+
+def _samples_at(a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
+    """Samples a..b-1 of the smooth synthetic signals (in the DBC's ranges)."""
+    k = np.arange(a, b)[:, None]
     X = np.hstack([np.sin(k * w) * a for w, a in ((1e-3, 1.0), (7e-4, 2.0), (3e-3, 1.0), (2e-3, 1.0), (5e-3, 20.0),
                                                   (4e-3, 20.0))])
-    U = np.hstack([np.sin(k * 5e-3) * 150.0, np.cos(k * 5e-3) * 150.0])
+    U = np.hstack([np.sin(k * 6.1e-3) * 150.0, np.cos(k * 3.7e-3) * 150.0])
     return X, U
 
 
@@ -109,6 +125,69 @@ def _identify(argv: list[str], cwd: Path) -> dict[str, float]:
     return result
 
 
+def _csv_direct(X: np.ndarray, U: np.ndarray, lost: np.ndarray, path: Path, rows: int = 1 << 16) -> None:
+    """The CSV of the samples (as float32 values, as the frames carry them) with a ``lost`` column, written
+    straight from the arrays a block of rows at a time (a 12 M-sample file without 12 M frames)."""
+    with path.open("w", newline="") as fh:
+        fh.write(",".join([*STATES, "u_a", "u_b", "lost"]) + "\n")
+        for a in range(0, X.shape[0], rows):
+            b = min(a + rows, X.shape[0])
+            cols = [repr(np.hstack([X[a:b], U[a:b]])[:, j].astype(np.float32).astype(np.float64).tolist())[1:-1]
+                    .split(", ") for j in range(8)]
+            gone = lost[a:b].tolist()
+            fh.write("".join(",,,,,,,,1\n" if g else ",".join(r) + ",0\n" for r, g in zip(zip(*cols), gone)))
+
+
+def _huge(n: int, loss: float, folder: Path, d: Path, seed: int) -> dict[str, float]:
+    """``identify`` (plots included) on a CSV of ``n`` samples written to ``folder`` (deleted after)."""
+    rng = np.random.default_rng(seed)
+    path = folder / f"pyrhonn-bench-huge-{n}.csv"
+    try:
+        block = 1 << 20
+        with path.open("w", newline="") as fh:
+            fh.write(",".join([*STATES, "u_a", "u_b", "lost"]) + "\n")
+        for a in range(0, n, block):  # written in blocks: the samples of 12 M rows are not held
+            b = min(a + block, n)
+            X, U = _samples_at(a, b)
+            lost = rng.random(b - a) < loss
+            lost[0] = lost[0] and a > 0
+            lost[-1] = lost[-1] and b < n
+            part = path.with_suffix(".part")
+            _csv_direct(X, U, lost, part)
+            with path.open("a") as out, part.open() as src:
+                next(src)
+                for chunk in iter(lambda: src.read(1 << 22), ""):
+                    out.write(chunk)
+            part.unlink()
+        size = path.stat().st_size
+        r = _identify(["identify", str(path), "--config", str(d / "lim.toml"), "--out", str(d / "out-huge")], d)
+        metrics = json.loads((d / "out-huge" / "metrics.json").read_text())
+        (d / "out-huge" / "predictions.csv").unlink()
+        found = {"samples": n, "file_mib": size / 2**20, "seconds": r["seconds"], "peak_mib": r["peak_mib"],
+                 "lost": metrics["gaps"]["lost_samples"] if "gaps" in metrics else 0}
+        print(f"3. {n:,} samples ({found['lost']:,} lost) as a {found['file_mib']:,.0f} MiB CSV: identify "
+              f"{r['seconds']:.0f} s, peak {r['peak_mib']:.0f} MiB (plots included)")
+        # select has no lost samples to read: the same signals without the lost column
+        clean = folder / f"pyrhonn-bench-huge-{n}-select.csv"
+        with path.open() as src, clean.open("w") as out:
+            for block in iter(lambda: src.readlines(1 << 22), []):
+                out.writelines(line.rsplit(",", 1)[0] + "\n" for line in block if not line.endswith(",1\n"))
+        path.unlink()
+        sel = _identify(["select", str(clean), "--states", ",".join(STATES), "--inputs", "u_a,u_b", "--search",
+                         "fixed", "--out", str(d / "huge-select.toml"), "--json", str(d / "huge-select.json")], d)
+        rows = json.loads((d / "huge-select.json").read_text())["long_records"][0]
+        clean.unlink()
+        print(f"   select --search fixed: {sel['seconds']:.0f} s, peak {sel['peak_mib']:.0f} MiB; fitted on "
+              f"{len(rows['windows'])} windows, {rows['budget']:,} rows, validated on all {rows['rows']:,}")
+        return {**found, "select": {"seconds": sel["seconds"], "peak_mib": sel["peak_mib"], "rows": rows["rows"],
+                                    "budget": rows["budget"], "windows": len(rows["windows"]),
+                                    "settings": "--search fixed (the default candidate space), "
+                                                "--max-fit-rows default"}}
+    finally:
+        for leftover in (path, path.with_suffix(".part"), folder / f"pyrhonn-bench-huge-{n}-select.csv"):
+            leftover.unlink(missing_ok=True)
+
+
 def _recorded(frames: list[can.Message], n: int, path: Path, d: Path) -> dict[str, float]:
     """``frames`` written as ``path`` (its suffix says the format), then identified into ``out-<stem>``."""
     if path.suffix == ".csv":
@@ -152,7 +231,12 @@ def main() -> None:
     ap.add_argument("--long-formats", default="log,csv", help="formats of the long recording (log, blf, asc, mf4, csv)")
     ap.add_argument("--seed", type=int, default=5)
     ap.add_argument("--out", type=Path, default=None, help="keep the files here (default: a temporary folder)")
+    ap.add_argument("--huge", type=int, default=0, help="also identify a CSV of this many samples (e.g. 12000000)")
+    ap.add_argument("--huge-dir", type=Path, default=Path(tempfile.gettempdir()),
+                    help="where the --huge CSV is written (and deleted afterwards)")
+    ap.add_argument("--results", action="store_true", help="write bench/results/recordings.json")
     args = ap.parse_args()
+    figures: dict[str, object] = {}
     with tempfile.TemporaryDirectory() as tmp:
         d = args.out or Path(tmp)
         d.mkdir(parents=True, exist_ok=True)
@@ -178,6 +262,8 @@ def main() -> None:
         print(f"   predictions equal across candump, BLF, ASC, MDF4 and CSV: {same}")
         if not same:
             raise SystemExit(1)
+        figures["lossy"] = {"frames": n, "lost": len(lost), "loss": args.loss, "same_predictions": same,
+                            "formats": runs}
 
         N = args.long
         if N:
@@ -189,11 +275,22 @@ def main() -> None:
             core = _core_seconds(Xb, Ub, lost_mask)
             print(f"2. {N:,} samples, {len(lost_big):,} lost; the C core alone (Identifier.run over the segments, "
                   f"float32): {core:.2f} s")
+            long: dict[str, object] = {"samples": N, "lost": len(lost_big), "core_seconds": core, "plots": False}
             for suffix in args.long_formats.split(","):
                 path = d / f"long-{suffix}.{suffix}"
                 r = _recorded(big, N, path, d)
                 print(f"   {suffix:4s} {path.stat().st_size / 2**20:7.1f} MiB: identify {r['seconds']:6.1f} s "
                       f"({r['seconds'] / core:5.1f} x the core), peak {r['peak_mib']:6.0f} MiB")
+                long[suffix] = {"file_mib": path.stat().st_size / 2**20, "seconds": r["seconds"],
+                                "peak_mib": r["peak_mib"], "ratio": r["seconds"] / core}
+                path.unlink()
+            figures["long"] = long
+        if args.results:  # saved now, and again with part 3 if it runs
+            results_file.save("recordings", figures)
+        if args.huge:
+            figures["huge"] = _huge(args.huge, args.loss, args.huge_dir, d, args.seed)
+    if args.results:
+        results_file.save("recordings", figures)
 
 
 if __name__ == "__main__":

@@ -25,14 +25,14 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
 from .identifier import Identifier, IdentifierError
 from .simulation import Simulation, simulate
 
-__all__ = ["Gap", "Segments", "segments_of", "simulate_segments"]
+__all__ = ["Gap", "SegmentTracker", "Segments", "segments_of", "simulate_segments"]
 
 
 @dataclass(frozen=True)
@@ -44,14 +44,11 @@ class Gap:
     rejected: int
 
 
-@dataclass(frozen=True)
-class Segments:
-    """The stepped runs ``bounds`` ([a, b) sample ranges, in order) and the ``gaps`` between them;
-    ``stepped`` (T,) bool: the samples the identifier steps on."""
+class _Counts:
+    """The firmware's counters of a record's segments ``bounds`` and ``gaps``."""
 
-    bounds: tuple[tuple[int, int], ...]
-    gaps: tuple[Gap, ...]
-    stepped: np.ndarray
+    bounds: Sequence[tuple[int, int]]
+    gaps: Sequence[Gap]
 
     @property
     def restarts(self) -> int:
@@ -60,6 +57,16 @@ class Segments:
     @property
     def lost(self) -> int:
         return sum(g.lost for g in self.gaps)
+
+
+@dataclass(frozen=True)
+class Segments(_Counts):
+    """The stepped runs ``bounds`` ([a, b) sample ranges, in order) and the ``gaps`` between them;
+    ``stepped`` (T,) bool: the samples the identifier steps on."""
+
+    bounds: tuple[tuple[int, int], ...]
+    gaps: tuple[Gap, ...]
+    stepped: np.ndarray
 
     def starts(self) -> np.ndarray:
         """(T,) bool: the first sample of every segment (its prediction was made before the gap, or is x0)."""
@@ -75,18 +82,107 @@ class Segments:
         def when(k: int) -> dict[str, Any]:
             return {"sample": k, "line": int(lines[k]), **({"t": float(t[k])} if t is not None else {})}
 
-        return {
-            "rule": "a lost sample (no input) ends a segment; the sample after the gap is not stepped (the "
-                    "firmware rejects the frame that reveals a gap) and the next segment starts with a restart "
-                    "(weights and covariances kept, nothing learnt from its first step); a state without a "
-                    "measurement in a sample that arrived is a dropout: not valid, predicted through",
-            "lost_samples": self.lost, "gaps": len(self.gaps), "rejected_after_gap": len(self.gaps),
-            "restarts": self.restarts,
-            "segments": [{"first": when(a), "last": when(b - 1), "samples": b - a,
-                          **({"dropouts": {name: int((~valid[a:b, j]).sum()) for j, name in enumerate(names)}}
-                             if valid is not None else {})} for a, b in self.bounds],
-            "gap_list": [{"first_lost": when(g.first), "lost": g.lost, "rejected": when(g.rejected)}
-                         for g in self.gaps]}
+        return _report(self.bounds, self.gaps, when,
+                       None if valid is None else [{name: int((~valid[a:b, j]).sum()) for j, name in enumerate(names)}
+                                                   for a, b in self.bounds])
+
+
+def _report(bounds: Sequence[tuple[int, int]], gaps: Sequence[Gap], when: Callable[[int], dict[str, Any]],
+            dropouts: Sequence[dict[str, int]] | None) -> dict[str, Any]:
+    return {
+        "rule": "a lost sample (no input) ends a segment; the sample after the gap is not stepped (the "
+                "firmware rejects the frame that reveals a gap) and the next segment starts with a restart "
+                "(weights and covariances kept, nothing learnt from its first step); a state without a "
+                "measurement in a sample that arrived is a dropout: not valid, predicted through",
+        "lost_samples": sum(g.lost for g in gaps), "gaps": len(gaps), "rejected_after_gap": len(gaps),
+        "restarts": max(len(bounds) - 1, 0),
+        "segments": [{"first": when(a), "last": when(b - 1), "samples": b - a,
+                      **({"dropouts": dropouts[i]} if dropouts is not None else {})}
+                     for i, (a, b) in enumerate(bounds)],
+        "gap_list": [{"first_lost": when(g.first), "lost": g.lost, "rejected": when(g.rejected)} for g in gaps]}
+
+
+class SegmentTracker(_Counts):
+    """:func:`segments_of` one chunk of a record at a time, for a record too long to hold: :meth:`feed`
+    each chunk's lost flags (and its dropouts, lines and times, for the report) in order, and get the
+    samples of the chunk that are stepped and that start a segment; :meth:`finish` after the last."""
+
+    def __init__(self, names: tuple[str, ...]) -> None:
+        self.names = names
+        self.samples = 0
+        self.bounds: list[tuple[int, int]] = []
+        self.gaps: list[Gap] = []
+        self._prev_lost = False
+        self._prev_stepped = False
+        self._open: int | None = None  # the first sample of the segment not yet closed
+        self._drop = np.zeros(len(names), dtype=np.int64)
+        self._dropouts: list[dict[str, int]] = []
+        self._gap_first = 0
+        self._when: dict[int, dict[str, Any]] = {}
+        self._last: dict[str, Any] = {}
+
+    def feed(self, lost: np.ndarray, valid: np.ndarray, lines: np.ndarray,
+             t: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """The next chunk: ``lost`` (L,) bool, ``valid`` (L, n), its ``lines`` and times ``t``; returns
+        (stepped, starts), both (L,) bool: the samples stepped, and the first of every segment."""
+        L = lost.size
+        if L == 0:
+            return np.zeros(0, dtype=bool), np.zeros(0, dtype=bool)
+        if self.samples == 0 and lost[0]:
+            raise ValueError("lost: sample 0 is lost; a record starts and ends with samples that arrived")
+        k0 = self.samples
+
+        def when(i: int) -> dict[str, Any]:
+            return {"sample": k0 + i, "line": int(lines[i]), **({"t": float(t[i])} if t is not None else {})}
+
+        prev_lost = np.r_[self._prev_lost, lost[:-1]]
+        stepped = ~lost & ~prev_lost
+        prev_stepped = np.r_[self._prev_stepped, stepped[:-1]]
+        starts = stepped & ~prev_stepped
+        ends = ~stepped & prev_stepped  # the sample after a segment's last
+        begins = lost & ~prev_lost
+        rejected = ~lost & prev_lost
+        drop = np.zeros((L + 1, len(self.names)), dtype=np.int64)
+        np.cumsum(~valid, axis=0, out=drop[1:])
+        seg = 0  # where the open segment starts in this chunk
+        for i in (int(i) for i in np.flatnonzero(starts | ends | begins | rejected)):
+            if ends[i]:
+                self._close(k0 + i, self._drop + drop[i] - drop[seg], when(i - 1) if i else self._last)
+            if begins[i]:
+                self._gap_first = k0 + i
+                self._when[k0 + i] = when(i)
+            if rejected[i]:
+                self.gaps.append(Gap(first=self._gap_first, lost=k0 + i - self._gap_first, rejected=k0 + i))
+                self._when[k0 + i] = when(i)
+            if starts[i]:
+                self._open, seg = k0 + i, i
+                self._drop = np.zeros(len(self.names), dtype=np.int64)
+                self._when[k0 + i] = when(i)
+        if self._open is not None:
+            self._drop = self._drop + drop[L] - drop[seg]
+        self._prev_lost, self._prev_stepped = bool(lost[-1]), bool(stepped[-1])
+        self._last = when(L - 1)
+        self.samples += L
+        return stepped, starts
+
+    def _close(self, stop: int, dropouts: np.ndarray, last: dict[str, Any]) -> None:
+        assert self._open is not None
+        self.bounds.append((self._open, stop))
+        self._dropouts.append({name: int(d) for name, d in zip(self.names, dropouts)})
+        self._when[stop - 1] = last
+        self._open = None
+
+    def finish(self) -> None:
+        """After the last chunk: closes the last segment; ValueError if the record ends with a lost sample."""
+        if self._prev_lost:
+            raise ValueError(f"lost: sample {self.samples - 1} is lost; a record starts and ends with samples "
+                             "that arrived")
+        if self._open is not None:
+            self._close(self.samples, self._drop, self._last)
+
+    def report(self) -> dict[str, Any]:
+        """The ``gaps`` entry of metrics.json, as :meth:`Segments.report` gives it for the whole record."""
+        return _report(self.bounds, self.gaps, lambda k: self._when[k], self._dropouts)
 
 
 def segments_of(lost: np.ndarray) -> Segments:

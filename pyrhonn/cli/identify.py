@@ -55,7 +55,19 @@ Outputs (in ``--out``, default ``identify-<file stem>``)
 - ``<state>.png`` per state (unless ``--no-plots``, which removes an earlier
   run's ``<state>.png`` for these states): measured vs identified
   (one step, free run, H steps ahead), and the one-step error, against
-  ``t`` (or the sample index).
+  ``t`` (or the sample index). A record of more than 2,048 samples is drawn
+  as its min-max envelope (:mod:`pyrhonn.envelope`), which the title says.
+
+Long records
+------------
+Without ``--free-run-from`` and ``--steps-ahead`` the record is streamed: a
+CSV file is read a block at a time (:class:`pyrhonn.datafile.DataReader`),
+the core runs chunk by chunk keeping its state (the predictions are the
+whole record's, bit for bit), gaps are found chunk by chunk
+(:class:`pyrhonn.gaps.SegmentTracker`), ``predictions.csv`` is written as
+the chunks come and the metrics are running sums
+(:mod:`pyrhonn.streamscores`): memory does not grow with the record. With a
+free run or k-step predictions the record is held whole.
 
 Each file is written to a temporary file and renamed into place, and the
 folder holds a file ``INCOMPLETE`` from before the first output until after
@@ -75,22 +87,26 @@ import csv
 import json
 import os
 import re
+import shutil
+import tempfile
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Iterable, Iterator, Sequence
 
 import numpy as np
 
 from .. import atomic
 from ..config import DTYPES, IdentifierConfig
 from ..configfile import ConfigFile, load_named
-from ..datafile import (ROWS_AT_ONCE, SEPARATORS, Data, TIME_COLUMN, check_suffix, decimal_cells, read_data,
-                        write_data)
-from ..gaps import Segments, segments_of, simulate_segments
+from ..datafile import (BLOCK_BYTES, ROWS_AT_ONCE, SEPARATORS, Data, DataReader, TIME_COLUMN, check_suffix,
+                        concatenate, decimal_cells, write_data)
+from ..envelope import Envelope
+from ..gaps import SegmentTracker, Segments, segments_of, simulate_segments
 from ..mdfsignals import METHOD, MdfSignals, read_signal_mdf
 from ..identifier import Identifier, IdentifierError
 from ..metrics import absolute_deviation, json_value
 from ..residuals import departure, divergence_range
 from ..simulation import Simulation, scores, simulate
+from ..streamscores import RunningScores
 from . import bus_input
 from .options import real_option, units_option
 
@@ -253,82 +269,123 @@ def _count(k: int, noun: str) -> str:
     return f"{k} {noun}{'' if k == 1 else 's'}"
 
 
-def _write_predictions(path: Path, data: Data, cf: ConfigFile, sim: Simulation, errors: np.ndarray) -> None:
-    """predictions.csv; ``errors`` (T,) bool: the rows whose prediction is a one-step prediction of
-    that row's sample (not row 0, nor the first row of a segment after a gap)."""
-    T = data.n_samples
-    hat = sim.one_step.astype(np.float64)
-    err = data.X - hat
+def _prediction_header(data: Data, cf: ConfigFile, sim: Simulation | None) -> list[str]:
+    extra = [] if sim is None else _extra(sim)
+    header = ["line"] + ([TIME_COLUMN] if data.t is not None else [])
+    for name in cf.state_names:
+        header += [f"{name}_hat", f"{name}_err"] + [f"{name}_{kind}" for kind, _ in extra]
+    return header
+
+
+def _extra(sim: Simulation) -> list[tuple[str, np.ndarray]]:
     extra: list[tuple[str, np.ndarray]] = []
     if sim.free_run is not None:
         extra.append(("free_run", sim.free_run.astype(np.float64)))
     if sim.ahead is not None:
         extra.append((f"ahead{sim.steps}", sim.ahead.astype(np.float64)))
-    header = ["line"] + ([TIME_COLUMN] if data.t is not None else [])
-    for name in cf.state_names:
-        header += [f"{name}_hat", f"{name}_err"] + [f"{name}_{kind}" for kind, _ in extra]
+    return extra
+
+
+def _prediction_rows(w: Any, data: Data, cf: ConfigFile, one_step: np.ndarray, extra: list[tuple[str, np.ndarray]],
+                     errors: np.ndarray) -> None:
+    """predictions.csv's rows of ``data`` (a chunk, or the whole record); ``errors`` (T,) bool: the rows
+    whose prediction is a one-step prediction of that row's sample (not row 0, nor the first row of a
+    segment after a gap)."""
+    T = data.n_samples
+    hat = one_step.astype(np.float64)
+    err = data.X - hat
+    for a in range(0, T, ROWS_AT_ONCE):  # column by column, a block of rows at a time
+        rows = slice(a, min(a + ROWS_AT_ONCE, T))
+        columns: list[list[Any]] = [data.lines[rows].tolist()]
+        if data.t is not None:
+            columns.append(decimal_cells(data.t[rows]))
+        for j in range(len(cf.state_names)):
+            columns.append(decimal_cells(hat[rows, j]))
+            columns.append(decimal_cells(err[rows, j], errors[rows] & data.valid[rows, j]))
+            columns += [decimal_cells(values[rows, j]) for _, values in extra]
+        w.writerows(zip(*columns))
+
+
+def _write_predictions(path: Path, data: Data, cf: ConfigFile, sim: Simulation, errors: np.ndarray) -> None:
+    """predictions.csv of the whole record (see :func:`_prediction_rows`)."""
     with atomic.replacing(path, "w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
-        w.writerow(header)
-        for a in range(0, T, ROWS_AT_ONCE):  # column by column, a block of rows at a time
-            rows = slice(a, min(a + ROWS_AT_ONCE, T))
-            columns: list[list[Any]] = [data.lines[rows].tolist()]
-            if data.t is not None:
-                columns.append(decimal_cells(data.t[rows]))
-            for j in range(len(cf.state_names)):
-                columns.append(decimal_cells(hat[rows, j]))
-                columns.append(decimal_cells(err[rows, j], errors[rows] & data.valid[rows, j]))
-                columns += [decimal_cells(values[rows, j]) for _, values in extra]
-            w.writerows(zip(*columns))
+        w.writerow(_prediction_header(data, cf, sim))
+        _prediction_rows(w, data, cf, sim.one_step, _extra(sim), errors)
 
 
 NOT_VALID_LABEL = "not valid (not learnt; predicted from its own outputs)"  #: legend entry of the shaded samples
 
 
-def _plot(path: Path, name: str, data: Data, sim: Simulation, j: int, warmup: int,
-          units: dict[str, str]) -> None:
+#: the series an identify plot draws per state, in the order of the envelope's columns
+_KINDS = ("measured", "identified", "error", "free_run", "ahead")
+
+
+def _envelope(n: int) -> Envelope:
+    """The plots' envelope: per state the series of :data:`_KINDS`, and a flag: measurement not valid."""
+    return Envelope(len(_KINDS) * n, flags=n)
+
+
+def _feed(env: Envelope, data: Data, one_step: np.ndarray, k0: int, free: np.ndarray | None = None,
+          ahead: np.ndarray | None = None) -> None:
+    """Rows k0.. of the record (``data``, a chunk or the whole) into the plots' envelope."""
+    T, n = data.X.shape
+    x_axis = data.t if data.t is not None else np.arange(k0, k0 + T, dtype=np.float64)
+    measured = np.where(data.valid, data.X, np.nan)
+    identified = one_step.astype(np.float64)
+    if k0 == 0:  # row 0 holds x0, not a prediction
+        identified = identified.copy()
+        identified[0] = np.nan
+    nan = np.full((T, n), np.nan)
+    values = np.hstack([measured, identified, measured - identified,
+                        nan if free is None else free.astype(np.float64),
+                        nan if ahead is None else ahead.astype(np.float64)])
+    env.feed(x_axis, values, ~data.valid)
+
+
+def _plot(path: Path, name: str, j: int, n: int, env: Envelope, has_t: bool, warmup: int, units: dict[str, str],
+          free_run_from: int | None = None, steps: int | None = None) -> None:
     """Measured and identified state j over the error: every y axis carries the state's unit
-    (``--units``), and the samples whose measurement was not valid are shaded, in the legend."""
+    (``--units``), and the samples whose measurement was not valid are shaded, in the legend. A long
+    record is drawn as its min-max envelope (:mod:`pyrhonn.envelope`), said in the title."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    x_axis = data.t if data.t is not None else np.arange(data.n_samples, dtype=np.float64)
-    measured = np.where(data.valid[:, j], data.X[:, j], np.nan)
-    identified = sim.one_step[1:, j].astype(np.float64)
-    error = measured[1:] - identified
+    def series(kind: str) -> tuple[np.ndarray, np.ndarray]:
+        return env.line(_KINDS.index(kind) * n + j)
+
     fig = Figure(figsize=(8.0, 5.0), layout="constrained")
     FigureCanvasAgg(fig)
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 1.4])
-    top.plot(x_axis, measured, color="0.15", lw=1.2, marker=".", ms=2.5, label=f"{name} (measured)")
-    top.plot(x_axis[1:], identified, color="tab:red", lw=1.0, ls="--", label=f"{name} identified (one step ahead)")
-    if sim.ahead is not None:
-        top.plot(x_axis, sim.ahead[:, j].astype(np.float64), color="tab:purple", lw=0.9, ls="-.",
-                 label=f"{name} identified ({sim.steps} steps ahead)")
-    if sim.free_run is not None and sim.free_run_from is not None:
-        top.plot(x_axis, sim.free_run[:, j].astype(np.float64), color="tab:green", lw=1.1,
-                 label=f"{name} free run (weights frozen, own outputs)")
+    dense = env.width == 1
+    top.plot(*series("measured"), color="0.15", lw=1.2, marker="." if dense else None, ms=2.5,
+             label=f"{name} (measured)")
+    top.plot(*series("identified"), color="tab:red", lw=1.0, ls="--", label=f"{name} identified (one step ahead)")
+    if steps is not None:
+        top.plot(*series("ahead"), color="tab:purple", lw=0.9, ls="-.", label=f"{name} identified ({steps} steps ahead)")
+    if free_run_from is not None:
+        top.plot(*series("free_run"), color="tab:green", lw=1.1, label=f"{name} free run (weights frozen, own outputs)")
         for ax in (top, bottom):
-            ax.axvline(x_axis[sim.free_run_from], color="tab:green", lw=0.8, ls=":",
+            ax.axvline(env.x_of(free_run_from), color="tab:green", lw=0.8, ls=":",
                        label="weights frozen from here" if ax is top else None)
     unit = f"[{units[name]}]" if name in units else "(no unit given)"
     top.set_ylabel(f"{name} {unit}")
-    top.set_title(f"{name}: real vs identified")
-    bottom.plot(x_axis[1:], error, color="tab:blue", lw=0.9)
+    top.set_title(f"{name}: real vs identified" if dense else
+                  f"{name}: real vs identified ({env.samples:,} samples: each stroke the min and max of {env.width})")
+    bottom.plot(*series("error"), color="tab:blue", lw=0.9)
     bottom.axhline(0.0, color="0.6", lw=0.6)
     bottom.set_ylabel(f"error {unit}")
-    bottom.set_xlabel((f"t [{units['t']}]" if "t" in units else "t") if data.t is not None else "sample")
-    bad = ~data.valid[:, j]
-    if bad.any():  # runs of not-valid samples, shaded on both axes, one legend entry
-        edges = np.flatnonzero(np.diff(np.r_[0, bad.astype(np.int8), 0]))
-        for n, (a, b) in enumerate(zip(edges[::2], edges[1::2])):
-            for ax in (top, bottom):
-                ax.axvspan(x_axis[a], x_axis[min(b, data.n_samples - 1)], color="tab:orange", alpha=0.18, lw=0,
-                           zorder=0, label=NOT_VALID_LABEL if ax is top and n == 0 else None)
+    bottom.set_xlabel((f"t [{units['t']}]" if "t" in units else "t") if has_t else "sample")
+    spans = [(a, b - a) for a, b in env.runs(j)]
+    if spans:  # runs of not-valid samples, shaded on both axes (one collection each), one legend entry
+        for ax in (top, bottom):
+            ax.broken_barh(spans, (0, 1), transform=ax.get_xaxis_transform(), color="tab:orange", alpha=0.18,
+                           lw=0, zorder=0, label=NOT_VALID_LABEL if ax is top else None)
     if warmup:
         for ax in (top, bottom):
-            ax.axvspan(x_axis[0], x_axis[min(warmup, data.n_samples - 1)], color="0.9", lw=0, zorder=0,
+            ax.axvspan(env.x_of(0), env.x_of(min(warmup, env.samples - 1)), color="0.9", lw=0, zorder=0,
                        label="warm-up (not scored)" if ax is top else None)
-    top.legend(loc="best", fontsize="small")
+    top.legend(loc="best" if dense else "upper right", fontsize="small")  # "best" tests every point and span
     atomic.save_figure(fig, path, dpi=100)
 
 
@@ -350,6 +407,178 @@ def _refuse_overwriting_inputs(outputs: Sequence[Path], inputs: dict[str, str]) 
                                  "choose another folder")
 
 
+def _check_length(args: argparse.Namespace, T: int, source: str, first_line: int) -> None:
+    if T < 2:
+        raise ValueError(f"{source}: line {first_line}: only one data row; one-step-ahead "
+                         "identification needs at least two")
+    if args.warmup >= T - 1:
+        raise ValueError(f"--warmup {args.warmup}: leaves nothing to score ({T} data rows give {T - 1} "
+                         "one-step-ahead pairs)")
+
+
+def _report(args: argparse.Namespace, settings: dict[str, str], T: int, ignored: Sequence[str],
+            units: dict[str, str] | None, sections: dict[str, Any], next_prediction: np.ndarray, cf: ConfigFile,
+            extras: dict[str, Any], gaps: dict[str, Any] | None) -> dict[str, Any]:
+    """metrics.json."""
+    return {
+        "format": "pyrhonn-identify-metrics",
+        "version": 2,
+        **settings,
+        "samples": T,
+        "pairs": T - 1,
+        "warmup": args.warmup,
+        "free_run_from": args.free_run_from,
+        "ahead_steps": args.steps_ahead,
+        "valid_suffix": args.valid_suffix,
+        "ignored_columns": list(ignored),
+        **({"units": units} if units else {}),
+        "definition": "rmse, rrse (root relative squared error) and absolute_deviation (mean |e - mean e|) as "
+                      "in pyrhonn.metrics; 'states' repeats one_step.states",
+        "states": sections["one_step"]["states"],
+        **sections,
+        "next_prediction": {name: float(next_prediction[j]) for j, name in enumerate(cf.state_names)},
+        **({"bus": extras["bus"]} if "bus" in extras else {}),
+        **({"gaps": gaps} if gaps else {}),
+        **({"mdf": extras["mdf"]} if "mdf" in extras else {}),
+    }
+
+
+def _write_rest(out: Path, report: dict[str, Any], plots: list[Path], cf: ConfigFile, env: Envelope, warmup: int,
+                units: dict[str, str], free_run_from: int | None = None, steps: int | None = None) -> None:
+    """metrics.json and the plots (or, without plots, an earlier run's removed)."""
+    atomic.write_text(out / "metrics.json", json.dumps(report, indent=2) + "\n")
+    n = len(cf.state_names)
+    for j, path in enumerate(plots):
+        _plot(path, cf.state_names[j], j, n, env, env.has_t, warmup, units, free_run_from, steps)
+    for stale in [] if plots else [out / f"{name}.png" for name in cf.state_names]:
+        stale.unlink(missing_ok=True)  # an earlier run's plot would pass for this run's
+
+
+#: rows of a record held in memory as one chunk when it is streamed (a bus log or MDF4 read whole is cut so)
+CHUNK_ROWS = 1 << 16
+
+
+def _pieces(data: Data, rows: int = CHUNK_ROWS) -> Iterator[Data]:
+    """``data`` as chunks of ``rows`` rows (views)."""
+    for a in range(0, data.n_samples, rows):
+        b = min(a + rows, data.n_samples)
+        yield Data(X=data.X[a:b], U=data.U[a:b], valid=data.valid[a:b], t=None if data.t is None else data.t[a:b],
+                   lines=data.lines[a:b], ignored=data.ignored, lost=None if data.lost is None else data.lost[a:b],
+                   units=data.units)
+
+
+class _Staged:
+    """predictions.csv written while the record streams: to an anonymous scratch file (in the output
+    folder, or the nearest folder above it that exists; gone with the process, however it ends), copied
+    into place by :meth:`commit` inside the output folder's block (:mod:`pyrhonn.atomic`)."""
+
+    def __init__(self, target: Path) -> None:
+        self.target = target
+        folder = target.parent
+        while not folder.is_dir() and folder != folder.parent:
+            folder = folder.parent
+        self.folder = folder
+        self.fh: Any = None
+
+    def __enter__(self) -> _Staged:
+        self.fh = tempfile.TemporaryFile("w+", encoding="utf-8", newline="", dir=self.folder)
+        return self
+
+    def commit(self) -> None:
+        self.fh.flush()
+        self.fh.seek(0)
+        with atomic.replacing(self.target, "w", newline="") as out:
+            shutil.copyfileobj(self.fh, out, 1 << 22)
+
+    def __exit__(self, *exc: Any) -> None:
+        if self.fh is not None:
+            self.fh.close()
+
+
+def _stream(args: argparse.Namespace, cf: ConfigFile, cfg: IdentifierConfig, source: str, config_source: str,
+            chunks: Iterable[Data], staged: _Staged, plots: bool
+            ) -> tuple[int, dict[str, Any], np.ndarray, SegmentTracker, Envelope, dict[str, str] | None]:
+    """The one-step identification of a record a chunk at a time (the Identifier keeps its state across
+    calls, so the result is the whole record's): predictions.csv written to ``staged`` as it goes, the
+    metrics as running sums (:mod:`pyrhonn.streamscores`), the gaps found chunk by chunk
+    (:class:`pyrhonn.gaps.SegmentTracker`) and the plots' envelope (:mod:`pyrhonn.envelope`). Returns the
+    samples, the metrics' sections, x̂(T), the gaps, the envelope and the file's units."""
+    try:
+        ident = Identifier(cfg)
+    except ValueError as exc:
+        raise ValueError(f"{config_source}: {exc}") from None
+    n = cfg.n_states
+    names = tuple(cf.state_names)
+    tracker = SegmentTracker(names)
+    env = _envelope(n)
+    env.mark(0)
+    env.mark(args.warmup)
+    split = args.warmup + 1  # row 0 holds x0, not a prediction; --warmup drops that many pairs more
+    w = csv.writer(staged.fh, lineterminator="\n")
+    k0 = 0
+    first_line = 0
+    units: dict[str, str] | None = None
+    invalid = np.zeros(n, dtype=np.int64)
+    next_prediction = ident.prediction
+    segment = 0  # segments started
+    with RunningScores(n, deviation=True) as running:
+        for c in chunks:
+            L = c.n_samples
+            if k0 == 0:
+                first_line, units = int(c.lines[0]), c.units
+                env.has_t = c.t is not None
+                w.writerow(_prediction_header(c, cf, None))
+            X, U = c.in_dtype(cfg.dtype, cf.state_names, cf.input_names, source)
+            lost = c.lost if c.lost is not None else np.zeros(L, dtype=bool)
+            stepped, starts = tracker.feed(lost, c.valid, c.lines, c.t)
+            one = np.full((L, n), np.nan, dtype=X.dtype)
+            runs = np.flatnonzero(np.diff(np.r_[0, stepped.astype(np.int8), 0]))
+            for a, b in zip(runs[::2], runs[1::2]):
+                if starts[a]:
+                    if segment:
+                        ident.restart()
+                    segment += 1
+                try:
+                    sim = simulate(ident, X[a:b], U[a:b], c.valid[a:b])
+                except IdentifierError as exc:
+                    found = re.search(r"at sample (\d+)", str(exc))
+                    where = f"line {int(c.lines[a + int(found.group(1))])}: " if found else ""
+                    text = re.sub(r"at sample (\d+)", lambda m: f"at sample {int(m.group(1)) + k0 + int(a)}", str(exc))
+                    raise ValueError(f"{source}: {where}the identifier stopped: {text}") from None
+                one[a:b] = sim.one_step
+                next_prediction = sim.next_prediction
+            errors = stepped & ~starts
+            _prediction_rows(w, c, cf, one, [], errors)
+            scored = c.valid & errors[:, None]
+            if k0 < split:
+                scored[:max(0, split - k0)] = False
+            running.add(c.X, one.astype(np.float64), scored)
+            invalid += (~c.valid).sum(axis=0)
+            if plots:
+                _feed(env, c, one, k0)
+            k0 += L
+        tracker.finish()
+        T = k0
+        _check_length(args, T, source, first_line)
+        sc = running.scores()
+        deviation = running.absolute_deviation()
+    states: dict[str, Any] = {}
+    for j, name in enumerate(names):
+        entry: dict[str, Any] = {"rmse": json_value(sc.rmse[j]), "rrse": json_value(sc.rrse[j]),
+                                 "scored": int(sc.scored[j])}
+        if sc.missing[j]:
+            entry["missing"] = int(sc.missing[j])
+        dev = deviation[j]
+        entry["absolute_deviation"] = None if dev is None else json_value(dev)
+        entry["invalid_samples"] = int(invalid[j])
+        states[name] = entry
+    sections = {"one_step": {
+        "definition": f"one step ahead: x̂(k) made at sample k-1 from measured values, against the measurement "
+                      f"of sample k, valid targets k >= {split}; weights online",
+        "states": states}}
+    return T, sections, next_prediction, tracker, env, units
+
+
 def run(args: argparse.Namespace) -> int:
     cf = load_named(args.config)
     config_source = args.config
@@ -360,18 +589,14 @@ def run(args: argparse.Namespace) -> int:
     if bus and (args.csv_sep is not None or args.decimal is not None):
         raise ValueError(f"{'--csv-sep' if args.csv_sep is not None else '--decimal'}: only for a CSV file, not with "
                          "--can-log")
-    data = bus.data if bus else mdf[0] if mdf else read_data(source, cf, valid_suffix=args.valid_suffix,
-                                                             config_source=config_source, sep=args.csv_sep,
-                                                             decimal=args.decimal, allow_lost=True)
-    units = {**{k: v for k, v in (data.units or {}).items() if k in cf.state_names or k == TIME_COLUMN},
+    whole = bus.data if bus else mdf[0] if mdf else None
+    reader = None if whole is not None else DataReader(
+        source, cf, valid_suffix=args.valid_suffix, config_source=config_source, sep=args.csv_sep,
+        decimal=args.decimal, allow_lost=True, block_bytes=BLOCK_BYTES)
+    file_units = whole.units if whole is not None else reader.units if reader is not None else None
+    ignored = whole.ignored if whole is not None else reader.ignored if reader is not None else ()
+    units = {**{k: v for k, v in (file_units or {}).items() if k in cf.state_names or k == TIME_COLUMN},
              **args.units}  # --units over the file's unit row
-    T = data.n_samples
-    if T < 2:
-        raise ValueError(f"{source}: line {int(data.lines[0])}: only one data row; one-step-ahead "
-                         "identification needs at least two")
-    if args.warmup >= T - 1:
-        raise ValueError(f"--warmup {args.warmup}: leaves nothing to score ({T} data rows give {T - 1} "
-                         "one-step-ahead pairs)")
     unknown = sorted(set(args.units) - set(cf.state_names) - {"t"})
     if unknown:
         raise ValueError(f"--units: {', '.join(unknown)}: not a state of the config (states: "
@@ -386,100 +611,106 @@ def run(args: argparse.Namespace) -> int:
     dtype = args.dtype or cf.config.dtype
     cfg = cf.config if dtype == cf.config.dtype else cf.config.replace(dtype=dtype)
     K = args.free_run_from
-    if K is not None and K >= T:
-        raise ValueError(f"--free-run-from {K}: beyond the data ({T} rows, samples 0..{T - 1})")
-    if K is not None and args.warmup + 1 >= T:
-        raise ValueError(f"--warmup {args.warmup}: leaves nothing to score")
-    if args.steps_ahead is not None and args.steps_ahead >= T:
-        raise ValueError(f"--steps-ahead {args.steps_ahead}: needs more than {args.steps_ahead} data rows, "
-                         f"the file has {T}")
-    segs = segments_of(data.lost) if data.lost is not None and data.lost.any() else None
-    sim, free_rows, ahead_rows = _run_identifier(cfg, data, cf, source, config_source, K, args.steps_ahead, segs)
-    # one-step rows: stepped, and not the first of a segment (its x̂ was made for a sample before the gap)
-    one_rows = None if segs is None else segs.stepped & ~segs.starts()
-    if segs is not None and free_rows is not None and one_rows is not None:
-        free_rows &= one_rows | (np.arange(T) == K)
-    first = args.warmup + 1  # row 0 holds x0, not a prediction; --warmup drops that many pairs more
-    split = max(first, K) if K is not None else first
-    weights = "online" if K is None else f"frozen from sample {K}"
-    sections: dict[str, Any] = {
-        "one_step": _section(data, cf, sim.one_step, _scored(data, split, rows=one_rows),
-                             f"one step ahead: x̂(k) made at sample k-1 from measured values, against the "
-                             f"measurement of sample k, valid targets k >= {split}; weights {weights}",
-                             with_deviation=True)}
-    if K is not None:
-        sections["one_step_learning"] = _section(
-            data, cf, sim.one_step, _scored(data, first, K, rows=one_rows),
-            f"one step ahead over the learnt samples {first}..{K - 1}, weights learning online",
-            with_deviation=True)
-        assert sim.free_run is not None
-        sections["free_run"] = _section(
-            data, cf, sim.free_run, _scored(data, split, rows=free_rows),
-            f"free run (parallel model): weights frozen from sample {K}, the network fed its own predictions "
-            f"and the measured inputs, against the measurements of samples k >= {split}")
-        sections["free_run"]["from_sample"] = K
-        sections["free_run"]["from_line"] = int(data.lines[K])
-        sections["free_run"]["diverged_at_line"] = (None if sim.free_run_diverged is None
-                                                    else int(data.lines[sim.free_run_diverged]))
-        low, high = divergence_range(data.X, data.valid)
-        rows = np.zeros(T, dtype=bool)
-        rows[K:] = True
-        if free_rows is not None:
-            rows &= free_rows
-        left = departure(sim.free_run.astype(np.float64), rows, low, high)
-        gone = [int(k) for k in left if k >= 0]
-        left_range = min(gone) if gone else None
-        sections["free_run"]["left_range_at_line"] = None if left_range is None else int(data.lines[left_range])
-        sections["free_run"]["range"] = ("a free run leaves the data's range at the first sample outside "
-                                         "[min - span, max + span] of a state's valid measurements in the file")
-    if args.steps_ahead is not None:
-        assert sim.ahead is not None
-        H = args.steps_ahead
-        sections["steps_ahead"] = _section(
-            data, cf, sim.ahead, _scored(data, max(split, H), rows=ahead_rows),
-            f"{H} steps ahead: x̂(k | k-{H}), the network as after learning sample k-{H} fed its own "
-            f"predictions for {H - 1} steps, against the measurements of samples k >= {max(split, H)}; "
-            f"weights {weights}")
-        sections["steps_ahead"]["steps"] = H
+    settings = {"data": str(source), "config": config_source, "dtype": dtype}
+    extras = {**({"bus": bus.report()} if bus else {}), **({"mdf": mdf[1].report()} if mdf else {})}
+    segs: SegmentTracker | Segments | None
+    sections: dict[str, Any]
+    if K is None and args.steps_ahead is None:  # one step ahead, learning online: streamed, a chunk at a time
+        chunks = _pieces(whole) if whole is not None else reader.chunks() if reader is not None else iter(())
+        with _Staged(out / "predictions.csv") as staged:
+            T, sections, next_prediction, segs, env, file_units = _stream(
+                args, cf, cfg, source, config_source, chunks, staged, plots=bool(plots))
+            gaps = segs.report() if segs.gaps else None
+            report = _report(args, settings, T, ignored, file_units, sections, next_prediction, cf, extras, gaps)
+            with atomic.output_folder(out, "pyrhonn identify"):  # marked INCOMPLETE until every file is in place
+                if whole is not None:
+                    write_data(out / bus_input.SAMPLES, whole, cf, valid_suffix=args.valid_suffix)
+                staged.commit()
+                _write_rest(out, report, plots, cf, env, args.warmup, units)
+        diverged_line = None
+    else:
+        data = whole if whole is not None else concatenate(list(reader.chunks())) if reader is not None else None
+        assert data is not None
+        T = data.n_samples
+        _check_length(args, T, source, int(data.lines[0]))
+        if K is not None and K >= T:
+            raise ValueError(f"--free-run-from {K}: beyond the data ({T} rows, samples 0..{T - 1})")
+        if K is not None and args.warmup + 1 >= T:
+            raise ValueError(f"--warmup {args.warmup}: leaves nothing to score")
+        if args.steps_ahead is not None and args.steps_ahead >= T:
+            raise ValueError(f"--steps-ahead {args.steps_ahead}: needs more than {args.steps_ahead} data rows, "
+                             f"the file has {T}")
+        wsegs = segments_of(data.lost) if data.lost is not None and data.lost.any() else None
+        sim, free_rows, ahead_rows = _run_identifier(cfg, data, cf, source, config_source, K, args.steps_ahead, wsegs)
+        # one-step rows: stepped, and not the first of a segment (its x̂ was made for a sample before the gap)
+        one_rows = None if wsegs is None else wsegs.stepped & ~wsegs.starts()
+        if wsegs is not None and free_rows is not None and one_rows is not None:
+            free_rows &= one_rows | (np.arange(T) == K)
+        first = args.warmup + 1  # row 0 holds x0, not a prediction; --warmup drops that many pairs more
+        split = max(first, K) if K is not None else first
+        weights = "online" if K is None else f"frozen from sample {K}"
+        sections = {
+            "one_step": _section(data, cf, sim.one_step, _scored(data, split, rows=one_rows),
+                                 f"one step ahead: x̂(k) made at sample k-1 from measured values, against the "
+                                 f"measurement of sample k, valid targets k >= {split}; weights {weights}",
+                                 with_deviation=True)}
+        if K is not None:
+            sections["one_step_learning"] = _section(
+                data, cf, sim.one_step, _scored(data, first, K, rows=one_rows),
+                f"one step ahead over the learnt samples {first}..{K - 1}, weights learning online",
+                with_deviation=True)
+            assert sim.free_run is not None
+            sections["free_run"] = _section(
+                data, cf, sim.free_run, _scored(data, split, rows=free_rows),
+                f"free run (parallel model): weights frozen from sample {K}, the network fed its own predictions "
+                f"and the measured inputs, against the measurements of samples k >= {split}")
+            sections["free_run"]["from_sample"] = K
+            sections["free_run"]["from_line"] = int(data.lines[K])
+            sections["free_run"]["diverged_at_line"] = (None if sim.free_run_diverged is None
+                                                        else int(data.lines[sim.free_run_diverged]))
+            low, high = divergence_range(data.X, data.valid)
+            rows = np.zeros(T, dtype=bool)
+            rows[K:] = True
+            if free_rows is not None:
+                rows &= free_rows
+            left = departure(sim.free_run.astype(np.float64), rows, low, high)
+            gone = [int(k) for k in left if k >= 0]
+            left_range = min(gone) if gone else None
+            sections["free_run"]["left_range_at_line"] = None if left_range is None else int(data.lines[left_range])
+            sections["free_run"]["range"] = ("a free run leaves the data's range at the first sample outside "
+                                             "[min - span, max + span] of a state's valid measurements in the file")
+        if args.steps_ahead is not None:
+            assert sim.ahead is not None
+            H = args.steps_ahead
+            sections["steps_ahead"] = _section(
+                data, cf, sim.ahead, _scored(data, max(split, H), rows=ahead_rows),
+                f"{H} steps ahead: x̂(k | k-{H}), the network as after learning sample k-{H} fed its own "
+                f"predictions for {H - 1} steps, against the measurements of samples k >= {max(split, H)}; "
+                f"weights {weights}")
+            sections["steps_ahead"]["steps"] = H
 
-    report = {
-        "format": "pyrhonn-identify-metrics",
-        "version": 2,
-        "data": str(source),
-        "config": config_source,
-        "dtype": dtype,
-        "samples": T,
-        "pairs": T - 1,
-        "warmup": args.warmup,
-        "free_run_from": K,
-        "ahead_steps": args.steps_ahead,
-        "valid_suffix": args.valid_suffix,
-        "ignored_columns": list(data.ignored),
-        **({"units": data.units} if data.units else {}),
-        "definition": "rmse, rrse (root relative squared error) and absolute_deviation (mean |e - mean e|) as "
-                      "in pyrhonn.metrics; 'states' repeats one_step.states",
-        "states": sections["one_step"]["states"],
-        **sections,
-        "next_prediction": {name: float(sim.next_prediction[j]) for j, name in enumerate(cf.state_names)},
-        **({"bus": bus.report()} if bus else {}),
-        **({"gaps": segs.report(data.t, data.lines, data.valid, tuple(cf.state_names))} if segs else {}),
-        **({"mdf": mdf[1].report()} if mdf else {}),
-    }
-    with atomic.output_folder(out, "pyrhonn identify"):  # marked INCOMPLETE until every file is in place
-        if bus or mdf:
-            write_data(out / bus_input.SAMPLES, data, cf, valid_suffix=args.valid_suffix)
-        errors = np.arange(T) > 0 if one_rows is None else one_rows
-        _write_predictions(out / "predictions.csv", data, cf, sim, errors)
-        atomic.write_text(out / "metrics.json", json.dumps(report, indent=2) + "\n")
-        for j, path in enumerate(plots):
-            _plot(path, cf.state_names[j], data, sim, j, args.warmup, units)
-        for stale in [] if plots else [out / f"{name}.png" for name in cf.state_names]:
-            stale.unlink(missing_ok=True)  # an earlier run's plot would pass for this run's
+        gaps_report = wsegs.report(data.t, data.lines, data.valid, tuple(cf.state_names)) if wsegs else None
+        report = _report(args, settings, T, ignored, data.units, sections, sim.next_prediction, cf, extras,
+                         gaps_report)
+        segs = wsegs
+        diverged_line = None if sim.free_run_diverged is None else int(data.lines[sim.free_run_diverged])
+        env = _envelope(cf.config.n_states)
+        env.has_t = data.t is not None
+        for k in (0, args.warmup, *([K] if K is not None else [])):
+            env.mark(k)
+        if plots:
+            _feed(env, data, sim.one_step, 0, sim.free_run, sim.ahead)
+        with atomic.output_folder(out, "pyrhonn identify"):  # marked INCOMPLETE until every file is in place
+            if bus or mdf:
+                write_data(out / bus_input.SAMPLES, data, cf, valid_suffix=args.valid_suffix)
+            errors = np.arange(T) > 0 if one_rows is None else one_rows
+            _write_predictions(out / "predictions.csv", data, cf, sim, errors)
+            _write_rest(out, report, plots, cf, env, args.warmup, units, free_run_from=K, steps=args.steps_ahead)
 
     print(f"identified {source}: {T} samples, {_count(cfg.n_states, 'state')}, {_count(cfg.n_inputs, 'input')}, "
           f"config {config_source}, {dtype}")
-    if data.ignored:
-        print("ignored columns: " + ", ".join(data.ignored))
+    if ignored:
+        print("ignored columns: " + ", ".join(ignored))
     for line in bus.summary() if bus else []:
         print(line)
     if mdf:
@@ -490,7 +721,7 @@ def run(args: argparse.Namespace) -> int:
         for name, ch in m.channels.items():
             if ch.get("not_valid"):
                 print(f"  {name} ({ch['channel']}): {ch['not_valid']} samples not valid (no new sample)")
-    if segs is not None:
+    if segs is not None and segs.gaps:
         print(f"gaps: {segs.lost} lost samples in {_count(len(segs.gaps), 'gap')}; {len(segs.gaps)} not stepped after "
               f"them, {_count(segs.restarts, 'restart')}; {_count(len(segs.bounds), 'segment')} "
               f"({', '.join(str(b - a) for a, b in segs.bounds[:8])}{' ...' if len(segs.bounds) > 8 else ''} samples)")
@@ -506,8 +737,8 @@ def run(args: argparse.Namespace) -> int:
             st = sections[kind]["states"][name]
             row += f"  {_shown(st['rmse']):>18}  {_shown(st['rrse'], '.4g'):>8}"
         print(row)
-    if K is not None and sim.free_run_diverged is not None:
-        print(f"the free run diverged at line {int(data.lines[sim.free_run_diverged])} (its prediction was not "
+    if K is not None and diverged_line is not None:
+        print(f"the free run diverged at line {diverged_line} (its prediction was not "
               f"finite in {dtype}): its errors are inf")
     elif K is not None and sections["free_run"]["left_range_at_line"] is not None:
         print(f"the free run left the data's range at line {sections['free_run']['left_range_at_line']} (beyond "

@@ -11,7 +11,11 @@ Reads the data files of ``pyrhonn identify`` (:mod:`pyrhonn.datafile`), with
 the columns named by ``--states`` and ``--inputs``. Every DATA file is an
 estimation experiment (merged: no regressor reads across two files); with
 ``--fit-rows A:B`` only samples A..B-1 of each fit, and ``--validate-rest``
-makes the samples outside them validation experiments. ``--validate`` names
+makes the samples outside them validation experiments. A file longer than
+``--max-fit-rows`` (default 100,000) fits on 10 evenly spaced windows of it,
+read a chunk at a time and printed with the reason (and in ``--json``'s
+``long_records``); the structure chosen is then validated, weights frozen,
+on every row of the record, streamed. ``--validate`` names
 validation recordings: they never fit a weight.
 
 By default (``--search auto``, and whenever no candidate-space option is
@@ -38,7 +42,8 @@ from __future__ import annotations
 import argparse
 import json
 from contextlib import contextmanager
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Iterator
 
 import numpy as np
@@ -46,10 +51,11 @@ import numpy as np
 from .. import atomic
 from ..config import DTYPES, Activation, Factor, IdentifierConfig
 from ..configfile import ConfigFile, dumps
-from ..datafile import Data, check_suffix, read_data
-from ..identifier import Identifier
+from ..datafile import Data, DataReader, check_suffix, concatenate, read_data
+from ..identifier import Identifier, IdentifierError
 from ..metrics import json_value
 from ..simulation import Scores, scores, simulate
+from ..streamscores import RunningScores
 from ..experiments import Experiment, merge
 from ..refine import DataRange
 from ..search import SearchResult, Validation, search, validate
@@ -81,6 +87,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "never fits a weight")
     p.add_argument("--fit-rows", metavar="A:B",
                    help="only samples A..B-1 (0-based; A or B may be left out) of each DATA file fit")
+    p.add_argument("--max-fit-rows", type=_budget, default=FIT_BUDGET, metavar="N",
+                   help=f"a DATA file longer than N rows (without --fit-rows) fits on {WINDOWS} evenly spaced windows "
+                        f"of N/{WINDOWS} rows, read a chunk at a time, and the structure chosen is then validated on "
+                        f"every row of it, streamed (default {FIT_BUDGET}; 0: fit on every row)")
     p.add_argument("--validate-rest", action="store_true",
                    help="with --fit-rows: the samples outside A..B-1 are validation experiments")
     p.add_argument("--search", choices=("auto", "fixed"),
@@ -116,6 +126,127 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--valid-suffix", default="_valid", metavar="SUFFIX",
                    help="validity columns are named <state><SUFFIX> (default: _valid)")
     p.set_defaults(func=run)
+
+
+#: the rows a long record fits on at most (--max-fit-rows), in WINDOWS evenly spaced windows
+FIT_BUDGET = 100_000
+WINDOWS = 10
+
+
+def _budget(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number of rows, got {text!r}") from None
+    if value != 0 and value < 2 * WINDOWS:
+        raise argparse.ArgumentTypeError(f"expected 0 (no limit) or at least {2 * WINDOWS} rows, got {value}")
+    return value
+
+
+@dataclass(frozen=True)
+class _Long:
+    """A DATA file longer than the fitting budget: its rows, the windows that fitted and why."""
+
+    path: str
+    rows: int
+    windows: tuple[tuple[int, int], ...]
+    budget: int
+
+    def why(self) -> str:
+        return (f"{self.path}: {self.rows:,} rows, more than --max-fit-rows {self.budget:,}: fitted on "
+                f"{len(self.windows)} evenly spaced windows of {self.windows[0][1] - self.windows[0][0]:,} rows "
+                f"(rows {', '.join(f'{a}..{b - 1}' for a, b in self.windows)}), the structure then validated on "
+                "every row, read a chunk at a time")
+
+    def as_json(self) -> dict[str, object]:
+        return {"file": self.path, "rows": self.rows, "budget": self.budget,
+                "windows": [[a, b - 1] for a, b in self.windows],
+                "why": f"the file has more rows than --max-fit-rows: {len(self.windows)} windows evenly spaced over "
+                       "it (by its line count) fit, so that the fit sees the whole record's range of operation in "
+                       "bounded memory and time; the model is then scored on every row"}
+
+
+def _line_count(path: str) -> int:
+    """The data rows of a CSV file by its line ends (the header left out; a unit row or blank lines
+    make it an overestimate, which only places the windows)."""
+    count, last = 0, b"\n"
+    with open(path, "rb") as fh:  # read only
+        for block in iter(lambda: fh.read(1 << 24), b""):
+            count += block.count(b"\n")
+            last = block[-1:]
+    return max(count - (1 if last == b"\n" else 0), 0)
+
+
+def _windows(path: str, names: ConfigFile, suffix: str, states: tuple[str, ...], inputs: tuple[str, ...],
+             budget: int) -> tuple[list[Experiment], _Long | None, Data | None]:
+    """The fitting windows of a file longer than ``budget`` rows, read a chunk at a time (None when it is
+    not longer: the caller reads it whole)."""
+    estimate = _line_count(path) if Path(path).is_file() else 0
+    if not budget or estimate <= budget:
+        return [], None, None
+    size = budget // WINDOWS
+    starts = sorted({int(a) for a in np.linspace(0, estimate - size, WINDOWS)})
+    windows = [(a, a + size) for a in starts]
+    parts: list[list[Data]] = [[] for _ in windows]
+    reader = DataReader(path, names, valid_suffix=suffix, config_source="--states/--inputs")
+    k0 = 0
+    for c in reader.chunks():
+        L = c.n_samples
+        for i, (a, b) in enumerate(windows):
+            lo, hi = max(a, k0), min(b, k0 + L)
+            if lo < hi:
+                parts[i].append(_rows_of(c, lo - k0, hi - k0))
+        k0 += L
+    exps: list[Experiment] = []
+    kept: list[tuple[int, int]] = []
+    first: Data | None = None
+    for (a, _), got in zip(windows, parts):
+        if not got or sum(d.n_samples for d in got) < 2:
+            continue
+        data = concatenate(got)
+        check_data(data.X, data.U, data.valid, states, inputs, data.lines)
+        exps.append(Experiment(data.X, data.U, data.valid, name=path, first=a))
+        kept.append((a, a + data.n_samples))
+        first = first or data
+    if not exps:
+        raise ValueError(f"{path}: no window of --max-fit-rows {budget} holds 2 rows")
+    return exps, _Long(path=path, rows=k0, windows=tuple(kept), budget=budget), first
+
+
+def _rows_of(c: Data, a: int, b: int) -> Data:
+    return Data(X=c.X[a:b], U=c.U[a:b], valid=c.valid[a:b], t=None if c.t is None else c.t[a:b],
+                lines=c.lines[a:b], ignored=c.ignored)
+
+
+def _validated_streamed(config: IdentifierConfig, long: _Long, names: ConfigFile, suffix: str,
+                        start: int) -> dict[str, Scores]:
+    """One-step and free-run scores of ``config`` with its weights frozen over every row of the long file
+    (valid targets from sample ``start`` on), read a chunk at a time: two identifiers side by side, the
+    second fed its own predictions from ``start`` on (the free run); a free run that diverges scores inf."""
+    one, free = Identifier(config), Identifier(config)
+    one.learning = free.learning = False
+    n = config.n_states
+    k0 = 0
+    diverged = False
+    with RunningScores(n) as r1, RunningScores(n) as r2:
+        for c in DataReader(long.path, names, valid_suffix=suffix, config_source="--states/--inputs").chunks():
+            L = c.n_samples
+            X = np.where(c.valid, c.X, 0.0).astype(config.dtype)
+            U = c.U.astype(config.dtype) if config.n_inputs else None
+            mask = c.valid.copy()
+            mask[:max(0, min(start - k0, L))] = False
+            r1.add(c.X, simulate(one, X, U, c.valid).one_step.astype(np.float64), mask)
+            fv = c.valid.copy()
+            fv[max(0, min(start - k0, L)):] = False
+            est = np.full((L, n), np.nan)
+            if not diverged:
+                try:
+                    est = simulate(free, X, U, fv).one_step.astype(np.float64)
+                except IdentifierError:
+                    diverged = True
+            r2.add(c.X, est, mask)
+            k0 += L
+        return {"one_step": r1.scores(), "free_run": r2.scores()}
 
 
 @contextmanager
@@ -174,14 +305,22 @@ def _space(args: argparse.Namespace) -> CandidateSpace:
 
 
 def _experiments(args: argparse.Namespace, names: ConfigFile, suffix: str, states: tuple[str, ...],
-                 inputs: tuple[str, ...]) -> tuple[list[Experiment], list[Experiment], list[Data]]:
+                 inputs: tuple[str, ...], longs: list[_Long]) -> tuple[list[Experiment], list[Experiment], list[Data]]:
     """The estimation and validation experiments the options name, each file checked line by line."""
     if args.validate_rest and args.fit_rows is None:
         raise ValueError("--validate-rest: needs --fit-rows (the samples outside them validate)")
     est: list[Experiment] = []
     val: list[Experiment] = []
     files: list[Data] = []
+    longs.clear()
     for path in args.data:
+        if args.fit_rows is None:
+            windows, long, first = _windows(path, names, suffix, states, inputs, args.max_fit_rows)
+            if long is not None and first is not None:
+                est += windows
+                files.append(first)
+                longs.append(long)
+                continue
         data = read_data(path, names, valid_suffix=suffix, config_source="--states/--inputs")
         check_data(data.X, data.U, data.valid, states, inputs, data.lines)
         files.append(data)
@@ -241,7 +380,10 @@ def run(args: argparse.Namespace) -> int:
         # the names as a config file would hold them (checked there), to read the columns
         probe = IdentifierConfig.uniform(((Factor.one(),),), n_states=len(states), n_inputs=len(inputs))
         names = ConfigFile.from_config(probe, state_names=states, input_names=inputs)
-    est, val, files = _experiments(args, names, suffix, states, inputs)
+    longs: list[_Long] = []
+    est, val, files = _experiments(args, names, suffix, states, inputs, longs)
+    for long in longs:
+        print(long.why())
     fit_samples = sum(ex.n_samples for ex in est)
     if mode == "auto":
         with _options_named():
@@ -278,6 +420,20 @@ def run(args: argparse.Namespace) -> int:
                        "validation": {"from_sample": start, "weights": "least squares, frozen",
                                       **{kind: {name: {"rmse": json_value(sc.rmse[j]), "rrse": json_value(sc.rrse[j])}
                                                 for j, name in enumerate(states)} for kind, sc in checked.items()}}}
+    for long in longs:  # the structure chosen on the windows, checked on every row of the record
+        deepest = max((f.delay for nr in cf.config.neurons for term in nr.terms for f in term), default=0)
+        start = min(long.rows - 1, deepest + 1)  # the first sample whose taps all read measured samples
+        checked = _validated_streamed(cf.config, long, names, suffix, start)
+        report += f"\n{long.why()}\n" + _validation_text(checked, states, start).replace(
+            "on the same data", f"on every row of {long.path}", 1)
+        records = payload.setdefault("long_records", [])
+        assert isinstance(records, list)
+        records.append(
+            {**long.as_json(), "validation": {"from_sample": start, "weights": "frozen", "rows": long.rows,
+                                              **{kind: {name: {"rmse": json_value(sc.rmse[j]),
+                                                               "rrse": json_value(sc.rrse[j])}
+                                                        for j, name in enumerate(states)}
+                                                 for kind, sc in checked.items()}}})
     atomic.write_text(args.out, dumps(cf))
     if args.report:
         atomic.write_text(args.report, report + "\n")
