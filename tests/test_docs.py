@@ -231,7 +231,6 @@ def test_markers_name_a_known_action_with_its_argument():
 #: or runs fails the test below.
 NOT_YET_RUN = {
     ("docs/can-log.md", "$ pyrhonn identify --can-log lim.blf --dbc firmware_sim/rhonn_id.dbc --config lim.toml --out id"),
-    ("docs/recordings.md", "python bench/bench_recordings.py                      # 10,001 lossy frames in every format, then 10^6 samples"),
 }
 
 

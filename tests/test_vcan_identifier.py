@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import shlex
 from pathlib import Path
 from types import ModuleType
 
@@ -31,6 +32,8 @@ from pyrhonn.firmware import FirmwareApp  # noqa: E402
 
 from hil.rig import read_log  # noqa: E402
 from hil.score import score  # noqa: E402
+
+from docs_blocks import blocks_by, commands  # noqa: E402
 
 pytestmark = pytest.mark.vcan
 FW = Path(__file__).resolve().parent.parent / "firmware_sim"
@@ -76,12 +79,19 @@ def test_replay_of_another_identifier_over_vcan0_is_bit_exact_with_the_twin_and_
     exported, twin = identifier, identifier["twin"]
     runner = identifier["runner"]
     log = tmp_path / "run.blf"
-    # 300 cycles (90 ms) with 2 % of the frames lost; the VM is emulated: a generous timeout and drain
-    argv = ["hil", "replay", "--transport", "socketcan", "--channel", vcan0, "--runner", str(runner),
-            "--identifier", str(exported["config"]), "--dbc", str(exported["dbc"]), "--trajectory",
-            str(exported["data"]), "--duration", "0.09", "--frame-loss", "0.02", "--seed", "4", "--timeout", "10",
-            "--drain", "3", "--quiet", "--log", str(log)]
-    assert pyrhonn_main(argv) == 0
+    # docs/hil-any-identifier.md's commands: the runner built by build_runner.py (as prepare() did, with the
+    # page's very command run by test_hil_identifier), then the page's replay, 300 cycles (90 ms) with 2 % of
+    # the frames lost, its files and runner where prepare() put them; the VM is emulated: a generous timeout
+    # and drain
+    [body] = blocks_by("docs/hil-any-identifier.md",
+                       "test_vcan_identifier.py::test_replay_of_another_identifier_over_vcan0_is_bit_exact_with_the_twin_and_accounted")
+    build, replay = commands(body)
+    assert build.startswith("python firmware_sim/linux/build_runner.py --config cfg.toml --dbc id.dbc "), build
+    given = {"cfg.toml": str(exported["config"]), "id.dbc": str(exported["dbc"]), "data.csv": str(exported["data"]),
+             "vcan0": vcan0, "build/id-runner/rhonn_runner": str(runner)}
+    argv = [given.get(word, word) for word in shlex.split(replay)]
+    assert argv[:3] == ["pyrhonn", "hil", "replay"] and str(runner) in argv and vcan0 in argv, argv
+    assert pyrhonn_main([*argv[1:], "--timeout", "10", "--drain", "3", "--quiet", "--log", str(log)]) == 0
 
     rec = read_log(log)
     assert rec.scenario.identifier == str(exported["config"]) and rec.scenario.state_names == ("y1", "y2")
