@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 
 import pytest
+from source_scripts import load_script  # noqa: E402
 
 from hypothesis import settings
 
@@ -32,16 +33,12 @@ def vcan0() -> str:
 def runner(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """firmware_sim's Linux runner: the one `make test-c` built (RHONN_RUNNER
     or build/release), else one built here with cc."""
-    import importlib.util
 
     root = Path(__file__).resolve().parent.parent
     built = Path(os.environ.get("RHONN_RUNNER", root / "build" / "release" / "firmware_sim" / "rhonn_runner"))
     if built.exists():
         return built
-    spec = importlib.util.spec_from_file_location("_build_runner", root / "firmware_sim" / "linux" / "build_runner.py")
-    module = importlib.util.module_from_spec(spec)
-    assert spec.loader is not None
-    spec.loader.exec_module(module)
+    module = load_script(root / "firmware_sim" / "linux" / "build_runner.py", "_build_runner")
     try:
         return module.build(tmp_path_factory.mktemp("runner"))
     except RuntimeError as exc:

@@ -5,28 +5,22 @@ predicts on the LIM, so the benchmark cannot silently compare against a
 broken baseline. No timing is asserted."""
 from __future__ import annotations
 
-import importlib.util
 import os
 import shlex
 import shutil
-import sys
 from pathlib import Path
 from types import ModuleType
 
 import numpy as np
 import pytest
+from source_scripts import load_script  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 STEPS = 300
 
 
 def _bench() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("bench_core_vs_dense", ROOT / "bench" / "bench_core_vs_dense.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
+    return load_script(ROOT / "bench" / "bench_core_vs_dense.py", "bench_core_vs_dense")
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,6 @@ value, a missing figure fails the build naming it, and no page quotes by hand a
 figure it also takes from a results file."""
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import re
@@ -15,24 +14,17 @@ from types import ModuleType
 from typing import Any
 
 import pytest
+from source_scripts import load_script  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "bench" / "results"
 PAGES = sorted((ROOT / "docs").rglob("*.md"))
 
 
-def _load(name: str, path: Path) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(name, path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.fixture(scope="module")
 def hooks() -> ModuleType:
     pytest.importorskip("mkdocs")
-    return _load("docs_hooks", ROOT / "docs_hooks.py")
+    return load_script(ROOT / "docs_hooks.py", "docs_hooks")
 
 
 def _references(hooks: ModuleType) -> list[tuple[Path, str, str, str | None, bool]]:
@@ -176,7 +168,7 @@ def test_every_results_file_says_when_where_under_what_load_and_how_it_ran() -> 
 
 
 def test_results_writer_replaces_the_file_whole_and_refuses_bad_figures(tmp_path: Path) -> None:
-    writer = _load("results_file", ROOT / "bench" / "results_file.py")
+    writer = load_script(ROOT / "bench" / "results_file.py", "results_file")
     path = writer.save("demo", {"step": {"cycles": 4901}}, ["--frames", "20"], folder=tmp_path)
     data = json.loads(path.read_text(encoding="utf-8"))
     assert data["figures"] == {"step": {"cycles": 4901}} and data["bench"] == "demo"

@@ -6,7 +6,6 @@ estimation record only. No timing is asserted."""
 from __future__ import annotations
 
 import csv
-import importlib.util
 import json
 import math
 import subprocess
@@ -16,6 +15,7 @@ from types import ModuleType
 from typing import Any
 
 import pytest
+from source_scripts import load_script  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 DATASETS = ("cascaded_tanks", "bouc_wen", "narendra_li")
@@ -24,12 +24,7 @@ PUBLISHED = {"best linear approximation": 0.76, "third-degree Volterra": 0.54,
 
 
 def _bench() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("bench_real_data", ROOT / "bench" / "bench_real_data.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
+    return load_script(ROOT / "bench" / "bench_real_data.py", "bench_real_data")
 
 
 def _strict(text: str) -> Any:

@@ -15,6 +15,7 @@ from dataclasses import fields
 from pathlib import Path
 
 import pytest
+from source_scripts import load_script  # noqa: E402
 
 from pyrhonn.plants import lim, robot
 
@@ -337,14 +338,8 @@ def test_readme_links_point_to_files_of_the_repository():
 def _docs_hooks():
     """docs_hooks.py, the MkDocs hook that generates the reference pages (loaded from its file: it is
     not part of the package)."""
-    import importlib.util
-
     pytest.importorskip("mkdocs")
-    spec = importlib.util.spec_from_file_location("docs_hooks", ROOT / "docs_hooks.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(ROOT / "docs_hooks.py", "docs_hooks")
 
 
 def test_c_api_reference_documents_every_function_of_the_headers():

@@ -16,7 +16,6 @@
 """
 from __future__ import annotations
 
-import importlib.util
 import math
 import re
 import struct
@@ -36,18 +35,12 @@ from cantools.database.errors import EncodeError  # noqa: E402
 
 from pyrhonn import firmware  # noqa: E402
 from pyrhonn._fwapp import ffi, lib  # noqa: E402
+from source_scripts import load_script  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 FW = ROOT / "firmware_sim"
 DB = firmware.database()
 FAST = settings(max_examples=150, deadline=None)
-
-
-def _module(path: Path, name: str):
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _mask_version(text: str) -> str:
@@ -73,7 +66,7 @@ def test_generated_c_is_up_to_date(tmp_path: Path) -> None:
 
 def test_exported_identifier_headers_are_up_to_date() -> None:
     """firmware_sim/config/ is pyrhonn.export's output for the LIM identifier."""
-    export = _module(FW / "tools" / "export_config.py", "_fw_export_config")
+    export = load_script(FW / "tools" / "export_config.py", "_fw_export_config")
     for name, text in export.headers().items():
         assert (FW / "config" / name).read_text() == text, f"config/{name} is stale: run tools/export_config.py"
 
@@ -392,7 +385,7 @@ def _inverse_scale(sig) -> int:
 
 
 def test_inverse_scale_is_given_only_where_the_float_conversion_gives_cantools_bits() -> None:
-    gen = _module(FW / "tools" / "generate_protocol.py", "_fw_generate_protocol")
+    gen = load_script(FW / "tools" / "generate_protocol.py", "_fw_generate_protocol")
     msg = DB.get_message_by_name("Estimate")
     for name in firmware.ESTIMATE_SIGNALS:
         sig = msg.get_signal_by_name(name)

@@ -8,7 +8,6 @@ the twin), every frame accounted for, verdicts and JUnit."""
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import json
 import os
 import shlex
@@ -31,24 +30,17 @@ from hil.scenario import Scenario  # noqa: E402
 from hil.score import score  # noqa: E402
 
 from docs_blocks import blocks_by, commands  # noqa: E402
+from source_scripts import load_script  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 FW = ROOT / "firmware_sim"
-
-
-def _module(path: Path, name: str):
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    assert spec.loader is not None
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.fixture(scope="module")
 def twin(exported):
     """The firmware application compiled for the exported DBC (cached per DBC and sources, in the cache
     hil replay uses: the replay below finds it there)."""
-    build_twin = _module(FW / "tools" / "build_twin.py", "_test_build_twin")
+    build_twin = load_script(FW / "tools" / "build_twin.py", "_test_build_twin")
     try:
         return build_twin.protocol(exported["dbc"])
     except Exception as exc:  # noqa: BLE001 - no compiler here
@@ -66,7 +58,7 @@ def test_the_exported_dbc_carries_the_config_states_and_inputs_in_order(exported
 
 def test_the_generated_layout_names_the_dbc_signals_and_refuses_a_scale_the_float32_firmware_cannot_convert(
         exported, tmp_path) -> None:
-    gen = _module(FW / "tools" / "generate_protocol.py", "_test_generate_protocol")
+    gen = load_script(FW / "tools" / "generate_protocol.py", "_test_generate_protocol")
     text = gen.layout_header(exported["dbc"])
     assert "#define FW_N_STATES 2u" in text and "#define FW_N_INPUTS 1u" in text
     assert "(out).u[0] = FW_DECODE(rhonn_id_measurement_u_decode" in text
@@ -144,7 +136,7 @@ rmse = {{ y1 = 0.05, y2 = 1e-9 }}
 def test_a_replay_over_udp_multicast_runs_the_c_runner_built_for_the_identifier(exported, tmp_path,
                                                                               monkeypatch) -> None:
     d = exported["dir"]
-    build_runner = _module(FW / "linux" / "build_runner.py", "_test_build_runner")
+    build_runner = load_script(FW / "linux" / "build_runner.py", "_test_build_runner")
     try:   # built once per config, DBC and sources (the CI's second run reuses it)
         exe = build_runner.cached_for(exported["config"], exported["dbc"])
     except RuntimeError as exc:
@@ -192,7 +184,7 @@ def test_the_updates_the_innovation_gate_skipped_show_in_the_health_frames_the_r
     gated.write_text(exported["config"].read_text().replace("\nr = ", "\ngate = 0.5\nr = "))
     assert Scenario(identifier=str(gated), dbc=str(exported["dbc"]), trajectory=str(exported["data"]),
                     encoder_resolution=0.0, velocity_from_position=False).reference_config().neurons[1].gate == 0.5
-    build_runner = _module(FW / "linux" / "build_runner.py", "_test_build_runner")
+    build_runner = load_script(FW / "linux" / "build_runner.py", "_test_build_runner")
     try:
         exe = build_runner.cached_for(gated, exported["dbc"])
     except RuntimeError as exc:

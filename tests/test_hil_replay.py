@@ -13,7 +13,6 @@ where the firmware is the C runner or the Python node).
 from __future__ import annotations
 
 import errno
-import importlib.util
 import io
 import json
 import shutil
@@ -21,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from source_scripts import load_script  # noqa: E402
 
 can = pytest.importorskip("can")
 pytest.importorskip("cantools")
@@ -214,11 +214,7 @@ def udp_runner_exe(tmp_path_factory: pytest.TempPathFactory) -> Path:
     if shutil.which("cc") is None and shutil.which("gcc") is None:
         pytest.skip("no C compiler to build rhonn_runner")
     path = Path(__file__).resolve().parent.parent / "firmware_sim" / "linux" / "build_runner.py"
-    spec = importlib.util.spec_from_file_location("_build_runner_replay", path)
-    module = importlib.util.module_from_spec(spec)
-    assert spec.loader is not None
-    spec.loader.exec_module(module)
-    return module.cached(tmp_path_factory.getbasetemp() / "runner-cache")
+    return load_script(path, "_build_runner_replay").cached(tmp_path_factory.getbasetemp() / "runner-cache")
 
 
 @pytest.mark.parametrize("transport, fw", [("virtual", True), ("udp_multicast", "python"), ("udp_multicast", "runner")])

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from source_scripts import load_script  # noqa: E402
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from pyrhonn import CovarianceForm, Factor, Identifier, IdentifierConfig, IdentifierError, NeuronConfig
@@ -111,14 +112,9 @@ def test_run_goes_into_the_lanes_where_the_core_says_they_pay() -> None:
 
 
 def test_the_side_by_side_bench_runs_and_its_identifiers_are_valid(capsys: pytest.CaptureFixture[str]) -> None:
-    import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parent.parent / "bench" / "bench_wide.py"
-    spec = importlib.util.spec_from_file_location("bench_wide", path)
-    assert spec is not None and spec.loader is not None
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_script(Path(__file__).resolve().parent.parent / "bench" / "bench_wide.py", "bench_wide")
     assert bench.main(["--quick"]) == 0
     lines = capsys.readouterr().out.splitlines()
     # a table for run() and one for step(); no timing asserted

@@ -5,7 +5,6 @@ reported in its statistics; an authenticated one is answered.
 """
 from __future__ import annotations
 
-import importlib.util
 import json
 import shutil
 import signal
@@ -14,6 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
+from source_scripts import load_script  # noqa: E402
 
 can = pytest.importorskip("can")
 
@@ -31,11 +31,7 @@ ACK = DB.get_message_by_name("ControlAck").frame_id
 def runner_exe(tmp_path_factory: pytest.TempPathFactory) -> Path:
     if shutil.which("cc") is None and shutil.which("gcc") is None:
         pytest.skip("no C compiler to build rhonn_runner")
-    spec = importlib.util.spec_from_file_location("_build_runner_secoc",
-                                                  ROOT / "firmware_sim" / "linux" / "build_runner.py")
-    module = importlib.util.module_from_spec(spec)
-    assert spec.loader is not None
-    spec.loader.exec_module(module)
+    module = load_script(ROOT / "firmware_sim" / "linux" / "build_runner.py", "_build_runner_secoc")
     return module.cached(tmp_path_factory.getbasetemp() / "runner-cache")
 
 

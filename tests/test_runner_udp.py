@@ -15,7 +15,6 @@ runner serving the HIL rig.
 """
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import os
@@ -30,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from source_scripts import load_script  # noqa: E402
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -65,11 +65,7 @@ def _build_runner():
     """firmware_sim/linux/build_runner.py as a module (skips without a C compiler)."""
     if shutil.which("cc") is None and shutil.which("gcc") is None:
         pytest.skip("no C compiler to build rhonn_runner")
-    spec = importlib.util.spec_from_file_location("_build_runner_udp", LINUX / "build_runner.py")
-    module = importlib.util.module_from_spec(spec)
-    assert spec.loader is not None
-    spec.loader.exec_module(module)
-    return module
+    return load_script(LINUX / "build_runner.py", "_build_runner_udp")
 
 
 @pytest.fixture(scope="session")
@@ -102,10 +98,7 @@ def codec(tmp_path_factory: pytest.TempPathFactory):
                    include_dirs=[str(LINUX)], extra_compile_args=["-std=c99"])
     out = tmp_path_factory.mktemp("codec")
     so = ffi.compile(tmpdir=str(out))
-    spec = importlib.util.spec_from_file_location("_udp_can_under_test", so)
-    module = importlib.util.module_from_spec(spec)
-    assert spec.loader is not None
-    spec.loader.exec_module(module)
+    module = load_script(Path(so), "_udp_can_under_test")
 
     def name(status: int) -> str:
         return module.ffi.string(module.lib.udp_can_status_name(status)).decode()

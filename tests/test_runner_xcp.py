@@ -15,7 +15,6 @@ udp_multicast.
 """
 from __future__ import annotations
 
-import importlib.util
 import json
 import re
 import shutil
@@ -23,7 +22,6 @@ import signal
 import socket
 import struct
 import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -46,6 +44,7 @@ from pyrhonn.firmware import database  # noqa: E402
 
 from hil.scenario import Scenario  # noqa: E402
 from hil.transport import UDP_GROUP, free_port  # noqa: E402
+from source_scripts import load_script  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 FW = ROOT / "firmware_sim"
@@ -54,29 +53,20 @@ WEIGHTS = [(0, t) for t in range(2)] + [(i, t) for i in (1, 2, 3) for t in range
     [(i, t) for i in (4, 5) for t in range(6)]
 
 
-def _module(name: str, path: Path) -> Any:
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    assert spec.loader is not None
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-xcp_master = _module("_xcp_master", FW / "tools" / "xcp_master.py")
+xcp_master = load_script(FW / "tools" / "xcp_master.py", "_xcp_master")
 
 
 @pytest.fixture(scope="module")
 def runner_exe(tmp_path_factory: pytest.TempPathFactory) -> Path:
     if shutil.which("cc") is None and shutil.which("gcc") is None:
         pytest.skip("no C compiler to build rhonn_runner")
-    build = _module("_build_runner_xcp", FW / "linux" / "build_runner.py")
+    build = load_script(FW / "linux" / "build_runner.py", "_build_runner_xcp")
     return build.cached(tmp_path_factory.getbasetemp() / "runner-cache")
 
 
 @pytest.fixture(scope="module")
 def make_a2l() -> Any:
-    return _module("_make_a2l", FW / "tools" / "make_a2l.py")
+    return load_script(FW / "tools" / "make_a2l.py", "_make_a2l")
 
 
 @pytest.fixture(scope="module")

@@ -14,13 +14,11 @@ replay.
 """
 from __future__ import annotations
 
-import importlib.util
 import json
 import re
 import shutil
 import signal
 import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -28,33 +26,25 @@ from typing import Any
 
 import pytest
 from a2l_read import read_a2l
+from source_scripts import load_script  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 FW = ROOT / "firmware_sim"
 CMD_ID, RES_ID = 0x7F0, 0x7F1  # the runner's defaults
 
 
-def _module(name: str, path: Path) -> Any:
-    spec = importlib.util.spec_from_file_location(name, path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.fixture(scope="module")
 def runner_exe(tmp_path_factory: pytest.TempPathFactory) -> Path:
     if shutil.which("cc") is None and shutil.which("gcc") is None:
         pytest.skip("no C compiler to build rhonn_runner")
-    build = _module("_build_runner_xcp_can", FW / "linux" / "build_runner.py")
+    build = load_script(FW / "linux" / "build_runner.py", "_build_runner_xcp_can")
     exe: Path = build.cached(tmp_path_factory.getbasetemp() / "runner-cache")
     return exe
 
 
 @pytest.fixture(scope="module")
 def make_a2l() -> Any:
-    return _module("_make_a2l_can", FW / "tools" / "make_a2l.py")
+    return load_script(FW / "tools" / "make_a2l.py", "_make_a2l_can")
 
 
 # -- the runner's arguments (host) ---------------------------------------------------------------------
@@ -173,7 +163,7 @@ def test_pyxcp_over_can_fd_counts_one_daq_sample_per_replayed_step(can_runner: t
     from hil.scenario import Scenario
     from pyrhonn.firmware import database
 
-    xcp_master = _module("_xcp_master_can", FW / "tools" / "xcp_master.py")
+    xcp_master = load_script(FW / "tools" / "xcp_master.py", "_xcp_master_can")
     proc, report = can_runner
     estimate = database().get_message_by_name("Estimate").frame_id
     at = make_a2l.symbol_addresses(runner)

@@ -16,11 +16,9 @@ selects and exports it into DIR and builds its runner and twin into DIR/cache, a
 VM then takes DIR from $PYRHONN_VM_IDENTIFIER. Without it, the test makes its own (slowly)."""
 from __future__ import annotations
 
-import importlib.util
 import os
 import shlex
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
@@ -34,17 +32,10 @@ from hil.rig import read_log  # noqa: E402
 from hil.score import score  # noqa: E402
 
 from docs_blocks import blocks_by, commands  # noqa: E402
+from source_scripts import load_script  # noqa: E402
 
 pytestmark = pytest.mark.vcan
 FW = Path(__file__).resolve().parent.parent / "firmware_sim"
-
-
-def _module(path: Path, name: str) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(name, path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def prepare(folder: Path) -> dict[str, Path]:
@@ -60,9 +51,9 @@ def prepare(folder: Path) -> dict[str, Path]:
                              "--input-max-delay", "3", "--dtype", "float32", "--out", str(files["config"])]) == 0
         assert pyrhonn_main(["export", "--config", str(files["config"]), "--data", str(files["data"]),
                              "--dbc", str(files["dbc"]), "--out", str(folder / "id.h")]) == 0
-    files["runner"] = _module(FW / "linux" / "build_runner.py", "_vcan_build_runner").cached_for(
+    files["runner"] = load_script(FW / "linux" / "build_runner.py", "_vcan_build_runner").cached_for(
         files["config"], files["dbc"], folder / "cache")
-    files["twin"] = _module(FW / "tools" / "build_twin.py", "_vcan_build_twin").protocol(files["dbc"],
+    files["twin"] = load_script(FW / "tools" / "build_twin.py", "_vcan_build_twin").protocol(files["dbc"],
                                                                                          folder / "cache")
     return files
 
@@ -123,7 +114,7 @@ if __name__ == "__main__":
         raise SystemExit(f"usage: {sys.argv[0]} DIR (prepare the identifier of this test into DIR)")
     sys.path.insert(0, str(Path(__file__).resolve().parent))   # conftest's plant
     folder = Path(sys.argv[1])
-    cache = _module(FW / "linux" / "build_runner.py", "_vcan_build_runner").default_cache_dir().resolve()
+    cache = load_script(FW / "linux" / "build_runner.py", "_vcan_build_runner").default_cache_dir().resolve()
     cache.mkdir(parents=True, exist_ok=True)
     folder.mkdir(parents=True, exist_ok=True)
     if not (folder / "cache").exists():
