@@ -60,13 +60,16 @@ def _seconds(*, zero: bool) -> Callable[[str], float]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("hil", help="hardware-in-the-loop replay of the LIM rig over a CAN bus",
-                       description="Hardware-in-the-loop replay of the paper's real-time LIM test (section 6.3.2) "
-                                   "against the identifier firmware over python-can.")
+    p = sub.add_parser("hil", help="hardware-in-the-loop replay of an identifier's firmware over a CAN bus "
+                                   "(the LIM rig, or your exported identifier)",
+                       description="Hardware-in-the-loop replay against the identifier firmware over python-can: the "
+                                   "paper's real-time LIM test (section 6.3.2), or an identifier you exported "
+                                   "(--identifier, --dbc) with a recorded trajectory as its plant.")
     hs = p.add_subparsers(dest="hil_command", metavar="HIL_COMMAND")
     hs.required = True
 
-    r = hs.add_parser("replay", help="replay the LIM scenario against the firmware, score and report it")
+    r = hs.add_parser("replay", help="replay a scenario (the LIM's, or --identifier's trajectory) against the firmware, "
+                                            "score and report it")
     _transport_args(r)
     # scenario options default to None: Scenario's own defaults apply, and --from-log can refuse them
     r.add_argument("--duration", type=_float, default=None, help="replayed seconds (default 4.0: 13,333 cycles)")
