@@ -60,6 +60,15 @@ def _finite(value: Any) -> Any:
     return value
 
 
+def _portable(arg: str) -> str:
+    """A command-line argument as the results file records it: an absolute path (a scratch folder of
+    the machine that ran it) as DIR, so that the file names no machine's folders."""
+    key, eq, value = arg.partition("=")
+    if eq and value.startswith("/"):
+        return f"{key}=DIR"
+    return "DIR" if arg.startswith("/") else arg
+
+
 def save(name: str, figures: dict[str, Any], argv: list[str] | None = None, folder: Path = FOLDER) -> Path:
     """Write ``figures`` (JSON values; a float that is not finite as its text, ``"inf"``) as
     ``folder/NAME.json`` with the run's date, machine, load and command (``bench/bench_NAME.py``
@@ -72,7 +81,7 @@ def save(name: str, figures: dict[str, Any], argv: list[str] | None = None, fold
     record = {
         "bench": name,
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "command": shlex.join(["python", f"bench/bench_{name}.py", *args]),
+        "command": shlex.join(["python", f"bench/bench_{name}.py", *map(_portable, args)]),
         "machine": machine(),
         "load": {"start": [round(v, 2) for v in _START_LOAD], "end": [round(v, 2) for v in os.getloadavg()]},
         "figures": _finite(figures),

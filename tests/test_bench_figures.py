@@ -173,6 +173,9 @@ def test_results_writer_replaces_the_file_whole_and_refuses_bad_figures(tmp_path
     data = json.loads(path.read_text(encoding="utf-8"))
     assert data["figures"] == {"step": {"cycles": 4901}} and data["bench"] == "demo"
     assert data["command"].endswith("--frames 20") and data["machine"]["nproc"] >= 1
+    # a scratch folder of the machine that ran it is not recorded
+    path = writer.save("demo", {"x": 1}, ["--huge-dir", str(tmp_path), f"--out={tmp_path}"], folder=tmp_path)
+    assert json.loads(path.read_text(encoding="utf-8"))["command"] == "python bench/bench_demo.py --huge-dir DIR --out=DIR"
     before = path.read_bytes()
     with pytest.raises(TypeError):  # not a JSON value: refused, the previous file kept
         writer.save("demo", {"step": object()}, [], folder=tmp_path)
