@@ -203,6 +203,14 @@ static size_t packed_size(size_t L)
 RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L);
 RHONN_NOINLINE static int accessor_check(const rhonn_real *P, size_t L, rhonn_real shift);
 static rhonn_real full_trace(const rhonn_real *P, size_t L);
+
+/* A neuron's trace ceiling p_trace_max is 0 (none) or at least trace P_i(0)
+ * (rhonn.h WINDUP PROTECTION): rhonn_validate_config and
+ * rhonn_set_trace_ceiling apply this one rule. */
+static int trace_ceiling_ok(const rhonn_neuron_config *nc, rhonn_real value)
+{
+    return is_finite(value) && value >= R(0.0) && !(value > R(0.0) && value < full_trace(nc->p0, nc->n_terms));
+}
 static void load_p0(const rhonn_t *net, size_t i, rhonn_real *dst);
 static uint8_t p0_proven(const rhonn_neuron_config *nc);
 #if RHONN_WITH_UD
@@ -328,8 +336,7 @@ rhonn_status rhonn_validate_config(const rhonn_config *cfg, rhonn_config_error *
         if (!is_finite(nc->forgetting) || nc->forgetting < R(0.0) || nc->forgetting > R(1.0)) {
             return config_error(where, RHONN_FIELD_FORGETTING, i, 0, 0);
         }
-        if (!is_finite(nc->p_trace_max) || nc->p_trace_max < R(0.0) ||
-            (nc->p_trace_max > R(0.0) && nc->p_trace_max < full_trace(nc->p0, L))) {
+        if (!trace_ceiling_ok(nc, nc->p_trace_max)) {
             return config_error(where, RHONN_FIELD_P_TRACE_MAX, i, 0, 0);
         }
         if (!is_finite(nc->gate) || nc->gate < R(0.0)) {
@@ -432,9 +439,9 @@ RHONN_INLINE rhonn_real q_min_of(const rhonn_neuron_config *nc)
  * p_trace_max when set, else trace P_i(0) as full_trace sums it. rhonn_init
  * keeps it in rhonn_t (also with RHONN_FIXED_CONFIG: a load where a
  * neuron forgets, nothing where it does not). */
-RHONN_NOINLINE static rhonn_real forget_ceiling_of(const rhonn_neuron_config *nc)
+RHONN_NOINLINE static rhonn_real forget_ceiling_of(const rhonn_neuron_config *nc, rhonn_real p_trace_max)
 {
-    return nc->p_trace_max > R(0.0) ? nc->p_trace_max : full_trace(nc->p0, nc->n_terms);
+    return p_trace_max > R(0.0) ? p_trace_max : full_trace(nc->p0, nc->n_terms);
 }
 
 RHONN_INLINE uint8_t q_zero_of(const rhonn_neuron_config *nc)
@@ -539,7 +546,7 @@ static void compile_terms(rhonn_t *net)
     }
     for (i = 0; i < cfg->n_states; ++i) {
         net->inv_lambda[i] = inverse_forgetting(&cfg->neurons[i]);
-        net->forget_ceiling[i] = forget_ceiling_of(&cfg->neurons[i]);
+        net->forget_ceiling[i] = forget_ceiling_of(&cfg->neurons[i], cfg->neurons[i].p_trace_max);
         net->gates = (uint8_t)(net->gates | (cfg->neurons[i].gate > R(0.0)));
         net->trace_max[i] = cfg->neurons[i].p_trace_max;
         net->ceilings = (uint8_t)(net->ceilings | (cfg->neurons[i].p_trace_max > R(0.0)));
@@ -839,6 +846,17 @@ rhonn_status rhonn_set_learning(rhonn_t *net, int on)
  * so a refusal changes nothing. A new ceiling is also the bounded
  * forgetting's c_i (rhonn.h WINDUP PROTECTION: p_trace_max when set, else
  * trace P_i(0)), as forget_ceiling_of derives it at rhonn_init. */
+/* 1 when some neuron's entry of a table in force (trace_max, gate) is set. */
+static uint8_t any_positive(const rhonn_real *table, size_t n)
+{
+    uint8_t any = 0u;
+    size_t i;
+    for (i = 0; i < n; ++i) {
+        any = (uint8_t)(any | (table[i] > R(0.0)));
+    }
+    return any;
+}
+
 static rhonn_status check_neuron(const rhonn_t *net, size_t neuron)
 {
     rhonn_status st = check_net(net);
@@ -852,30 +870,25 @@ rhonn_status rhonn_set_trace_ceiling(rhonn_t *net, size_t neuron, rhonn_real val
 {
     rhonn_status st = check_neuron(net, neuron);
     const rhonn_neuron_config *nc;
-    size_t i;
     if (st != RHONN_OK) {
         return st;
     }
     nc = &CFG(net)->neurons[neuron];
-    if (!is_finite(value) || value < R(0.0) || (value > R(0.0) && value < full_trace(nc->p0, nc->n_terms))) {
+    if (!trace_ceiling_ok(nc, value)) {
         return RHONN_E_VALUE;
     }
     if (!RHONN_CALIBRATE && value != nc->p_trace_max) {
         return RHONN_E_CONFIG; /* compiled without calibration: the configuration's only */
     }
     net->trace_max[neuron] = value;
-    net->forget_ceiling[neuron] = value > R(0.0) ? value : full_trace(nc->p0, nc->n_terms);
-    net->ceilings = 0;
-    for (i = 0; i < CFG(net)->n_states; ++i) {
-        net->ceilings = (uint8_t)(net->ceilings | (net->trace_max[i] > R(0.0)));
-    }
+    net->forget_ceiling[neuron] = forget_ceiling_of(nc, value);
+    net->ceilings = any_positive(net->trace_max, CFG(net)->n_states);
     return RHONN_OK;
 }
 
 rhonn_status rhonn_set_gate(rhonn_t *net, size_t neuron, rhonn_real value)
 {
     rhonn_status st = check_neuron(net, neuron);
-    size_t i;
     if (st != RHONN_OK) {
         return st;
     }
@@ -886,10 +899,7 @@ rhonn_status rhonn_set_gate(rhonn_t *net, size_t neuron, rhonn_real value)
         return RHONN_E_CONFIG; /* compiled without calibration: the configuration's only */
     }
     net->gate[neuron] = value;
-    net->gates = 0;
-    for (i = 0; i < CFG(net)->n_states; ++i) {
-        net->gates = (uint8_t)(net->gates | (net->gate[i] > R(0.0)));
-    }
+    net->gates = any_positive(net->gate, CFG(net)->n_states);
     return RHONN_OK;
 }
 
