@@ -204,6 +204,17 @@ RHONN_INLINE int pd_check(const rhonn_real *RHONN_RESTRICT P, const size_t L);
 RHONN_NOINLINE static int accessor_check(const rhonn_real *P, size_t L, rhonn_real shift);
 static rhonn_real full_trace(const rhonn_real *P, size_t L);
 
+/* 1 when some neuron's entry of a table in force (trace_max, gate) is set. */
+static uint8_t any_positive(const rhonn_real *table, size_t n)
+{
+    uint8_t any = 0u;
+    size_t i;
+    for (i = 0; i < n; ++i) {
+        any = (uint8_t)(any | (table[i] > R(0.0)));
+    }
+    return any;
+}
+
 /* A neuron's trace ceiling p_trace_max is 0 (none) or at least trace P_i(0)
  * (rhonn.h WINDUP PROTECTION): rhonn_validate_config and
  * rhonn_set_trace_ceiling apply this one rule. */
@@ -532,8 +543,6 @@ static void compile_terms(rhonn_t *net)
     size_t i, t, f, e;
     net->n_entries = 0;
     net->max_delay = 0;
-    net->gates = 0;
-    net->ceilings = 0;
     for (i = 0; i < (size_t)RHONN_MAX_STATES; ++i) {
         net->own_need[i] = 0;
         net->first_run[i] = 0xFFu;
@@ -547,9 +556,7 @@ static void compile_terms(rhonn_t *net)
     for (i = 0; i < cfg->n_states; ++i) {
         net->inv_lambda[i] = inverse_forgetting(&cfg->neurons[i]);
         net->forget_ceiling[i] = forget_ceiling_of(&cfg->neurons[i], cfg->neurons[i].p_trace_max);
-        net->gates = (uint8_t)(net->gates | (cfg->neurons[i].gate > R(0.0)));
         net->trace_max[i] = cfg->neurons[i].p_trace_max;
-        net->ceilings = (uint8_t)(net->ceilings | (cfg->neurons[i].p_trace_max > R(0.0)));
         net->gate[i] = cfg->neurons[i].gate;
         net->q_zero[i] = q_zero_of(&cfg->neurons[i]);
         net->first_run[i] = (uint8_t)(cfg->neurons[i].wait_for_history != 0u ? 0u : 0xFFu);
@@ -597,6 +604,8 @@ static void compile_terms(rhonn_t *net)
             }
         }
     }
+    net->gates = any_positive(net->gate, cfg->n_states);
+    net->ceilings = any_positive(net->trace_max, cfg->n_states);
 }
 
 #ifdef RHONN_FIXED_CONFIG
@@ -846,17 +855,6 @@ rhonn_status rhonn_set_learning(rhonn_t *net, int on)
  * so a refusal changes nothing. A new ceiling is also the bounded
  * forgetting's c_i (rhonn.h WINDUP PROTECTION: p_trace_max when set, else
  * trace P_i(0)), as forget_ceiling_of derives it at rhonn_init. */
-/* 1 when some neuron's entry of a table in force (trace_max, gate) is set. */
-static uint8_t any_positive(const rhonn_real *table, size_t n)
-{
-    uint8_t any = 0u;
-    size_t i;
-    for (i = 0; i < n; ++i) {
-        any = (uint8_t)(any | (table[i] > R(0.0)));
-    }
-    return any;
-}
-
 static rhonn_status check_neuron(const rhonn_t *net, size_t neuron)
 {
     rhonn_status st = check_net(net);
