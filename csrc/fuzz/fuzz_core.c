@@ -58,6 +58,7 @@
 
 #include "rhonn.h"
 #include "fuzz_input.h"
+#include "../tests/exactly_definite.h" /* for a covariance the core marks as proven definite (rhonn_t.cert) */
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
@@ -175,40 +176,6 @@ static int cholesky_ok(const rhonn_real *p, size_t L)
                 v -= a[i][k] * a[j][k];
             }
             a[i][j] = v / a[j][j];
-        }
-    }
-    return 1;
-}
-
-/* A Cholesky factorisation in long double, without any allowance: for a
- * covariance the core marks as proven definite in exact arithmetic
- * (rhonn_t.cert), whose smallest eigenvalue the proof puts far above the
- * rounding of a 64-bit-mantissa factorisation. 0 when a pivot is not
- * positive. */
-static int exactly_definite(const rhonn_real *p, size_t L)
-{
-    long double a[RHONN_MAX_TERMS][RHONN_MAX_TERMS];
-    size_t i, j, k, idx = 0;
-    for (i = 0; i < L; ++i) {
-        for (j = i; j < L; ++j, ++idx) {
-            a[i][j] = a[j][i] = (long double)p[idx];
-        }
-    }
-    for (j = 0; j < L; ++j) {
-        long double d = a[j][j];
-        for (k = 0; k < j; ++k) {
-            d -= a[j][k] * a[j][k] / a[k][k];
-        }
-        if (!(d > 0)) {
-            return 0;
-        }
-        a[j][j] = d; /* L D L^T: a[k][k] holds d_k, a[i][k] holds l_ik d_k */
-        for (i = j + 1u; i < L; ++i) {
-            long double v = a[i][j];
-            for (k = 0; k < j; ++k) {
-                v -= a[i][k] * a[j][k] / a[k][k];
-            }
-            a[i][j] = v;
         }
     }
     return 1;

@@ -9,6 +9,7 @@
 
 #include "check.h"
 #include "rhonn.h"
+#include "exactly_definite.h"
 
 #ifdef RHONN_SINGLE
 #define EPS ((double)FLT_EPSILON)
@@ -882,38 +883,6 @@ static void the_end_of_an_own_state_dropout_is_not_learned(void)
 /* ------------------------------------------------------------------------ */
 /* The covariance a getter reads is one the setter accepts (rhonn.h ROUND
  * TRIP), bounded forgetting, the innovation gate. */
-
-/* L D L^T of a packed symmetric matrix in long double, no allowance: 1 when
- * every pivot is positive (positive definite, to far below the working
- * precision's rounding). */
-static int exactly_definite(const rhonn_real *p, size_t L)
-{
-    long double a[RHONN_MAX_TERMS][RHONN_MAX_TERMS];
-    size_t i, j, k, idx = 0;
-    for (i = 0; i < L; ++i) {
-        for (j = i; j < L; ++j, ++idx) {
-            a[i][j] = a[j][i] = (long double)p[idx];
-        }
-    }
-    for (j = 0; j < L; ++j) {
-        long double d = a[j][j];
-        for (k = 0; k < j; ++k) {
-            d -= a[j][k] * a[j][k] / a[k][k];
-        }
-        if (!(d > 0)) {
-            return 0;
-        }
-        a[j][j] = d;
-        for (i = j + 1u; i < L; ++i) {
-            long double v = a[i][j];
-            for (k = 0; k < j; ++k) {
-                v -= a[i][k] * a[j][k] / a[k][k];
-            }
-            a[i][j] = v;
-        }
-    }
-    return 1;
-}
 
 static uint32_t lcg_state = 12345u;
 static double uniform01(void)
