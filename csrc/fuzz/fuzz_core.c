@@ -375,6 +375,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             } else {
                 const rhonn_real v = real(&r, -6, 6);
                 rhonn_real was, now, p0 = 0;
+                rhonn_status checked;
                 int valid;
                 size_t t, k;
                 for (t = 0, k = 0; t < cfg.neurons[i].n_terms; k += cfg.neurons[i].n_terms - t, ++t) {
@@ -383,7 +384,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
                 if ((which == 2u ? rhonn_get_trace_ceiling(&net, i, &was) : rhonn_get_gate(&net, i, &was)) != RHONN_OK) {
                     abort();
                 }
+                checked = which == 2u ? rhonn_check_trace_ceiling(&net, i, v) : rhonn_check_gate(&net, i, v);
                 st = which == 2u ? rhonn_set_trace_ceiling(&net, i, v) : rhonn_set_gate(&net, i, v);
+                if (checked != st) {
+                    abort(); /* the check alone said otherwise than the setter */
+                }
                 valid = v - v == 0 && v >= 0 && (which == 3u || v == 0 || v >= p0);
                 if ((which == 2u ? rhonn_get_trace_ceiling(&net, i, &now) : rhonn_get_gate(&net, i, &now)) != RHONN_OK ||
                     (st == RHONN_OK) != valid || (st != RHONN_OK && st != RHONN_E_VALUE) ||

@@ -455,9 +455,14 @@ rhonn_status rhonn_set_learning(rhonn_t *net, int on);
  * configuration's ceilings and gates, as before these setters existed (with
  * RHONN_FIXED_CONFIG, no code for a neuron that has neither: the firmware's
  * LIM step on the Cortex-M4 is about 150 cycles shorter); the setters then
- * refuse any other value than the configuration's with RHONN_E_CONFIG. */
+ * refuse any other value than the configuration's with RHONN_E_CONFIG.
+ * rhonn_check_trace_ceiling and rhonn_check_gate return the status the
+ * setter would return for the value and change nothing (a calibration tool
+ * checks a whole page of values before it sets any). */
 rhonn_status rhonn_set_trace_ceiling(rhonn_t *net, size_t neuron, rhonn_real value);
 rhonn_status rhonn_set_gate(rhonn_t *net, size_t neuron, rhonn_real value);
+rhonn_status rhonn_check_trace_ceiling(const rhonn_t *net, size_t neuron, rhonn_real value);
+rhonn_status rhonn_check_gate(const rhonn_t *net, size_t neuron, rhonn_real value);
 rhonn_status rhonn_get_trace_ceiling(const rhonn_t *net, size_t neuron, rhonn_real *value);
 rhonn_status rhonn_get_gate(const rhonn_t *net, size_t neuron, rhonn_real *value);
 

@@ -851,7 +851,8 @@ rhonn_status rhonn_set_learning(rhonn_t *net, int on)
 }
 
 /* Calibration between steps (rhonn.h): the value is checked as
- * rhonn_validate_config checks p_trace_max and gate, and only then stored,
+ * rhonn_validate_config checks p_trace_max and gate (rhonn_check_trace_ceiling,
+ * rhonn_check_gate: the setters' own checks), and only then stored,
  * so a refusal changes nothing. A new ceiling is also the bounded
  * forgetting's c_i (rhonn.h WINDUP PROTECTION: p_trace_max when set, else
  * trace P_i(0)), as forget_ceiling_of derives it at rhonn_init. */
@@ -864,7 +865,7 @@ static rhonn_status check_neuron(const rhonn_t *net, size_t neuron)
     return st;
 }
 
-rhonn_status rhonn_set_trace_ceiling(rhonn_t *net, size_t neuron, rhonn_real value)
+rhonn_status rhonn_check_trace_ceiling(const rhonn_t *net, size_t neuron, rhonn_real value)
 {
     rhonn_status st = check_neuron(net, neuron);
     const rhonn_neuron_config *nc;
@@ -878,13 +879,10 @@ rhonn_status rhonn_set_trace_ceiling(rhonn_t *net, size_t neuron, rhonn_real val
     if (!RHONN_CALIBRATE && value != nc->p_trace_max) {
         return RHONN_E_CONFIG; /* compiled without calibration: the configuration's only */
     }
-    net->trace_max[neuron] = value;
-    net->forget_ceiling[neuron] = forget_ceiling_of(nc, value);
-    net->ceilings = any_positive(net->trace_max, CFG(net)->n_states);
     return RHONN_OK;
 }
 
-rhonn_status rhonn_set_gate(rhonn_t *net, size_t neuron, rhonn_real value)
+rhonn_status rhonn_check_gate(const rhonn_t *net, size_t neuron, rhonn_real value)
 {
     rhonn_status st = check_neuron(net, neuron);
     if (st != RHONN_OK) {
@@ -895,6 +893,27 @@ rhonn_status rhonn_set_gate(rhonn_t *net, size_t neuron, rhonn_real value)
     }
     if (!RHONN_CALIBRATE && value != CFG(net)->neurons[neuron].gate) {
         return RHONN_E_CONFIG; /* compiled without calibration: the configuration's only */
+    }
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_set_trace_ceiling(rhonn_t *net, size_t neuron, rhonn_real value)
+{
+    rhonn_status st = rhonn_check_trace_ceiling(net, neuron, value);
+    if (st != RHONN_OK) {
+        return st;
+    }
+    net->trace_max[neuron] = value;
+    net->forget_ceiling[neuron] = forget_ceiling_of(&CFG(net)->neurons[neuron], value);
+    net->ceilings = any_positive(net->trace_max, CFG(net)->n_states);
+    return RHONN_OK;
+}
+
+rhonn_status rhonn_set_gate(rhonn_t *net, size_t neuron, rhonn_real value)
+{
+    rhonn_status st = rhonn_check_gate(net, neuron, value);
+    if (st != RHONN_OK) {
+        return st;
     }
     net->gate[neuron] = value;
     net->gates = any_positive(net->gate, CFG(net)->n_states);

@@ -410,12 +410,30 @@ static void calibrated_trace_ceiling_and_gate_act_from_the_next_step(void)
     CHECK(v == (rhonn_real)40.0);
     CHECK_STATUS(rhonn_get_gate(&net, 0, &v), RHONN_OK);
     CHECK(v == (rhonn_real)0.0);
+    /* the checks alone: the setters' statuses, for values they would take too, and nothing set */
+    CHECK_STATUS(rhonn_check_trace_ceiling(&net, 2, (rhonn_real)50.0), RHONN_E_ARGUMENT);
+    CHECK_STATUS(rhonn_check_trace_ceiling(&net, 1, (rhonn_real)39.0), RHONN_E_VALUE);
+    CHECK_STATUS(rhonn_check_trace_ceiling(&net, 1, (rhonn_real)NAN), RHONN_E_VALUE);
+    CHECK_STATUS(rhonn_check_trace_ceiling(&net, 1, (rhonn_real)77.0), RHONN_OK);
+    CHECK_STATUS(rhonn_check_trace_ceiling(&net, 1, (rhonn_real)0.0), RHONN_OK);
+    CHECK_STATUS(rhonn_check_trace_ceiling(NULL, 0, (rhonn_real)50.0), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_check_gate(&net, 2, (rhonn_real)9.0), RHONN_E_ARGUMENT);
+    CHECK_STATUS(rhonn_check_gate(&net, 0, (rhonn_real)-0.5), RHONN_E_VALUE);
+    CHECK_STATUS(rhonn_check_gate(&net, 0, (rhonn_real)INFINITY), RHONN_E_VALUE);
+    CHECK_STATUS(rhonn_check_gate(&net, 0, (rhonn_real)9.0), RHONN_OK);
+    CHECK_STATUS(rhonn_check_gate(NULL, 0, (rhonn_real)9.0), RHONN_E_NULL);
+    CHECK_STATUS(rhonn_get_trace_ceiling(&net, 1, &v), RHONN_OK);
+    CHECK(v == (rhonn_real)40.0);
+    CHECK_STATUS(rhonn_get_gate(&net, 0, &v), RHONN_OK);
+    CHECK(v == (rhonn_real)0.0);
     after = observe(&net);
     CHECK(memcmp(&before, &after, sizeof before) == 0);
     {
         rhonn_t blank;
         memset(&blank, 0, sizeof blank);
         CHECK_STATUS(rhonn_set_gate(&blank, 0, (rhonn_real)1.0), RHONN_E_NOT_INIT);
+        CHECK_STATUS(rhonn_check_gate(&blank, 0, (rhonn_real)1.0), RHONN_E_NOT_INIT);
+        CHECK_STATUS(rhonn_check_trace_ceiling(&blank, 0, (rhonn_real)1.0), RHONN_E_NOT_INIT);
     }
 }
 

@@ -38,6 +38,10 @@ static void the_setters_take_only_the_configurations_values(void)
     CHECK_STATUS(rhonn_set_trace_ceiling(&net, 0, 30), RHONN_E_CONFIG);
     CHECK_STATUS(rhonn_set_gate(&net, 0, (rhonn_real)NAN), RHONN_E_VALUE);
     CHECK_STATUS(rhonn_set_trace_ceiling(&net, 1, 5), RHONN_E_VALUE); /* below trace P(0) */
+    CHECK_STATUS(rhonn_check_gate(&net, 0, 9), RHONN_OK); /* the checks alone say the same */
+    CHECK_STATUS(rhonn_check_gate(&net, 0, 4), RHONN_E_CONFIG);
+    CHECK_STATUS(rhonn_check_trace_ceiling(&net, 1, 30), RHONN_E_CONFIG);
+    CHECK_STATUS(rhonn_check_trace_ceiling(&net, 1, 5), RHONN_E_VALUE);
     CHECK(memcmp(&before, &net, sizeof net) == 0);
     CHECK_STATUS(rhonn_get_gate(&net, 0, &v), RHONN_OK);
     CHECK(v == 9);

@@ -651,31 +651,23 @@ static fw_status cmd_short_upload(fw_xcp *x, const uint8_t *c, size_t len)
     return cmd_upload(x, c, 2u);
 }
 
-/* Whether the core takes every trace ceiling and gate of the page: each
- * setter tried, and the value in force put back at once (bit for bit: the
- * setters derive nothing else), between steps as every command runs. */
-static int core_accepts(fw_app *app, const fw_xcp_calibration *page, const fw_xcp_calibration *old)
+/* Whether the core takes every trace ceiling and gate of the page that this
+ * write changes: the setters' own checks (rhonn_check_trace_ceiling,
+ * rhonn_check_gate), which change nothing. */
+static int core_accepts(const fw_app *app, const fw_xcp_calibration *page, const fw_xcp_calibration *old)
 {
-    rhonn_real was;
     uint8_t i;
-    int ok = 1;
-    for (i = 0; i < FW_N_STATES && ok; ++i) { /* the values this write changes */
-        if (memcmp(&page->trace_ceiling[i], &old->trace_ceiling[i], sizeof(float)) != 0) {
-            if (rhonn_get_trace_ceiling(&app->net, i, &was) != RHONN_OK) {
-                return 0;
-            }
-            ok = rhonn_set_trace_ceiling(&app->net, i, (rhonn_real)page->trace_ceiling[i]) == RHONN_OK;
-            (void)rhonn_set_trace_ceiling(&app->net, i, was);
+    for (i = 0; i < FW_N_STATES; ++i) {
+        if (memcmp(&page->trace_ceiling[i], &old->trace_ceiling[i], sizeof(float)) != 0 &&
+            rhonn_check_trace_ceiling(&app->net, i, (rhonn_real)page->trace_ceiling[i]) != RHONN_OK) {
+            return 0;
         }
-        if (ok && memcmp(&page->gate[i], &old->gate[i], sizeof(float)) != 0) {
-            if (rhonn_get_gate(&app->net, i, &was) != RHONN_OK) {
-                return 0;
-            }
-            ok = rhonn_set_gate(&app->net, i, (rhonn_real)page->gate[i]) == RHONN_OK;
-            (void)rhonn_set_gate(&app->net, i, was);
+        if (memcmp(&page->gate[i], &old->gate[i], sizeof(float)) != 0 &&
+            rhonn_check_gate(&app->net, i, (rhonn_real)page->gate[i]) != RHONN_OK) {
+            return 0;
         }
     }
-    return ok;
+    return 1;
 }
 
 static fw_status cmd_download(fw_xcp *x, fw_app *app, const uint8_t *c, size_t len)
