@@ -16,6 +16,10 @@ PYTHON ?= python3
 VENV   ?= .venv
 BUILD  ?= build
 JOBS   ?= 2
+# pytest workers (pytest-xdist): one per CPU; a module's tests stay on one worker, so its fixtures are
+# built once. PYTEST_WORKERS=0 runs the tests in this process, one after another.
+PYTEST_WORKERS ?= $(shell nproc)
+PYTEST_XDIST = -n $(PYTEST_WORKERS) --dist loadscope
 
 .PHONY: venv lint reproduce bench docs test test-python test-python-loaded test-c test-c-sanitize test-fuzz test-vm clean
 
@@ -53,7 +57,7 @@ docs: venv
 # Run from tests/, as a user's program runs from its own folder: the tests
 # import the package that .venv holds (the clone, installed in editable mode).
 test-python:
-	cd tests && ../$(VENV)/bin/python -m pytest -q -p no:cacheprovider .
+	cd tests && ../$(VENV)/bin/python -m pytest -q -p no:cacheprovider $(PYTEST_XDIST) .
 
 # The Python tests once more with every CPU busy: a user's machine is rarely
 # idle, and a functional test must pass on a loaded one (timing belongs in
@@ -72,7 +76,7 @@ else
 	  "SKIP_LOADED=1 skips this run)"; exit 1; }
 	cd tests && { $(STRESS_NG) --cpu "$$(nproc)" --timeout 3600 --quiet & hog=$$!; \
 	  trap 'kill $$hog 2>/dev/null; wait $$hog 2>/dev/null' EXIT INT TERM HUP; start=$$(date +%s); \
-	  $(abspath $(VENV))/bin/python -m pytest -q -p no:cacheprovider --durations=15 .; rc=$$?; \
+	  $(abspath $(VENV))/bin/python -m pytest -q -p no:cacheprovider $(PYTEST_XDIST) --durations=15 .; rc=$$?; \
 	  echo "test-python-loaded: $$(( $$(date +%s) - start )) s with $$(nproc) CPUs busy (stress-ng)"; exit $$rc; }
 endif
 
