@@ -10,8 +10,7 @@ that are never written by hand, so they cannot go stale:
   (its documented example and rules) and the keys it accepts;
 - ``reference/c-api.md``: every declaration of the C headers with the comment
   above it, then each header whole;
-- ``firmware_sim/index.md`` and ``hil/index.md``: those folders' READMEs (and
-  their figures), with links into ``docs/`` pointing into the site;
+- ``hil/docs/*.png``: the HIL report's figures that ``docs/hil-replay.md`` shows;
 - ``changelog.md`` from ``CHANGELOG.md``, when there is one.
 
 :func:`on_config` adds the pages of :data:`OPTIONAL_PAGES` to the navigation
@@ -160,11 +159,6 @@ def _c_page() -> str:
     return "\n".join(out)
 
 
-def _readme_page(folder: str) -> str:
-    text = (ROOT / folder / "README.md").read_text(encoding="utf-8")
-    return re.sub(r"\]\(\.\./docs/", "](../", text)
-
-
 # Capacities whose sizeof(rhonn_t) the pages quote: the defaults of rhonn_capacity.h, those the
 # Cortex-M4F image is built with (firmware_sim/cortex_m4/run_m4.py) and the smallest that hold the
 # shipped firmware-lim identifier (what `pyrhonn export` writes).
@@ -252,8 +246,7 @@ def _walk(nav: list[Any]) -> list[str]:
 
 def on_files(files: Files, config: Any) -> Files:
     pages = {"reference/cli.md": _cli_page(), "reference/config.md": _config_page(),
-             "reference/c-api.md": _c_page(), "firmware_sim/index.md": _readme_page("firmware_sim"),
-             "hil/index.md": _readme_page("hil")}
+             "reference/c-api.md": _c_page()}
     for uri, content in pages.items():
         files.append(File.generated(config, uri, content=content))
     if (ROOT / "CHANGELOG.md").is_file() and files.get_file_from_path("changelog.md") is None:

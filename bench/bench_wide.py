@@ -12,19 +12,40 @@ steps: ``rhonn_wide_step``).
 Both runs give the same bits (tests/test_identifier_wide.py); this is only
 about speed. Best of several interleaved repeats, ratios from one run.
 
-    python bench/bench_wide.py            # full run (about a minute)
+The extension picks the widest vector unit the CPU has at load time. A third
+table measures ``Identifier.run`` on each unit this CPU can run (x86-64:
+AVX-512F, AVX2 in float only, as the extension's clones are, and the SSE2
+default), on builds of the core whose lanes are compiled for that unit alone
+(``make_ffi(vector_unit=...)`` in pyrhonn/_build.py; about a minute each,
+kept in build/bench_wide/ for the next run; not in ``--quick``).
+
+    python bench/bench_wide.py            # full run (a few minutes; the first compiles the per-unit builds)
     python bench/bench_wide.py --quick    # smoke run (CI)
     python bench/bench_wide.py --results  # also write bench/results/wide.json (the docs quote it)
 """
 from __future__ import annotations
 
 import argparse
+import hashlib
+import importlib.util
 import os
+import platform
 import time
+from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 
 from pyrhonn import CovarianceForm, Factor, Identifier, IdentifierConfig, NeuronConfig
+from pyrhonn import _build
+from pyrhonn import identifier as _identifier
+
+ROOT = Path(__file__).resolve().parent.parent
+CACHE = ROOT / "build" / "bench_wide"
+#: The precisions the extension clones each unit's kernels for (pyrhonn/_build.py, RHONN_TARGET_CLONES):
+#: no AVX2 copy in double.
+UNIT_DTYPES = {"avx512f": ("float64", "float32"), "avx2": ("float32",), "default": ("float64", "float32")}
+UNIT_NAMES = {"avx512f": "AVX-512", "avx2": "AVX2", "default": "SSE2 (128-bit)"}
 
 
 def uniform_config(n: int, dtype: str, form: CovarianceForm) -> IdentifierConfig:
@@ -73,6 +94,74 @@ def ratio(cfg: IdentifierConfig, T: int, repeats: int, per_step: bool = False) -
     return best[False] / best[True], advised
 
 
+def vector_units() -> list[str]:
+    """The vector units of the lanes' clones this CPU can run, widest first; none but the
+    extension's own build off x86-64 (the clones are x86-64 only)."""
+    if platform.machine() != "x86_64":
+        return []
+    flags: set[str] = set()
+    for line in Path("/proc/cpuinfo").read_text(encoding="utf-8").splitlines():
+        if line.startswith("flags"):
+            flags = set(line.split(":", 1)[1].split())
+            break
+    return [unit for unit in ("avx512f", "avx2") if unit in flags] + ["default"]
+
+
+def unit_build(unit: str, dtype: str) -> ModuleType:
+    """The core with its lanes compiled for ``unit`` alone (the small capacities, which hold
+    this bench's identifiers), compiled once per source content into build/bench_wide/."""
+    digest = hashlib.sha256(f"{unit} {dtype}".encode())
+    for source in (*_build.CORE_SOURCES, *_build.build_depends(["csrc/include"])):
+        digest.update((ROOT / source).read_bytes())
+    name = f"_bench_wide_{unit}_{dtype}_{digest.hexdigest()[:12]}"
+    folder = CACHE / name
+    built = sorted(folder.glob(f"{name}.*.so")) if folder.is_dir() else []
+    if not built:
+        print(f"compiling the core for {UNIT_NAMES[unit]}, {dtype} (about a minute) ...", flush=True)
+        ffi = _build.make_ffi(dtype, small=True, vector_unit=unit, module=name)
+        built = [Path(ffi.compile(tmpdir=str(folder), verbose=False))]
+    spec = importlib.util.spec_from_file_location(name, built[0])
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def unit_ratio(build: ModuleType, cfg: IdentifierConfig, T: int, repeats: int) -> float:
+    """:func:`ratio` of ``Identifier.run`` with the identifiers on ``build``."""
+    saved = _identifier._BUILDS[cfg.dtype]
+    _identifier._BUILDS[cfg.dtype] = (build,)
+    try:
+        return ratio(cfg, T, repeats)[0]
+    finally:
+        _identifier._BUILDS[cfg.dtype] = saved
+
+
+def lanes_from(row: dict[str, float]) -> int | str:
+    """The fewest neurons from which the lanes are faster at every size measured above."""
+    sizes = sorted(int(n) for n in row)
+    pays = [n for n in sizes if all(row[str(m)] > 1.0 for m in sizes if m >= n)]
+    return pays[0] if pays else f"over {sizes[-1]}"
+
+
+def measure_units(T: int, repeats: int) -> dict:
+    """Per vector unit, dtype and form: the ratio at each size and ``lanes_from``."""
+    out: dict = {"load_1min": os.getloadavg()[0], "units": vector_units()}
+    print(f"Identifier.run per vector unit: load average {os.getloadavg()[0]:.2f} (1 min); {T} samples, "
+          f"best of {repeats}; the lanes compiled for one unit alone")
+    print(f"{'unit':<16}{'dtype':<9}{'form':<6}" + "".join(f"{n:>7}" for n in range(2, 9)) + "   lanes from")
+    for unit in out["units"]:
+        for dtype in UNIT_DTYPES[unit]:
+            build = unit_build(unit, dtype)
+            for form in (CovarianceForm.FULL, CovarianceForm.UD):
+                row = {str(n): unit_ratio(build, uniform_config(n, dtype, form), T, repeats) for n in range(2, 9)}
+                first = lanes_from(row)
+                out.setdefault(unit, {}).setdefault(dtype, {})[form.value] = {**row, "lanes_from": first}
+                print(f"{UNIT_NAMES[unit]:<16}{dtype:<9}{form.value:<6}" + "".join(f"{r:>7.2f}" for r in row.values())
+                      + f"   {first}")
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="small smoke run")
@@ -102,6 +191,8 @@ def main(argv: list[str] | None = None) -> int:
                     cells.append(f"{r:>7.2f}{'*' if advised else ' '}{'!' if wrong else ' '}")
                 print(f"{dtype:<9}{form.value:<6}" + "".join(cells))
     print(f"{disagree} advice(s) off by more than 10 % (!)" if disagree else "the advice agrees with the times")
+    if not args.quick:
+        figures["units"] = measure_units(T, repeats)
     if args.results:
         figures["advice_off"] = disagree
         save("wide", figures, argv)

@@ -231,10 +231,17 @@ def module_name(dtype: str, small: bool = False) -> str:
     return f"pyrhonn._rhonn_{'small_' if small else ''}{'f64' if dtype == 'float64' else 'f32'}"
 
 
-def make_ffi(dtype: str, caps: dict[str, int] | None = None, small: bool = False) -> FFI:
+def make_ffi(dtype: str, caps: dict[str, int] | None = None, small: bool = False, *,
+             vector_unit: str | None = None, module: str | None = None) -> FFI:
     """An FFI builder for the float64 or float32 core with capacities
     ``caps`` (default :func:`capacities`, or :data:`SMALL_CAPACITIES` for
-    the ``small`` build, which is another module)."""
+    the ``small`` build, which is another module). With ``vector_unit``
+    (``"avx512f"``, ``"avx2"`` or ``"default"``, x86-64 only), the lanes'
+    kernels are compiled for that unit alone instead of cloned for each
+    (``RHONN_POP_TARGET``), as module ``module``: bench/bench_wide.py's
+    builds, which measure each unit a CPU has."""
+    if vector_unit not in (None, "avx512f", "avx2", "default"):
+        raise ValueError(f"vector_unit: expected 'avx512f', 'avx2' or 'default', got {vector_unit!r}")
     if dtype not in ("float64", "float32"):
         raise ValueError(f"dtype: expected 'float64' or 'float32', got {dtype!r}")
     caps = (dict(SMALL_CAPACITIES) if small else capacities()) if caps is None else caps
@@ -242,15 +249,21 @@ def make_ffi(dtype: str, caps: dict[str, int] | None = None, small: bool = False
     # RHONN_UNROLL is a build option of rhonn.c, not of the header: declared here so `pyrhonn info` can say.
     ffi.cdef(header_declarations(dtype, caps) + "#define RHONN_UNROLL ...\n" + STEP_GLUE_DECLARATIONS
              + "#define PYRHONN_STEP_NO_ROW ...\n")
-    # Paths relative to the project root, where setup.py runs.
+    # Paths relative to the project root, where setup.py runs; absolute for a module compiled
+    # elsewhere (FFI.compile runs the compiler in its own folder).
+    def here(path: str) -> str:
+        return str(ROOT / path) if module else path
+
+    clones = [("RHONN_TARGET_CLONES", "1")] if vector_unit is None else [("RHONN_TARGET_CLONES", "0")] + (
+        [("RHONN_POP_TARGET", f'"{vector_unit}"')] if vector_unit != "default" else [])
     ffi.set_source(
-        module_name(dtype, small),
+        module or module_name(dtype, small),
         "".join(f'#include "{name}"\n' for name in CORE_HEADERS) + STEP_GLUE,
-        sources=list(CORE_SOURCES),
-        include_dirs=["csrc/include"],
+        sources=[here(source) for source in CORE_SOURCES],
+        include_dirs=[here("csrc/include")],
         depends=build_depends(["csrc/include"]),
         # The host has room for one unrolled EKF kernel per neuron size (up to 16 terms).
-        define_macros=capacity_macros(caps) + [("RHONN_TARGET_CLONES", "1")]
+        define_macros=capacity_macros(caps) + clones
         + ([("RHONN_SINGLE", "1")] if dtype == "float32" else []),
         # -O3 as CMake's Release build of the core: about 10% off the LIM's
         # batched step against -O2 (same run). Strict IEEE arithmetic either

@@ -38,7 +38,7 @@ cantools; with ``library``, the firmware application compiled for that DBC
     bus.send(proto.measurement_message(0, x, u))
 
 Control and WeightLoad frames are authenticated as AUTOSAR SecOC does
-(firmware_sim/README.md, Authentication): a :class:`SecOCSender` holds the
+(docs/firmware-protocol.md, Authentication): a :class:`SecOCSender` holds the
 key and the rig's freshness counter and is the one place that secures them::
 
     sender = SecOCSender(TEST_KEY)           # the public test key of the simulations

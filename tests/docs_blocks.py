@@ -50,6 +50,17 @@ def run(cmd: list[str], cwd: Path, what: str, env: dict[str, str] | None = None,
     return res.stdout + res.stderr
 
 
+def transcript_steps(body: str) -> list[tuple[str, str]]:
+    """``(command, expected output)`` of each `$ ` line of a console transcript."""
+    steps: list[tuple[str, list[str]]] = []
+    for line in body.splitlines():
+        if line.startswith("$ "):
+            steps.append((line[2:], []))
+        else:
+            steps[-1][1].append(line.rstrip())
+    return [(cmd, "\n".join(out).strip("\n")) for cmd, out in steps]
+
+
 def transcript_matches(printed: str, expected: str) -> bool:
     """Whether a command's output is the transcript's: line for line (trailing blanks
     ignored), where a line `...` stands for any lines left out (none or more)."""

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,6 +17,7 @@ import pytest
 
 from pyrhonn.cli import main
 from pyrhonn.configfile import loads, shipped_text
+from docs_blocks import ROOT, blocks_by, code_blocks, run, transcript_matches, transcript_steps  # noqa: E402
 from pyrhonn.plants import oscillator
 
 PERIOD = 0.01  # s between samples on the bus (the trajectory's own dt does not matter to the identifier)
@@ -479,3 +481,30 @@ def test_a_counter_keeps_a_late_burst_of_clock_frames_in_place(files: dict[str, 
     # the states' frames came on time, but the samples they belong to bunched up in the burst: those
     # samples' windows hold no frame of StatesA, so x1 is not valid there (and never filled in)
     assert all(rows[k]["x1_valid"] == "0" and rows[k]["x1"] == "" for k in range(30, 35))
+
+
+def test_the_can_log_pages_hil_recording_prints_what_the_page_shows(tmp_path: Path) -> None:
+    """docs/can-log.md's transcript, run as written: the recording is the Measurement frames of `pyrhonn hil
+    replay --transport virtual --duration 4` (its default scenario) at their sampling instants, so that what
+    identify prints depends on no host's timing; the config is firmware-lim with the page's [bus] table."""
+    from hil.scenario import Scenario
+
+    page = "docs/can-log.md"
+    (body,) = blocks_by(page, "test_cli_identify_canlog.py::test_the_can_log_pages_hil_recording_prints_what_the_page_shows")
+    (table,) = [b for lang, b, _, _ in code_blocks((ROOT / page).read_text(encoding="utf-8"))
+                if lang == "toml" and b.startswith("[bus]")]
+    (tmp_path / "lim.toml").write_text(shipped_text("firmware-lim") + "\n" + table)
+    plan = Scenario(duration=4.0).build()
+    with can.BLFWriter(str(tmp_path / "lim.blf")) as log:
+        for t, msg in zip(plan.t, plan.frames()):
+            msg.timestamp = T0 + float(t)
+            log.on_message_received(msg)
+    (tmp_path / "firmware_sim").symlink_to(ROOT / "firmware_sim", target_is_directory=True)
+    steps = transcript_steps(body)
+    assert [cmd.split()[:3] for cmd, _ in steps] == [["pyrhonn", "identify", "--can-log"]]
+    for cmd, expected in steps:
+        printed = run(["bash", "-ec", cmd], tmp_path, page)
+        assert transcript_matches(printed, expected), f"{page}: `{cmd}` prints\n{printed}\nnot\n{expected}"
+    # what the page says of the not-valid samples: the replay's own hold, as its report counts them
+    shown = dict(re.findall(r"^  \w+ \(Measurement\.(\w+)\): (\d+) samples not valid", expected, flags=re.M))
+    assert {k: int(v) for k, v in shown.items()} == {k: v["held"] + v["derived"] for k, v in plan.not_valid.items()}

@@ -24,6 +24,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from docs_blocks import blocks_by, commands
 
 ROOT = Path(__file__).resolve().parent.parent
 M4 = ROOT / "firmware_sim" / "cortex_m4"
@@ -37,6 +38,24 @@ SAMPLES, FRAMES, CYCLE_FRAMES = 1500, 200, 25
 def test_cortex_m4_toolchain_is_present_when_required() -> None:
     if required:
         assert not missing, f"PYRHONN_REQUIRE_CORTEX_M4=1 but {missing} not on PATH"
+
+
+def test_the_pages_cortex_m4_commands_take_options_their_scripts_accept() -> None:
+    # the page shows full-length runs the module's fixture runs shorter: each command names a script of
+    # the repository and only options its --help lists (no toolchain needed for that)
+    body = blocks_by("docs/firmware-sim.md",
+                     "test_cortex_m4.py::test_the_pages_cortex_m4_commands_take_options_their_scripts_accept")
+    lines = commands(body[0])
+    assert len(lines) == 2, lines
+    for line in lines:
+        python, script, *args = line.split("#")[0].split()
+        assert python == "python" and (ROOT / script).is_file(), line
+        usage = subprocess.run([sys.executable, str(ROOT / script), "--help"], capture_output=True, text=True,
+                               timeout=60, check=True, cwd=str(ROOT)).stdout
+        options = [a for a in args if a.startswith("--")]
+        assert options, line
+        for option in options:
+            assert option in usage.split(), f"{line}: {script} --help lists no {option}"
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,7 @@ from source_scripts import load_script  # noqa: E402
 
 from pyrhonn.plants import lim, robot
 
-from docs_blocks import code_blocks, run, transcript_matches
+from docs_blocks import code_blocks, run, transcript_matches, transcript_steps
 
 ROOT = Path(__file__).resolve().parents[1]
 PLANTS_MD = ROOT / "docs" / "plants.md"
@@ -161,11 +161,12 @@ def test_plants_md_lim_constants_match_the_code():
 #   `...` stands for lines left out).
 # - `<!-- docs-test: by FILE::TEST -->` before a block whose command needs what this test process
 #   does not have (a CAN interface, the VM tier, a database, a running runner, a long run): the named
-#   test of tests/FILE reads this block from the page (docs_blocks.blocks_by) and runs or checks it.
+#   test of tests/FILE reads this block from the page (docs_blocks.blocks_by) and runs or checks it; a
+#   ```console block so marked is a transcript that test runs and compares (docs_blocks.transcript_matches).
 # - `<!-- docs-test: skip REASON -->` before a block that is not a command (an excerpt of a written
 #   file); a REASON is required.
 # - ```toml, ```csv, ```text and unnamed blocks are shown, not run. No page holds a ```sh block or a
-#   ```console block that is not a transcript: each command is run by one of the rules above.
+#   ```console block that is not a transcript (here or by a test): each command is run by one of the rules above.
 
 PAGES = sorted([ROOT / "README.md", *(ROOT / "docs").glob("*.md")])
 RUNNABLE = ("python", "bash", "c")
@@ -184,17 +185,6 @@ def test_code_block_reader_reads_languages_markers_and_bodies():
 def _runnable_pages() -> list[Path]:
     return [p for p in PAGES if any((lang in RUNNABLE and marker not in ("skip", "by")) or marker == "transcript"
                                     for lang, _, marker, _ in code_blocks(p.read_text(encoding="utf-8")))]
-
-
-def transcript_steps(body: str) -> list[tuple[str, str]]:
-    """``(command, expected output)`` of each `$ ` line of a console transcript."""
-    steps: list[tuple[str, list[str]]] = []
-    for line in body.splitlines():
-        if line.startswith("$ "):
-            steps.append((line[2:], []))
-        else:
-            steps[-1][1].append(line.rstrip())
-    return [(cmd, "\n".join(out).strip("\n")) for cmd, out in steps]
 
 
 def test_transcript_reader_pairs_commands_with_their_output():
@@ -227,19 +217,17 @@ def test_markers_name_a_known_action_with_its_argument():
                 assert re.fullmatch(r"test_\w+\.py::test_\w+", arg), f"{where}: `by` names FILE.py::TEST, not {arg!r}"
 
 
-#: Blocks still shown without a test, by page and first line: the HIL recording's transcript (a 4 s
-#: replay) and the recordings benchmark's commands. The list only shrinks: an entry whose block is gone
-#: or runs fails the test below.
-NOT_YET_RUN = {
-    ("docs/can-log.md", "$ pyrhonn identify --can-log lim.blf --dbc firmware_sim/rhonn_id.dbc --config lim.toml --out id"),
-}
+#: Blocks still shown without a test, by page and first line (none now). The list only shrinks: an
+#: entry whose block is gone or runs fails the test below.
+NOT_YET_RUN: set[tuple[str, str]] = set()
 
 
 def test_no_page_shows_a_command_that_no_test_runs():
-    # a ```sh block or a bare ```console block would be shown and never run: it would go stale
+    # a ```sh block or a bare ```console block would be shown and never run: it would go stale (a
+    # console block marked `by` is run by its test, which compares what it prints with the page)
     shown = {(page.relative_to(ROOT).as_posix(), body.splitlines()[0] if body else "")
              for page in PAGES for lang, body, marker, _ in code_blocks(page.read_text(encoding="utf-8"))
-             if lang in ("sh", "shell", "zsh") or (lang == "console" and marker != "transcript")}
+             if lang in ("sh", "shell", "zsh") or (lang == "console" and marker not in ("transcript", "by"))}
     new = sorted(shown - NOT_YET_RUN)
     assert not new, "commands no test runs (see docs/contributing-docs.md):\n" + "\n".join(f"{p}: {f}" for p, f in new)
     assert not NOT_YET_RUN - shown, f"run now or gone, take them off NOT_YET_RUN: {sorted(NOT_YET_RUN - shown)}"

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import re
+import shlex
 import struct
 import subprocess
 from fractions import Fraction
@@ -35,6 +36,7 @@ from cantools.database.errors import EncodeError  # noqa: E402
 
 from pyrhonn import firmware  # noqa: E402
 from pyrhonn._fwapp import ffi, lib  # noqa: E402
+from docs_blocks import blocks_by, commands  # noqa: E402
 from source_scripts import load_script  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -52,8 +54,13 @@ def _mask_version(text: str) -> str:
 
 def test_generated_c_is_up_to_date(tmp_path: Path) -> None:
     """firmware_sim/generated/ is what tools/generate_protocol.py writes from the DBC now
-    (if this fails: python firmware_sim/tools/generate_protocol.py, and commit)."""
-    subprocess.run([sys.executable, str(FW / "tools" / "generate_protocol.py"), "-o", str(tmp_path)], check=True,
+    (if this fails: python firmware_sim/tools/generate_protocol.py, and commit). The command is
+    the one docs/firmware-sim.md shows, written into a temporary folder instead of generated/."""
+    (body,) = blocks_by("docs/firmware-sim.md", "test_firmware_protocol.py::test_generated_c_is_up_to_date")
+    (command,) = commands(body)
+    python, script, *args = shlex.split(command)
+    assert python == "python" and script == "firmware_sim/tools/generate_protocol.py" and not args, command
+    subprocess.run([sys.executable, str(ROOT / script), "-o", str(tmp_path)], check=True,
                    capture_output=True, text=True)
     names = sorted(p.name for p in tmp_path.iterdir())
     assert names == ["rhonn_id.c", "rhonn_id.h", "rhonn_id_layout.h", "rhonn_id_limits.h"]

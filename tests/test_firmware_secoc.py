@@ -46,7 +46,7 @@ def _c_cmac(key: bytes, msg: bytes) -> bytes:
 
 
 def _independent_secure(frame_id: int, authentic: bytes, freshness: int, key: bytes = firmware.TEST_KEY) -> bytes:
-    """The secured PDU as firmware_sim/README.md describes it, built without
+    """The secured PDU as docs/firmware-protocol.md describes it, built without
     the firmware's code: authentic | FV low 32 bits LE | CMAC[:8] over
     DataId BE | authentic | FV 64 bits BE."""
     mac = _cmac(key, frame_id.to_bytes(2, "big") + authentic + freshness.to_bytes(8, "big"))[:8]

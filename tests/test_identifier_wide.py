@@ -12,6 +12,10 @@ an identifier is bit for bit one stepped by ``rhonn_step``."""
 from __future__ import annotations
 
 import dataclasses
+import platform
+import re
+import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -245,3 +249,33 @@ def test_steps_go_into_the_lanes_where_run_does() -> None:
     for k in range(2):
         assert ident.step(X[k], U[k], valid[k]).tobytes() == single.step(X[k], U[k], valid[k]).tobytes()
     assert not _lent(ident)
+
+
+def _expanded_kernel_attributes(*defines: str) -> set[str]:
+    """The attributes the lanes' kernels of csrc/src/rhonn_population.c carry with these -D options,
+    from the preprocessed source (no compilation)."""
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        pytest.skip("no C compiler (cc) on PATH")
+    root = Path(__file__).resolve().parent.parent
+    out = subprocess.run([cc, "-E", "-P", "-std=c99", *(f"-D{d}" for d in defines), f"-I{root / 'csrc' / 'include'}",
+                          str(root / "csrc" / "src" / "rhonn_population.c")], capture_output=True, text=True, check=True).stdout
+    return set(re.findall(r"__attribute__\(\((target(?:_clones)?\([^)]*\))\)\)", out))
+
+
+@pytest.mark.skipif(platform.machine() != "x86_64", reason="the vector units' builds are x86-64 only")
+def test_the_lanes_compile_for_one_vector_unit_alone_when_the_bench_asks() -> None:
+    # the extension's build clones them for every unit; bench_wide.py's builds name one, and then only that one
+    assert _expanded_kernel_attributes("RHONN_TARGET_CLONES=1", "RHONN_SINGLE") == {
+        'target_clones("avx512f", "avx2", "default")'}
+    assert _expanded_kernel_attributes("RHONN_TARGET_CLONES=1") == {'target_clones("avx512f", "default")'}
+    assert _expanded_kernel_attributes('RHONN_POP_TARGET="avx2"', "RHONN_SINGLE") == {'target("avx2")'}
+    assert _expanded_kernel_attributes('RHONN_POP_TARGET="avx512f"') == {'target("avx512f")'}
+    assert _expanded_kernel_attributes() == set()  # the default: the compiler's baseline (SSE2)
+
+
+def test_a_vector_unit_build_is_refused_for_a_unit_it_does_not_know() -> None:
+    from pyrhonn import _build
+
+    with pytest.raises(ValueError, match="vector_unit: expected 'avx512f', 'avx2' or 'default', got 'neon'"):
+        _build.make_ffi("float32", small=True, vector_unit="neon", module="_x")

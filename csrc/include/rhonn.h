@@ -313,7 +313,7 @@ typedef struct {
  * the configuration is then known where the step is compiled: the loops
  * over the neurons unroll into straight code, one kernel per neuron with
  * nothing to dispatch (the firmware's LIM step on the Cortex-M4 costs about
- * a sixth less, its code about a third less: firmware_sim/README.md). The
+ * a sixth less, its code about a third less: docs/firmware.md). The
  * same floating-point operations run in the same order, so every result is
  * bit for bit the general core's. rhonn_init then accepts only a
  * configuration equal to <name> in every field; RHONN_E_CONFIG names the

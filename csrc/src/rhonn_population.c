@@ -83,7 +83,15 @@ typedef uint64_t pop_bits;
 #ifndef RHONN_TARGET_CLONES
 #define RHONN_TARGET_CLONES 0
 #endif
-#if RHONN_TARGET_CLONES && defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+/* RHONN_POP_TARGET (a string, "avx2" or "avx512f"; GCC, x86-64, without
+ * RHONN_TARGET_CLONES): the kernels compiled for that one vector unit
+ * instead, as its clone is, and rhonn.c as it is. bench/bench_wide.py builds
+ * the core so to measure each unit a CPU has, not only its widest. The CPU
+ * must have the unit. */
+#if defined(RHONN_POP_TARGET) && !RHONN_TARGET_CLONES && defined(__GNUC__) && !defined(__clang__) \
+    && defined(__x86_64__)
+#define POP_CLONES __attribute__((target(RHONN_POP_TARGET)))
+#elif RHONN_TARGET_CLONES && defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
 #ifdef RHONN_SINGLE
 #define POP_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 #else

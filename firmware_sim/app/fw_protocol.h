@@ -23,7 +23,7 @@
  *
  * These give cantools' bits for every raw value and every float32: the
  * generator emits N only for scales whose double is within 2^-54 of 1/N
- * (generate_protocol.inverse_scale, firmware_sim/README.md, "Scaling
+ * (generate_protocol.inverse_scale, docs/firmware-protocol.md, "Scaling
  * without double arithmetic"). So an Estimate's raw value is within half
  * an LSB of value / scale (unless saturated), and a decoded value is the
  * float nearest raw * scale.

@@ -8,7 +8,7 @@
  *
  * CMake builds it twice, count_secoc (FW_SECOC=1) and count_secoc_plain
  * (FW_SECOC=0): compare callgrind's inclusive counts of fw_app_on_frame;
- * fw_secoc_verify's count is the MAC check itself (firmware_sim/README.md,
+ * fw_secoc_verify's count is the MAC check itself (docs/firmware-protocol.md,
  * Authentication).
  */
 #include <stdio.h>

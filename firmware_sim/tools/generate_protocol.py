@@ -76,7 +76,7 @@ def inverse_scale(scale: float) -> int | None:
     |1/(S*N) - 1| < 2^-54); None otherwise.
 
     Under that bound, for every raw value r with |r| < 2^24 and every
-    float32 x (firmware_sim/README.md, "Scaling without double arithmetic"):
+    float32 x (docs/firmware-protocol.md, "Scaling without double arithmetic"):
 
     - decode: float32(fl64(r * S)) == fl32(r / N), one correctly rounded
       float division of two exact floats;
