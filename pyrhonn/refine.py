@@ -25,7 +25,18 @@ Simulation-error refinement (:func:`refine`) minimises
 
 sigma_j the standard deviation of state j over the estimation data, over
 every neuron's weights w at once (the states feed each other in a free
-run), by Levenberg-Marquardt (Marquardt's diagonal scaling) with the
+run); or, with ``objective="balanced"``,
+
+    V(w) = F(w) / F(w_0) + O(w) / O(w_0),
+
+F the free-run sum above and O the same sum over the one-step predictions
+(the network reading the measured states), each relative to its value at
+the starting weights w_0: a step that halves the free-run error pays for
+at most doubling the one-step error, where the free-run objective alone
+gives up any share of the one-step accuracy of least squares for a small
+gain in simulation (the first-order form, around w_0, of the geometric
+mean of the two errors by which :func:`pyrhonn.search.search` compares
+its finalists). V is minimised by Levenberg-Marquardt (Marquardt's diagonal scaling) with the
 Jacobian by forward differences, each column one free run in the C core.
 This is the output-error (simulation-error) fit of nonlinear system
 identification, the offline counterpart of training the recurrent network
@@ -49,10 +60,13 @@ from .residuals import divergence_range
 from .simulation import simulate
 from .validation import check_int, fail
 
-__all__ = ["DataRange", "FreeRun", "Refinement", "free_run_of", "refine"]
+__all__ = ["DataRange", "FreeRun", "OBJECTIVES", "Refinement", "free_run_of", "refine"]
 
 #: What one sample outside the data's range costs in V, per state, in standard deviations.
 OUT_OF_RANGE = 10.0
+#: What :func:`refine` minimises: the free-run error, or the free-run and one-step errors each
+#: relative to their values at the starting weights (module docs).
+OBJECTIVES = ("free_run", "balanced")
 
 
 @dataclass(frozen=True)
@@ -120,31 +134,48 @@ class Refinement:
     """What :func:`refine` returns: the config with refined w0 and how it got there."""
 
     config: IdentifierConfig
-    cost_before: float  #: V at the least-squares weights, per scored sample and state
-    cost_after: float
+    cost_before: float  #: the free-run mean squared error at the starting weights, per scored sample and state
+    cost_after: float  #: the same at the refined weights
     iterations: int
     evaluations: int  #: free runs of the whole estimation data
     seconds: float
     stopped: str  #: why it stopped
+    objective: str = "free_run"  #: what was minimised (:data:`OBJECTIVES`)
+    one_step_before: float = float("nan")  #: the one-step mean squared error at the starting weights, in state variances
+    one_step_after: float = float("nan")  #: the same at the refined weights
 
 
 class _Model:
-    """The free-run residual r(w) of every neuron's weights at once, over the estimation data."""
+    """The residual r(w) of every neuron's weights at once, over the estimation data: the free-run
+    errors, and with ``balanced`` the one-step errors beside them, each part divided by its norm at
+    the starting weights (set by :meth:`start`)."""
 
-    def __init__(self, config: IdentifierConfig, experiments: Sequence[Experiment], data_range: DataRange) -> None:
+    def __init__(self, config: IdentifierConfig, experiments: Sequence[Experiment], data_range: DataRange,
+                 balanced: bool = False) -> None:
         self.config = config
         self.range = data_range
         self.experiments = list(experiments)
         self.idents = [Identifier(config) for _ in self.experiments]
         self.sizes = [nr.n_terms for nr in config.neurons]
         self.evaluations = 0
+        self.balanced = balanced
+        self.scale = (1.0, 1.0)  # the free-run and one-step parts' divisors
+        self.parts = (np.zeros(0), np.zeros(0))  # the unscaled errors of the last evaluation
+
+    def start(self, theta: np.ndarray) -> np.ndarray:
+        """The residual at the starting weights, which set the scale of the parts."""
+        free, one = self.errors(theta)
+        if self.balanced:
+            self.scale = (max(float(np.linalg.norm(free)), 1e-150), max(float(np.linalg.norm(one)), 1e-150))
+        return self.joined(free, one)
 
     def split(self, theta: np.ndarray) -> list[np.ndarray]:
         return np.split(theta, np.cumsum(self.sizes)[:-1])
 
-    def residual(self, theta: np.ndarray) -> np.ndarray:
+    def errors(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The free-run and one-step errors in state standard deviations, over every scored sample."""
         self.evaluations += 1
-        parts = []
+        free, one = [], []
         ws = self.split(theta)
         for ident, ex in zip(self.idents, self.experiments):
             ident.reset()
@@ -154,15 +185,26 @@ class _Model:
             run = _frozen(ident, ex, self.range)
             mask = ex.valid.copy()
             mask[: run.start] = False
-            e = (run.free_run - np.where(ex.valid, ex.X, 0.0)) / self.range.sigma
-            e = np.where(np.isfinite(e), e, OUT_OF_RANGE)
-            parts.append(e[mask])
-        return np.concatenate(parts)
+            x = np.where(ex.valid, ex.X, 0.0)
+            with np.errstate(invalid="ignore", over="ignore"):
+                e = (run.free_run - x) / self.range.sigma
+                o = (run.one_step - x) / self.range.sigma
+            free.append(np.where(np.isfinite(e), e, OUT_OF_RANGE)[mask])
+            one.append(np.where(np.isfinite(o), o, OUT_OF_RANGE)[mask])
+        self.parts = (np.concatenate(free), np.concatenate(one))
+        return self.parts
+
+    def joined(self, free: np.ndarray, one: np.ndarray) -> np.ndarray:
+        return np.concatenate([free / self.scale[0], one / self.scale[1]]) if self.balanced else free
+
+    def residual(self, theta: np.ndarray) -> np.ndarray:
+        return self.joined(*self.errors(theta))
 
 
 def refine(config: IdentifierConfig, experiments: Sequence[Experiment], data_range: DataRange | None = None, *,
-           max_iterations: int = 30, max_evaluations: int = 3000) -> Refinement:
-    """Refine every neuron's w0 of ``config`` on the free-run error over ``experiments``.
+           max_iterations: int = 30, max_evaluations: int = 3000, objective: str = "free_run") -> Refinement:
+    """Refine every neuron's w0 of ``config`` on the free-run error over ``experiments``
+    (``objective="balanced"``: on the free-run and one-step errors together, see the module docs).
 
     Levenberg-Marquardt on V(w) (module docs), started from the config's w0,
     at most ``max_iterations`` Jacobians and ``max_evaluations`` free runs
@@ -174,15 +216,18 @@ def refine(config: IdentifierConfig, experiments: Sequence[Experiment], data_ran
         raise fail("config", f"expected an IdentifierConfig, got {type(config).__name__}")
     check_int("max_iterations", max_iterations, 0)
     check_int("max_evaluations", max_evaluations, 1)
+    if objective not in OBJECTIVES:
+        raise fail("objective", f"expected one of {list(OBJECTIVES)}, got {objective!r}")
     exps = list(experiments)
     if not exps or not all(isinstance(ex, Experiment) for ex in exps):
         raise fail("experiments", "expected a non-empty list of Experiment")
     data_range = DataRange.of(exps) if data_range is None else data_range
     t0 = time.perf_counter()
-    model = _Model(config, exps, data_range)
+    model = _Model(config, exps, data_range, balanced=objective == "balanced")
     theta = np.concatenate([nr.w0_vector() for nr in config.neurons]).astype(np.float64)
-    r = model.residual(theta)
-    n_res = max(r.size, 1)
+    r = model.start(theta)
+    free0, one0 = best = model.parts
+    n_res = max(free0.size, 1)
     cost = float(r @ r)
     cost0 = cost
     lam = 1e-3
@@ -213,7 +258,7 @@ def refine(config: IdentifierConfig, experiments: Sequence[Experiment], data_ran
             c_new = float(r_new @ r_new)
             if np.isfinite(c_new) and c_new < cost:
                 gain = cost - c_new
-                theta, r, cost = theta + step, r_new, c_new
+                theta, r, cost, best = theta + step, r_new, c_new, model.parts
                 lam = max(lam / 3.0, 1e-12)
                 improved = True
                 break
@@ -227,5 +272,8 @@ def refine(config: IdentifierConfig, experiments: Sequence[Experiment], data_ran
     ws = model.split(theta)
     neurons = tuple(replace(nr, w0=w.copy()) for nr, w in zip(config.neurons, ws))
     out = config.replace(neurons=neurons) if cost < cost0 else config
-    return Refinement(config=out, cost_before=cost0 / n_res, cost_after=min(cost, cost0) / n_res, iterations=it,
-                      evaluations=model.evaluations, seconds=time.perf_counter() - t0, stopped=stopped)
+    free1, one1 = best
+    return Refinement(config=out, cost_before=float(free0 @ free0) / n_res, cost_after=float(free1 @ free1) / n_res,
+                      iterations=it, evaluations=model.evaluations, seconds=time.perf_counter() - t0, stopped=stopped,
+                      objective=objective, one_step_before=float(one0 @ one0) / n_res,
+                      one_step_after=float(one1 @ one1) / n_res)

@@ -30,10 +30,16 @@ from data, in five steps:
    blocked cross-validation folds of the estimation data (the last
    ``holdout`` of each experiment ranks a fit on the rest, then the first
    ``holdout`` ranks a fit on the rest; the score is the mean of the two).
-4. **The best spaces** (:data:`REFINED` of them) are selected on all the
-   estimation data, and each competes twice: with its least-squares weights
-   and with its weights refined on the free-run error there
-   (:func:`pyrhonn.refine.refine`). The objective of this final choice is
+4. **The finalists**: the :data:`REFINED` best spaces by the free-run
+   score, and, among the spaces whose score is within :data:`TIE` of the
+   best (the folds cannot tell them apart), the :data:`REFINED` with the
+   best geometric mean of the free-run and one-step errors there. Each is
+   selected on all the estimation data and competes twice: with its
+   least-squares weights and with its weights refined on the free-run and
+   one-step errors together, each relative to its least-squares value
+   (:func:`pyrhonn.refine.refine`, ``objective="balanced"``: a refinement
+   on the free-run error alone gives up one-step accuracy for small gains
+   in simulation). The objective of this final choice is
    the geometric mean of the free-run and the one-step mean squared errors
    (in state variances), so that a refinement is kept only where it gains
    more in simulation than it loses one step ahead: on the validation
@@ -74,15 +80,17 @@ from .validation import check_int, check_real, fail
 
 __all__ = ["SearchGrid", "SpaceScore", "SearchResult", "Validation", "dead_times", "search", "validate"]
 
-#: Spaces within this fraction of the best validation score are taken as tied (fewest terms wins).
-TIE = 0.01
+#: Spaces whose free-run score is within this fraction of the best space's are taken as tied by it
+#: (cross-validation folds are short: their free-run RRSE is not known closer than a few per cent);
+#: the :data:`REFINED` tied spaces with the best one-step error join the finalists.
+TIE = 0.05
 #: A deep state tap joins the grid only where it leaves at most this fraction of the scan's residual.
 STATE_DELAY_GAIN = 0.9
 #: A free run informs the choice only where the best space's free-run RRSE is below this: a model whose
 #: free run settles on the mean scores about 1, and a chaotic plant's free run loses the phase whatever
 #: the model (about 1.4).
 INFORMATIVE = 0.95
-#: How many of the best spaces are refined on the free-run error.
+#: How many of the best spaces (by the free run, and by both errors among the tied) are refined.
 REFINED = 3
 
 
@@ -277,7 +285,7 @@ class SearchResult:
     """What :func:`search` returns.
 
     ``selection`` and ``config``: the chosen space's selection on all the
-    estimation data and its config (w0 refined on the free-run error where
+    estimation data and its config (w0 refined on the free-run and one-step errors where
     that lowered it); ``scores``: every space of the grid, in grid order,
     with its validation score (pooled over the folds without validation
     experiments); ``chosen``: the index of the chosen one; ``validation``:
@@ -312,7 +320,7 @@ class SearchResult:
             f"Structure found by pyrhonn select's automatic search of {len(self.scores)} candidate spaces: "
             f"{' '.join(sc.describe().split())}, ranked by {how}; terms by forward orthogonal least squares "
             f"({self.selection.criterion.value}) on {'; '.join(self.fit_rows)}; weights "
-            + ("refined on the free-run error." if self.refinement is not None else "by least squares."))
+            + ("refined on the free-run and one-step errors." if self.refinement is not None else "by least squares."))
         why = tuple(f"{nr.activation.value}, beta {nr.beta:g}; ERR " + ", ".join(
             f"{t.text} {t.err:.3g}" for t in nr.terms) for nr in self.selection.neurons)
         return ConfigFile.from_config(self.config, state_names=state_names, input_names=input_names,
@@ -357,13 +365,15 @@ class SearchResult:
         if reasons:
             lines.append("  not ranked: " + ", ".join(f"{c} {why}" for why, c in sorted(reasons.items())))
         if self.held_out:
-            lines.append(f"chosen among the best {REFINED}, each fitted on all the estimation data with least-squares "
-                         "and with refined weights, by N ln(geometric mean of the free-run and one-step mean squared "
-                         "errors) + 2 k on it")
+            lines.append(f"chosen among the best {REFINED} by the free run and the best {REFINED} by the one-step and "
+                         f"free-run errors of those within {TIE:.0%} of the best free run, each fitted on all the "
+                         "estimation data with least-squares and with refined weights, by N ln(geometric mean of the "
+                         "free-run and one-step mean squared errors) + 2 k on it")
         if self.refinement is not None:
             r = self.refinement
-            lines.append(f"weights refined on the free-run error: mean squared error {r.cost_before:.4g} -> "
-                         f"{r.cost_after:.4g} (in state variances), {r.iterations} iterations, "
+            lines.append(f"weights refined on the free-run and one-step errors: free-run mean squared error "
+                         f"{r.cost_before:.4g} -> {r.cost_after:.4g}, one-step {r.one_step_before:.4g} -> "
+                         f"{r.one_step_after:.4g} (in state variances), {r.iterations} iterations, "
                          f"{r.evaluations} free runs, {r.seconds:.1f} s ({r.stopped})")
         else:
             lines.append("weights: least squares")
@@ -456,6 +466,24 @@ def _blend(v: Validation) -> float:
     free = max(float(np.mean(v.free_rrse ** 2)), 1e-300)
     one = max(float(np.mean(v.one_rrse ** 2)), 1e-300)
     return 0.5 * (math.log(free) + math.log(one))
+
+
+def _finalists(scored: list[SpaceScore], ranked: list[int], count: int) -> list[int]:
+    """The spaces fitted on all the estimation data: the ``count`` best by the free-run score, then the
+    ``count`` best by the one-step and free-run errors together (:func:`_blend`) among the spaces tied
+    with the best by the free run (within :data:`TIE`); fewer where they coincide."""
+    if count <= 1:
+        return ranked[:count]
+    best = scored[ranked[0]].score
+    tied = [s for s in ranked if scored[s].score <= best * (1.0 + TIE)]
+
+    def one_step_first(s: int) -> tuple[float, int]:
+        v = scored[s].validation
+        assert v is not None  # a ranked space was scored
+        return _blend(v), scored[s].terms
+
+    tied.sort(key=one_step_first)
+    return list(dict.fromkeys(ranked[:count] + tied[:count]))
 
 
 def _pooled(parts: list[Validation]) -> Validation:
@@ -599,14 +627,14 @@ def _search(estimation: Sequence[Experiment], validation: Sequence[Experiment], 
                             list(validation), t0, notes, "no space's model stays in the data's range in a free run",
                             deep)
 
-    # the best spaces, fitted on all the estimation data (weights refined on the free-run error),
+    # the finalists, fitted on all the estimation data (weights refined on both errors),
     # are compared: on the user's validation data, or by an information criterion on the free-run error
     finalists = []
-    for s in ranked[: REFINED if refine_weights else 1]:
+    for s in _finalists(scored, ranked, REFINED if refine_weights else 1):
         sel = _select(scored[s].space, est, crit, max_terms, names)
         versions: list[tuple[IdentifierConfig, Refinement | None]] = []
         if refine_weights:
-            refined = refine(sel.config(), searched, data_range)
+            refined = refine(sel.config(), searched, data_range, objective="balanced")
             versions.append((refined.config, refined))
         versions.append((sel.config(), None))  # least squares may predict and simulate better together
         for config, ref in versions:

@@ -17,7 +17,8 @@ from pyrhonn.config import Factor, IdentifierConfig, NeuronConfig
 from pyrhonn.configfile import load_config
 from pyrhonn.experiments import Experiment, hold_out, merge
 from pyrhonn.refine import DataRange, free_run_of, refine
-from pyrhonn.search import SearchGrid, dead_times, search, state_delay, validate
+from pyrhonn.search import (REFINED, TIE, SearchGrid, SpaceScore, Validation, _finalists, dead_times, search,
+                            state_delay, validate)
 from pyrhonn.structure import CandidateSpace, select
 
 DEAD = 3
@@ -97,6 +98,41 @@ def test_refinement_lowers_the_free_run_error_and_changes_only_w0() -> None:
     assert validate(ref.config, [val], rng).score < validate(base, [val], rng).score
 
 
+def test_a_balanced_refinement_gives_up_less_one_step_accuracy_for_its_free_run_gain() -> None:
+    est = plant(600, 4, noise=0.1)
+    space = CandidateSpace(factors=("x", "u", "1"), degree=2, max_delay=1, input_min_delay=DEAD,
+                           input_max_delay=DEAD)
+    X, U, valid, _ = merge([est])
+    base = select(X, U, valid, space=space).config()
+    free_only = refine(base, [est])
+    balanced = refine(base, [est], objective="balanced")
+    assert (free_only.objective, balanced.objective) == ("free_run", "balanced")
+    assert balanced.one_step_before == free_only.one_step_before and balanced.cost_before == free_only.cost_before
+    assert balanced.cost_after < balanced.cost_before  # it still simulates better than least squares
+    # least squares is the one-step optimum: both lose some of it, the balanced refinement less
+    assert free_only.one_step_after > free_only.one_step_before
+    assert balanced.one_step_before < balanced.one_step_after < free_only.one_step_after
+    with pytest.raises(ValueError, match="objective"):
+        refine(base, [est], objective="one_step")
+
+
+def _scored(free: float, one: float, terms: int) -> SpaceScore:
+    v = Validation(free_rrse=np.array([free]), free_rmse=np.array([free]), one_rrse=np.array([one]),
+                   one_rmse=np.array([one]), scored=100, left_range=None)
+    return SpaceScore(CandidateSpace(factors=("x",), degree=terms), terms, "scored", v)
+
+
+def test_a_space_tied_by_the_free_run_but_better_one_step_ahead_is_a_finalist() -> None:
+    scored = [_scored(0.50, 0.5, 1), _scored(0.505, 0.5, 2), _scored(0.51, 0.5, 3),
+              _scored(0.50 * (1 + TIE) - 1e-9, 0.1, 4),  # tied with the best free run, far better one step ahead
+              _scored(0.50 * (1 + TIE) + 0.05, 0.01, 4)]  # better still one step ahead, but not tied
+    ranked = sorted(range(len(scored)), key=lambda s: scored[s].score)
+    finalists = _finalists(scored, ranked, REFINED)
+    assert finalists[:REFINED] == ranked[:REFINED]
+    assert 3 in finalists and 4 not in finalists
+    assert _finalists(scored, ranked, 1) == [0]  # without refinement only the best by the free run
+
+
 def test_search_finds_a_model_that_simulates_on_unseen_data() -> None:
     est, val = plant(800, 6), plant(800, 7)
     found = search([est], state_names=["y"], input_names=["u"])
@@ -116,6 +152,7 @@ def test_search_ranks_on_the_validation_experiments_given() -> None:
     assert not found.held_out and found.validation is not None
     assert found.validation_rows == ("run9 rows 0..499",)
     assert found.validation.score < 1e-3
+    assert found.refinement is None or found.refinement.objective == "balanced"
     assert len(found.scores) == 2 * 2 * 2  # degrees 1-2, state delays 0-1, input taps dead..dead+1
     assert all(sc.status == "scored" or sc.status.startswith(("rejected", "skipped")) for sc in found.scores)
 

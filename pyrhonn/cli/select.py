@@ -23,7 +23,7 @@ given) :func:`pyrhonn.search.search` chooses the candidate space itself:
 input dead times, a grid of factor kinds, degrees and delays, each space
 ranked by its free run on the validation experiments (or on blocked
 cross-validation folds of the estimation data without them), weights refined
-on the free-run error (``--no-refine``: least squares). Any candidate-space
+on the free-run and one-step errors (``--no-refine``: least squares). Any candidate-space
 option (``--max-delay``, ``--degree``, ``--factors``, ...) fixes the space
 instead (``--search fixed``) and runs :func:`pyrhonn.structure.select` on it.
 Writes the config (``--out``, the TOML
@@ -98,7 +98,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "given); fixed: the space the options below describe")
     p.add_argument("--no-refine", action="store_true",
                    help="auto search: keep the least-squares weights instead of refining them on the "
-                        "free-run error")
+                        "free-run and one-step errors")
     space = p.add_argument_group("a fixed candidate space (any of these implies --search fixed)")
     space.add_argument("--max-delay", metavar="D", help="deepest state tap x(k-D) (default 0)")
     space.add_argument("--delay-step", metavar="S", help="state taps every S samples (default 1)")
@@ -486,7 +486,10 @@ def _search_json(found: SearchResult, states: tuple[str, ...]) -> dict[str, obje
                     "one_step_rrse": None if sc.validation is None else json_value(float(np.mean(sc.validation.one_rrse)))}
                    for sc in found.scores],
         "chosen": found.chosen,
-        "refinement": None if ref is None else {"cost_before": ref.cost_before, "cost_after": ref.cost_after,
+        "refinement": None if ref is None else {"objective": ref.objective, "cost_before": ref.cost_before,
+                                                "cost_after": ref.cost_after,
+                                                "one_step_before": json_value(ref.one_step_before),
+                                                "one_step_after": json_value(ref.one_step_after),
                                                 "iterations": ref.iterations, "evaluations": ref.evaluations,
                                                 "stopped": ref.stopped},
         "validation": None if found.validation is None else
