@@ -27,7 +27,8 @@ _SEPARATORS = (",", ";", "\t")
 
 class CellError(ValueError):
     """A block :func:`parse_rows` refuses: ``row`` its 1-based line in the block, ``column`` the
-    field's name (None when the line itself is at fault: a blank line, or the wrong number of fields)."""
+    field's name (None when the line itself is at fault: a blank line, a lone carriage return, or the
+    wrong number of fields)."""
 
     def __init__(self, message: str, row: int, column: str | None) -> None:
         super().__init__(message)
@@ -93,12 +94,13 @@ class Layout:
 
 
 def parse_rows(text: bytes, layout: Layout, sep: str = ",") -> tuple[np.ndarray, np.ndarray]:
-    """The lines of ``text`` (lines ended by ``\\n``, the last one possibly not; no quotes, no blank
-    line): ``(numbers, flags)``, numbers (L, len(layout.numbers)) float64 (NaN for an empty cell), flags
+    """The lines of ``text`` (lines ended by ``\\n`` or ``\\r\\n``, the last one possibly not; no quotes, no
+    blank line): ``(numbers, flags)``, numbers (L, len(layout.numbers)) float64 (NaN for an empty cell), flags
     (L, len(layout.flags)) uint8 (0 or 1 for a bare ``0`` or ``1``, 2 for anything else). A number is
     a decimal (``-1.5``, ``2e-3``, ``.5``) with spaces around it allowed; anything else (``nan``,
     ``inf``, a decimal comma, text, a value beyond the float64 range) raises :class:`CellError`
-    naming the line and the field, as does a line with the wrong number of fields."""
+    naming the line and the field; a line with the wrong number of fields, a blank line or a lone
+    ``\\r`` (a line end to the csv module) raise it naming the line."""
     if not isinstance(text, bytes):
         raise ValueError(f"text: expected bytes, got {type(text).__name__}")
     sep_byte = _separator(sep)
@@ -120,7 +122,7 @@ def parse_rows(text: bytes, layout: Layout, sep: str = ",") -> tuple[np.ndarray,
     if got < 0:
         row = int(-got)
         if bad[0] < 0:
-            raise CellError(f"line {row}: a blank line, or not {fields} fields", row, None)
+            raise CellError(f"line {row}: a blank line, a lone carriage return, or not {fields} fields", row, None)
         name = layout.names[int(bad[0])]
         raise CellError(f"line {row}, column {name!r}: not a decimal number in the float64 range", row, name)
     return numbers[:got], flags[:got]

@@ -433,12 +433,14 @@ class DataReader:
                 if not raw:
                     break
                 chunk = self._fast(raw, line) if self._blank is None else None
-                if chunk is None:
+                if chunk is not None:  # one row a line
+                    line += chunk.n_samples - (0 if raw.endswith(b"\n") else 1)
+                else:
                     text = self._text(raw, line, start)
                     chunk = self._rows(_records(text, self.source, self.sep, line - 1), raw.count(b"\n") + 1)
+                    line += raw.count(b"\n")
                 if chunk is not None:
                     yield chunk
-                line += raw.count(b"\n")
                 start += len(raw)
         finally:
             self._fh.close()
@@ -473,10 +475,6 @@ class DataReader:
         comma, a defect), which :meth:`_rows` then reads and names cell by cell."""
         if self.decimal != "." or b'"' in raw:
             return None
-        if b"\r" in raw:
-            raw = raw.replace(b"\r\n", b"\n")
-            if b"\r" in raw:
-                return None
         if not raw.isascii():
             try:
                 raw.decode("utf-8")

@@ -438,15 +438,17 @@ static int pyrhonn_cell(const char *s, const char *e, int tab_is_space, double *
     return 1;
 }
 
-/* Parses the CSV lines of text[0..n) (no quotes; a line ends at '\n', the
- * last one possibly at the end of the text), each of ``fields`` fields
+/* Parses the CSV lines of text[0..n) (no quotes; a line ends at '\n' or
+ * "\r\n", the last one possibly at the end of the text; a lone '\r' is
+ * refused), each of ``fields`` fields
  * separated by ``sep``. Field f's ``kind``: 0 ignored, 1 a number (into
  * column ``slot[f]`` of the row-major ``numbers``, ``n_numbers`` wide; an
  * empty cell NaN), 2 a flag (into column ``slot[f]`` of ``flags``,
  * ``n_flags`` wide: 0 or 1 for a bare "0" or "1", 2 for anything else). At
  * most ``max_rows`` lines. Returns the lines parsed; on a defect -1 - the
- * line (0-based) and *bad_field the field (0-based; -1: the line has too few
- * or too many fields, or the text too many lines). */
+ * line (0-based) and *bad_field the first field that is not a number
+ * (0-based), or -1 when the line is blank, holds a lone '\r', has too few
+ * or too many fields, or is beyond ``max_rows``. */
 long long pyrhonn_csv_parse(const char *text, size_t n, char sep, size_t fields, const unsigned char *kind,
                             const size_t *slot, double *numbers, size_t n_numbers, unsigned char *flags,
                             size_t n_flags, size_t max_rows, long long *bad_field)
@@ -457,28 +459,35 @@ long long pyrhonn_csv_parse(const char *text, size_t n, char sep, size_t fields,
     *bad_field = -1;
     while (p < end) {
         size_t f = 0;
+        long long bad = -1; /* the first field that is not a number, named once the line is counted */
         const char *blank = p;
         if (row >= max_rows) {
             return -1 - (long long)row;
         }
         while (blank < end && (*blank == ' ' || *blank == '\t')) blank++;
-        if (blank == end || *blank == '\n') {
+        if (blank == end || *blank == '\n' || (*blank == '\r' && blank + 1 < end && blank[1] == '\n')) {
             return -1 - (long long)row; /* a blank line */
         }
         for (;;) {
-            const char *cell = p;
-            while (p < end && *p != sep && *p != '\n') p++;
+            const char *cell = p, *cell_end;
+            while (p < end && *p != sep && *p != '\n' && *p != '\r') p++;
+            cell_end = p;
+            if (p < end && *p == '\r') {
+                if (p + 1 == end || p[1] != '\n') {
+                    return -1 - (long long)row; /* a lone \r: a line end to some readers */
+                }
+                p++; /* the line ends by \r\n */
+            }
             if (f >= fields) {
                 return -1 - (long long)row;
             }
             if (kind[f] == 1) {
-                if (!pyrhonn_cell(cell, p, tab_is_space, &numbers[row * n_numbers + slot[f]])) {
-                    *bad_field = (long long)f;
-                    return -1 - (long long)row;
+                if (bad < 0 && !pyrhonn_cell(cell, cell_end, tab_is_space, &numbers[row * n_numbers + slot[f]])) {
+                    bad = (long long)f;
                 }
             } else if (kind[f] == 2) {
                 flags[row * n_flags + slot[f]] =
-                    (unsigned char)(p - cell == 1 && (*cell == '0' || *cell == '1') ? *cell - '0' : 2);
+                    (unsigned char)(cell_end - cell == 1 && (*cell == '0' || *cell == '1') ? *cell - '0' : 2);
             }
             f++;
             if (p < end && *p == sep) {
@@ -488,6 +497,10 @@ long long pyrhonn_csv_parse(const char *text, size_t n, char sep, size_t fields,
             break;
         }
         if (f != fields) {
+            return -1 - (long long)row;
+        }
+        if (bad >= 0) {
+            *bad_field = bad;
             return -1 - (long long)row;
         }
         if (p < end) {
