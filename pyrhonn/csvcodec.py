@@ -63,7 +63,7 @@ def format_rows(values: np.ndarray, show: np.ndarray | None = None, integer: Seq
     s = None if show is None else np.ascontiguousarray(show).view(np.uint8)
     ints = bytes(int(bool(f)) for f in integer) if integer else None
     cap = rows * (cols + 1) * (CELL_MAX + 1)
-    out = bytearray(cap)
+    out = np.empty(cap, dtype=np.uint8)  # not zeroed: only the n bytes written are kept
     n = _lib.pyrhonn_csv_format(_ffi.from_buffer("double[]", v), _ffi.NULL if s is None else _ffi.from_buffer(s),
                                 rows, cols, _ffi.NULL if ints is None else ints, sep_byte,
                                 _ffi.from_buffer(out), cap)
@@ -73,8 +73,7 @@ def format_rows(values: np.ndarray, show: np.ndarray | None = None, integer: Seq
                          "(an integer column)")
     if n < 0:  # cannot happen: cap holds every row at its longest
         raise RuntimeError("format_rows: the output buffer was too small")
-    del out[n:]
-    return bytes(out)
+    return out[:n].tobytes()
 
 
 @dataclass(frozen=True)

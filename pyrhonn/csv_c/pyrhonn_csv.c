@@ -153,6 +153,11 @@ static void pyrhonn_shortest(uint64_t bits, uint64_t *digits, int32_t *exponent)
     *exponent = e10 + (int32_t)removed;
 }
 
+static const char pyrhonn_pairs[201] =
+    "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
+    "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
+    "8081828384858687888990919293949596979899";
+
 /* x as repr() writes it ("0.1", "1e-05", "1.5e+16", "-0.0", "100.0") at out;
  * x finite. At most 24 bytes; returns the count. */
 static size_t pyrhonn_write_double(double x, char *out)
@@ -170,6 +175,12 @@ static size_t pyrhonn_write_double(double x, char *out)
         return at + 3;
     }
     pyrhonn_shortest(bits & ~(1ull << 63), &digits, &exponent);
+    while (digits >= 100) { /* two digits a division */
+        const uint64_t pair = digits % 100;
+        digits /= 100;
+        memcpy(text + 18 - n, pyrhonn_pairs + 2 * pair, 2);
+        n += 2;
+    }
     while (digits != 0) {
         text[19 - n++] = (char)('0' + digits % 10);
         digits /= 10;
