@@ -2,9 +2,10 @@
 
 Read whole by :func:`read_data` (``pyrhonn tune --data``, ``select``, ``validate``) or a chunk of rows at
 a time by :class:`DataReader` (``pyrhonn identify``, ``select`` on a long record), which reads the file
-in blocks of whole lines and parses a plain block column by column in C; written by
+in blocks of whole lines and parses a plain block in C (:func:`pyrhonn.csvcodec.parse_rows`); written by
 :func:`write_data` (``pyrhonn identify --can-log`` writes the samples it
-aligned from a bus log so).
+aligned from a bus log so), each value as its shortest round-trip decimal
+(:func:`pyrhonn.csvcodec.format_rows`).
 
 Input file
 ----------
