@@ -341,20 +341,28 @@ static double pyrhonn_strtod(const char *text, size_t n, int *ok)
     char buf[512];
     char *end;
     double x;
+    locale_t c_locale;
     if (n >= sizeof buf) {
         *ok = 0;
         return 0.0;
     }
-    if (pyrhonn_c_locale == (locale_t)0) {
-        pyrhonn_c_locale = newlocale(LC_ALL_MASK, "C", (locale_t)0);
-        if (pyrhonn_c_locale == (locale_t)0) {
+    c_locale = __atomic_load_n(&pyrhonn_c_locale, __ATOMIC_ACQUIRE);
+    if (c_locale == (locale_t)0) { /* made once; a thread that loses the race frees its own */
+        locale_t made = newlocale(LC_ALL_MASK, "C", (locale_t)0), none = (locale_t)0;
+        if (made == (locale_t)0) {
             *ok = 0;
             return 0.0;
+        }
+        if (__atomic_compare_exchange_n(&pyrhonn_c_locale, &none, made, 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE)) {
+            c_locale = made;
+        } else {
+            freelocale(made);
+            c_locale = none;
         }
     }
     memcpy(buf, text, n);
     buf[n] = '\0';
-    x = strtod_l(buf, &end, pyrhonn_c_locale);
+    x = strtod_l(buf, &end, c_locale);
     *ok = end == buf + n;
     return x;
 }
