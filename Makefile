@@ -204,4 +204,4 @@ else
 endif
 
 clean:
-	rm -rf $(BUILD) $(VENV) pyrhonn/_rhonn_*.so pyrhonn/_rhonn_*.c pyrhonn/_rhonn_*.o pyrhonn/_fwapp*.so pyrhonn/_fwapp.c pyrhonn/_fwapp.o
+	rm -rf $(BUILD) $(VENV) pyrhonn/_rhonn_*.so pyrhonn/_rhonn_*.c pyrhonn/_rhonn_*.o pyrhonn/_fwapp*.so pyrhonn/_fwapp.c pyrhonn/_fwapp.o pyrhonn/_csvtext*.so pyrhonn/_csvtext.c pyrhonn/_csvtext.o

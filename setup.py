@@ -70,4 +70,5 @@ class BuildExtSideBySide(build_ext):
 
 setup(cmdclass={"build_py": BuildPyWithCoreHeaders, "build_ext": BuildExtSideBySide},
       cffi_modules=["pyrhonn/_build.py:ffi_f64", "pyrhonn/_build.py:ffi_f32", "pyrhonn/_build.py:ffi_small_f64",
-                    "pyrhonn/_build.py:ffi_small_f32", "pyrhonn/_build.py:ffi_fwapp"])
+                    "pyrhonn/_build.py:ffi_small_f32", "pyrhonn/_build.py:ffi_fwapp",
+                    "pyrhonn/_build.py:ffi_csv"])

@@ -19,7 +19,8 @@ default): room for the paper's examples and the LIM, in a ``rhonn_t`` over
 it; the builds give the same results bit for bit (tested), so which one runs
 is invisible but for speed. ``pyrhonn info`` prints what the installed
 builds hold. The firmware application (``pyrhonn._fwapp``) keeps the
-firmware's own capacities.
+firmware's own capacities. ``pyrhonn._csvtext`` is the CSV text codec of the
+data files and predictions (:mod:`pyrhonn.csvcodec`; host code, no core).
 
 The EKF kernel is unrolled per neuron size (``RHONN_UNROLL``) only when
 ``RHONN_MAX_TERMS`` is at most 16, the most the core unrolls; above that the
@@ -401,13 +402,75 @@ def make_fwapp_ffi(module: str = "pyrhonn._fwapp", protocol_dir: str | Path | No
     return ffi
 
 
+CSV_SOURCE = "pyrhonn/csv_c/pyrhonn_csv.c"
+#: The CSV text codec's entry points (:mod:`pyrhonn.csvcodec`; host only, not the core).
+CSV_DECLARATIONS = """
+long long pyrhonn_csv_format(const double *values, const unsigned char *show, size_t rows, size_t cols,
+                             const unsigned char *integer, char sep, char *out, size_t cap);
+long long pyrhonn_csv_parse(const char *text, size_t n, char sep, size_t fields, const unsigned char *kind,
+                            const size_t *slot, double *numbers, size_t n_numbers, unsigned char *flags,
+                            size_t n_flags, size_t max_rows, long long *bad_field);
+#define PYRHONN_CSV_CELL_MAX ...
+"""
+
+
+def _words(value: int) -> str:
+    """A 128-bit value as C's {low 64 bits, high 64 bits}."""
+    return f"{{{value & (2**64 - 1)}u, {value >> 64}u}}"
+
+
+def csv_tables() -> str:
+    """The powers of 5 the CSV codec multiplies by, computed here with exact integers (see
+    pyrhonn/csv_c/pyrhonn_csv.c): Ryu's 125-bit tables for writing, and 5^q on 128 bits (rounded
+    down) with its binary exponent for reading, q = -342..308."""
+    inv = [(1 << ((5**q).bit_length() - 1 + 125)) // 5**q + 1 for q in range(342)]
+    split = []
+    for i in range(326):
+        bits = (5**i).bit_length()
+        split.append(5**i << (125 - bits) if bits <= 125 else 5**i >> (bits - 125))
+    wide, exps = [], []
+    for q in range(-342, 309):
+        if q >= 0:
+            bits = (5**q).bit_length()
+            value, exp = (5**q << (128 - bits), bits - 128) if bits <= 128 else (5**q >> (bits - 128), bits - 128)
+        else:
+            bits = (5**-q).bit_length()
+            value, exp = (1 << (127 + bits)) // 5**-q, -(127 + bits)
+        assert 1 << 127 <= value < 1 << 128
+        wide.append(value)
+        exps.append(exp)
+
+    def table(name: str, values: list[int]) -> str:
+        return f"static const uint64_t {name}[{len(values)}][2] = {{\n" + ",\n".join(
+            _words(v) for v in values) + "\n};\n"
+
+    return ("#include <stdint.h>\n" + table("PYRHONN_POW5_INV", inv) + table("PYRHONN_POW5", split)
+            + table("PYRHONN_POW5_128", wide)
+            + f"static const int32_t PYRHONN_POW5_128_EXP[{len(exps)}] = {{{', '.join(map(str, exps))}}};\n")
+
+
+def make_csv_ffi() -> FFI:
+    """The builder of ``pyrhonn._csvtext``, the CSV text codec (pyrhonn/csv_c/pyrhonn_csv.c, with the
+    tables of :func:`csv_tables`)."""
+    ffi = FFI()
+    ffi.cdef(CSV_DECLARATIONS)
+    ffi.set_source(
+        "pyrhonn._csvtext",
+        "#ifndef _GNU_SOURCE\n#define _GNU_SOURCE 1\n#endif\n" + csv_tables() + (ROOT / CSV_SOURCE).read_text(),
+        depends=[CSV_SOURCE, str(Path(__file__).resolve().relative_to(ROOT))],
+        extra_compile_args=["-O2", "-fno-fast-math"],
+    )
+    return ffi
+
+
 ffi_f64 = make_ffi("float64")
 ffi_f32 = make_ffi("float32")
 ffi_small_f64 = make_ffi("float64", small=True)
 ffi_small_f32 = make_ffi("float32", small=True)
 ffi_fwapp = make_fwapp_ffi()
+ffi_csv = make_csv_ffi()
 
 if __name__ == "__main__":
     os.chdir(ROOT)
-    for builder in (ffi_f64, ffi_f32, ffi_small_f64, ffi_small_f32, ffi_fwapp):
+    for builder in (ffi_f64, ffi_f32, ffi_small_f64, ffi_small_f32, ffi_fwapp, ffi_csv):
         builder.compile(tmpdir=str(ROOT), verbose=True)

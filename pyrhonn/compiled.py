@@ -13,8 +13,8 @@ from pathlib import Path
 __all__ = ["EXTENSIONS", "missing", "require"]
 
 #: The extension modules of the package: the core in float64 and float32, in a
-#: large and a small build, and the firmware application.
-EXTENSIONS = ("_rhonn_f64", "_rhonn_f32", "_rhonn_small_f64", "_rhonn_small_f32", "_fwapp")
+#: large and a small build, the firmware application, and the CSV text codec.
+EXTENSIONS = ("_rhonn_f64", "_rhonn_f32", "_rhonn_small_f64", "_rhonn_small_f32", "_fwapp", "_csvtext")
 
 
 def missing(package: str = "pyrhonn") -> list[str]:

@@ -2,9 +2,10 @@
 
 Read whole by :func:`read_data` (``pyrhonn tune --data``, ``select``, ``validate``) or a chunk of rows at
 a time by :class:`DataReader` (``pyrhonn identify``, ``select`` on a long record), which reads the file
-in blocks of whole lines and parses a plain block column by column in C; written by
+in blocks of whole lines and parses a plain block in C (:func:`pyrhonn.csvcodec.parse_rows`); written by
 :func:`write_data` (``pyrhonn identify --can-log`` writes the samples it
-aligned from a bus log so).
+aligned from a bus log so), each value as its shortest round-trip decimal
+(:func:`pyrhonn.csvcodec.format_rows`).
 
 Input file
 ----------
@@ -71,10 +72,11 @@ import numpy as np
 
 from . import atomic
 from .configfile import ConfigFile
+from .csvcodec import CellError, Layout, format_rows, parse_rows
 from .validation import MissingFileError, near_names
 
 __all__ = ["BLOCK_BYTES", "Data", "DataReader", "LOST_COLUMN", "ROWS_AT_ONCE", "SEPARATORS", "TIME_COLUMN", "check_suffix", "concatenate",
-           "decimal_cells", "read_data", "write_data"]
+           "header_line", "read_data", "write_data"]
 
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
 #: a column of such numbers, one a line, spaces around them (read in one pass)
@@ -405,6 +407,9 @@ class DataReader:
         self._n, self._m = len(cf.state_names), len(cf.input_names)
         self._state_names, self._valid_suffix = tuple(cf.state_names), valid_suffix
         self.has_time, self.has_lost = TIME_COLUMN in where, LOST_COLUMN in where
+        numbers = ([where[TIME_COLUMN]] if self.has_time else []) + self._state_cols + self._input_cols
+        flag_fields = ([where[LOST_COLUMN]] if self.has_lost else []) + list(validity.values())
+        self._layout = Layout(tuple(names), tuple(numbers), tuple(flag_fields))
 
     # -- the rows -----------------------------------------------------------------------------------
 
@@ -429,12 +434,14 @@ class DataReader:
                 if not raw:
                     break
                 chunk = self._fast(raw, line) if self._blank is None else None
-                if chunk is None:
+                if chunk is not None:  # one row a line
+                    line += chunk.n_samples - (0 if raw.endswith(b"\n") else 1)
+                else:
                     text = self._text(raw, line, start)
                     chunk = self._rows(_records(text, self.source, self.sep, line - 1), raw.count(b"\n") + 1)
+                    line += raw.count(b"\n")
                 if chunk is not None:
                     yield chunk
-                line += raw.count(b"\n")
                 start += len(raw)
         finally:
             self._fh.close()
@@ -464,78 +471,41 @@ class DataReader:
 
     def _fast(self, raw: bytes, first_line: int) -> Data | None:
         """The rows of ``raw`` when every one of them is plain (numbers, 0/1 flags, empty cells only
-        where a state is not valid or the sample is lost, times increasing): parsed column by column
-        in C; None for anything else (quotes, blank lines, a decimal comma, a defect), which
-        :meth:`_rows` then reads and names cell by cell."""
+        where a state is not valid or the sample is lost, times increasing): parsed in C
+        (:func:`pyrhonn.csvcodec.parse_rows`); None for anything else (quotes, blank lines, a decimal
+        comma, a defect), which :meth:`_rows` then reads and names cell by cell."""
         if self.decimal != "." or b'"' in raw:
             return None
-        if b"\r" in raw:
-            raw = raw.replace(b"\r\n", b"\n")
-            if b"\r" in raw:
+        if not raw.isascii():
+            try:
+                raw.decode("utf-8")
+            except UnicodeDecodeError:
                 return None
-        if not raw.endswith(b"\n"):
-            raw += b"\n"
-        buf = np.frombuffer(raw, dtype=np.uint8)
-        ends = np.flatnonzero(buf == 10)
-        L, w = ends.size, len(self.names)
-        seps = np.flatnonzero(buf == ord(self.sep))
-        if seps.size != L * (w - 1):
+        try:
+            values, flags = parse_rows(raw, self._layout, self.sep)
+        except CellError:
             return None
-        if w > 1 and np.any(np.diff(np.searchsorted(seps, ends), prepend=0) != w - 1):
-            return None
-        first = np.empty((L, w), dtype=np.int64)  # where each field starts and ends
-        last = np.empty((L, w), dtype=np.int64)
-        first[0, 0] = 0
-        first[1:, 0] = ends[:-1] + 1
-        first[:, 1:] = seps.reshape(L, w - 1) + 1
-        last[:, :-1] = first[:, 1:] - 1
-        last[:, -1] = ends
-        width = last - first
-        if w == 1 and np.any(width == 0):
-            return None
-
-        def flags(c: int) -> np.ndarray | None:
-            """The 0/1 flags of column c (None unless every cell is a bare 0 or 1)."""
-            if np.any(width[:, c] != 1):
-                return None
-            b = buf[first[:, c]]
-            return b == ord("1") if np.all((b == ord("0")) | (b == ord("1"))) else None
-
+        L = values.shape[0]
+        f = 0
         lost = np.zeros(L, dtype=bool)
         if self.has_lost:
-            got = flags(self._where[LOST_COLUMN])
-            if got is None or (got.any() and (not self.allow_lost or (self._k < 0 and got[0]))):
+            got = flags[:, 0]
+            if np.any(got > 1):
                 return None
-            lost = got
+            lost = got == 1
+            if lost.any() and (not self.allow_lost or (self._k < 0 and lost[0])):
+                return None
+            f = 1
         arrived = ~lost
-        valid = np.ones((L, self._n), dtype=bool)
-        valid[lost] = False
-        for j, c in self._validity.items():
-            if np.any(width[arrived, c] != 1):
-                return None
-            b = buf[first[:, c]]
-            if not np.all(((b == ord("0")) | (b == ord("1")))[arrived]):
-                return None
-            valid[:, j] = (b == ord("1")) & arrived
-        columns = ([self._where[TIME_COLUMN]] if self.has_time else []) + self._state_cols + self._input_cols
-        empty = width[:, columns] == 0
-        text = raw
-        if empty.any():  # the empty cells as "nan", counted below: a "nan" written in the file is read by _rows
-            sep = self.sep.encode()
-            text = raw.replace(sep + sep, sep + b"nan" + sep).replace(sep + sep, sep + b"nan" + sep)
-            text = text.replace(b"\n" + sep, b"\nnan" + sep).replace(sep + b"\n", sep + b"nan\n")
-            if text.startswith(sep):
-                text = b"nan" + text
-        try:
-            values = np.loadtxt(io.BytesIO(text), delimiter=self.sep, comments=None, usecols=columns,
-                                dtype=np.float64, ndmin=2, encoding="utf-8")
-        except ValueError:
+        valid = flags[:, f:] == 1
+        if np.any((flags[:, f:] > 1) & arrived[:, None]):
             return None
-        if values.shape != (L, len(columns)):
-            return None
+        valid &= arrived[:, None]
+        if len(self._validity) < self._n:  # a state without a validity column: valid where the sample arrived
+            full = np.repeat(arrived[:, None], self._n, axis=1)
+            full[:, list(self._validity)] = valid
+            valid = full
         nan = np.isnan(values)
-        if not np.array_equal(nan, empty) or np.isinf(values).any():
-            return None
         c0 = 0
         t = None
         if self.has_time:
@@ -545,7 +515,7 @@ class DataReader:
             c0 = 1
         X = values[:, c0:c0 + self._n].copy()
         U = values[:, c0 + self._n:].copy()
-        if np.any(np.isnan(X) & valid) or np.any(np.isnan(U[arrived])):
+        if np.any(nan[:, c0:c0 + self._n] & valid) or np.any(nan[:, c0 + self._n:][arrived]):
             return None
         X[lost] = np.nan
         U[lost] = np.nan
@@ -743,33 +713,28 @@ def write_data(path: str | Path, data: Data, cf: ConfigFile, *, valid_suffix: st
     gaps = data.lost is not None and bool(data.lost.any())
     header = ([TIME_COLUMN] if data.t is not None else []) + list(cf.state_names) + list(cf.input_names) + \
         [f"{name}{valid_suffix}" for name in cf.state_names] + ([LOST_COLUMN] if gaps else [])
-    with atomic.replacing(path, "w", newline="") as fh:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow(header)
-        T = data.n_samples
-        arrived = ~data.lost if gaps and data.lost is not None else np.ones(T, dtype=bool)
-        for a in range(0, T, ROWS_AT_ONCE):  # column by column, a block of rows at a time
+    T = data.n_samples
+    arrived = ~data.lost if gaps and data.lost is not None else np.ones(T, dtype=bool)
+    t = [] if data.t is None else [data.t[:, None]]
+    with atomic.replacing(path, "wb") as fh:
+        fh.write(header_line(header))
+        for a in range(0, T, ROWS_AT_ONCE):  # a block of rows at a time
             rows = slice(a, min(a + ROWS_AT_ONCE, T))
-            columns = [decimal_cells(data.t[rows])] if data.t is not None else []
-            columns += [decimal_cells(data.X[rows, j], data.valid[rows, j]) for j in range(n)]
-            columns += [decimal_cells(data.U[rows, j], arrived[rows]) for j in range(m)]
-            columns += [["1" if v else "0" for v in data.valid[rows, j].tolist()] for j in range(n)]
-            if gaps:
-                columns.append(["0" if v else "1" for v in arrived[rows].tolist()])
-            w.writerows(zip(*columns))
+            flags = [data.valid[rows]] + ([~arrived[rows, None]] if gaps else [])
+            values = np.hstack([*(c[rows] for c in t), data.X[rows], data.U[rows], *flags], dtype=np.float64)
+            show = np.ones(values.shape, dtype=bool)
+            c = len(t)
+            show[:, c:c + n] = data.valid[rows]
+            show[:, c + n:c + n + m] = arrived[rows, None]
+            fh.write(format_rows(values, show, integer=[False] * (c + n + m) + [True] * (values.shape[1] - c - n - m)))
+
+
+def header_line(names: Sequence[str]) -> bytes:
+    """A CSV header line of ``names`` (quoted where they need it), ended by a line end, as UTF-8."""
+    text = io.StringIO()
+    csv.writer(text, lineterminator="\n").writerow(names)
+    return text.getvalue().encode("utf-8")
 
 
 #: rows formatted at once when writing (bounds the text held)
 ROWS_AT_ONCE = 1 << 14
-
-
-def decimal_cells(values: np.ndarray, keep: np.ndarray | None = None) -> list[str]:
-    """The exact decimal text of each value (``repr``, which reads back to the same float64), empty
-    where it is not finite or ``keep`` is False."""
-    show = np.isfinite(values) if keep is None else keep & np.isfinite(values)
-    if not values.size:
-        return []
-    cells = repr(values.tolist())[1:-1].split(", ")  # every repr in one call: a long record writes millions
-    if show.all():
-        return cells
-    return [c if ok else "" for c, ok in zip(cells, show.tolist())]

@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from pyrhonn.cli import main
+from pyrhonn.cli import COMMANDS, main
 
 
 def test_info_reports_the_compiled_capacities(capsys: pytest.CaptureFixture[str]) -> None:
@@ -36,6 +36,17 @@ def test_missing_or_unknown_command_exits_2_with_usage() -> None:
 def test_console_module_runs() -> None:
     out = subprocess.run([sys.executable, "-m", "pyrhonn.cli", "info"], capture_output=True, text=True, check=True)
     assert "RHONN_MAX_TERMS" in out.stdout
+
+
+def test_a_command_imports_its_own_module_only_and_help_lists_them_all() -> None:
+    """``pyrhonn show-config`` starts without importing the other commands (nor the packages that add
+    commands, whose imports take longer than a short run); ``pyrhonn --help`` still lists every command."""
+    probe = ("import sys\nfrom pyrhonn.cli import main\nmain(['show-config', 'example1'])\n"
+             "print(sorted(m for m in sys.modules if m.startswith(('pyrhonn.cli.', 'hil'))))")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    assert out.stdout.strip().splitlines()[-1] == "['pyrhonn.cli.show_config']"
+    usage = subprocess.run([sys.executable, "-m", "pyrhonn.cli", "--help"], capture_output=True, text=True, check=True)
+    assert all(name.replace("_", "-") in usage.stdout for name in COMMANDS)
 
 
 def test_a_reader_that_goes_away_ends_the_command_quietly() -> None:

@@ -421,26 +421,13 @@ def test_outputs_are_replaced_whole_and_an_interrupted_run_marks_the_folder(
     assert _identify(files, "blf", out) == 0
     first = {p.name: p.read_bytes() for p in out.iterdir()}
     assert MARKER not in first and {"samples.csv", "predictions.csv", "metrics.json"} <= set(first)
-    real_writer = csv.writer
+    real_format = datafile.format_rows
 
-    made = []
+    def failing(*args, **kw) -> bytes:  # the disk fills while samples.csv is written into the folder
+        real_format(*args, **kw)
+        raise OSError(28, "No space left on device")
 
-    class Failing:  # the disk fills while the folder is written (predictions.csv streams to a staged file first)
-        def __init__(self, fh, **kw) -> None:
-            self.w, self.rows = real_writer(fh, **kw), 0
-            made.append(self)
-
-        def writerow(self, row) -> None:
-            self.rows += 1
-            if self.rows > 20 and len(made) > 1:
-                raise OSError(28, "No space left on device")
-            self.w.writerow(row)
-
-        def writerows(self, rows) -> None:
-            for row in rows:
-                self.writerow(row)
-
-    monkeypatch.setattr(datafile.csv, "writer", Failing)
+    monkeypatch.setattr(datafile, "format_rows", failing)
     assert _identify(files, "asc", out, "--warmup", "6") == 2
     now = {p.name: p.read_bytes() for p in out.iterdir()}
     assert now.pop(MARKER, None) is not None  # the folder says it was not finished

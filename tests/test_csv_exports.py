@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,7 @@ from hypothesis import strategies as st
 
 from pyrhonn.cli import main
 from pyrhonn.configfile import load_shipped, shipped_text
+from pyrhonn.csvcodec import CellError, Layout, format_rows, parse_rows
 from pyrhonn.datafile import read_data
 from pyrhonn.plants import oscillator
 
@@ -127,30 +129,188 @@ _CELL_STYLES = (repr, lambda v: f"{v:.17e}", lambda v: f"  {v!r} ", lambda v: f"
        sep=st.sampled_from([",", ";", "\t"]))
 def test_plain_rows_read_in_one_pass_equal_the_same_cells_read_one_by_one(values: list[list[float]], styles: list[int],
                                                                          sep: str) -> None:
-    """A chunk of plain rows is read column by column; one empty cell sends its chunk through the
-    cell-by-cell reader: every other value is the same, bit for bit."""
+    """A chunk of plain rows is parsed in C (an empty cell of a state that is not valid included); the
+    same file with every cell quoted goes through the cell-by-cell reader: the same values, bit for bit."""
     cf = load_shipped("example1")
     import tempfile
 
-    def write(path: Path, first_empty: bool) -> None:
+    def write(path: Path, quoting: int) -> None:
         with path.open("w", newline="") as fh:
-            w = csv.writer(fh, delimiter=sep)
+            w = csv.writer(fh, delimiter=sep, quoting=quoting)
             w.writerow(["t", "x1", "x2", "x3", "x4", "u", "x1_valid"])
             for k, row in enumerate(values):
                 cells = [_CELL_STYLES[styles[j]](v) for j, v in enumerate(row)]
-                if first_empty and k == 0:
+                if k == 0:
                     cells[0] = ""
-                w.writerow([repr(0.5 * k)] + cells + ["0" if first_empty and k == 0 else "1"])
+                w.writerow([repr(0.5 * k)] + cells + ["0" if k == 0 else "1"])
 
     with tempfile.TemporaryDirectory() as tmp:
-        write(Path(tmp) / "plain.csv", False)
-        write(Path(tmp) / "mixed.csv", True)
-        a, b = read_data(Path(tmp) / "plain.csv", cf), read_data(Path(tmp) / "mixed.csv", cf)
+        write(Path(tmp) / "plain.csv", csv.QUOTE_MINIMAL)
+        write(Path(tmp) / "quoted.csv", csv.QUOTE_ALL)
+        a, b = read_data(Path(tmp) / "plain.csv", cf), read_data(Path(tmp) / "quoted.csv", cf)
     want = np.array(values)
-    np.testing.assert_array_equal(a.X, want[:, :4])
+    assert np.isnan(a.X[0, 0]) and not a.valid[0, 0] and a.valid[1:].all()
+    np.testing.assert_array_equal(a.X[1:], want[1:, :4])
+    np.testing.assert_array_equal(a.X[0, 1:], want[0, 1:4])
     np.testing.assert_array_equal(a.U[:, 0], want[:, 4])
-    np.testing.assert_array_equal(b.X[1:], a.X[1:])
-    np.testing.assert_array_equal(b.X[0, 1:], a.X[0, 1:])
-    np.testing.assert_array_equal(b.U, a.U)
-    assert not b.valid[0, 0] and b.valid[1:].all() and a.valid.all()
-    np.testing.assert_array_equal(a.lines, b.lines)
+    for field in ("X", "U", "valid", "t", "lines"):
+        assert np.array_equal(getattr(a, field), getattr(b, field), equal_nan=True), field
+    assert a.X.view(np.uint64)[1:].tolist() == b.X.view(np.uint64)[1:].tolist()  # -0.0 stays -0.0
+
+
+# -- the C text codec (pyrhonn.csvcodec) --------------------------------------------------------------
+
+def _bits(a: np.ndarray) -> list[int]:
+    return np.ascontiguousarray(a, dtype=np.float64).view(np.uint64).ravel().tolist()
+
+
+@settings(max_examples=150, deadline=None)
+@given(values=st.lists(st.floats(allow_nan=False, allow_infinity=False, width=64)
+                       | st.floats(allow_nan=False, allow_infinity=False, width=32), min_size=1, max_size=40))
+def test_every_finite_double_is_written_as_its_repr_and_reads_back_bit_for_bit(values: list[float]) -> None:
+    """float64 and float32 values (as the float32 core's predictions are written, widened): the text of
+    each is repr's, the shortest that reads back, and it reads back as the same bits."""
+    x = np.array(values, dtype=np.float64)[:, None]
+    text = format_rows(x)
+    assert text.decode().split("\n")[:-1] == [repr(v) for v in x[:, 0].tolist()]
+    numbers, _ = parse_rows(text, Layout(("v",), (0,)))
+    assert _bits(numbers) == _bits(x)
+
+
+def test_random_doubles_of_every_exponent_are_written_as_their_repr() -> None:
+    """200,000 random bit patterns (every exponent, subnormals) and the powers of 2 and 10: repr's text,
+    read back bit for bit."""
+    rng = np.random.default_rng(11)
+    x = rng.integers(0, 2**64 - 1, size=200_000, dtype=np.uint64, endpoint=True).view(np.float64)
+    x = np.concatenate([x[np.isfinite(x)], 2.0 ** np.arange(-1074, 1024), 10.0 ** np.arange(-323, 308), [-0.0, 0.0]])
+    text = format_rows(x.reshape(-1, 2) if x.size % 2 == 0 else x[:, None], sep=";")
+    assert text.decode().replace("\n", ";").split(";")[:-1] == [repr(v) for v in x.tolist()]
+    numbers, _ = parse_rows(text, Layout(("a", "b"), (0, 1)) if x.size % 2 == 0 else Layout(("a",), (0,)), sep=";")
+    assert _bits(numbers) == _bits(x)
+
+
+_DECIMAL = re.compile(r"[ ]*[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?[ ]*\Z")
+
+
+@settings(max_examples=300, deadline=None)
+@given(sign=st.sampled_from(["", "-", "+"]), whole=st.text("0123456789", max_size=25),
+       point=st.booleans(), fraction=st.text("0123456789", max_size=25),
+       exponent=st.none() | st.integers(-400, 400), spaces=st.booleans())
+def test_a_decimal_number_is_read_as_float_reads_it(sign: str, whole: str, point: bool, fraction: str,
+                                                     exponent: int | None, spaces: bool) -> None:
+    """Any digits (more than 17, ties, subnormals, beyond the range): the same float64 as ``float``; a
+    value beyond the float64 range is refused with its line and column."""
+    cell = sign + whole + ("." + fraction if point else "") + ("" if exponent is None else f"e{exponent}")
+    cell = f"  {cell} " if spaces else cell
+    layout = Layout(("t", "x"), (1,))
+    if not cell.strip():
+        assert np.isnan(parse_rows(f"1,{cell}".encode(), layout)[0][0, 0])  # an empty cell: a missing value
+        return
+    if not _DECIMAL.match(cell):
+        with pytest.raises(CellError) as refused:
+            parse_rows(f"1,{cell}\n".encode(), layout)
+        assert (refused.value.row, refused.value.column) == (1, "x")
+        return
+    want = float(cell)
+    if not np.isfinite(want):
+        with pytest.raises(CellError, match="line 1, column 'x'"):
+            parse_rows(f"1,{cell}\n".encode(), layout)
+        return
+    numbers, _ = parse_rows(f"1,{cell}\n".encode(), layout)
+    assert _bits(numbers) == _bits(np.array([want]))
+
+
+@pytest.mark.parametrize("cell", [
+    "9007199254740993", "9007199254740995", "1.00000000000000011102230246251565404236316680908203125",
+    "1.00000000000000011102230246251565404236316680908203124", "2.4703282292062327e-324", "2.4703282292062328e-324",
+    "4.9406564584124654e-324", "2.2250738585072011e-308", "2.2250738585072014e-308", "1.7976931348623157e308",
+    "1.7976931348623158e308", "8.98846567431158e307", "1e23", "1e-400", "-0", "0e999", "123456789012345678901234e-30",
+    "0.000000000000000000000000000000000000000000001e45", "5e-324", "7.2057594037927933e16",
+])
+def test_hard_decimals_are_rounded_as_float_rounds_them(cell: str) -> None:
+    """Ties to even, the subnormal boundary, the largest double, more digits than the fast conversion takes."""
+    numbers, _ = parse_rows(f"{cell}\n".encode(), Layout(("x",), (0,)))
+    assert _bits(numbers) == _bits(np.array([float(cell)]))
+
+
+def _reference(text: bytes, layout: Layout) -> tuple[list[list[float]], list[list[int]]] | tuple[int, str | None]:
+    """What parse_rows reads from ``text``, cell by cell in Python: the values, or the refused line and field."""
+    rows, flags = [], []
+    lines = text.split(b"\n")
+    ended = [True] * (len(lines) - 1) + [False]  # by a line end (\n or \r\n)
+    if lines[-1] == b"":
+        lines.pop()
+    for i, (line, end) in enumerate(zip(lines, ended), 1):
+        line = line[:-1] if end and line.endswith(b"\r") else line
+        cells = line.split(b",")
+        if not line.strip(b" \t") or b"\r" in line or len(cells) != len(layout.names):
+            return i, None
+        row = []
+        for f in layout.numbers:
+            cell = cells[f].decode("latin-1")
+            if not cell.strip(" \t"):
+                row.append(float("nan"))
+                continue
+            if not _DECIMAL.match(cell.replace("\t", " ")) or not np.isfinite(float(cell)):
+                return i, layout.names[f]
+            row.append(float(cell))
+        rows.append(row)
+        flags.append([int(cells[f]) if cells[f] in (b"0", b"1") else 2 for f in layout.flags])
+    return rows, flags
+
+
+@settings(max_examples=300, deadline=None)
+@given(text=st.binary(max_size=200) | st.lists(st.sampled_from(
+    [b"1", b"-2.5", b"1e5", b"", b" ", b"0", b"nan", b"x", b",", b"\n", b".", b"e", b"-", b"1e400", b"\t", b"\r",
+     b"\r\n",
+     b"\x00", b"\xff", b"9" * 22, b"5e-324"]), max_size=40).map(b"".join))
+def test_any_bytes_are_parsed_as_the_cell_by_cell_reading_or_refused_at_the_same_cell(text: bytes) -> None:
+    """Random bytes never crash the C parser: it returns what a cell-by-cell reading in Python returns
+    (values bit for bit, flags), or refuses the same line and column."""
+    layout = Layout(("a", "f", "b"), (0, 2), (1,))
+    want = _reference(text, layout)
+    try:
+        numbers, flags = parse_rows(text, layout)
+    except CellError as exc:
+        assert (exc.row, exc.column) == want
+        assert str(exc).startswith(f"line {exc.row}")
+        return
+    values, want_flags = want
+    assert _bits(numbers) == _bits(np.array(values, dtype=np.float64).reshape(-1, 2))
+    assert flags.tolist() == want_flags
+
+
+@pytest.mark.parametrize("text, row, column", [
+    (b"1,2\n3,nan\n", 2, "b"), (b"1,2\n3,inf\n", 2, "b"), (b"1,2\n1e999,2\n", 2, "a"), (b"1,2\n1,2,3\n", 2, None),
+    (b"1,2\n\n1,2\n", 2, None), (b"1,2\n3\n", 2, None), (b"0x1,2\n", 1, "a"), (b"1,2.5.\n", 1, "b"),
+    (b"1,--2\n", 1, "b"), (b"1,1e\n", 1, "b"), (b"1,1 2\n", 1, "b"), (b"1;5,2\n", 1, "a"),
+    (b"1,2\r\n3,4\r5,6\r\n", 2, None), (b"x,2\r\n3,4\r", 1, "a"), (b"1,2\r\n3,4\r", 2, None),
+])
+def test_malformed_text_is_refused_naming_its_line_and_column(text: bytes, row: int, column: str | None) -> None:
+    with pytest.raises(CellError) as refused:
+        parse_rows(text, Layout(("a", "b"), (0, 1)))
+    assert (refused.value.row, refused.value.column) == (row, column)
+    assert str(refused.value).startswith(f"line {row}" + ("" if column is None else f", column {column!r}"))
+
+
+def test_integer_columns_are_written_without_a_point_and_fractions_in_them_are_refused() -> None:
+    values = np.array([[2.0, 0.5, 1.0], [3.0, -0.0, 0.0], [12345678901.0, np.nan, 1.0]])
+    show = np.array([[True, True, True], [True, True, False], [True, True, True]])
+    assert format_rows(values, show, integer=[True, False, True], sep="\t") == \
+        b"2\t0.5\t1\n3\t-0.0\t\n12345678901\t\t1\n"
+    with pytest.raises(ValueError, match="row 0, column 1: 0.5 is not a whole number"):
+        format_rows(values, integer=[True, True, True])
+    with pytest.raises(ValueError, match="row 2, column 0: 9.1e\\+16 is not a whole number"):
+        format_rows(np.array([[1.0], [2.0], [9.1e16]]), integer=[True])
+
+
+@pytest.mark.parametrize("values, show, message", [
+    (np.zeros((2, 2), dtype=np.float32), None, "values: expected a 2-D float64 array"),
+    (np.zeros(3), None, "values: expected a 2-D float64 array"),
+    (np.zeros((2, 2)), np.ones((2, 3), dtype=bool), "show: expected a bool array of shape"),
+    (np.zeros((2, 2)), np.ones((2, 2), dtype=np.uint8), "show: expected a bool array of shape"),
+])
+def test_format_rows_refuses_arrays_of_another_dtype_or_shape(values: np.ndarray, show: np.ndarray | None,
+                                                             message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        format_rows(values, show)

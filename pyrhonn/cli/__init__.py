@@ -24,7 +24,10 @@ __all__ = ["main", "COMMANDS"]
 COMMANDS = ("info", "show_config", "identify", "reproduce", "tune", "select", "validate", "export")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The parser of every command; with ``only`` (one of :data:`COMMANDS`), of that command alone:
+    its module is the only one imported (the others, and the commands of installed packages, can take
+    a second to import, more than a short run itself)."""
     parser = argparse.ArgumentParser(
         prog="pyrhonn",
         description="Real-time RHONN identifier trained by a per-neuron EKF (Alanis et al.).",
@@ -32,9 +35,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for name in COMMANDS:
+    for name in COMMANDS if only is None else (only,):
         importlib.import_module(f"{__name__}.{name}").register(sub)
-    for ep in sorted(entry_points(group="pyrhonn.commands"), key=lambda e: e.name):
+    for ep in sorted(entry_points(group="pyrhonn.commands"), key=lambda e: e.name) if only is None else ():
         ep.load().register(sub)
     return parser
 
@@ -46,7 +49,9 @@ def _version() -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    module = argv[0].replace("-", "_") if argv else ""  # a command's module: show-config in show_config
+    parser = build_parser(module if module in COMMANDS and argv[0] == module.replace("_", "-") else None)
     args = parser.parse_args(argv)
     try:
         return int(args.func(args))

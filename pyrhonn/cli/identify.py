@@ -83,22 +83,22 @@ the predictions.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import os
 import re
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Any, Iterable, Iterator, Sequence
+from typing import IO, Any, Iterable, Iterator, Sequence
 
 import numpy as np
 
 from .. import atomic
 from ..config import DTYPES, IdentifierConfig
 from ..configfile import ConfigFile, load_named
+from ..csvcodec import format_rows
 from ..datafile import (BLOCK_BYTES, ROWS_AT_ONCE, SEPARATORS, Data, DataReader, TIME_COLUMN, check_suffix,
-                        concatenate, decimal_cells, write_data)
+                        concatenate, header_line, write_data)
 from ..envelope import Envelope
 from ..gaps import SegmentTracker, Segments, segments_of, simulate_segments
 from ..mdfsignals import METHOD, MdfSignals, read_signal_mdf
@@ -286,32 +286,41 @@ def _extra(sim: Simulation) -> list[tuple[str, np.ndarray]]:
     return extra
 
 
-def _prediction_rows(w: Any, data: Data, cf: ConfigFile, one_step: np.ndarray, extra: list[tuple[str, np.ndarray]],
-                     errors: np.ndarray) -> None:
-    """predictions.csv's rows of ``data`` (a chunk, or the whole record); ``errors`` (T,) bool: the rows
-    whose prediction is a one-step prediction of that row's sample (not row 0, nor the first row of a
-    segment after a gap)."""
+def _prediction_rows(fh: IO[bytes], data: Data, cf: ConfigFile, one_step: np.ndarray,
+                     extra: list[tuple[str, np.ndarray]], errors: np.ndarray) -> None:
+    """predictions.csv's rows of ``data`` (a chunk, or the whole record) written to ``fh``; ``errors`` (T,)
+    bool: the rows whose prediction is a one-step prediction of that row's sample (not row 0, nor the first
+    row of a segment after a gap). Every value is written as its shortest round-trip decimal
+    (:func:`pyrhonn.csvcodec.format_rows`): it reads back as the same float64."""
     T = data.n_samples
+    n = len(cf.state_names)
     hat = one_step.astype(np.float64)
     err = data.X - hat
-    for a in range(0, T, ROWS_AT_ONCE):  # column by column, a block of rows at a time
+    lead = 1 + (data.t is not None)
+    per_state = 2 + len(extra)
+    for a in range(0, T, ROWS_AT_ONCE):  # a block of rows at a time
         rows = slice(a, min(a + ROWS_AT_ONCE, T))
-        columns: list[list[Any]] = [data.lines[rows].tolist()]
+        L = rows.stop - rows.start
+        values = np.empty((L, lead + n * per_state))
+        show = np.ones(values.shape, dtype=bool)
+        values[:, 0] = data.lines[rows]
         if data.t is not None:
-            columns.append(decimal_cells(data.t[rows]))
-        for j in range(len(cf.state_names)):
-            columns.append(decimal_cells(hat[rows, j]))
-            columns.append(decimal_cells(err[rows, j], errors[rows] & data.valid[rows, j]))
-            columns += [decimal_cells(values[rows, j]) for _, values in extra]
-        w.writerows(zip(*columns))
+            values[:, 1] = data.t[rows]
+        for j in range(n):
+            c = lead + j * per_state
+            values[:, c] = hat[rows, j]
+            values[:, c + 1] = err[rows, j]
+            show[:, c + 1] = errors[rows] & data.valid[rows, j]
+            for i, (_, v) in enumerate(extra):
+                values[:, c + 2 + i] = v[rows, j]
+        fh.write(format_rows(values, show, integer=[True] + [False] * (values.shape[1] - 1)))
 
 
 def _write_predictions(path: Path, data: Data, cf: ConfigFile, sim: Simulation, errors: np.ndarray) -> None:
     """predictions.csv of the whole record (see :func:`_prediction_rows`)."""
-    with atomic.replacing(path, "w", newline="") as fh:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow(_prediction_header(data, cf, sim))
-        _prediction_rows(w, data, cf, sim.one_step, _extra(sim), errors)
+    with atomic.replacing(path, "wb") as fh:
+        fh.write(header_line(_prediction_header(data, cf, sim)))
+        _prediction_rows(fh, data, cf, sim.one_step, _extra(sim), errors)
 
 
 NOT_VALID_LABEL = "not valid (not learnt; predicted from its own outputs)"  #: legend entry of the shaded samples
@@ -481,13 +490,13 @@ class _Staged:
         self.fh: Any = None
 
     def __enter__(self) -> _Staged:
-        self.fh = tempfile.TemporaryFile("w+", encoding="utf-8", newline="", dir=self.folder)
+        self.fh = tempfile.TemporaryFile("w+b", dir=self.folder)
         return self
 
     def commit(self) -> None:
         self.fh.flush()
         self.fh.seek(0)
-        with atomic.replacing(self.target, "w", newline="") as out:
+        with atomic.replacing(self.target, "wb") as out:
             shutil.copyfileobj(self.fh, out, 1 << 22)
 
     def __exit__(self, *exc: Any) -> None:
@@ -514,7 +523,6 @@ def _stream(args: argparse.Namespace, cf: ConfigFile, cfg: IdentifierConfig, sou
     env.mark(0)
     env.mark(args.warmup)
     split = args.warmup + 1  # row 0 holds x0, not a prediction; --warmup drops that many pairs more
-    w = csv.writer(staged.fh, lineterminator="\n")
     k0 = 0
     first_line = 0
     units: dict[str, str] | None = None
@@ -527,7 +535,7 @@ def _stream(args: argparse.Namespace, cf: ConfigFile, cfg: IdentifierConfig, sou
             if k0 == 0:
                 first_line, units = int(c.lines[0]), c.units
                 env.has_t = c.t is not None
-                w.writerow(_prediction_header(c, cf, None))
+                staged.fh.write(header_line(_prediction_header(c, cf, None)))
             X, U = c.in_dtype(cfg.dtype, cf.state_names, cf.input_names, source)
             lost = c.lost if c.lost is not None else np.zeros(L, dtype=bool)
             stepped, starts = tracker.feed(lost, c.valid, c.lines, c.t)
@@ -548,7 +556,7 @@ def _stream(args: argparse.Namespace, cf: ConfigFile, cfg: IdentifierConfig, sou
                 one[a:b] = sim.one_step
                 next_prediction = sim.next_prediction
             errors = stepped & ~starts
-            _prediction_rows(w, c, cf, one, [], errors)
+            _prediction_rows(staged.fh, c, cf, one, [], errors)
             scored = c.valid & errors[:, None]
             if k0 < split:
                 scored[:max(0, split - k0)] = False
