@@ -208,3 +208,87 @@ def test_bench_commands_of_the_docs_write_the_results_files_they_name() -> None:
         assert '"--results"' in source and re.search(rf'save\(\s*"{name}"', source), f"{script} does not write {results}"
         assert (ROOT / results).exists(), f"{results} is not committed"
         assert json.loads((ROOT / results).read_text(encoding="utf-8"))["bench"] == name
+
+
+#: a time, a cycle count or a size as a page writes it: ``263 ns``, ``0.86-0.87 µs``, ``4,600 cycles``, ``30.6 kB``
+MEASURED_LOOKING = re.compile(r"(?<![\w.])\d[\d,]*(?:\.\d+)?(?:\s?(?:-|–|->|to)\s?\d[\d,]*(?:\.\d+)?)?"
+                              r"\s?(?:ns|µs|us|cycles|MiB|KiB|kB|MB|GB)\b")
+_FENCED = re.compile(r"^```.*?^```", re.S | re.M)
+
+#: figures of that look which are not measurements, with what they are; each must still stand on its page
+SPECIFIED = {
+    ("docs/benchmarks.md", "230 kB"): "the lanes' workspace the code allocates for the firmware capacities (float64)",
+    ("docs/benchmarks.md", "116 kB"): "the same workspace in float32",
+    ("docs/benchmarks.md", "2.6 MB"): "the workspace beyond the firmware capacities (float64 and float32)",
+    ("docs/benchmarks.md", "0.5 MB"): "the identifier itself beyond the firmware capacities (float64 and float32)",
+    ("docs/firmware-protocol.md", "10 ns"): "StepTimeMax's resolution (the DBC's scale)",
+    ("docs/firmware-protocol.md", "167,772.15 µs"): "the top of StepTimeMax's 24 bits of 10 ns",
+    ("docs/firmware-protocol.md", "655.35 µs"): "the top of StepTime's and CycleTime's 16 bits of 10 ns",
+    ("docs/firmware-sim.md", "149 us"): "the runner's spin, the most the 0.3 ms period allows (an option's value)",
+    ("docs/firmware-sim.md", "50 us"): "the runner's spin `hil replay` sets",
+    ("docs/firmware-sim.md", "4 MiB"): "the default receive buffer the node asks for",
+    ("docs/firmware-sim.md", "1 µs"): "the simulated clock's advance per read, set by the memory HAL",
+    ("docs/firmware-sim.md", "50,400 cycles"): "the budget: 0.3 ms at 168 MHz",
+    ("docs/firmware.md", "14 cycles"): "VDIV's latency in the Cortex-M4 timing tables",
+    ("docs/firmware.md", "5,000 cycles"): "the cycles aimed at for the step (a target)",
+    ("docs/hil-any-identifier.md", "300 cycles"): "the length of the VM test's run",
+    ("docs/hil-replay.md", "50 us"): "the runner's spin `hil replay` sets",
+    ("docs/hil-replay.md", "149 us"): "the runner's spin `hil bench` sets on two or more CPUs",
+    ("docs/hil-replay.md", "10 ns"): "StepTimeMax's resolution",
+    ("docs/hil-replay.md", "167,772.15 us"): "the top of StepTimeMax's 24 bits",
+    ("docs/hil-replay.md", "167,772.1 us"): "the report's line for a saturated StepTimeMax",
+    ("docs/hil-replay.md", "655.35 us"): "the top of the 16-bit StepTime",
+    ("docs/hil-replay.md", "100 cycles"): "how long the test stops the firmware process",
+    ("docs/hil-replay.md", "32 MiB"): "the receive buffer the rig and the node ask for",
+    ("docs/hil-replay.md", "13333 cycles"): "the progress line's form, for the LIM scenario's length",
+    ("docs/hil-replay.md", "256 cycles"): "how often the rig offers its counts",
+    ("docs/hil-verdicts.md", "850.8 us"): "the failure message of the example report shown above it",
+    ("docs/hil-verdicts.md", "512 cycles"): "how often `hil replay` reads the kernel's drop counters",
+    ("docs/recordings.md", "64 MiB"): "the largest uncompressed object a file may declare",
+    ("docs/recordings.md", "4 MiB"): "the block a CSV file is read in",
+    ("docs/status.md", "1 µs"): "the call overhead aimed at (a target)",
+    ("docs/selection-and-tuning.md", "1.0 MB"): "`sizeof(rhonn_t)` with the larger capacities of the example (float64)",
+    ("docs/xcp.md", "5,000 cycles"): "the cycles aimed at for the step (a target)",
+    ("docs/xcp.md", "1 us"): "the DAQ timestamp's unit",
+}
+
+
+def hand_written_figures(text: str) -> list[str]:
+    """The measured-looking figures of a page's text outside its ``{{ ... }}`` references and its
+    fenced blocks (commands and the output they print, which the docs tests run or show as is)."""
+    prose = _FENCED.sub("", re.sub(r"\{\{.*?\}\}", " ", text, flags=re.S))
+    return [re.sub(r"\s+", " ", m.group(0)) for m in MEASURED_LOOKING.finditer(prose)]
+
+
+def _pages_and_readme() -> list[Path]:
+    return [*PAGES, ROOT / "README.md"]
+
+
+def test_no_page_writes_a_measured_figure_by_hand() -> None:
+    """A time, cycle count or size a benchmark measures is quoted through ``bench(...)`` (or said in
+    words): one written as a number goes stale when the benchmark is rerun. History belongs to the
+    changelog. Only the specifications of SPECIFIED may stand as numbers."""
+    found = []
+    for page in _pages_and_readme():
+        name = page.relative_to(ROOT).as_posix()
+        for figure in hand_written_figures(page.read_text(encoding="utf-8")):
+            if (name, figure) not in SPECIFIED:
+                found.append(f"{name}: {figure!r} is written by hand (quote it from bench/results, say it in "
+                             "words, or add it to SPECIFIED with what it is if it is a specification)")
+    assert not found, "\n".join(found)
+
+
+def test_every_specified_figure_still_stands_on_its_page() -> None:
+    # an entry whose figure left its page is removed, so the list cannot excuse a figure written later
+    texts = {p.relative_to(ROOT).as_posix(): set(hand_written_figures(p.read_text(encoding="utf-8")))
+             for p in _pages_and_readme()}
+    stale = [f"{page}: {figure}" for page, figure in SPECIFIED if figure not in texts.get(page, set())]
+    assert not stale, "\n".join(stale)
+
+
+def test_the_figure_check_finds_times_cycles_and_sizes_but_not_references_or_blocks() -> None:
+    text = ("The step took 263 ns, then 0.86-0.87 µs; 4,600 cycles and 30.6 kB of flash,\n2,136 cycles,"
+            " 12 MiB. {{ bench(\"identifier\", \"lim.float64.batched_ns\", \".0f\") }} ns and x0 are not.\n"
+            "```text\nstep max 208.4 us\n```\n")
+    assert hand_written_figures(text) == ["263 ns", "0.86-0.87 µs", "4,600 cycles", "30.6 kB", "2,136 cycles",
+                                          "12 MiB"]
