@@ -14,7 +14,12 @@ for ``select --dtype float32``'s config, and for both configs the weights
 learnt through the first 10 and 100 samples only, then frozen (how far a
 few learning steps move a model that simulated well).
 
-    python bench/bench_tune_validation.py [--keep DIR]
+    python bench/bench_tune_validation.py [--keep DIR] [--results]
+
+``--results`` also writes the figures to ``bench/results/tune_validation.json``
+(the docs quote them from there): per row its free-run and one-step RMSE
+and free-run RRSE, and per tune run whether it wrote a better config and the
+held-out scores of its base and its best trial.
 """
 from __future__ import annotations
 
@@ -27,6 +32,7 @@ import time
 from pathlib import Path
 
 from bench_real_data import cascaded_tanks, write_record
+from results_file import save
 
 from pyrhonn.configfile import load_named
 from pyrhonn.datafile import read_data
@@ -52,10 +58,22 @@ def _row(name: str, v: Validation, extra: str = "") -> str:
     return f"{name:44} {free:>9} {v.free_rrse[0]:>7.4f} {v.one_rmse[0]:>9.4f}  {extra}"
 
 
+def _figures(v: Validation) -> dict[str, object]:
+    return {"free_rmse": float(v.free_rmse[0]), "free_rrse": float(v.free_rrse[0]),
+            "one_step_rmse": float(v.one_rmse[0]), "diverged": v.left_range is not None}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--keep", metavar="DIR", help="keep the CSV files, configs and JSON results in DIR")
+    ap.add_argument("--results", action="store_true", help="also write bench/results/tune_validation.json")
     args = ap.parse_args(argv)
+    figures: dict[str, object] = {}
+
+    def row(key: str, name: str, v: Validation, extra: str = "") -> None:
+        figures[key] = _figures(v)
+        print(_row(name, v, extra))
+
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(args.keep) if args.keep else Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
@@ -80,24 +98,34 @@ def main(argv: list[str] | None = None) -> int:
         est, val = record("est.csv"), record("val.csv")
         data_range = DataRange.of([est])
         print(f"{'model (validation record)':44} {'free RMSE':>9} {'RRSE':>7} {'1-step':>9}  seconds / result")
-        print(_row("select, weights frozen at w0", validate(cf.config, [val], data_range), f"{seconds['select']:.1f} s"))
-        print(_row("select, learnt online on est, then frozen", validate(learnt(cf.config, [est]), [val], data_range)))
+        row("select_frozen", "select, weights frozen at w0", validate(cf.config, [val], data_range),
+            f"{seconds['select']:.1f} s")
+        row("select_learnt", "select, learnt online on est, then frozen",
+            validate(learnt(cf.config, [est]), [val], data_range))
         # the float32 config: learning keeps what the fit determined well (its P0's conditioning)
         cf32 = load_named(str(folder / "sel32.toml"))
-        print(_row("select --dtype float32, frozen at w0", validate(cf32.config, [val], data_range),
-                   f"{seconds['select --dtype float32']:.1f} s"))
+        row("select32_frozen", "select --dtype float32, frozen at w0", validate(cf32.config, [val], data_range),
+            f"{seconds['select --dtype float32']:.1f} s")
         for cfg, what in ((cf.config, "float64"), (cf32.config, "float32")):
             for steps in STEPS:
                 start = Experiment(est.X[:steps], est.U[:steps], est.valid[:steps], name=f"est rows 0:{steps}")
-                print(_row(f"{what}, learnt on est rows 0:{steps}, then frozen",
-                           validate(learnt(cfg, [start]), [val], data_range)))
-        print(_row("select --dtype float32, learnt online on est, then frozen",
-                   validate(learnt(cf32.config, [est]), [val], data_range)))
+                row(f"{what}_learnt_{steps}", f"{what}, learnt on est rows 0:{steps}, then frozen",
+                    validate(learnt(cfg, [start]), [val], data_range))
+        row("select32_learnt", "select --dtype float32, learnt online on est, then frozen",
+            validate(learnt(cf32.config, [est]), [val], data_range))
         for k, label in enumerate(runs):
             cfg = load_named(str(folder / f"tuned{k}.toml")).config
             result = json.loads((folder / f"tuned{k}.json").read_text(encoding="utf-8"))
             what = "improved" if result["improved"] else f"kept the base ({result['kept_base']})"
-            print(_row(label, validate(learnt(cfg, [est]), [val], data_range), f"{seconds[label]:.1f} s, {what}"))
+            key = "tune_" + label.split()[-1].replace("-", "_").replace(":", "_")
+            row(key, label, validate(learnt(cfg, [est]), [val], data_range), f"{seconds[label]:.1f} s, {what}")
+            top = result["top_trials"]
+            figures[key] = {**figures[key], "improved": bool(result["improved"]),
+                            "base_objective": result["base"]["objective"],
+                            "best_trial_objective": top[0]["objective"] if top else None,
+                            "base_held_out_free_run": result["free_run"]["base"]}
+    if args.results:
+        save("tune_validation", figures, argv)
     return 0
 
 
