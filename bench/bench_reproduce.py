@@ -2,7 +2,7 @@
 
 Runs ``pyrhonn reproduce all`` (its defaults: float64, Example 1 at both periods with the paper's
 eq. 20 tuning and the tuned ``example1-tuned`` config, Examples 2 and 3) into a scratch folder and
-prints, per scenario, identifier and state, the RMSE and absolute deviation (AD) against the
+prints, per scenario, estimator (the identifiers, the HONN observer, persistence) and state, the RMSE and absolute deviation (AD) against the
 paper's with their ratios. ``--results`` also writes them to ``bench/results/reproduce.json``
 (the docs quote them from there), under the scenario's key with its dots as underscores
 (``example1-dt0.2`` -> ``example1-dt0_2``).
@@ -39,8 +39,6 @@ def main(argv: list[str] | None = None) -> int:
             result = json.loads((out / f"{key}.json").read_text(encoding="utf-8"))
             scenario: dict[str, object] = {}
             for est in result["estimators"]:
-                if est["kind"] != "identifier":
-                    continue
                 scenario[est["key"]] = {name: {f: state[f] for f in FIGURES}
                                         for name, state in est["states"].items()}
                 for name, state in est["states"].items():
