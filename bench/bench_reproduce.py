@@ -44,6 +44,12 @@ def main(argv: list[str] | None = None) -> int:
                 for name, state in est["states"].items():
                     print(f"{key:16} {est['key']:17} {name:7} RMSE {state['rmse']:.3g} (paper {state['paper_rmse']}) "
                           f"AD {state['ad']:.3g} (paper {state['paper_ad']})")
+            horizons: dict[str, dict[str, object]] = {}
+            for point in result.get("horizon_study") or []:  # Example 1: the same run at other horizons
+                horizons.setdefault(f"h{point['horizon']:g}", {})[point["key"]] = {"rmse": point["rmse"],
+                                                                                  "ad": point["ad"]}
+            if horizons:
+                scenario["horizons"] = horizons
             figures[key.replace(".", "_")] = scenario
         figures["seconds"] = summary["seconds"]
     if args.results:
