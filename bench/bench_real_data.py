@@ -65,7 +65,11 @@ Methods, per data set, in the same run:
   it by :func:`pyrhonn.simulation.simulate` with ``free_run_from`` = K, the
   config's deepest delay + 1: the first sample whose taps all read measured
   samples. The time of select is the wall time of the command (interpreter
-  start included) and the time select reports for its own work.
+  start included) and the time select reports for its own work. The same
+  config also runs learning online (as ``pyrhonn identify`` runs it), with
+  ``wait_for_history`` as select writes it and off. The same command with
+  ``--tie`` at each width of TIE_SWEEP but the default shows how much the
+  tie between candidate spaces moves the result (``tie_sweep``).
 - **SysIdentPy FROLS** (polynomial NARX of degree 2, least squares; the
   model length is SysIdentPy's own choice, where its AIC over up to 15 terms
   first rises) on a grid of output lags ylag and input lags xlag (1..3
@@ -115,6 +119,7 @@ import pyrhonn
 from pyrhonn import Identifier, atomic
 from pyrhonn.configfile import load_config
 from pyrhonn.datafile import read_data
+from pyrhonn.search import TIE
 from pyrhonn.simulation import simulate
 
 
@@ -139,6 +144,8 @@ SELECT_ARGS = ("select", "estimation.csv", "--states", STATE, "--inputs", INPUT,
                "--json", "select.json")
 #: A free run further than this many record ranges from the middle of the range has diverged.
 DIVERGED_RANGES = 100.0
+#: select's tie between candidate spaces (``--tie``) measured at these widths besides its default (TIE)
+TIE_SWEEP = (0.01, 0.02, TIE, 0.10)
 DEGREE = 2  # SysIdentPy's polynomial degree
 N_INFO = 15  # SysIdentPy's default n_info_values: model lengths its AIC compares
 
@@ -327,7 +334,7 @@ def write_record(path: Path, rec: Record, ts: float) -> None:
     atomic.write_text(path, "\n".join(lines) + "\n")
 
 
-def run_pyrhonn(ds: Dataset, folder: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+def run_pyrhonn(ds: Dataset, folder: Path, extra: tuple[str, ...] = ()) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """``pyrhonn select`` on the estimation record, then its config over the validation record:
     (figures, predictions of y aligned with the validation record). The predictions: ``one_step`` and
     ``free_run`` with the weights frozen; ``online`` one step ahead learning on (as ``pyrhonn identify``
@@ -335,10 +342,10 @@ def run_pyrhonn(ds: Dataset, folder: Path) -> tuple[dict[str, Any], dict[str, np
     second sample, the history before the first padded); none when select failed."""
     folder.mkdir(parents=True, exist_ok=True)
     write_record(folder / "estimation.csv", ds.est, ds.sampling_period)
-    out: dict[str, Any] = {"command": ["pyrhonn", *SELECT_ARGS], "estimation_file": "estimation.csv",
+    out: dict[str, Any] = {"command": ["pyrhonn", *SELECT_ARGS, *extra], "estimation_file": "estimation.csv",
                            "estimation_samples": int(ds.est.y.size)}
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "pyrhonn.cli", *SELECT_ARGS], cwd=folder, capture_output=True,
+    proc = subprocess.run([sys.executable, "-m", "pyrhonn.cli", *SELECT_ARGS, *extra], cwd=folder, capture_output=True,
                           text=True)
     out["select_wall_seconds"] = time.perf_counter() - t0
     if proc.returncode != 0:
@@ -408,6 +415,18 @@ def run_dataset(ds: Dataset, folder: Path, lags: tuple[int, ...]) -> dict[str, A
     y = ds.val.y
     for key, yhat in predicted.items():
         py[key] = score(y, yhat, start)
+    # select's tie between candidate spaces (--tie) at other widths than its default, same scoring
+    sweep: dict[str, Any] = {}
+    for tie in TIE_SWEEP:
+        if tie == TIE:
+            run = {key: py.get(key) for key in ("one_step", "free_run", "n_terms")}
+        else:
+            other, yhat = run_pyrhonn(ds, folder / f"tie{tie:g}", ("--tie", f"{tie:g}"))
+            first = max(start, other.get("free_run_from", 0))  # its own deepest tap may be deeper
+            run = {"n_terms": other.get("n_terms"), "error": other.get("error"), "scored_from": first,
+                   **{key: score(y, yhat[key], first) for key in ("one_step", "free_run") if key in yhat}}
+        sweep[f"t{round(tie * 100):02d}"] = {"tie": tie, **run}
+    py["tie_sweep"] = sweep
     rows = []
     for info, one, free in grid:
         rows.append({**info, "one_step": score(y, one, start), "free_run": score(y, free, start)})

@@ -314,6 +314,7 @@ class SearchResult:
     notes: tuple[str, ...] = field(default=())
     by_one_step: bool = False  #: no model simulated: the space was chosen by the one-step error
     state_delay: int | None = None  #: a deep state delay found by the scan (its taps joined the grid)
+    tie: float = TIE  #: the free-run tie between spaces the finalists were chosen with (:func:`tied`)
 
     def config_file(self, state_names: tuple[str, ...], input_names: tuple[str, ...]) -> ConfigFile:
         """The config with names, a description of the search and each neuron's terms as its ``why``."""
@@ -370,7 +371,7 @@ class SearchResult:
             lines.append("  not ranked: " + ", ".join(f"{c} {why}" for why, c in sorted(reasons.items())))
         if self.held_out:
             lines.append(f"chosen among the best {REFINED} by the free run and the best {REFINED} by the one-step and "
-                         f"free-run errors of those within {TIE:.0%} of the best free run, each fitted on all the "
+                         f"free-run errors of those within {self.tie:.0%} of the best free run, each fitted on all the "
                          "estimation data with least-squares and with refined weights, by N ln(geometric mean of the "
                          "free-run and one-step mean squared errors) + 2 k on it")
         if self.refinement is not None:
@@ -490,13 +491,13 @@ def tied(scores: np.ndarray, best: int, fraction: float = TIE) -> np.ndarray:
     return out
 
 
-def _finalists(scored: list[SpaceScore], ranked: list[int], count: int) -> list[int]:
+def _finalists(scored: list[SpaceScore], ranked: list[int], count: int, tie: float = TIE) -> list[int]:
     """The spaces fitted on all the estimation data: the ``count`` best by the free-run score, then the
     ``count`` best by the one-step and free-run errors together (:func:`_blend`) among the spaces tied
-    with the best by the free run (:func:`tied`, within :data:`TIE`); fewer where they coincide."""
+    with the best by the free run (:func:`tied`, within ``tie``); fewer where they coincide."""
     if count <= 1:
         return ranked[:count]
-    same = tied(np.array([scored[s].score for s in ranked], dtype=np.float64), 0)
+    same = tied(np.array([scored[s].score for s in ranked], dtype=np.float64), 0, tie)
     tied_spaces = [s for s, t in zip(ranked, same) if t]
 
     def one_step_first(s: int) -> tuple[float, int]:
@@ -552,13 +553,16 @@ def _by_one_step(scored: list[SpaceScore], est: list[Experiment], searched: list
 def search(estimation: Sequence[Experiment], validation: Sequence[Experiment] = (), *,
            grid: SearchGrid | None = None, criterion: Criterion | str = Criterion.EBIC, max_terms: int = 16,
            holdout: float = 0.3, refine_weights: bool = True, dtype: str = "float64",
-           state_names: Sequence[str] | None = None, input_names: Sequence[str] | None = None) -> SearchResult:
+           state_names: Sequence[str] | None = None, input_names: Sequence[str] | None = None,
+           tie: float = TIE) -> SearchResult:
     """Choose a candidate space, its terms and weights from data; see the module docs.
 
     ``estimation``: the experiments that fit; ``validation``: the experiments
     that rank spaces (none: two blocked folds of the estimation experiments,
     each holding out ``holdout`` of every experiment, the last part in one
-    fold and the first in the other). ``dtype`` is written to the config
+    fold and the first in the other). ``tie``: the spaces whose free-run
+    score is within this fraction of the best one's are tied with it, and
+    the one-step error picks finalists among them (:func:`tied`). ``dtype`` is written to the config
     (the search runs in float64). Where no model simulates, the result is
     chosen by the one-step error and says so (:attr:`SearchResult.by_one_step`);
     ValueError only where no space of the grid gives a model at all, or for
@@ -568,12 +572,12 @@ def search(estimation: Sequence[Experiment], validation: Sequence[Experiment] = 
     # 2-CPU machine a 1,400 x 15 QR took 20 ms with two threads, 0.6 ms with one).
     with threadpool_limits(limits=1, user_api="blas"):
         return _search(estimation, validation, grid, criterion, max_terms, holdout, refine_weights, dtype,
-                       state_names, input_names)
+                       state_names, input_names, tie)
 
 
 def _search(estimation: Sequence[Experiment], validation: Sequence[Experiment], grid: SearchGrid | None,
             criterion: Criterion | str, max_terms: int, holdout: float, refine_weights: bool, dtype: str,
-            state_names: Sequence[str] | None, input_names: Sequence[str] | None) -> SearchResult:
+            state_names: Sequence[str] | None, input_names: Sequence[str] | None, tie: float) -> SearchResult:
     t0 = time.perf_counter()
     grid = SearchGrid() if grid is None else grid
     if not isinstance(grid, SearchGrid):
@@ -583,6 +587,7 @@ def _search(estimation: Sequence[Experiment], validation: Sequence[Experiment], 
     holdout = check_real("holdout", holdout)
     if not isinstance(refine_weights, bool):
         raise fail("refine_weights", f"expected a bool, got {refine_weights!r}")
+    tie = check_real("tie", tie, nonnegative=True)
     est = list(estimation)
     if not est:
         raise fail("estimation", "expected at least one experiment")
@@ -652,7 +657,7 @@ def _search(estimation: Sequence[Experiment], validation: Sequence[Experiment], 
     # the finalists, fitted on all the estimation data (weights refined on both errors),
     # are compared: on the user's validation data, or by an information criterion on the free-run error
     finalists = []
-    for s in _finalists(scored, ranked, REFINED if refine_weights else 1):
+    for s in _finalists(scored, ranked, REFINED if refine_weights else 1, tie):
         sel = _select(scored[s].space, est, crit, max_terms, names)
         versions: list[tuple[IdentifierConfig, Refinement | None]] = []
         if refine_weights:
@@ -687,4 +692,4 @@ def _search(estimation: Sequence[Experiment], validation: Sequence[Experiment], 
         validation=final_val, in_sample=validate(config, est, data_range), refinement=refinement,
         dead_times=dead, fit_rows=tuple(f"{ex.name} rows {ex.rows}" for ex in est), validation_rows=val_rows,
         held_out=held_out, search_samples=sum(ex.n_samples for ex in searched),
-        seconds=time.perf_counter() - t0, notes=tuple(notes), state_delay=deep)
+        seconds=time.perf_counter() - t0, notes=tuple(notes), state_delay=deep, tie=tie)

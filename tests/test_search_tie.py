@@ -1,6 +1,9 @@
 """The tie between candidate spaces by the free run: which spaces join the finalists by their one-step error."""
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -72,3 +75,37 @@ def test_search_ties_the_ranked_spaces_by_their_free_run_scores(monkeypatch: pyt
     assert len(seen) == 1
     ranked = sorted(sc.score for sc in found.scores if np.isfinite(sc.score))
     np.testing.assert_array_equal(seen[0], ranked)  # the best first
+
+
+def test_search_ties_with_the_fraction_it_is_given(monkeypatch: pytest.MonkeyPatch) -> None:
+    fractions_seen: list[float] = []
+
+    def spy(scores: np.ndarray, best: int, fraction: float = TIE) -> np.ndarray:
+        fractions_seen.append(fraction)
+        return tied(scores, best, fraction)
+
+    monkeypatch.setattr(search_module, "tied", spy)
+    grid = SearchGrid(factor_sets=(("x", "u", "1"),), max_degree=1, max_delay=1, input_taps=1)
+    data = [plant(400, 3, noise=0.02)]
+    assert search(data, grid=grid).tie == TIE and fractions_seen == [TIE]
+    found = search(data, grid=grid, tie=0.2)
+    assert found.tie == 0.2 and fractions_seen[-1] == 0.2
+    assert "within 20% of the best free run" in found.report(["y"], ["u"])
+    for bad in (-0.1, float("nan"), "0.1"):
+        with pytest.raises(ValueError, match="tie"):
+            search(data, grid=grid, tie=bad)  # type: ignore[arg-type]
+
+
+def test_select_takes_the_tie_as_an_option(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from pyrhonn.cli import main
+    ex = plant(300, 4, noise=0.02)
+    lines = ["t,y,u"] + [f"{k},{float(ex.X[k, 0])!r},{float(ex.U[k, 0])!r}" for k in range(ex.X.shape[0])]
+    (tmp_path / "d.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    base = ["select", str(tmp_path / "d.csv"), "--states", "y", "--inputs", "u", "--out", str(tmp_path / "c.toml")]
+    assert main([*base, "--tie", "0.1", "--json", str(tmp_path / "s.json")]) == 0
+    assert json.loads((tmp_path / "s.json").read_text(encoding="utf-8"))["search"]["tie"] == 0.1
+    for extra, message in ((["--tie", "-0.1"], "--tie: must be >= 0"), (["--tie", "x"], "--tie: expected a number"),
+                           (["--tie", "0.1", "--degree", "2"], "--tie: ties between candidate spaces")):
+        capsys.readouterr()
+        assert main([*base, *extra]) == 2
+        assert message in capsys.readouterr().err

@@ -1,7 +1,7 @@
 """``pyrhonn select``: choose the identifier's terms, delays and weights from data.
 
 ``pyrhonn select data.csv [more.csv ...] --states x1,x2 [--inputs u1] --out cfg.toml
-[--validate val.csv ...] [--fit-rows A:B [--validate-rest]] [--search auto|fixed] [--no-refine]
+[--validate val.csv ...] [--fit-rows A:B [--validate-rest]] [--search auto|fixed] [--tie F] [--no-refine]
 [--max-delay D] [--delay-step S] [--degree G] [--factors S,x,u,1]
 [--activation bipolar,logistic] [--beta 0.5,1,2] [--criterion ebic|bic|aic|holdout]
 [--holdout F] [--max-terms L] [--p0 V] [--q V] [--r V] [--dtype float64|float32]
@@ -58,7 +58,7 @@ from ..simulation import Scores, scores, simulate
 from ..streamscores import RunningScores
 from ..experiments import Experiment, merge
 from ..refine import DataRange
-from ..search import SearchResult, Validation, search, validate
+from ..search import TIE, SearchResult, Validation, search, validate
 from ..structure import FACTOR_NAMES, CandidateSpace, Criterion, Selection, check_data, select
 from .options import real_option, row_range
 
@@ -96,6 +96,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--search", choices=("auto", "fixed"),
                    help="auto: choose the candidate space from data (the default unless a space option is "
                         "given); fixed: the space the options below describe")
+    p.add_argument("--tie", metavar="FRACTION",
+                   help="auto search: spaces whose free-run score is within this fraction of the best one's are "
+                        f"tied with it, and the one-step error picks finalists among them (default {TIE:g})")
     p.add_argument("--no-refine", action="store_true",
                    help="auto search: keep the least-squares weights instead of refining them on the "
                         "free-run and one-step errors")
@@ -371,6 +374,9 @@ def run(args: argparse.Namespace) -> int:
     if mode == "auto" and given:
         raise ValueError(f"--search auto: {', '.join(given)} fix(es) the candidate space; leave them out or "
                          "use --search fixed")
+    if mode == "fixed" and args.tie is not None:
+        raise ValueError("--tie: ties between candidate spaces are the automatic search's; a fixed space has none")
+    tie = TIE if args.tie is None else real_option("--tie", args.tie, nonnegative=True)
     with _options_named():
         space = _space(args)
         max_terms = _int("--max-terms", args.max_terms)
@@ -389,7 +395,7 @@ def run(args: argparse.Namespace) -> int:
         with _options_named():
             found = search(est, val, criterion=args.criterion, max_terms=max_terms, holdout=holdout,
                            refine_weights=not args.no_refine, dtype=args.dtype, state_names=states,
-                           input_names=inputs)
+                           input_names=inputs, tie=tie)
         cf = found.config_file(states, inputs)
         cf = ConfigFile.from_config(_tuned(cf.config, tuning), state_names=states, input_names=inputs,
                                     description=cf.description, why=cf.why)
@@ -479,6 +485,7 @@ def _search_json(found: SearchResult, states: tuple[str, ...]) -> dict[str, obje
         "input_dead_times": list(found.dead_times),
         "state_delay": found.state_delay,
         "chosen_by": "one-step error (no model simulates)" if found.by_one_step else "free run",
+        "tie": found.tie,
         "spaces": [{"factors": list(sc.space.factors), "degree": sc.space.degree, "max_delay": sc.space.max_delay,
                     "input_taps": [sc.space.input_min_delay, sc.space.input_max_delay] if "u" in sc.space.factors
                     else None, "extra_state_delays": list(sc.space.extra_delays), "terms": sc.terms, "status": sc.status, "max_terms_reached": sc.capped,
