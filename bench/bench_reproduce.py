@@ -9,7 +9,8 @@ dots as underscores (``example1-dt0.2`` -> ``example1-dt0_2``), with:
 
 - per identifier and state, ``verdict``: "met" or "not met", the command's own verdict on the
   paper-example targets (``pyrhonn.reproduce.RMSE_TARGET`` / ``AD_TARGET``) of that state;
-- per Example 1 horizon of the horizon study, the ratios to the paper's table as well as the figures;
+- per Example 1 horizon of the horizon study, the ratios to the paper's table as well as the figures,
+  and for each identifier the states that miss the table there (``missed``: "x2, x4" or "none");
 - ``targets``: each target of the docs' list with the smallest and largest ratio it covers and its
   verdict ("met" when every ratio is within the target), so a page never shows a verdict its
   figures contradict;
@@ -91,6 +92,11 @@ def scenario_figures(result: dict[str, Any]) -> dict[str, Any]:
                                                                                 "ad": point["ad"]}
         if kinds[point["key"]] == "identifier":  # the paper's identifier rows are the identifiers' targets
             at.update(rmse_ratio=_ratios(point["rmse"], paper["rmse"]), ad_ratio=_ratios(point["ad"], paper["ad"]))
+            example = result["example"]
+            missed = [name for name, r, a in zip(result["states"], at["rmse_ratio"], at["ad_ratio"])
+                      if not all(x is None or limit is None or x <= limit
+                                 for x, limit in ((r, RMSE_TARGET.get(example)), (a, AD_TARGET.get(example))))]
+            at["missed"] = ", ".join(missed) or "none"  # the states that miss the paper's table at this horizon
     if horizons:
         scenario["horizons"] = horizons
     return scenario
