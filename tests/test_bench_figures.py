@@ -218,7 +218,7 @@ def test_bench_commands_of_the_docs_write_the_results_files_they_name() -> None:
 
 #: a time, a cycle count or a size as a page writes it: ``263 ns``, ``0.86-0.87 µs``, ``4,600 cycles``, ``30.6 kB``
 MEASURED_LOOKING = re.compile(r"(?<![\w.])\d[\d,]*(?:\.\d+)?(?:\s?(?:-|–|->|to)\s?\d[\d,]*(?:\.\d+)?)?"
-                              r"\s?(?:ns|µs|us|ms|cycles|MiB|KiB|kB|MB|GB)\b")
+                              r"\s?(?:ns|µs|us|ms|cycles|MiB|KiB|kB|KB|MB|GB)\b")
 
 _NUMBER = r"\d[\d,]*(?:\.\d+)?"
 #: a run time, a share or a ratio as a page writes it: ``11.3 s``, ``6.7-11.3 s``, ``2s``, ``71%``, ``1.6 %``,
@@ -412,10 +412,10 @@ def test_every_specified_figure_still_stands_on_its_page() -> None:
 
 def test_the_figure_check_finds_times_cycles_and_sizes_but_not_references_or_blocks() -> None:
     text = ("The step took 263 ns, then 0.86-0.87 µs; 4,600 cycles and 30.6 kB of flash,\n2,136 cycles,"
-            " 12 MiB, 8.1 ms. {{ bench(\"identifier\", \"lim.float64.batched_ns\", \".0f\") }} ns and x0 are not.\n"
+            " 12 MiB, 8.1 ms, 44 KB. {{ bench(\"identifier\", \"lim.float64.batched_ns\", \".0f\") }} ns and x0 are not.\n"
             "```text\nstep max 208.4 us\n```\n")
     assert hand_written_figures(text) == ["263 ns", "0.86-0.87 µs", "4,600 cycles", "30.6 kB", "2,136 cycles",
-                                          "12 MiB", "8.1 ms"]
+                                          "12 MiB", "8.1 ms", "44 KB"]
 
 
 def test_the_figure_check_finds_run_times_shares_and_ratios_but_not_words_or_names() -> None:
