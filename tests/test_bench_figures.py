@@ -442,3 +442,69 @@ def test_the_sizes_the_pages_quote_are_the_builds_pyrhonn_info_reports(hooks: Mo
     quoted = {m.group(1) for page in PAGES for m in re.finditer(r"\{\{ ([\w.]+) \}\}", page.read_text(encoding="utf-8"))}
     assert quoted - set(hooks._measured()) == set()
     assert "lanes_workspace.small.float64.kB" in quoted and "sizeof_rhonn_t.large.float64.MB" in quoted
+
+
+def check_verdicts(figures: dict[str, Any]) -> None:
+    """AssertionError unless every verdict of the reproduce results follows from its figures."""
+    from pyrhonn.reproduce import AD_TARGET, RMSE_TARGET
+
+    def within(state: dict[str, Any], example: str) -> bool:
+        return all(r is None or limit is None or r <= limit for r, limit in
+                   ((state.get("rmse_ratio"), RMSE_TARGET.get(example)), (state.get("ad_ratio"), AD_TARGET.get(example))))
+
+    judged = 0
+    for key, scenario in figures.items():
+        if not key.startswith("example") or "_" in key.split("-")[0]:
+            continue  # not a scenario of the command's run
+        example = key.split("-")[0]
+        for est, states in scenario.items():
+            if est == "horizons":
+                for at in states.values():
+                    for name, point in at.items():
+                        if "missed" in point:
+                            missed = [f"x{j + 1}" for j, (r, a) in enumerate(zip(point["rmse_ratio"], point["ad_ratio"]))
+                                      if not within({"rmse_ratio": r, "ad_ratio": a}, example)]
+                            assert point["missed"] == (", ".join(missed) or "none"), (key, name)
+                            judged += 1
+                continue
+            for name, state in states.items():
+                if "verdict" in state:
+                    assert state["verdict"] == ("met" if within(state, example) else "not met"), (key, est, name)
+                    judged += 1
+    targets = figures["targets"]
+    for span, limit in ((targets["example2_rmse"], RMSE_TARGET["example2"]),
+                        (targets["example3_rmse"], RMSE_TARGET["example3"]),
+                        *((targets["example1_dt0_02_ad"][est], AD_TARGET["example1"]) for est in ("identifier", "identifier-tuned"))):
+        assert span["min"] <= span["max"]
+        assert (span["verdict"] == "met on every state") == (span["max"] <= limit)
+        judged += 1
+    for est, at10 in targets["example1_dt0_2_at_10s"].items():
+        top = max(at10["rmse_ratio"]["max"], at10["ad_ratio"]["max"])
+        assert (at10["verdict"] == "met on every state") == (top <= RMSE_TARGET["example1"]), est
+    run = figures["run"]
+    assert run["verdict"] == ("met" if run["wall_seconds"] <= run["target_seconds"] else "not met")
+    assert run["computation_seconds"] <= run["seconds"] <= run["wall_seconds"]
+    assert judged >= 40
+
+
+def test_every_verdict_of_the_reproduce_results_agrees_with_the_figures_it_judges() -> None:
+    """The pages quote "met" / "not met" from bench/results/reproduce.json beside the ratios: each
+    verdict there follows from those ratios and pyrhonn's targets, so no page shows a verdict its
+    figures contradict; a verdict changed by hand is caught."""
+    figures = json.loads((RESULTS / "reproduce.json").read_text(encoding="utf-8"))["figures"]
+    check_verdicts(figures)
+    for change in ({"example1-dt0_2": {"identifier": {"x2": {"verdict": "met"}}}},
+                   {"example1-dt0_2": {"horizons": {"h50": {"identifier": {"missed": "x2"}}}}},
+                   {"targets": {"example2_rmse": {"verdict": "not met on 1 of 7 states"}}},
+                   {"run": {"wall_seconds": 130.0}}):
+        edited = json.loads(json.dumps(figures))
+        (key, inner), = change.items()
+        node = edited[key]
+        while True:
+            (k, v), = inner.items()
+            if not isinstance(v, dict):
+                node[k] = v
+                break
+            node, inner = node[k], v
+        with pytest.raises(AssertionError):
+            check_verdicts(edited)
