@@ -38,6 +38,7 @@ from results_file import save
 
 from pyrhonn import Identifier
 from pyrhonn import reproduce as rp
+from pyrhonn.configfile import loads, shipped_text
 from pyrhonn.metrics import absolute_deviation, rmse
 from pyrhonn.plants import Corruption, lim
 from pyrhonn.reproduce import AD_TARGET, RMSE_TARGET
@@ -198,12 +199,25 @@ def encoder(figures: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def sigmoid_position() -> dict[str, Any]:
+    """Example 3 with the position neuron of the proposed term sets, [S(q_m), S(v)], instead of the
+    shipped [q_m, v] (everything else as shipped)."""
+    shipped = shipped_text("example3")
+    raw = 'terms = ["x1", "x2"]'
+    if shipped.count(raw) != 1:
+        raise SystemExit(f"example3.toml: expected one position neuron with {raw}")
+    config = loads(shipped.replace(raw, 'terms = ["S(x1)", "S(x2)"]')).config
+    spec = rp.IdentifierSpec("identifier", "identifier ([S(q_m), S(v)])", "example3.toml, sigmoid position terms",
+                             config)
+    return _states(rp.run_scenario("example3", identifiers=[spec], horizons=()), "identifier")
+
+
 def variants(figures: dict[str, Any]) -> dict[str, Any]:
     """The runs beside the defaults that the docs discuss, in this process (no figures drawn):
     Example 1 stopped just after x4's first spike, and its x4 spikes (:func:`x4_spikes`); every scenario in float32, against the float64
     figures of the command's run (a scenario the float32 core refuses is listed with the error);
     Examples 2 and 3 fed their held samples as if fresh; Example 3 through a position encoder
-    (:func:`encoder`)."""
+    (:func:`encoder`) and with sigmoid position terms (:func:`sigmoid_position`)."""
     out: dict[str, Any] = {}
     out["example1_after_spike"] = {
         f"h{h:g}".replace(".", "_"): _states(rp.run_scenario("example1-dt0.2", horizon=h, horizons=()), "identifier")
@@ -242,6 +256,7 @@ def variants(figures: dict[str, Any]) -> dict[str, Any]:
     float32["refused_count"] = len(refused)
     out["float32"] = float32
     out["example3_encoder"] = encoder(figures)
+    out["example3_sigmoid_position"] = sigmoid_position()
     out["no_hold_mask"] = {key: _states(rp.run_scenario(key, mask_holds=False, horizons=()), "identifier")
                            for key in ("example2", "example3")}
     out["no_hold_mask"]["example2_rmse"] = span([s["rmse_ratio"] for s in out["no_hold_mask"]["example2"].values()],
