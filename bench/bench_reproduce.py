@@ -199,16 +199,28 @@ def encoder(figures: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _variant(name: str, raw: str, replacement: str) -> rp.IdentifierSpec:
+    """The shipped config ``name`` with its one line ``raw`` replaced, as the identifier to run."""
+    shipped = shipped_text(name)
+    if shipped.count(raw) != 1:
+        raise SystemExit(f"{name}.toml: expected the line {raw} once")
+    return rp.IdentifierSpec("identifier", f"identifier ({name}, {replacement})", f"{name}.toml, changed",
+                             loads(shipped.replace(raw, replacement)).config)
+
+
+def x2_other_terms() -> dict[str, Any]:
+    """Example 1 at T = 0.2 s with eq. 20's P0/Q/R and x2's neuron on the terms [x1, x1(k-1), x2, x3 u]
+    with eta = 1.4 (chosen on other trajectories), at the default horizon and at 150 s."""
+    spec = _variant("example1", 'terms = ["S(x2)", "S(x2)*S(x1)", "S(x1(k-1))", "u1"]',
+                    'terms = ["x1", "x1(k-1)", "x2", "x3*u1"]\neta = 1.4')
+    return {f"h{h:g}": _states(rp.run_scenario("example1-dt0.2", identifiers=[spec], horizons=(), horizon=h),
+                               "identifier")["x2"] for h in (100.0, 150.0)}
+
+
 def sigmoid_position() -> dict[str, Any]:
     """Example 3 with the position neuron of the proposed term sets, [S(q_m), S(v)], instead of the
     shipped [q_m, v] (everything else as shipped)."""
-    shipped = shipped_text("example3")
-    raw = 'terms = ["x1", "x2"]'
-    if shipped.count(raw) != 1:
-        raise SystemExit(f"example3.toml: expected one position neuron with {raw}")
-    config = loads(shipped.replace(raw, 'terms = ["S(x1)", "S(x2)"]')).config
-    spec = rp.IdentifierSpec("identifier", "identifier ([S(q_m), S(v)])", "example3.toml, sigmoid position terms",
-                             config)
+    spec = _variant("example3", 'terms = ["x1", "x2"]', 'terms = ["S(x1)", "S(x2)"]')
     return _states(rp.run_scenario("example3", identifiers=[spec], horizons=()), "identifier")
 
 
@@ -217,7 +229,8 @@ def variants(figures: dict[str, Any]) -> dict[str, Any]:
     Example 1 stopped just after x4's first spike, and its x4 spikes (:func:`x4_spikes`); every scenario in float32, against the float64
     figures of the command's run (a scenario the float32 core refuses is listed with the error);
     Examples 2 and 3 fed their held samples as if fresh; Example 3 through a position encoder
-    (:func:`encoder`) and with sigmoid position terms (:func:`sigmoid_position`)."""
+    (:func:`encoder`) and with sigmoid position terms (:func:`sigmoid_position`); Example 1's x2 on
+    other terms (:func:`x2_other_terms`)."""
     out: dict[str, Any] = {}
     out["example1_after_spike"] = {
         f"h{h:g}".replace(".", "_"): _states(rp.run_scenario("example1-dt0.2", horizon=h, horizons=()), "identifier")
@@ -257,6 +270,7 @@ def variants(figures: dict[str, Any]) -> dict[str, Any]:
     out["float32"] = float32
     out["example3_encoder"] = encoder(figures)
     out["example3_sigmoid_position"] = sigmoid_position()
+    out["example1_x2_other_terms"] = x2_other_terms()
     out["no_hold_mask"] = {key: _states(rp.run_scenario(key, mask_holds=False, horizons=()), "identifier")
                            for key in ("example2", "example3")}
     out["no_hold_mask"]["example2_rmse"] = span([s["rmse_ratio"] for s in out["no_hold_mask"]["example2"].values()],
