@@ -217,6 +217,24 @@ def x2_other_terms() -> dict[str, Any]:
                                "identifier")["x2"] for h in (100.0, 150.0)}
 
 
+def robot_sigmoid_only(figures: dict[str, Any]) -> dict[str, Any]:
+    """Example 2 with the proposed sigmoid-only term sets of the pose and wheel-speed neurons (the
+    shipped config without their raw own state): those states' figures, how many times the shipped
+    config's RMSE each is (``worse``) and the verdict on RMSE within 2x of Table 5."""
+    names = ("X", "Y", "theta", "omega1")
+    shipped = shipped_text("example2")
+    for j in range(1, len(names) + 1):
+        line = next(line for line in shipped.splitlines() if line.startswith(f'terms = ["x{j}", '))
+        shipped = shipped.replace(line, line.replace(f'"x{j}", ', ""))
+    spec = rp.IdentifierSpec("identifier", "identifier (sigmoid-only terms)", "example2.toml, changed",
+                             loads(shipped).config)
+    states = _states(rp.run_scenario("example2", identifiers=[spec], horizons=()), "identifier")
+    out: dict[str, Any] = {name: states[name] for name in names}
+    out["worse"] = span([states[name]["rmse"] / figures["example2"]["identifier"][name]["rmse"] for name in names])
+    out["rmse_ratio"] = span([states[name]["rmse_ratio"] for name in names], RMSE_TARGET["example2"])
+    return out
+
+
 def sigmoid_position() -> dict[str, Any]:
     """Example 3 with the position neuron of the proposed term sets, [S(q_m), S(v)], instead of the
     shipped [q_m, v] (everything else as shipped)."""
@@ -230,7 +248,7 @@ def variants(figures: dict[str, Any]) -> dict[str, Any]:
     figures of the command's run (a scenario the float32 core refuses is listed with the error);
     Examples 2 and 3 fed their held samples as if fresh; Example 3 through a position encoder
     (:func:`encoder`) and with sigmoid position terms (:func:`sigmoid_position`); Example 1's x2 on
-    other terms (:func:`x2_other_terms`)."""
+    other terms (:func:`x2_other_terms`); Example 2 on sigmoid-only terms (:func:`robot_sigmoid_only`)."""
     out: dict[str, Any] = {}
     out["example1_after_spike"] = {
         f"h{h:g}".replace(".", "_"): _states(rp.run_scenario("example1-dt0.2", horizon=h, horizons=()), "identifier")
@@ -271,6 +289,7 @@ def variants(figures: dict[str, Any]) -> dict[str, Any]:
     out["example3_encoder"] = encoder(figures)
     out["example3_sigmoid_position"] = sigmoid_position()
     out["example1_x2_other_terms"] = x2_other_terms()
+    out["example2_sigmoid_only"] = robot_sigmoid_only(figures)
     out["no_hold_mask"] = {key: _states(rp.run_scenario(key, mask_holds=False, horizons=()), "identifier")
                            for key in ("example2", "example3")}
     out["no_hold_mask"]["example2_rmse"] = span([s["rmse_ratio"] for s in out["no_hold_mask"]["example2"].values()],
