@@ -104,7 +104,7 @@ import sys
 import tempfile
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -326,9 +326,12 @@ def write_record(path: Path, rec: Record, ts: float) -> None:
     atomic.write_text(path, "\n".join(lines) + "\n")
 
 
-def run_pyrhonn(ds: Dataset, folder: Path) -> tuple[dict[str, Any], np.ndarray | None, np.ndarray | None]:
-    """``pyrhonn select`` on the estimation record, then its config frozen over the validation record:
-    (figures, one-step prediction of y, free run of y), both aligned with the validation record."""
+def run_pyrhonn(ds: Dataset, folder: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """``pyrhonn select`` on the estimation record, then its config over the validation record:
+    (figures, predictions of y aligned with the validation record). The predictions: ``one_step`` and
+    ``free_run`` with the weights frozen; ``online`` one step ahead learning on (as ``pyrhonn identify``
+    runs the config), and ``online_padded`` the same with ``wait_for_history`` off (learning from the
+    second sample, the history before the first padded); none when select failed."""
     folder.mkdir(parents=True, exist_ok=True)
     write_record(folder / "estimation.csv", ds.est, ds.sampling_period)
     out: dict[str, Any] = {"command": ["pyrhonn", *SELECT_ARGS], "estimation_file": "estimation.csv",
@@ -339,7 +342,7 @@ def run_pyrhonn(ds: Dataset, folder: Path) -> tuple[dict[str, Any], np.ndarray |
     out["select_wall_seconds"] = run.seconds
     if run.returncode != 0:
         out["error"] = run.failure()
-        return out, None, None
+        return out, {}
     sel = json.loads((folder / "select.json").read_text(encoding="utf-8"))
     out["select_seconds"] = sel.get("seconds")
     out["select_rows"] = sel.get("rows")
@@ -360,7 +363,12 @@ def run_pyrhonn(ds: Dataset, folder: Path) -> tuple[dict[str, Any], np.ndarray |
     j = cf.state_names.index(STATE)
     out["free_run_from"] = K
     out["free_run_diverged_at"] = sim.free_run_diverged
-    return out, sim.one_step[:, j].astype(np.float64), sim.free_run[:, j].astype(np.float64)
+    predictions = {"one_step": sim.one_step[:, j], "free_run": sim.free_run[:, j]}
+    padded = replace(cfg, neurons=tuple(replace(nr, wait_for_history=False) for nr in cfg.neurons))
+    out["wait_for_history"] = [nr.wait_for_history for nr in cfg.neurons]
+    for key, online in (("online", cfg), ("online_padded", padded)):
+        predictions[key] = simulate(Identifier(online), X, U if cfg.n_inputs else None, data.valid).one_step[:, j]
+    return out, {key: v.astype(np.float64) for key, v in predictions.items()}
 
 
 # -- SysIdentPy -----------------------------------------------------------------------------------
@@ -391,13 +399,13 @@ def frols(ds: Dataset, ylag: int, xlag: int) -> tuple[dict[str, Any], np.ndarray
 # -- the run --------------------------------------------------------------------------------------
 
 def run_dataset(ds: Dataset, folder: Path, lags: tuple[int, ...]) -> dict[str, Any]:
-    py, py_one, py_free = run_pyrhonn(ds, folder)
+    py, predicted = run_pyrhonn(ds, folder)
     grid = [frols(ds, yl, xl) for yl in lags for xl in lags]
     K = py.get("free_run_from", 0)
     start = max(ds.init_window, K, max(lags))
     y = ds.val.y
-    if py_one is not None and py_free is not None:
-        py["one_step"], py["free_run"] = score(y, py_one, start), score(y, py_free, start)
+    for key, yhat in predicted.items():
+        py[key] = score(y, yhat, start)
     rows = []
     for info, one, free in grid:
         rows.append({**info, "one_step": score(y, one, start), "free_run": score(y, free, start)})
@@ -450,6 +458,9 @@ def print_table(results: dict[str, Any]) -> None:
                   f"{_cell(py['free_run'], 'rrse'):>7} {py['select_wall_seconds']:7.2f}")
             for state, terms in py["terms"].items():
                 print(f"{'':15} {'':22} {state}: " + " ".join(terms))
+            print(f"{'':15} {'  learning online':22} {'as written / wait_for_history off':32} "
+                  f"{_cell(py['online'], 'rmse'):>11} {_cell(py['online'], 'rrse'):>7} / "
+                  f"{_cell(py['online_padded'], 'rmse')} {_cell(py['online_padded'], 'rrse')}")
         for key, label in (("sysidentpy_aic", "FROLS, AIC on est."), ("sysidentpy_best_on_validation",
                                                                        "FROLS, best on val. *")):
             s = r[key]

@@ -63,6 +63,9 @@ def test_every_data_set_has_one_step_figures_from_both_tools(run) -> None:
         assert "error" not in py, (key, py.get("error"))
         assert _finite(py["one_step"]), (key, py["one_step"])
         assert py["free_run_from"] == py["max_delay"] + 1 and py["n_terms"] >= 1, key
+        # learning online, as written (select sets wait_for_history) and with it off
+        assert py["wait_for_history"] and all(py["wait_for_history"]), key
+        assert _finite(py["online"]) and _finite(py["online_padded"]), key
         for which in ("sysidentpy_aic", "sysidentpy_best_on_validation"):
             assert _finite(r[which]["one_step"]), (key, which, r[which]["one_step"])
         for s in [py["free_run"]] + [g["free_run"] for g in r["sysidentpy_grid"]]:

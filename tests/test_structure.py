@@ -220,3 +220,42 @@ def test_collinear_candidates_are_never_chosen_twice(data) -> None:
     for nr in sel.neurons:
         assert len({monomial(t.term) for t in nr.terms}) == len(nr.terms)
         assert all(np.isfinite(t.weight) for t in nr.terms)
+
+
+def _small_scale_plant(T: int = 2000, seed: int = 5) -> tuple[np.ndarray, np.ndarray]:
+    """x(k+1) = 0.8 x + 1e-3 u - 2e4 x^3 + noise, x of order 1e-3: the cube's regressor is a million
+    times smaller than x's, so the fit's weight variances lie many decades apart."""
+    rng = np.random.default_rng(seed)
+    U = rng.uniform(-1.0, 1.0, (T, 1))
+    X = np.zeros((T, 1))
+    for k in range(T - 1):
+        x = X[k, 0]
+        X[k + 1, 0] = 0.8 * x + 1e-3 * U[k, 0] - 2e4 * x ** 3 + rng.normal(0.0, 1e-6)
+    return X, U
+
+
+def test_the_fit_p0_keeps_the_variance_of_every_weight_whatever_the_regressors_scale() -> None:
+    """The fit's P0 = sigma^2 (Z^T Z)^-1 is conditioned for the core on its correlations, not on
+    its eigenvalues: the well-determined weights (of x, of u) keep their least-squares variances
+    even beside a cube whose weight's variance is decades larger; online learning then continues
+    the fit instead of moving them beyond their uncertainty, and Q stays below every variance."""
+    X, U = _small_scale_plant()
+    sel = select(X, U, space=CandidateSpace(factors=("x", "u", "1"), degree=3))
+    nr = sel.neurons[0]
+    assert nr.covariance is not None and len(nr.terms) >= 3
+    exact = nr.residual_variance * nr.covariance
+    cfg = sel.config()
+    P0 = np.asarray(cfg.neurons[0].p0)
+    variances = np.diag(exact)
+    assert variances.max() / variances.min() > 1e12  # the scales this guards against
+    np.testing.assert_allclose(np.diag(P0), variances, rtol=1e-6)
+    q = float(cfg.neurons[0].q)
+    assert 0.0 < q <= variances.min() / sel.rows
+    Identifier(cfg)  # the core factorises it
+    # learning online on a continuation of the same plant predicts as well as the frozen weights
+    Xv, Uv = _small_scale_plant(seed=6)
+    frozen = Identifier(cfg)
+    frozen.learning = False
+    e_frozen = Xv[2:, 0] - frozen.run(Xv, Uv)[1:-1, 0]
+    e_online = Xv[2:, 0] - Identifier(cfg).run(Xv, Uv)[1:-1, 0]
+    assert np.sqrt(np.mean(e_online ** 2)) <= 1.05 * np.sqrt(np.mean(e_frozen ** 2))
