@@ -12,10 +12,11 @@ dots as underscores (``example1-dt0.2`` -> ``example1-dt0_2``), with:
 - per Example 1 horizon of the horizon study, the ratios to the paper's table as well as the figures,
   and for each identifier the states that miss the table there (``missed``: "x2, x4" or "none");
 - ``targets``: each target of the docs' list with the smallest and largest ratio it covers and its
-  verdict ("met" when every ratio is within the target), so a page never shows a verdict its
-  figures contradict;
-- ``example1_after_spike``, ``float32``, ``no_hold_mask``: the runs beside the defaults the docs
-  discuss (:func:`variants`);
+  verdict ("met on every state" or "not met on K of N states"), so a page never shows a verdict
+  its figures contradict;
+- ``example1_after_spike``, ``example1_x4_spikes``, ``example1_x4_plant``, ``example1_x2_other_terms``,
+  ``example2_sigmoid_only``, ``example3_encoder``, ``example3_sigmoid_position``, ``float32``,
+  ``no_hold_mask``: the runs beside the defaults the docs discuss (:func:`variants`);
 - ``run``: the wall time of ``pyrhonn reproduce all`` measured around it, the time the command
   reports, the computation inside it (plants, estimators, horizon study: the rest is drawing the
   figures), the longest run of a C identifier over one scenario, and the 2-minute target's verdict.
