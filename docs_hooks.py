@@ -19,7 +19,8 @@ once they exist.
 :func:`on_page_content` shows the docstrings' reST roles as plain code, and
 :func:`on_page_markdown` replaces each ``{{ NAME }}`` of a page with a figure
 measured as the site is built (:func:`_measured`: ``sizeof(rhonn_t)`` for the
-capacities the pages discuss), so no page quotes a stale size, and each
+capacities the pages discuss, and the sizes of the package's own builds that
+``pyrhonn info`` reports), so no page quotes a stale size, and each
 ``{{ bench("NAME", "a.b.c") }}`` with the figure ``a.b.c`` of the results file
 ``bench/results/NAME.json`` that ``bench/bench_NAME.py --results`` writes
 (:func:`bench_figure`), so no page quotes a stale benchmark figure. A missing
@@ -183,6 +184,27 @@ def _sizeof(defines: dict[str, int], *flags: str) -> str:
     return f"{int(out):,}"
 
 
+def _package_sizes() -> dict[str, str]:
+    """The sizes of the package's own builds, as ``pyrhonn info --json`` reports them: for the
+    build with the firmware default capacities ("small") and the one sized for structure search
+    ("large"), per precision, the vector lanes' workspace (``rhonn_population_work``, which
+    ``step`` allocates per identifier) and ``sizeof(rhonn_t)``; kB and MB of 1,000 and 1,000,000 bytes."""
+    import subprocess
+    import sys
+
+    info = json.loads(subprocess.run([sys.executable, "-m", "pyrhonn.cli", "info", "--json"], check=True,
+                                     capture_output=True, text=True).stdout)
+    out = {}
+    for build in info["builds"]:
+        size = "small" if build["module"].startswith("pyrhonn._rhonn_small_") else "large"
+        work, net = build["sizeof_population_work"], build["sizeof_rhonn_t"]
+        out[f"lanes_workspace.{size}.{build['dtype']}.kB"] = f"{work / 1e3:.0f}"
+        out[f"lanes_workspace.{size}.{build['dtype']}.MB"] = f"{work / 1e6:.1f}"
+        out[f"sizeof_rhonn_t.{size}.{build['dtype']}.kB"] = f"{net / 1e3:.0f}"
+        out[f"sizeof_rhonn_t.{size}.{build['dtype']}.MB"] = f"{net / 1e6:.1f}"
+    return out
+
+
 def _measured() -> dict[str, str]:
     from pyrhonn.configfile import load_named
     from pyrhonn.export import min_capacities
@@ -190,6 +212,7 @@ def _measured() -> dict[str, str]:
     lim = min_capacities(load_named("firmware-lim").config)
     single, const = "-DRHONN_SINGLE", "-DRHONN_CONST_CONFIG=1"
     return {
+        **_package_sizes(),
         "sizeof_rhonn_t.float64": _sizeof({}),
         "sizeof_rhonn_t.float32": _sizeof({}, single),
         "sizeof_rhonn_t.float32.const": _sizeof({}, single, const),

@@ -104,7 +104,6 @@ import json
 import math
 import os
 import platform
-import subprocess
 import sys
 import tempfile
 import time
@@ -344,13 +343,12 @@ def run_pyrhonn(ds: Dataset, folder: Path, extra: tuple[str, ...] = ()) -> tuple
     write_record(folder / "estimation.csv", ds.est, ds.sampling_period)
     out: dict[str, Any] = {"command": ["pyrhonn", *SELECT_ARGS, *extra], "estimation_file": "estimation.csv",
                            "estimation_samples": int(ds.est.y.size)}
-    t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "pyrhonn.cli", *SELECT_ARGS, *extra], cwd=folder, capture_output=True,
-                          text=True)
-    out["select_wall_seconds"] = time.perf_counter() - t0
-    if proc.returncode != 0:
-        tail = (proc.stderr.strip() or proc.stdout.strip()).splitlines()[-5:]
-        out["error"] = f"pyrhonn select exited with status {proc.returncode}: " + " | ".join(tail)
+    from cli_run import run_cli  # noqa: E402 - beside this script
+
+    run = run_cli(*SELECT_ARGS, *extra, cwd=folder)
+    out["select_wall_seconds"] = run.seconds
+    if run.returncode != 0:
+        out["error"] = run.failure()
         return out, {}
     sel = json.loads((folder / "select.json").read_text(encoding="utf-8"))
     out["select_seconds"] = sel.get("seconds")

@@ -25,13 +25,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 from bench_real_data import cascaded_tanks, write_record
+from cli_run import run_cli
 from results_file import save
 
 from pyrhonn.configfile import load_named
@@ -46,11 +45,7 @@ STEPS = (10, 100)  # learning steps from the start of the estimation record, the
 
 
 def _cli(folder: Path, *args: str) -> float:
-    t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "pyrhonn.cli", *args], cwd=folder, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise SystemExit(f"pyrhonn {' '.join(args)} exited {proc.returncode}: {proc.stderr.strip()}")
-    return time.perf_counter() - t0
+    return run_cli(*args, cwd=folder).check().seconds
 
 
 def _row(name: str, v: Validation, extra: str = "") -> str:

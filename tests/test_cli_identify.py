@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from figure_capture import capture_figures
 
 from pyrhonn import Identifier, presets
 from pyrhonn.cli import main
@@ -136,14 +137,7 @@ def test_plot_axes_carry_the_given_units_and_the_legend_names_the_not_valid_shad
     from pyrhonn.cli import identify as identify_cli
 
     data, traj = dropout_run
-    saved: dict[str, object] = {}
-    real = identify_cli.atomic.save_figure
-
-    def capture(fig, path, **kwargs):
-        saved[Path(path).stem] = fig
-        return real(fig, path, **kwargs)
-
-    monkeypatch.setattr(identify_cli.atomic, "save_figure", capture)
+    saved = capture_figures(monkeypatch, identify_cli)
     first, *rest = traj.state_names
     assert main(["identify", str(data), "--config", "example1", "--out", str(tmp_path / "o"),
                  "--units", f"{first}=rad, t=s"]) == 0

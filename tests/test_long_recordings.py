@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from figure_capture import capture_figures
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -218,14 +219,7 @@ def test_running_scores_equal_the_whole_records_and_do_not_depend_on_the_chunks(
 def test_a_long_record_is_plotted_as_its_envelope_and_says_so(record: tuple[Path, Path], tmp_path: Path,
                                                               monkeypatch: pytest.MonkeyPatch) -> None:
     data, config = record
-    saved: dict[str, object] = {}
-    real = identify_cli.atomic.save_figure
-
-    def capture(fig, path, **kwargs):
-        saved[Path(path).stem] = fig
-        return real(fig, path, **kwargs)
-
-    monkeypatch.setattr(identify_cli.atomic, "save_figure", capture)
+    saved = capture_figures(monkeypatch, identify_cli)
     monkeypatch.setattr(identify_cli, "_envelope", lambda n: Envelope(5 * n, flags=n, buckets=16))
     assert main(["identify", str(data), "--config", str(config), "--out", str(tmp_path / "o")]) == 0
     top = saved["q_m"].axes[0]  # type: ignore[attr-defined]
