@@ -322,3 +322,11 @@ def test_an_interrupted_reproduce_leaves_whole_files_in_a_folder_marked_incomple
     capsys.readouterr()
     assert main(argv) == 0
     assert incomplete(out) is None and not (out / MARKER).exists() and (out / "summary.json").is_file()
+
+
+@pytest.mark.parametrize("key", sorted(rp.SCENARIOS))
+def test_every_scenario_runs_its_shipped_identifiers_in_float32(key: str) -> None:
+    """The firmware is float32: each shipped config runs its example in the float build of the core
+    without a refused update (example1-tuned's large P0 and small R need its U D U^T form there)."""
+    result = rp.run_scenario(key, dtype="float32", horizons=())
+    assert result.estimators and all(np.all(np.isfinite(e.rmse)) for e in result.estimators)
