@@ -2,7 +2,8 @@
 
 The options of :func:`add_options` say where each state and input is on the
 bus (on top of the config's ``[bus]`` table, :mod:`pyrhonn.buslog`);
-:func:`read` decodes and aligns the log into the arrays a CSV file gives, so
+:func:`read` decodes and aligns the log into the arrays a CSV file gives, and
+:func:`stream` into chunks of them (:mod:`pyrhonn.buslogstream`), so
 ``identify`` runs and writes exactly as for a CSV, plus ``samples.csv``: the
 aligned samples in the CSV format (``pyrhonn identify``, ``tune --data`` and
 ``select`` read it; the ``line`` column of the predictions refers to it).

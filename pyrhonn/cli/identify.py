@@ -62,7 +62,9 @@ Long records
 ------------
 Without ``--free-run-from`` and ``--steps-ahead`` the record is streamed: a
 CSV file is read a block at a time (:class:`pyrhonn.datafile.DataReader`),
-the core runs chunk by chunk keeping its state (the predictions are the
+a bus log a chunk of frames at a time (:mod:`pyrhonn.buslogstream`; its
+samples.csv staged as it goes; a log it cannot stream, or that it refuses,
+is read whole, to the same result or message), the core runs chunk by chunk keeping its state (the predictions are the
 whole record's, bit for bit), gaps are found chunk by chunk
 (:class:`pyrhonn.gaps.SegmentTracker`), ``predictions.csv`` is written as
 the chunks come and the metrics are running sums
@@ -464,7 +466,7 @@ def _write_rest(out: Path, report: dict[str, Any], plots: list[Path], cf: Config
         stale.unlink(missing_ok=True)  # an earlier run's plot would pass for this run's
 
 
-#: rows of a record held in memory as one chunk when it is streamed (a bus log or MDF4 read whole is cut so)
+#: rows of a record held in memory as one chunk when it is streamed (a record read whole is cut so)
 CHUNK_ROWS = 1 << 16
 
 
