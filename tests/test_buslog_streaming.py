@@ -10,16 +10,19 @@ from typing import Callable
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 can = pytest.importorskip("can")
-pytest.importorskip("cantools")
+cantools = pytest.importorskip("cantools")
 
 from pyrhonn import buslogstream  # noqa: E402
+from pyrhonn.buslog import AlignedSummary, BusMap, SignalRef, read_bus_log  # noqa: E402
 from pyrhonn.buslogstream import BusStream  # noqa: E402
 from pyrhonn.cli import bus_input, main  # noqa: E402
 from pyrhonn.configfile import loads, shipped_text  # noqa: E402
 from pyrhonn.gaps import LISTED, SegmentTracker, segments_of  # noqa: E402
-from test_cli_identify_canlog import BUS, DBC, PERIOD, _candump, _log_through_virtual_bus, _recording  # noqa: E402
+from test_cli_identify_canlog import BUS, DBC, PERIOD, T0, _candump, _log_through_virtual_bus, _recording  # noqa: E402
 
 #: Command frames dropped: lost samples (gaps) inside the run, one of them two samples long
 LOST_U = {9, 50, 51, 77}
@@ -225,3 +228,55 @@ def test_metrics_list_a_bounded_number_of_gaps_and_count_them_all() -> None:
     smallest_listed = min(g["lost"] for g in report["gap_list"][LISTED:])
     assert all(g.lost <= smallest_listed for g in whole.gaps[LISTED:] if g.first not in listed)
 
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(K=st.integers(3, 90), seed=st.integers(0, 2**31), chunk=st.integers(1, 40), counter=st.booleans(),
+       window=st.sampled_from([-1.0, -0.5, -0.2, 0.0]), drop=st.floats(0.0, 0.3), stretch=st.booleans())
+def test_streamed_samples_equal_the_whole_reads_on_random_logs(tmp_path: Path, K: int, seed: int, chunk: int,
+                                                             counter: bool, window: float, drop: float,
+                                                             stretch: bool) -> None:
+    """Random logs (frames lost, jittered, late into the next window, repeated clock frames, a counter that
+    wraps): the chunks of a streamed read are the samples and counts of the log read whole, or the streamed
+    read defers to the whole read, which refuses the log."""
+    rng = np.random.default_rng(seed)
+    db = cantools.database.load_string(DBC, database_format="dbc")
+    frames: list[tuple[float, int, bytes]] = []
+    for k in range(K):
+        tk = T0 + k * PERIOD + float(rng.uniform(-0.2, 0.2)) * PERIOD
+        for name, dt, values in (("StatesA", 0.0, {"X1": float(rng.normal()), "X2": float(rng.normal())}),
+                                 ("StatesB", 0.15, {"X3": 0.5, "X3Valid": int(rng.random() > 0.1), "X4": -0.25,
+                                                    "X4Valid": 1}),
+                                 ("Command", 0.3, {"U": float(rng.normal()), "Seq": (k + 250) % 256})):
+            if rng.random() < drop:
+                continue
+            late = PERIOD * float(rng.uniform(0.5, 1.2)) if rng.random() < 0.05 else 0.0
+            msg = db.get_message_by_name(name)
+            frames.append((round(tk + dt * PERIOD + late, 6), msg.frame_id, msg.encode(values)))
+            if name == "StatesA" and rng.random() < 0.05:  # a repeat of the clock frame
+                frames.append((round(tk + 0.1 * PERIOD, 6), msg.frame_id, msg.encode(values)))
+    frames.sort(key=lambda f: f[0])
+    log = tmp_path / "random.log"
+    (tmp_path / "plant.dbc").write_text(DBC)
+    log.write_text("".join(f"({t:.6f}) vcan0 {i:03X}#{d.hex().upper()}\n" for t, i, d in frames))
+    cf = loads(shipped_text("example1") + BUS)
+    assert cf.bus is not None
+    bus = BusMap(signals=cf.bus.signals, valid=cf.bus.valid, sample_period=PERIOD,
+                 clock="Command" if counter else "StatesA", window_start=window,
+                 counter=SignalRef("Command", "Seq") if counter else None)
+    span = {"start": 0.05, "stop": 0.6} if stretch else {}
+    try:
+        whole = read_bus_log(log, tmp_path / "plant.dbc", bus, cf.state_names, cf.input_names, **span)
+    except ValueError:
+        whole = None
+    try:
+        s = BusStream(log, tmp_path / "plant.dbc", bus, cf.state_names, cf.input_names, chunk_frames=chunk, **span)
+        chunks = list(s.chunks())
+    except buslogstream.Reread:
+        assert whole is None, "a log read whole gave samples, but the streamed read deferred"
+        return
+    assert whole is not None, "the streamed read gave samples where the whole read refuses the log"
+    got = {name: np.concatenate([getattr(c, name) for c in chunks]) for name in ("X", "U", "valid", "t", "lost")}
+    for name in ("X", "U", "valid", "t", "lost"):
+        assert np.array_equal(got[name], getattr(whole, name), equal_nan=name in ("X", "U")), name
+    assert s.summary == AlignedSummary(**{f: getattr(whole, f) for f in AlignedSummary.__dataclass_fields__})
