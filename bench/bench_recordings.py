@@ -9,8 +9,9 @@
    CSV (``--long-formats``): ``identify``'s end-to-end time and peak memory against the C core's own
    time on the same samples (``Identifier.run`` over the segments), as a same-run ratio. A bus log is
    read a chunk of frames at a time (:mod:`pyrhonn.buslogstream`), so its peak memory does not grow
-   with its length: ``--longer F`` (default 4) also identifies a candump log F times as long (written
-   a block of samples at a time) and reports its time, ratio and peak beside the first.
+   with its length: ``--longer F`` (default 4) also identifies the candump log F times over (its copies
+   one after the other in time, written a block of lines at a time) and reports its time, ratio and
+   peak beside the first.
 3. With ``--huge N`` (12,000,000: an hour at 0.3 ms), a CSV of N samples (``--loss`` lost, written
    straight from the arrays, about 1.9 GB in ``--huge-dir``, deleted afterwards) through ``identify``
    (plots included), then the same samples without the lost ones through ``select --search fixed``
@@ -146,36 +147,30 @@ def _csv_direct(X: np.ndarray, U: np.ndarray, lost: np.ndarray, path: Path, rows
             fh.write("".join(",,,,,,,,1\n" if g else ",".join(r) + ",0\n" for r, g in zip(zip(*cols), gone)))
 
 
-def _candump_blocks(n: int, lost: np.ndarray, path: Path, block: int = 1 << 16) -> None:
-    """A candump log of ``n`` samples of the smooth signals (``lost`` ones left out), written a block of
-    samples at a time: a log longer than the frames this bench can hold."""
-    with path.open("w") as fh:
-        for a in range(0, n, block):
-            b = min(a + block, n)
-            X, U = _samples_at(a, b)
-            lines = []
-            for k in range(a, b):
-                if not lost[k]:
-                    m = firmware.measurement_message(k, X[k - a], U[k - a])
-                    m.timestamp = round(T0 + k * PERIOD, 6)
-                    lines.append(_candump_line(m))
-            fh.write("".join(lines))
+def _repeated(log: Path, times: int, shift: float, path: Path) -> None:
+    """The candump ``log`` ``times`` over, each copy ``shift`` s after the one before: a log longer than the
+    frames this bench can hold, written a block of lines at a time."""
+    with path.open("w") as out:
+        for r in range(times):
+            with log.open() as src:
+                for block in iter(lambda: src.readlines(1 << 22), []):
+                    out.write("".join(f"({float(line[1:line.index(')')]) + r * shift:.6f}{line[line.index(')'):]}"
+                                      for line in block))
 
 
-def _longer(n: int, loss: float, seed: int, d: Path) -> dict[str, float]:
-    """``identify`` on a candump log of ``n`` samples written block by block; the core's own time on them."""
-    rng = np.random.default_rng(seed + 1)
-    lost = rng.random(n) < loss
-    lost[0] = lost[-1] = False
+def _longer(log: Path, times: int, X: np.ndarray, U: np.ndarray, lost: np.ndarray, d: Path) -> dict[str, float]:
+    """``identify`` on the candump ``log`` of the samples ``X``, ``U`` (``lost`` ones left out) repeated
+    ``times`` over; the core's own time on the same samples."""
     path = d / "longer.log"
-    _candump_blocks(n, lost, path)
-    X, U = _samples_at(0, n)
-    core = _core_seconds(X, U, lost)
-    del X, U
+    _repeated(log, times, X.shape[0] * PERIOD, path)
+    n = times * X.shape[0]
+    core = _core_seconds(np.tile(X, (times, 1)), np.tile(U, (times, 1)), np.tile(lost, times))
     r = _identify(["identify", "--can-log", str(path), "--dbc", str(d / "rhonn_id.dbc"), "--config",
                    str(d / "lim.toml"), "--out", str(d / "out-longer"), "--no-plots"], d)
-    found = {"samples": n, "lost": int(lost.sum()), "file_mib": path.stat().st_size / 2**20, "core_seconds": core,
-             "seconds": r["seconds"], "peak_mib": r["peak_mib"], "ratio": r["seconds"] / core}
+    found = {"samples": n, "lost": times * int(lost.sum()), "file_mib": path.stat().st_size / 2**20,
+             "core_seconds": core, "seconds": r["seconds"], "peak_mib": r["peak_mib"], "ratio": r["seconds"] / core}
+    metrics = json.loads((d / "out-longer" / "metrics.json").read_text())
+    assert metrics["samples"] == n and metrics["gaps"]["lost_samples"] == found["lost"], metrics["gaps"]
     path.unlink()
     (d / "out-longer" / "predictions.csv").unlink()
     (d / "out-longer" / "samples.csv").unlink()
@@ -278,7 +273,7 @@ def main() -> None:
     ap.add_argument("--long-formats", default="log,blf,asc,mf4,csv",
                     help="formats of the long recording (log, blf, asc, mf4, csv)")
     ap.add_argument("--longer", type=int, default=4,
-                    help="also a candump log this many times --long (0: not), for the peak memory's growth")
+                    help="also the long candump log this many times over (0: not), for the peak memory's growth")
     ap.add_argument("--seed", type=int, default=5)
     ap.add_argument("--out", type=Path, default=None, help="keep the files here (default: a temporary folder)")
     ap.add_argument("--huge", type=int, default=0, help="also identify a CSV of this many samples (e.g. 12000000)")
@@ -333,12 +328,14 @@ def main() -> None:
                       f"({r['seconds'] / core:5.1f} x the core), peak {r['peak_mib']:6.0f} MiB")
                 long[suffix] = {"file_mib": path.stat().st_size / 2**20, "seconds": r["seconds"],
                                 "peak_mib": r["peak_mib"], "ratio": r["seconds"] / core}
-                path.unlink()
+                if not (suffix == "log" and args.longer):
+                    path.unlink()
                 for name in ("predictions.csv", "samples.csv"):
                     (d / f"out-{path.stem}" / name).unlink(missing_ok=True)
             del big
-            if args.longer:
-                longer = _longer(args.longer * N, args.loss, args.seed, d)
+            if args.longer and "log" in long:
+                longer = _longer(d / "long-log.log", args.longer, Xb, Ub, lost_mask, d)
+                (d / "long-log.log").unlink()
                 growth = longer["peak_mib"] / long["log"]["peak_mib"] if "log" in long else None  # type: ignore[index]
                 long["longer"] = {**longer, "times": args.longer, "peak_vs_log": growth}
                 print(f"   log x{args.longer}: {longer['samples']:,} samples, {longer['file_mib']:.0f} MiB: identify "
