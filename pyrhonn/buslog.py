@@ -2,7 +2,10 @@
 
 Read by ``pyrhonn identify --can-log RUN --dbc FILE``; the result is the same
 arrays a CSV file gives (:class:`pyrhonn.datafile.Data`): states with a
-validity mask, inputs, times.
+validity mask, inputs, times. :func:`read_bus_log` holds the log and its
+samples whole; :mod:`pyrhonn.buslogstream` gives the same samples a chunk of
+frames at a time, with the same helpers (:func:`_plan`, :func:`_decode`,
+:func:`_gather`, the clock's :func:`_tick_on` and :func:`_count_on`).
 
 The binding (:class:`BusMap`, the ``[bus]`` table of a config file)
 ----------------------------------------------------------------------
