@@ -5,16 +5,21 @@
    logs and as the CSV of the same samples with a ``lost`` column. Each is identified by
    ``pyrhonn identify`` in its own process; the bench checks that the predictions are the same from
    every file and that every lost frame is counted, and reports each run's wall time and peak memory.
-2. A long recording (``--long``, default 10^6 samples) as a candump log and as CSV: ``identify``'s
-   end-to-end time and peak memory against the C core's own time on the same samples
-   (``Identifier.run`` over the segments), as a same-run ratio.
+2. A long recording (``--long``, default 10^6 samples) as a candump, BLF, ASC and MDF4 bus log and as
+   CSV (``--long-formats``): ``identify``'s end-to-end time and peak memory against the C core's own
+   time on the same samples (``Identifier.run`` over the segments), as a same-run ratio. A bus log is
+   read a chunk of frames at a time (:mod:`pyrhonn.buslogstream`), so its peak memory does not grow
+   with its length: ``--longer F`` (default 4) also identifies the candump log F times over (its copies
+   one after the other in time, written a block of lines at a time) and reports its time, ratio and
+   peak beside the first.
 3. With ``--huge N`` (12,000,000: an hour at 0.3 ms), a CSV of N samples (``--loss`` lost, written
    straight from the arrays, about 1.9 GB in ``--huge-dir``, deleted afterwards) through ``identify``
    (plots included), then the same samples without the lost ones through ``select --search fixed``
    (the default candidate space; a record longer than ``--max-fit-rows`` fits on windows of it and
    is validated on every row): the time and peak memory of each.
 
-    python bench/bench_recordings.py [--frames 10001] [--loss 0.005] [--long 1000000] [--long-formats log,csv]
+    python bench/bench_recordings.py [--frames 10001] [--loss 0.005] [--long 1000000]
+        [--long-formats log,blf,asc,mf4,csv] [--longer 4]
         [--huge 12000000 --huge-dir /tmp] [--results]
 
 ``--results`` writes the figures to bench/results/recordings.json (bench/results_file.py).
@@ -88,11 +93,15 @@ def _frames(X: np.ndarray, U: np.ndarray, lost: set[int]) -> list[can.Message]:
     return out
 
 
+def _candump_line(m: can.Message) -> str:
+    return f"({m.timestamp:.6f}) vcan0 {m.arbitration_id:03X}##1{bytes(m.data).hex().upper()}\n"
+
+
 def _write(frames: list[can.Message], path: Path) -> None:
     if path.suffix == ".log":
         with path.open("w") as fh:
             for m in frames:
-                fh.write(f"({m.timestamp:.6f}) vcan0 {m.arbitration_id:03X}##1{bytes(m.data).hex().upper()}\n")
+                fh.write(_candump_line(m))
         return
     with can.Logger(str(path)) as logger:
         for m in frames:
@@ -136,6 +145,36 @@ def _csv_direct(X: np.ndarray, U: np.ndarray, lost: np.ndarray, path: Path, rows
                     .split(", ") for j in range(8)]
             gone = lost[a:b].tolist()
             fh.write("".join(",,,,,,,,1\n" if g else ",".join(r) + ",0\n" for r, g in zip(zip(*cols), gone)))
+
+
+def _repeated(log: Path, times: int, shift: float, path: Path) -> None:
+    """The candump ``log`` ``times`` over, each copy ``shift`` s after the one before: a log longer than the
+    frames this bench can hold, written a block of lines at a time."""
+    with path.open("w") as out:
+        for r in range(times):
+            with log.open() as src:
+                for block in iter(lambda: src.readlines(1 << 22), []):
+                    out.write("".join(f"({float(line[1:line.index(')')]) + r * shift:.6f}{line[line.index(')'):]}"
+                                      for line in block))
+
+
+def _longer(log: Path, times: int, X: np.ndarray, U: np.ndarray, lost: np.ndarray, d: Path) -> dict[str, float]:
+    """``identify`` on the candump ``log`` of the samples ``X``, ``U`` (``lost`` ones left out) repeated
+    ``times`` over; the core's own time on the same samples."""
+    path = d / "longer.log"
+    _repeated(log, times, X.shape[0] * PERIOD, path)
+    n = times * X.shape[0]
+    core = _core_seconds(np.tile(X, (times, 1)), np.tile(U, (times, 1)), np.tile(lost, times))
+    r = _identify(["identify", "--can-log", str(path), "--dbc", str(d / "rhonn_id.dbc"), "--config",
+                   str(d / "lim.toml"), "--out", str(d / "out-longer"), "--no-plots"], d)
+    found = {"samples": n, "lost": times * int(lost.sum()), "file_mib": path.stat().st_size / 2**20,
+             "core_seconds": core, "seconds": r["seconds"], "peak_mib": r["peak_mib"], "ratio": r["seconds"] / core}
+    metrics = json.loads((d / "out-longer" / "metrics.json").read_text())
+    assert metrics["samples"] == n and metrics["gaps"]["lost_samples"] == found["lost"], metrics["gaps"]
+    path.unlink()
+    (d / "out-longer" / "predictions.csv").unlink()
+    (d / "out-longer" / "samples.csv").unlink()
+    return found
 
 
 def _huge(n: int, loss: float, folder: Path, d: Path, seed: int) -> dict[str, float]:
@@ -231,7 +270,10 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=10_001)
     ap.add_argument("--loss", type=float, default=0.005)
     ap.add_argument("--long", type=int, default=1_000_000)
-    ap.add_argument("--long-formats", default="log,csv", help="formats of the long recording (log, blf, asc, mf4, csv)")
+    ap.add_argument("--long-formats", default="log,blf,asc,mf4,csv",
+                    help="formats of the long recording (log, blf, asc, mf4, csv)")
+    ap.add_argument("--longer", type=int, default=4,
+                    help="also the long candump log this many times over (0: not), for the peak memory's growth")
     ap.add_argument("--seed", type=int, default=5)
     ap.add_argument("--out", type=Path, default=None, help="keep the files here (default: a temporary folder)")
     ap.add_argument("--huge", type=int, default=0, help="also identify a CSV of this many samples (e.g. 12000000)")
@@ -286,7 +328,19 @@ def main() -> None:
                       f"({r['seconds'] / core:5.1f} x the core), peak {r['peak_mib']:6.0f} MiB")
                 long[suffix] = {"file_mib": path.stat().st_size / 2**20, "seconds": r["seconds"],
                                 "peak_mib": r["peak_mib"], "ratio": r["seconds"] / core}
-                path.unlink()
+                if not (suffix == "log" and args.longer):
+                    path.unlink()
+                for name in ("predictions.csv", "samples.csv"):
+                    (d / f"out-{path.stem}" / name).unlink(missing_ok=True)
+            del big
+            if args.longer and "log" in long:
+                longer = _longer(d / "long-log.log", args.longer, Xb, Ub, lost_mask, d)
+                (d / "long-log.log").unlink()
+                growth = longer["peak_mib"] / long["log"]["peak_mib"] if "log" in long else None  # type: ignore[index]
+                long["longer"] = {**longer, "times": args.longer, "peak_vs_log": growth}
+                print(f"   log x{args.longer}: {longer['samples']:,} samples, {longer['file_mib']:.0f} MiB: identify "
+                      f"{longer['seconds']:.1f} s ({longer['ratio']:.1f} x the core), peak {longer['peak_mib']:.0f} MiB"
+                      + (f" ({growth:.2f} x the 1x log's)" if growth else ""))
             figures["long"] = long
         if args.results:  # saved now, and again with part 3 if it runs
             results_file.save("recordings", figures)

@@ -2,7 +2,10 @@
 
 Read by ``pyrhonn identify --can-log RUN --dbc FILE``; the result is the same
 arrays a CSV file gives (:class:`pyrhonn.datafile.Data`): states with a
-validity mask, inputs, times.
+validity mask, inputs, times. :func:`read_bus_log` holds the log and its
+samples whole; :mod:`pyrhonn.buslogstream` gives the same samples a chunk of
+frames at a time, with the same helpers (:func:`_plan`, :func:`_decode`,
+:func:`_gather`, the clock's :func:`_tick_on` and :func:`_count_on`).
 
 The binding (:class:`BusMap`, the ``[bus]`` table of a config file)
 ----------------------------------------------------------------------
@@ -98,7 +101,7 @@ import numpy as np
 from .mdfsignals import mdf_damage, require_asammdf
 from .validation import near_names
 
-__all__ = ["Aligned", "BusMap", "LOG_SUFFIXES", "SignalRef", "SignalStats", "align", "load_dbc", "read_bus_log",
+__all__ = ["Aligned", "AlignedSummary", "BusMap", "LOG_SUFFIXES", "SignalRef", "SignalStats", "align", "load_dbc", "read_bus_log",
            "read_frames"]
 
 #: the log formats read, by file name suffix
@@ -416,6 +419,104 @@ def _text_completeness(p: Path, suffix: str) -> tuple[str | None, int]:
     return ("; ".join(missing) or None), end
 
 
+class _Log:
+    """A bus log checked up front (its format, size, and what a truncated one misses) and read record by
+    record by :meth:`records`, as :func:`read_frames` and the streamed reader
+    (:mod:`pyrhonn.buslogstream`) both read it: the same checks, the same messages."""
+
+    def __init__(self, path: str | Path, option: str, partial: bool) -> None:
+        p = Path(path)
+        suffix = p.suffix.lower()
+        if suffix not in LOG_SUFFIXES:
+            raise ValueError(f"{option} {path}: unsupported log format {p.suffix or '(no suffix)'!r}; expected one of "
+                             f"{', '.join(LOG_SUFFIXES)} (Vector BLF and ASC, as python-can's can.Logger writes them, "
+                             "a candump -l log, or an MDF4 bus log as python-can's can.Logger writes it)")
+        if not p.is_file():
+            raise ValueError(f"{option} {path}: no such file{near_names(p)}")
+        size = p.stat().st_size
+        if size == 0:
+            raise ValueError(f"{option} {path}: empty file (not a {suffix[1:].upper()} log)")
+        if size > MAX_LOG_BYTES:
+            raise ValueError(f"{option} {path}: {size:,} bytes, more than the {MAX_LOG_BYTES:,} read at once; cut the "
+                             "recording into parts")
+        self.path, self.p, self.suffix, self.option, self.partial = path, p, suffix, option, partial
+        self.kind = {".blf": "a BLF", ".asc": "an ASC", ".log": "a candump", ".mf4": "an MDF4 bus"}[suffix]
+        self.incomplete: str | None = None
+        self.count = 0  # records read
+        self.skipped = 0  # error and remote frames
+        self.source: Any = str(p)
+        if suffix == ".mf4":
+            require_asammdf(f"{option} {path}")
+            with open(p, "rb") as fh:
+                ident = fh.read(64)
+            if ident[:8] == b"UnFinMF ":
+                self.incomplete = ("its identification block says 'UnFinMF' (not finalised: the logger did not "
+                                   "finish the file)")
+            elif ident[:8] != b"MDF     ":
+                raise ValueError(f"{option} {path}: not an MDF file (it does not start with 'MDF')")
+            damage = mdf_damage(p)
+            if damage:
+                raise ValueError(f"{option} {path}: truncated or damaged MDF4: {damage}; an MDF4 is read whole or not "
+                                 "at all (--partial-log reads the complete part of a BLF, ASC or candump log)")
+        elif suffix != ".blf":
+            with open(p, "rb") as fh:
+                head = fh.read(4096)
+            if b"\0" in head:
+                raise ValueError(f"{option} {path}: binary data, not {self.kind} log (text); a BLF file must be named "
+                                 ".blf")
+            self.incomplete, end = _text_completeness(p, suffix)
+            self.source = _WholeLines(p, end)
+
+    def records(self) -> Iterator[tuple[float, int, bool, bytes]]:
+        """Every data frame in file order as (timestamp, arbitration id, extended, payload); a reader's failure
+        raises the ValueError naming the frame (or candump line), unless the log is known incomplete and read
+        ``partial``: then the frames before it are all."""
+        import can
+
+        p, option, path = self.p, self.option, self.path
+        try:
+            readers = {".blf": can.BLFReader, ".asc": can.ASCReader, ".log": can.CanutilsLogReader,
+                       ".mf4": can.MF4Reader}
+            with readers[self.suffix](self.source) as reader:
+                if self.suffix == ".blf":
+                    self.incomplete = _blf_completeness(p, int(getattr(reader, "file_size", 0) or 0),
+                                                        int(getattr(reader, "object_count", 0) or 0),
+                                                        f"{option} {path}")
+                for msg in reader:
+                    self.count += 1
+                    if msg.is_error_frame or msg.is_remote_frame:
+                        self.skipped += 1
+                        continue
+                    yield float(msg.timestamp), int(msg.arbitration_id), bool(msg.is_extended_id), bytes(msg.data)
+        except Exception as exc:  # python-can's readers raise struct.error, ValueError, BLFParseError, zlib.error ...
+            if isinstance(exc, ValueError) and str(exc).startswith(f"{option} {path}: "):
+                raise  # a size this module refused, already named
+            if not (self.partial and self.incomplete):
+                where = f"line {_candump_line(p, self.count)}" if self.suffix == ".log" else f"after frame {self.count}"
+                text = " ".join(str(exc).split()) or type(exc).__name__
+                why = f" ({self.incomplete})" if self.incomplete else ""
+                raise ValueError(f"{option} {path}: {where}: cannot read it as {self.kind} log ({type(exc).__name__}: "
+                                 f"{text[:200]}){why}") from None
+
+    def check_read(self, frames: int, latest: float) -> None:
+        """After every record was read (``frames`` data frames, the latest at log time ``latest``): a truncated
+        log refused unless ``partial``, a log without data frames refused."""
+        if self.incomplete and not self.partial:
+            upto = f", up to log time {latest:.6f}" if frames else ""
+            raise ValueError(f"{self.option} {self.path}: truncated: {self.incomplete}; {self.count:,} frames are "
+                             f"complete{upto}{_PARTIAL_HINT}")
+        if not frames:
+            raise ValueError(f"{self.option} {self.path}: no data frames in it ({self.count} records read, "
+                             f"{self.skipped} error or remote frames); is it {self.kind} log?"
+                             + (" (an MDF4 of named signal channels is not a bus log)" if self.suffix == ".mf4"
+                                else ""))
+
+    def missing(self, latest: float) -> str | None:
+        """What a log read ``partial`` misses, with how much was read (None: complete)."""
+        return None if not self.incomplete else (f"{self.incomplete}; {self.count:,} frames read, up to log time "
+                                                 f"{latest:.6f}")
+
+
 def read_frames(path: str | Path, option: str = "--can-log", partial: bool = False) -> Frames:
     """Every data frame of a ``.blf``, ``.asc`` or candump ``.log`` file;
     a ValueError naming ``option``, the file and the frame (or candump line)
@@ -424,92 +525,25 @@ def read_frames(path: str | Path, option: str = "--can-log", partial: bool = Fal
     inside an object, a text log whose last line is cut) is refused, naming
     what is missing, unless ``partial``: then its complete frames are read and
     ``Frames.incomplete`` says what is missing."""
-    import can
-
-    p = Path(path)
-    suffix = p.suffix.lower()
-    if suffix not in LOG_SUFFIXES:
-        raise ValueError(f"{option} {path}: unsupported log format {p.suffix or '(no suffix)'!r}; expected one of "
-                         f"{', '.join(LOG_SUFFIXES)} (Vector BLF and ASC, as python-can's can.Logger writes them, "
-                         "a candump -l log, or an MDF4 bus log as python-can's can.Logger writes it)")
-    if not p.is_file():
-        raise ValueError(f"{option} {path}: no such file{near_names(p)}")
-    size = p.stat().st_size
-    if size == 0:
-        raise ValueError(f"{option} {path}: empty file (not a {suffix[1:].upper()} log)")
-    if size > MAX_LOG_BYTES:
-        raise ValueError(f"{option} {path}: {size:,} bytes, more than the {MAX_LOG_BYTES:,} read at once; cut the "
-                         "recording into parts")
-    kind = {".blf": "a BLF", ".asc": "an ASC", ".log": "a candump", ".mf4": "an MDF4 bus"}[suffix]
+    log = _Log(path, option, partial)
     t: list[float] = []
     ids: list[int] = []
     ext: list[bool] = []
     data: list[bytes] = []
-    skipped = 0
-    count = 0
-    incomplete: str | None = None
-    source: Any = str(p)
-    if suffix == ".mf4":
-        require_asammdf(f"{option} {path}")
-        with open(p, "rb") as fh:
-            ident = fh.read(64)
-        if ident[:8] == b"UnFinMF ":
-            incomplete = ("its identification block says 'UnFinMF' (not finalised: the logger did not finish the "
-                          "file)")
-        elif ident[:8] != b"MDF     ":
-            raise ValueError(f"{option} {path}: not an MDF file (it does not start with 'MDF')")
-        damage = mdf_damage(p)
-        if damage:
-            raise ValueError(f"{option} {path}: truncated or damaged MDF4: {damage}; an MDF4 is read whole or not at "
-                             "all (--partial-log reads the complete part of a BLF, ASC or candump log)")
-    elif suffix != ".blf":
-        with open(p, "rb") as fh:
-            head = fh.read(4096)
-        if b"\0" in head:
-            raise ValueError(f"{option} {path}: binary data, not {kind} log (text); a BLF file must be named .blf")
-        incomplete, end = _text_completeness(p, suffix)
-        source = _WholeLines(p, end)
-    try:
-        readers = {".blf": can.BLFReader, ".asc": can.ASCReader, ".log": can.CanutilsLogReader, ".mf4": can.MF4Reader}
-        with readers[suffix](source) as reader:
-            if suffix == ".blf":
-                incomplete = _blf_completeness(p, int(getattr(reader, "file_size", 0) or 0),
-                                               int(getattr(reader, "object_count", 0) or 0), f"{option} {path}")
-            for msg in reader:
-                count += 1
-                if msg.is_error_frame or msg.is_remote_frame:
-                    skipped += 1
-                    continue
-                t.append(float(msg.timestamp))
-                ids.append(int(msg.arbitration_id))
-                ext.append(bool(msg.is_extended_id))
-                data.append(bytes(msg.data))
-    except Exception as exc:  # python-can's readers raise struct.error, ValueError, BLFParseError, zlib.error ...
-        if isinstance(exc, ValueError) and str(exc).startswith(f"{option} {path}: "):
-            raise  # a size this module refused, already named
-        if not (partial and incomplete):
-            where = f"line {_candump_line(p, count)}" if suffix == ".log" else f"after frame {count}"
-            text = " ".join(str(exc).split()) or type(exc).__name__
-            why = f" ({incomplete})" if incomplete else ""
-            raise ValueError(f"{option} {path}: {where}: cannot read it as {kind} log ({type(exc).__name__}: "
-                             f"{text[:200]}){why}") from None
-    if incomplete and not partial:
-        upto = f", up to log time {max(t):.6f}" if t else ""
-        raise ValueError(f"{option} {path}: truncated: {incomplete}; {count:,} frames are complete{upto}"
-                         f"{_PARTIAL_HINT}")
-    if not t:
-        raise ValueError(f"{option} {path}: no data frames in it ({count} records read, {skipped} error or "
-                         f"remote frames); is it {kind} log?"
-                         + (" (an MDF4 of named signal channels is not a bus log)" if suffix == ".mf4" else ""))
+    for ti, ident, extended, payload in log.records():
+        t.append(ti)
+        ids.append(ident)
+        ext.append(extended)
+        data.append(payload)
+    log.check_read(len(t), max(t) if t else 0.0)
     ts = np.asarray(t, dtype=np.float64)
     if not np.isfinite(ts).all():
         k = int(np.argwhere(~np.isfinite(ts))[0, 0])
         raise ValueError(f"{option} {path}: frame {k + 1}: timestamp {ts[k]!r} is not finite")
     order = np.argsort(ts, kind="stable")  # logs of several channels may interleave slightly out of order
     return Frames(t=ts[order], ids=np.asarray(ids, dtype=np.int64)[order],
-                  extended=np.asarray(ext, dtype=bool)[order], data=tuple(data[i] for i in order), skipped=skipped,
-                  incomplete=None if not incomplete else f"{incomplete}; {count:,} frames read, up to log time "
-                                                         f"{float(ts.max()):.6f}")
+                  extended=np.asarray(ext, dtype=bool)[order], data=tuple(data[i] for i in order),
+                  skipped=log.skipped, incomplete=log.missing(float(ts.max())))
 
 
 # -- alignment ----------------------------------------------------------------------------------------
@@ -540,7 +574,26 @@ class SignalStats:
 
 
 @dataclass(frozen=True)
-class Aligned:
+class AlignedSummary:
+    """How a bus log's ``n_samples`` samples were made (see :class:`Aligned`, which adds the samples):
+    what a streamed read (:mod:`pyrhonn.buslogstream`) knows once the log is read to its end."""
+
+    start: float
+    clock: str
+    sample_period: float
+    period_source: str
+    window_start: float
+    clock_frames: int
+    clock_missing: int
+    cut_start: int
+    cut_end: int
+    stats: Mapping[str, SignalStats]
+    n_samples: int
+    incomplete: str | None
+
+
+@dataclass(frozen=True)
+class Aligned(AlignedSummary):
     """A bus log on the sample clock: K samples.
 
     ``t`` (K,) s since the log's first clock frame, ``start`` the log
@@ -556,68 +609,80 @@ class Aligned:
     """
 
     t: np.ndarray
-    start: float
     X: np.ndarray
     valid: np.ndarray
     U: np.ndarray
-    clock: str
-    sample_period: float
-    period_source: str
-    window_start: float
-    clock_frames: int
-    clock_missing: int
-    cut_start: int
-    cut_end: int
-    stats: Mapping[str, SignalStats]
     lost: np.ndarray
-    incomplete: str | None = None
-
-    @property
-    def n_samples(self) -> int:
-        return int(self.t.shape[0])
 
 
-def _ticks(tc: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, int]:
-    """Samples from the clock frames' times ``tc``: (tau, the sample of each frame, samples inserted)."""
-    tau: list[float] = [float(tc[0])]
+def _tick_on(tc: np.ndarray, T: float, last: float) -> tuple[list[float], np.ndarray, int]:
+    """Samples from clock frames at times ``tc`` after a sample at ``last``: (the new samples' instants, the
+    sample of each frame counted from ``last``'s, samples inserted). A frame round(D / T) = n > 1 periods
+    after the latest sample means n - 1 lost frames, evenly spaced; n = 0 is a repeat of the same sample."""
+    tau: list[float] = []
     sample = np.zeros(tc.size, dtype=np.int64)
     inserted = 0
-    for i, c in enumerate(tc[1:], start=1):
-        base = tau[-1]
-        gap = float(c) - base
+    base = last
+    for i, c in enumerate(tc.tolist()):
+        gap = c - base
         n = int(round(gap / T))
         if n > 0:  # n == 0: a repeat within T/2, the same sample
             tau.extend(base + j * gap / n for j in range(1, n))
             inserted += n - 1
-            tau.append(float(c))
-        sample[i] = len(tau) - 1
-    return np.asarray(tau), sample, inserted
+            tau.append(c)
+            base = c
+        sample[i] = len(tau)
+    return tau, sample, inserted
+
+
+def _ticks(tc: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """Samples from the clock frames' times ``tc``: (tau, the sample of each frame, samples inserted)."""
+    tau, sample, inserted = _tick_on(tc[1:], T, float(tc[0]))
+    return np.asarray([float(tc[0]), *tau]), np.r_[np.int64(0), sample], inserted
+
+
+def _count_on(tc: np.ndarray, counts: np.ndarray, modulus: int, last: tuple[int, int, float]
+              ) -> tuple[np.ndarray, np.ndarray, int, tuple[int, int, float]]:
+    """Samples from clock frames' counter values after ``last`` = (the latest frame's counter, its sample, the
+    instant of that sample's first frame): (the new samples' instants, the sample of each frame, samples
+    inserted, the new ``last``). A repeated counter is the same sample; the instants of samples without a
+    frame are interpolated between their neighbours'."""
+    step = np.diff(np.r_[np.int64(last[0]), counts]) % modulus
+    sample = (last[1] + np.cumsum(step)).astype(np.int64)
+    first = step != 0
+    top = int(sample[-1]) if sample.size else last[1]
+    xs, ys = np.r_[np.int64(last[1]), sample[first]], np.r_[last[2], tc[first]]
+    tau = np.interp(np.arange(last[1] + 1, top + 1), xs, ys)
+    new_last = (int(counts[-1]), top, float(ys[-1])) if counts.size else last
+    return tau, sample, top - last[1] - int(first.sum()), new_last
 
 
 def _counted(tc: np.ndarray, counts: np.ndarray, modulus: int) -> tuple[np.ndarray, np.ndarray, int]:
     """Samples from the clock frames' counter values: (tau, the sample of each frame, samples inserted).
     A frame's sample is its counter, unwrapped, less the first's; a repeated counter is the same sample;
     the instants of samples without a frame are interpolated between their neighbours'."""
-    step = np.diff(counts) % modulus
-    sample = np.concatenate([[0], np.cumsum(step)]).astype(np.int64)
-    K = int(sample[-1]) + 1
-    first = np.ones(tc.size, dtype=bool)
-    first[1:] = step != 0
-    tau = np.interp(np.arange(K), sample[first], tc[first])
-    return tau, sample, K - int(first.sum())
+    tau, sample, inserted, _ = _count_on(tc[1:], counts[1:], modulus, (int(counts[0]), 0, float(tc[0])))
+    return np.r_[float(tc[0]), tau], np.r_[np.int64(0), sample], inserted
+
+
+def _given_period(clock_msg: Any, bus: BusMap, period_option: str, dbc: str) -> tuple[float, str] | None:
+    """The sample period and where it was given (None: neither in ``bus`` nor as the clock's DBC cycle time)."""
+    if bus.sample_period is not None:
+        return float(bus.sample_period), period_option
+    if getattr(clock_msg, "cycle_time", None):
+        return float(clock_msg.cycle_time) / 1e3, f"the cycle time of {clock_msg.name} in {dbc}"
+    return None
 
 
 def _period(db: Any, clock_msg: Any, bus: BusMap, tc: np.ndarray, period_option: str,
             dbc: str) -> tuple[float, str]:
     """The sample period and where it was given; ValueError if the clock frames disagree with it."""
-    if bus.sample_period is not None:
-        T, where = float(bus.sample_period), period_option
-    elif getattr(clock_msg, "cycle_time", None):
-        T, where = float(clock_msg.cycle_time) / 1e3, f"the cycle time of {clock_msg.name} in {dbc}"
-    else:
+    given = _given_period(clock_msg, bus, period_option, dbc)
+    if given is None:
         hint = f"; its frames come every {float(np.median(np.diff(tc))):.6g} s (median)" if tc.size > 1 else ""
         raise ValueError(f"{period_option}: not given, and the clock message {clock_msg.name} has no cycle time "
                          f"(GenMsgCycleTime) in {dbc}{hint}: give the sample period in seconds")
+    T, where = given
     if tc.size > 1:
         med = float(np.median(np.diff(tc)))
         if abs(med - T) > PERIOD_TOLERANCE * T:
@@ -627,9 +692,8 @@ def _period(db: Any, clock_msg: Any, bus: BusMap, tc: np.ndarray, period_option:
     return T, where
 
 
-def _counter_samples(db: Any, ref: SignalRef, clock_msg: Any, frames: Frames, idx: np.ndarray, dbc: str,
-                     source: str) -> tuple[np.ndarray, np.ndarray, int]:
-    """:func:`_counted` on the clock frames' counter signal ``ref``."""
+def _counter_signal(db: Any, ref: SignalRef, clock_msg: Any, dbc: str) -> tuple[Any, Any]:
+    """The clock message's counter signal ``ref`` (message, signal); ValueError if it is not one."""
     msg, sig = _signal(db, ref, dbc)
     if msg.name != clock_msg.name:
         raise ValueError(f"{ref.origin}: {str(ref)!r} is in message {msg.name}, not in the clock message "
@@ -637,21 +701,61 @@ def _counter_samples(db: Any, ref: SignalRef, clock_msg: Any, frames: Frames, id
     if sig.is_signed or sig.is_float or sig.scale != 1 or sig.offset != 0 or _mux_values(msg, sig) is not None:
         raise ValueError(f"{ref.origin}: {str(ref)!r} is not a counter: expected an unsigned integer signal in every "
                          "frame, without scale or offset")
-    counts = np.empty(idx.size, dtype=np.int64)
-    for n, i in enumerate(idx):
+    return msg, sig
+
+
+def _counter_values(ref: SignalRef, msg: Any, sig: Any, t: np.ndarray, data: Sequence[bytes],
+                    source: str) -> np.ndarray:
+    """The counter of each clock frame (times ``t``, payloads ``data``); ValueError at one that does not decode."""
+    counts = np.empty(len(data), dtype=np.int64)
+    for n, payload in enumerate(data):
         try:
-            counts[n] = int(msg.decode(frames.data[i], decode_choices=False, scaling=False)[sig.name])
+            counts[n] = int(msg.decode(payload, decode_choices=False, scaling=False)[sig.name])
         except Exception:  # noqa: BLE001 - any frame that does not decode
-            raise ValueError(f"{ref.origin}: {source}: the clock frame at log time {frames.t[i]:.6f} does not decode, "
+            raise ValueError(f"{ref.origin}: {source}: the clock frame at log time {t[n]:.6f} does not decode, "
                              "so its counter is unknown") from None
+    return counts
+
+
+def _counter_samples(db: Any, ref: SignalRef, clock_msg: Any, frames: Frames, idx: np.ndarray, dbc: str,
+                     source: str) -> tuple[np.ndarray, np.ndarray, int]:
+    """:func:`_counted` on the clock frames' counter signal ``ref``."""
+    msg, sig = _counter_signal(db, ref, clock_msg, dbc)
+    counts = _counter_values(ref, msg, sig, frames.t[idx], [frames.data[i] for i in idx], source)
     return _counted(frames.t[idx], counts, 1 << int(sig.length))
 
 
-def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], input_names: Sequence[str], *,
-          source: str = "the log", dbc: str = "the DBC", period_option: str = "bus.sample_period",
-          clock_option: str = "bus.clock", start: float | None = None, stop: float | None = None) -> Aligned:
-    """Decode ``frames`` with ``db`` and align the signals ``bus`` maps on its
-    sample clock (see the module docs). Every state and input must be mapped."""
+@dataclass(frozen=True)
+class _Plan:
+    """What :func:`align` decodes: the state and input ``names`` (states first), each one's (message,
+    signal) ``resolved``, the validity ``flags`` (signals), the clock message, the messages read
+    (``used_msgs``, by name) and the signals decoded from each (``used_sigs``)."""
+
+    names: list[str]
+    n: int
+    resolved: dict[str, tuple[Any, Any]]
+    flags: dict[str, Any]
+    clock_msg: Any
+    used_msgs: dict[str, Any]
+    used_sigs: dict[str, list[str]]
+
+    def key(self, msg: Any) -> int:
+        """A message's frame key: id * 2 + extended, as :func:`frame_keys` gives the frames'."""
+        return int(msg.frame_id) * 2 + int(bool(msg.is_extended_frame))
+
+    def value_msgs(self) -> dict[str, Any]:
+        """The messages whose signals are decoded, by name."""
+        return {msg.name: msg for msg, _ in self.resolved.values()}
+
+
+def frame_keys(ids: np.ndarray, extended: np.ndarray) -> np.ndarray:
+    """Each frame's message key: arbitration id * 2 + extended."""
+    return ids * 2 + extended.astype(np.int64)
+
+
+def _plan(db: Any, bus: BusMap, state_names: Sequence[str], input_names: Sequence[str], dbc: str,
+          clock_option: str) -> _Plan:
+    """The signals and messages ``bus`` maps, checked against the DBC ``db`` (ValueError naming the key)."""
     names = list(state_names) + list(input_names)
     unmapped = [name for name in names if name not in bus.signals]
     if unmapped:
@@ -687,14 +791,119 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
     clock_name = bus.clock if bus.clock is not None else resolved[state_names[0]][0].name
     clock_msg = _message(db, clock_name, clock_option if bus.clock is not None else
                          f"{clock_option} (default: the message of {state_names[0]})", dbc)
-
-    # which frames are which message
-    key = frames.ids * 2 + frames.extended.astype(np.int64)
     used_msgs = {m.name: m for m, _ in resolved.values()}
     used_msgs[clock_msg.name] = clock_msg
-    where_msg: dict[str, np.ndarray] = {}
-    for m in used_msgs.values():
-        where_msg[m.name] = np.flatnonzero(key == int(m.frame_id) * 2 + int(bool(m.is_extended_frame)))
+    used_sigs: dict[str, list[str]] = {}
+    for name in names:
+        msg, sig = resolved[name]
+        used_sigs.setdefault(msg.name, []).append(sig.name)
+        if name in flags:
+            used_sigs[msg.name].append(flags[name].name)
+    return _Plan(names=names, n=len(state_names), resolved=resolved, flags=flags, clock_msg=clock_msg,
+                 used_msgs=used_msgs, used_sigs=used_sigs)
+
+
+def _decode(msg: Any, payloads: Sequence[bytes], signals: Sequence[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Frames of ``msg`` decoded into arrays of ``signals`` (NaN where a frame does not carry one, inf for a
+    decoded NaN) and whether each decoded."""
+    ok = np.ones(len(payloads), dtype=bool)
+    arrays = {name: np.full(len(payloads), np.nan) for name in dict.fromkeys(signals)}
+    for r, payload in enumerate(payloads):
+        try:
+            v = msg.decode(payload, decode_choices=False, scaling=True)
+        except Exception:  # cantools: DecodeError, a wrong length, an unknown multiplexer value, ...
+            ok[r] = False
+            continue
+        for sig_name, values in arrays.items():
+            if sig_name in v:  # a multiplexed signal is in the frames its multiplexer value selects
+                got_value = float(v[sig_name])
+                values[r] = got_value if not math.isnan(got_value) else np.inf  # NaN: "not in this frame"
+    return ok, arrays
+
+
+#: per sample and signal, what :func:`_gather` counts
+_COUNTS = ("frames", "undecodable", "flagged", "nonfinite")
+
+
+def _gather(plan: _Plan, decoded: Mapping[str, tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]], K: int
+            ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """Samples 0..K-1 from each message's decoded frames ``decoded[name] = (window, ok, arrays)`` (the
+    sample each frame counts for, in time order): (value, got, counts) with the latest frame of a window
+    taken (see the module docs)."""
+    cols = len(plan.names)
+    value = np.full((K, cols), np.nan)
+    got = np.zeros((K, cols), dtype=bool)
+    counts = {what: np.zeros((K, cols), dtype=np.int32) for what in _COUNTS}  # per sample window: small counts
+    for col, name in enumerate(plan.names):
+        msg, sig = plan.resolved[name]
+        window, ok, arrays = decoded[msg.name]
+        np.add.at(counts["undecodable"][:, col], window[~ok], 1)
+        carries = np.flatnonzero(ok & ~np.isnan(arrays[sig.name]))
+        w = window[carries]
+        np.add.at(counts["frames"][:, col], w, 1)
+        # frames are in time order: the latest of each window wins
+        windows, from_end = np.unique(w[::-1], return_index=True)
+        latest = carries[w.size - 1 - from_end]
+        latest_values = arrays[sig.name][latest]
+        finite = np.isfinite(latest_values)
+        counts["nonfinite"][windows[~finite], col] += 1
+        good = finite.copy()
+        flag = plan.flags.get(name)
+        if flag is not None:
+            down = finite & (arrays[flag.name][latest] == 0)
+            counts["flagged"][windows[down], col] += 1
+            good &= ~down
+        got[windows[good], col] = True
+        value[windows[good], col] = latest_values[good]
+    return value, got, counts
+
+
+def _stat_sums(counts: Mapping[str, np.ndarray], got: np.ndarray) -> np.ndarray:
+    """(7, columns) int64: per signal over these samples, the sums :class:`SignalStats` gives (frames, used,
+    missing, superseded, undecodable, flagged, nonfinite)."""
+    frames = counts["frames"]
+    return np.stack([frames.sum(axis=0), got.sum(axis=0), (frames == 0).sum(axis=0),
+                     np.maximum(frames - 1, 0).sum(axis=0), counts["undecodable"].sum(axis=0),
+                     counts["flagged"].sum(axis=0), counts["nonfinite"].sum(axis=0)]).astype(np.int64)
+
+
+def _stats(plan: _Plan, bus: BusMap, sums: np.ndarray) -> dict[str, SignalStats]:
+    """:class:`SignalStats` per name from :func:`_stat_sums`."""
+    return {name: SignalStats(str(bus.signals[name]), *(int(v) for v in sums[:, col]))
+            for col, name in enumerate(plan.names)}
+
+
+def _stretch_error(start: float | None, stop: float | None, last: float) -> ValueError:
+    return ValueError(f"--start/--stop: no sample between {start} and {stop} s (the clock's samples run from 0 to "
+                      f"{last:.6g} s)")
+
+
+def _kept(t_all: np.ndarray, start: float | None, stop: float | None) -> np.ndarray:
+    """The samples inside --start/--stop (``t_all`` s since the first clock frame)."""
+    keep = np.ones(t_all.size, dtype=bool)
+    if start is not None:
+        keep &= t_all >= start
+    if stop is not None:
+        keep &= t_all <= stop
+    return keep
+
+
+def _one_sample_error(source: str) -> ValueError:
+    return ValueError(f"{source}: only one sample with every input; one-step-ahead identification needs at least "
+                      "two")
+
+
+def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], input_names: Sequence[str], *,
+          source: str = "the log", dbc: str = "the DBC", period_option: str = "bus.sample_period",
+          clock_option: str = "bus.clock", start: float | None = None, stop: float | None = None) -> Aligned:
+    """Decode ``frames`` with ``db`` and align the signals ``bus`` maps on its
+    sample clock (see the module docs). Every state and input must be mapped."""
+    plan = _plan(db, bus, state_names, input_names, dbc, clock_option)
+    names, resolved, clock_msg, used_msgs = plan.names, plan.resolved, plan.clock_msg, plan.used_msgs
+
+    # which frames are which message
+    key = frame_keys(frames.ids, frames.extended)
+    where_msg = {m.name: np.flatnonzero(key == plan.key(m)) for m in used_msgs.values()}
     if not any(idx.size for idx in where_msg.values()):
         present = sorted(set(int(i) for i in frames.ids))
         listing = ", ".join(f"0x{i:X}" for i in present[:12]) + (" ..." if len(present) > 12 else "")
@@ -721,14 +930,8 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
     end = starts[-1] + T
 
     # each message's frames decoded once into arrays of the signals used (NaN where a frame does not carry one)
-    used_sigs: dict[str, list[str]] = {}
-    for name in names:
-        msg, sig = resolved[name]
-        used_sigs.setdefault(msg.name, []).append(sig.name)
-        if name in flags:
-            used_sigs[msg.name].append(flags[name].name)
     decoded: dict[str, tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]] = {}
-    for m in {msg.name: msg for msg, _ in resolved.values()}.values():
+    for m in plan.value_msgs().values():
         idx = where_msg[m.name]
         if m.name == clock_msg.name:  # the clock message's own signals: from the sample's own frame
             window = clock_sample
@@ -736,84 +939,41 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
             inside = (frames.t[idx] >= starts[0]) & (frames.t[idx] < end)
             idx = idx[inside]
             window = np.searchsorted(starts, frames.t[idx], side="right") - 1
-        ok = np.ones(idx.size, dtype=bool)
-        arrays = {name: np.full(idx.size, np.nan) for name in dict.fromkeys(used_sigs[m.name])}
-        for r, i in enumerate(idx.tolist()):
-            try:
-                v = m.decode(frames.data[i], decode_choices=False, scaling=True)
-            except Exception:  # cantools: DecodeError, a wrong length, an unknown multiplexer value, ...
-                ok[r] = False
-                continue
-            for sig_name, values in arrays.items():
-                if sig_name in v:  # a multiplexed signal is in the frames its multiplexer value selects
-                    got_value = float(v[sig_name])
-                    values[r] = got_value if not math.isnan(got_value) else np.inf  # NaN: "not in this frame"
+        ok, arrays = _decode(m, [frames.data[i] for i in idx.tolist()], plan.used_sigs[m.name])
         decoded[m.name] = (window, ok, arrays)
-    n, n_in = len(state_names), len(input_names)
-    value = np.full((K, n + n_in), np.nan)
-    got = np.zeros((K, n + n_in), dtype=bool)
-    counts = {what: np.zeros((K, n + n_in), dtype=np.int32)  # per sample window: small counts
-              for what in ("frames", "undecodable", "flagged", "nonfinite")}
-    for col, name in enumerate(names):
-        msg, sig = resolved[name]
-        window, ok, arrays = decoded[msg.name]
-        np.add.at(counts["undecodable"][:, col], window[~ok], 1)
-        carries = np.flatnonzero(ok & ~np.isnan(arrays[sig.name]))
-        w = window[carries]
-        np.add.at(counts["frames"][:, col], w, 1)
-        # frames are in time order: the latest of each window wins
-        windows, from_end = np.unique(w[::-1], return_index=True)
-        latest = carries[w.size - 1 - from_end]
-        latest_values = arrays[sig.name][latest]
-        finite = np.isfinite(latest_values)
-        counts["nonfinite"][windows[~finite], col] += 1
-        good = finite.copy()
-        flag = flags.get(name)
-        if flag is not None:
-            down = finite & (arrays[flag.name][latest] == 0)
-            counts["flagged"][windows[down], col] += 1
-            good &= ~down
-        got[windows[good], col] = True
-        value[windows[good], col] = latest_values[good]
+    n = plan.n
+    value, got, counts = _gather(plan, decoded, K)
 
     # the stretch: --start/--stop, then the ends without every input cut off; a gap inside is a lost sample
     t_all = tau - tau[0]
-    keep = np.ones(K, dtype=bool)
-    if start is not None:
-        keep &= t_all >= start
-    if stop is not None:
-        keep &= t_all <= stop
+    keep = _kept(t_all, start, stop)
     if not keep.any():
-        raise ValueError(f"--start/--stop: no sample between {start} and {stop} s (the clock's samples run from 0 to "
-                         f"{t_all[-1]:.6g} s)")
+        raise _stretch_error(start, stop, float(t_all[-1]))
     have = keep & got[:, n:].all(axis=1)
     if not have.any():
-        j = int(np.argmin(got[keep][:, n:].sum(axis=0)))
-        ref = bus.signals[input_names[j]]
-        raise ValueError(f"{ref.origin}: {ref}: no sample of {source} has every input (input {input_names[j]!r} "
-                         f"has a value at {int(got[keep][:, n + j].sum())} of {int(keep.sum())} samples)")
+        raise _no_inputs_error(bus, input_names, got[keep][:, n:], source)
     lo = int(np.argmax(have))
     hi = K - int(np.argmax(have[::-1]))
     if hi - lo < 2:
-        raise ValueError(f"{source}: only one sample with every input; one-step-ahead identification needs at least "
-                         "two")
+        raise _one_sample_error(source)
     sl = slice(lo, hi)
     lost = ~have[sl]
     value[sl][lost] = np.nan
     got[sl][lost] = False
-    stats = {name: SignalStats(signal=str(bus.signals[name]), frames=int(counts["frames"][sl, col].sum()),
-                               used=int(got[sl, col].sum()),
-                               missing=int((counts["frames"][sl, col] == 0).sum()),
-                               superseded=int(np.maximum(counts["frames"][sl, col] - 1, 0).sum()),
-                               undecodable=int(counts["undecodable"][sl, col].sum()),
-                               flagged=int(counts["flagged"][sl, col].sum()),
-                               nonfinite=int(counts["nonfinite"][sl, col].sum()))
-             for col, name in enumerate(names)}
+    stats = _stats(plan, bus, _stat_sums({k: v[sl] for k, v in counts.items()}, got[sl]))
     return Aligned(t=t_all[sl].copy(), start=float(tau[0]), X=value[sl, :n].copy(), valid=got[sl, :n].copy(),
                    U=value[sl, n:].copy(), clock=clock_msg.name, sample_period=T, period_source=period_source,
                    window_start=bus.window_start, clock_frames=int(tc.size), clock_missing=inserted,
                    cut_start=lo, cut_end=K - hi, stats=stats, lost=lost.copy(),
-                   incomplete=frames.incomplete)
+                   incomplete=frames.incomplete, n_samples=hi - lo)
+
+
+def _no_inputs_error(bus: BusMap, input_names: Sequence[str], got_inputs: np.ndarray, source: str) -> ValueError:
+    """No kept sample has every input (``got_inputs`` (kept samples, m))."""
+    j = int(np.argmin(got_inputs.sum(axis=0)))
+    ref = bus.signals[input_names[j]]
+    return ValueError(f"{ref.origin}: {ref}: no sample of {source} has every input (input {input_names[j]!r} "
+                      f"has a value at {int(got_inputs[:, j].sum())} of {got_inputs.shape[0]} samples)")
 
 
 def read_bus_log(log: str | Path, dbc: str | Path, bus: BusMap, state_names: Sequence[str],

@@ -76,7 +76,7 @@ from .csvcodec import CellError, Layout, format_rows, parse_rows
 from .validation import MissingFileError, near_names
 
 __all__ = ["BLOCK_BYTES", "Data", "DataReader", "LOST_COLUMN", "ROWS_AT_ONCE", "SEPARATORS", "TIME_COLUMN", "check_suffix", "concatenate",
-           "header_line", "read_data", "write_data"]
+           "data_columns", "data_rows", "header_line", "read_data", "write_data"]
 
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
 #: a column of such numbers, one a line, spaces around them (read in one pass)
@@ -706,27 +706,43 @@ def write_data(path: str | Path, data: Data, cf: ConfigFile, *, valid_suffix: st
     invalid state's cell empty; floats written exactly), whole or not at all
     (:mod:`pyrhonn.atomic`)."""
     check_suffix(valid_suffix)
+    gaps = data.lost is not None and bool(data.lost.any())
+    rows = data_rows(data, cf, lost_column=gaps)
+    with atomic.replacing(path, "wb") as fh:
+        fh.write(header_line(data_columns(data.t is not None, cf, valid_suffix, gaps)))
+        for text in rows:
+            fh.write(text)
+
+
+def data_columns(has_t: bool, cf: ConfigFile, valid_suffix: str, lost_column: bool) -> list[str]:
+    """The header of a data file :func:`write_data` writes."""
+    return ([TIME_COLUMN] if has_t else []) + list(cf.state_names) + list(cf.input_names) + \
+        [f"{name}{valid_suffix}" for name in cf.state_names] + ([LOST_COLUMN] if lost_column else [])
+
+
+def data_rows(data: Data, cf: ConfigFile, *, lost_column: bool) -> Iterator[bytes]:
+    """The rows of ``data`` as :func:`write_data` writes them (with the ``lost`` column or not), a block of
+    rows at a time: the rows of a record written in pieces are those of the whole."""
     n, m = len(cf.state_names), len(cf.input_names)
     if data.X.shape != (data.n_samples, n) or data.U.shape != (data.n_samples, m):
         raise ValueError(f"data: expected X ({data.n_samples}, {n}) and U ({data.n_samples}, {m}) for the config, "
                          f"got {data.X.shape} and {data.U.shape}")
-    gaps = data.lost is not None and bool(data.lost.any())
-    header = ([TIME_COLUMN] if data.t is not None else []) + list(cf.state_names) + list(cf.input_names) + \
-        [f"{name}{valid_suffix}" for name in cf.state_names] + ([LOST_COLUMN] if gaps else [])
+    return _row_blocks(data, n, m, lost_column)
+
+
+def _row_blocks(data: Data, n: int, m: int, lost_column: bool) -> Iterator[bytes]:
     T = data.n_samples
-    arrived = ~data.lost if gaps and data.lost is not None else np.ones(T, dtype=bool)
+    arrived = ~data.lost if lost_column and data.lost is not None else np.ones(T, dtype=bool)
     t = [] if data.t is None else [data.t[:, None]]
-    with atomic.replacing(path, "wb") as fh:
-        fh.write(header_line(header))
-        for a in range(0, T, ROWS_AT_ONCE):  # a block of rows at a time
-            rows = slice(a, min(a + ROWS_AT_ONCE, T))
-            flags = [data.valid[rows]] + ([~arrived[rows, None]] if gaps else [])
-            values = np.hstack([*(c[rows] for c in t), data.X[rows], data.U[rows], *flags], dtype=np.float64)
-            show = np.ones(values.shape, dtype=bool)
-            c = len(t)
-            show[:, c:c + n] = data.valid[rows]
-            show[:, c + n:c + n + m] = arrived[rows, None]
-            fh.write(format_rows(values, show, integer=[False] * (c + n + m) + [True] * (values.shape[1] - c - n - m)))
+    for a in range(0, T, ROWS_AT_ONCE):  # a block of rows at a time
+        rows = slice(a, min(a + ROWS_AT_ONCE, T))
+        flags = [data.valid[rows]] + ([~arrived[rows, None]] if lost_column else [])
+        values = np.hstack([*(c[rows] for c in t), data.X[rows], data.U[rows], *flags], dtype=np.float64)
+        show = np.ones(values.shape, dtype=bool)
+        c = len(t)
+        show[:, c:c + n] = data.valid[rows]
+        show[:, c + n:c + n + m] = arrived[rows, None]
+        yield format_rows(values, show, integer=[False] * (c + n + m) + [True] * (values.shape[1] - c - n - m))
 
 
 def header_line(names: Sequence[str]) -> bytes:

@@ -23,16 +23,17 @@ of holes, handled by the same rules as the firmware (``firmware_sim``):
 """
 from __future__ import annotations
 
+import heapq
 import re
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 
 from .identifier import Identifier, IdentifierError
 from .simulation import Simulation, simulate
 
-__all__ = ["Gap", "SegmentTracker", "Segments", "segments_of", "simulate_segments"]
+__all__ = ["Gap", "LISTED", "SegmentTracker", "Segments", "segments_of", "simulate_segments"]
 
 
 @dataclass(frozen=True)
@@ -44,19 +45,47 @@ class Gap:
     rejected: int
 
 
-class _Counts:
-    """The firmware's counters of a record's segments ``bounds`` and ``gaps``."""
+#: gaps (and segments) metrics.json lists: the first LISTED, and the LISTED largest of the rest
+LISTED = 50
 
-    bounds: Sequence[tuple[int, int]]
-    gaps: Sequence[Gap]
+
+class _Pick:
+    """The first ``limit`` entries added, and the ``limit`` largest of the rest (by ``size``; the earlier
+    among equals): at most 2 * ``limit`` entries held, however many are added."""
+
+    def __init__(self, limit: int = LISTED) -> None:
+        self.limit = limit
+        self.count = 0
+        self.first: list[dict[str, Any]] = []
+        self._heap: list[tuple[int, int, dict[str, Any]]] = []  # (size, -order, entry): the smallest, latest on top
+
+    def add(self, size: int, entry: dict[str, Any]) -> None:
+        order = self.count
+        self.count += 1
+        if len(self.first) < self.limit:
+            self.first.append(entry)
+            return
+        item = (size, -order, entry)
+        if len(self._heap) < self.limit:
+            heapq.heappush(self._heap, item)
+        elif item[:2] > self._heap[0][:2]:
+            heapq.heapreplace(self._heap, item)
+
+    def listed(self) -> list[dict[str, Any]]:
+        """The entries kept, in the order added."""
+        return self.first + [e for _, _, e in sorted(self._heap, key=lambda item: -item[1])]
+
+
+class _Counts:
+    """The firmware's counters of a record's segments and gaps."""
+
+    segment_count: int
+    gap_count: int
+    lost: int
 
     @property
     def restarts(self) -> int:
-        return max(len(self.bounds) - 1, 0)
-
-    @property
-    def lost(self) -> int:
-        return sum(g.lost for g in self.gaps)
+        return max(self.segment_count - 1, 0)
 
 
 @dataclass(frozen=True)
@@ -68,6 +97,22 @@ class Segments(_Counts):
     gaps: tuple[Gap, ...]
     stepped: np.ndarray
 
+    @property
+    def segment_count(self) -> int:  # type: ignore[override]
+        return len(self.bounds)
+
+    @property
+    def gap_count(self) -> int:  # type: ignore[override]
+        return len(self.gaps)
+
+    @property
+    def lost(self) -> int:  # type: ignore[override]
+        return sum(g.lost for g in self.gaps)
+
+    def first_sizes(self, k: int) -> list[int]:
+        """The samples of the first ``k`` segments."""
+        return [b - a for a, b in self.bounds[:k]]
+
     def starts(self) -> np.ndarray:
         """(T,) bool: the first sample of every segment (its prediction was made before the gap, or is x0)."""
         out = np.zeros(self.stepped.shape, dtype=bool)
@@ -77,49 +122,78 @@ class Segments(_Counts):
 
     def report(self, t: np.ndarray | None, lines: np.ndarray, valid: np.ndarray | None = None,
                names: tuple[str, ...] = ()) -> dict[str, Any]:
-        """The ``gaps`` entry of metrics.json: counts as the firmware's counters, and every segment (with
-        ``valid`` (T, n) and the state ``names``: each state's dropouts in it, predicted through)."""
+        """The ``gaps`` entry of metrics.json: counts as the firmware's counters, and the segments and gaps
+        listed (see :data:`LISTED`; with ``valid`` (T, n) and the state ``names``: each listed segment's
+        dropouts per state, predicted through)."""
         def when(k: int) -> dict[str, Any]:
             return {"sample": k, "line": int(lines[k]), **({"t": float(t[k])} if t is not None else {})}
 
-        return _report(self.bounds, self.gaps, when,
-                       None if valid is None else [{name: int((~valid[a:b, j]).sum()) for j, name in enumerate(names)}
-                                                   for a, b in self.bounds])
+        segments, gaps = _Pick(), _Pick()
+        for a, b in self.bounds:
+            drop = None if valid is None else {name: int((~valid[a:b, j]).sum()) for j, name in enumerate(names)}
+            segments.add(b - a, _segment(when(a), when(b - 1), b - a, drop))
+        for g in self.gaps:
+            gaps.add(g.lost, _gap(when(g.first), g.lost, when(g.rejected)))
+        return _report(self.lost, segments, gaps)
 
 
-def _report(bounds: Sequence[tuple[int, int]], gaps: Sequence[Gap], when: Callable[[int], dict[str, Any]],
-            dropouts: Sequence[dict[str, int]] | None) -> dict[str, Any]:
+def _segment(first: dict[str, Any], last: dict[str, Any], samples: int,
+             dropouts: dict[str, int] | None) -> dict[str, Any]:
+    return {"first": first, "last": last, "samples": samples, **({"dropouts": dropouts} if dropouts is not None else {})}
+
+
+def _gap(first: dict[str, Any], lost: int, rejected: dict[str, Any]) -> dict[str, Any]:
+    return {"first_lost": first, "lost": lost, "rejected": rejected}
+
+
+def _report(lost: int, segments: _Pick, gaps: _Pick) -> dict[str, Any]:
     return {
         "rule": "a lost sample (no input) ends a segment; the sample after the gap is not stepped (the "
                 "firmware rejects the frame that reveals a gap) and the next segment starts with a restart "
                 "(weights and covariances kept, nothing learnt from its first step); a state without a "
                 "measurement in a sample that arrived is a dropout: not valid, predicted through",
-        "lost_samples": sum(g.lost for g in gaps), "gaps": len(gaps), "rejected_after_gap": len(gaps),
-        "restarts": max(len(bounds) - 1, 0),
-        "segments": [{"first": when(a), "last": when(b - 1), "samples": b - a,
-                      **({"dropouts": dropouts[i]} if dropouts is not None else {})}
-                     for i, (a, b) in enumerate(bounds)],
-        "gap_list": [{"first_lost": when(g.first), "lost": g.lost, "rejected": when(g.rejected)} for g in gaps]}
+        "lost_samples": lost, "gaps": gaps.count, "rejected_after_gap": gaps.count,
+        "restarts": max(segments.count - 1, 0),
+        "segment_count": segments.count,
+        "listed": {"limit": LISTED, "complete": segments.count <= LISTED and gaps.count <= LISTED,
+                   "rule": f"segments and gap_list hold every segment and gap when there are at most {LISTED}; "
+                           f"past that, the first {LISTED} in order and the {LISTED} largest of the rest (segments "
+                           f"by samples, gaps by lost samples; the earlier among equals), in order"},
+        "segments": segments.listed(),
+        "gap_list": gaps.listed()}
 
 
 class SegmentTracker(_Counts):
     """:func:`segments_of` one chunk of a record at a time, for a record too long to hold: :meth:`feed`
     each chunk's lost flags (and its dropouts, lines and times, for the report) in order, and get the
-    samples of the chunk that are stepped and that start a segment; :meth:`finish` after the last."""
+    samples of the chunk that are stepped and that start a segment; :meth:`finish` after the last. Holds
+    counts and the segments and gaps the report lists (:data:`LISTED`), however many there are."""
 
     def __init__(self, names: tuple[str, ...]) -> None:
         self.names = names
         self.samples = 0
-        self.bounds: list[tuple[int, int]] = []
-        self.gaps: list[Gap] = []
+        self.segment_count = 0
+        self.gap_count = 0
+        self.lost = 0
+        self._segments = _Pick()
+        self._gaps = _Pick()
         self._prev_lost = False
         self._prev_stepped = False
         self._open: int | None = None  # the first sample of the segment not yet closed
+        self._open_when: dict[str, Any] = {}
         self._drop = np.zeros(len(names), dtype=np.int64)
-        self._dropouts: list[dict[str, int]] = []
         self._gap_first = 0
-        self._when: dict[int, dict[str, Any]] = {}
+        self._gap_when: dict[str, Any] = {}
         self._last: dict[str, Any] = {}
+
+    @property
+    def gaps(self) -> int:
+        """How many gaps (a count: the gaps listed are in :meth:`report`)."""
+        return self.gap_count
+
+    def first_sizes(self, k: int) -> list[int]:
+        """The samples of the first ``k`` segments closed."""
+        return [e["samples"] for e in self._segments.first[:k]]
 
     def feed(self, lost: np.ndarray, valid: np.ndarray, lines: np.ndarray,
              t: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
@@ -150,14 +224,16 @@ class SegmentTracker(_Counts):
                 self._close(k0 + i, self._drop + drop[i] - drop[seg], when(i - 1) if i else self._last)
             if begins[i]:
                 self._gap_first = k0 + i
-                self._when[k0 + i] = when(i)
+                self._gap_when = when(i)
             if rejected[i]:
-                self.gaps.append(Gap(first=self._gap_first, lost=k0 + i - self._gap_first, rejected=k0 + i))
-                self._when[k0 + i] = when(i)
+                gone = k0 + i - self._gap_first
+                self.gap_count += 1
+                self.lost += gone
+                self._gaps.add(gone, _gap(self._gap_when, gone, when(i)))
             if starts[i]:
                 self._open, seg = k0 + i, i
+                self._open_when = when(i)
                 self._drop = np.zeros(len(self.names), dtype=np.int64)
-                self._when[k0 + i] = when(i)
         if self._open is not None:
             self._drop = self._drop + drop[L] - drop[seg]
         self._prev_lost, self._prev_stepped = bool(lost[-1]), bool(stepped[-1])
@@ -167,9 +243,9 @@ class SegmentTracker(_Counts):
 
     def _close(self, stop: int, dropouts: np.ndarray, last: dict[str, Any]) -> None:
         assert self._open is not None
-        self.bounds.append((self._open, stop))
-        self._dropouts.append({name: int(d) for name, d in zip(self.names, dropouts)})
-        self._when[stop - 1] = last
+        self.segment_count += 1
+        self._segments.add(stop - self._open, _segment(self._open_when, last, stop - self._open,
+                                                       {name: int(d) for name, d in zip(self.names, dropouts)}))
         self._open = None
 
     def finish(self) -> None:
@@ -182,7 +258,7 @@ class SegmentTracker(_Counts):
 
     def report(self) -> dict[str, Any]:
         """The ``gaps`` entry of metrics.json, as :meth:`Segments.report` gives it for the whole record."""
-        return _report(self.bounds, self.gaps, lambda k: self._when[k], self._dropouts)
+        return _report(self.lost, self._segments, self._gaps)
 
 
 def segments_of(lost: np.ndarray) -> Segments:

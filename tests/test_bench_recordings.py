@@ -13,8 +13,9 @@ from docs_blocks import blocks_by, commands, run
 pytest.importorskip("asammdf")
 
 ROOT = Path(__file__).resolve().parents[1]
-#: appended to each of the page's commands: argparse keeps an option's last value
-SMALL = ["--frames", "300", "--long", "2000", "--huge-dir"]
+#: appended to each of the page's commands: argparse keeps an option's last value (the long recording in two
+#: formats: the first part reads every format already)
+SMALL = ["--frames", "300", "--long", "2000", "--long-formats", "log,csv", "--huge-dir"]
 
 
 def test_the_recordings_benchmark_runs_as_the_page_shows_on_small_sizes(tmp_path: Path) -> None:
@@ -31,4 +32,5 @@ def test_the_recordings_benchmark_runs_as_the_page_shows_on_small_sizes(tmp_path
         assert "300 Measurement frames" in out and "lost at random" in out, out[-2000:]
         if "--long 0" not in line:
             assert "2,000" in out or "2000" in out, out[-2000:]
+            assert "log x4: 8,000 samples" in out, out[-2000:]  # the longer log, its peak beside the first's
     assert not any(tmp_path.glob("*.csv")), "the huge recording was not deleted"

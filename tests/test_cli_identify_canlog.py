@@ -4,11 +4,13 @@ samples; lost, late and flagged frames become not-valid samples; every bad input
 option, key, signal or line; the outputs are written whole."""
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO, Iterator
 
 import can
 import cantools
@@ -410,29 +412,33 @@ def test_bus_options_without_a_log_are_refused(files: dict[str, Path], cli_error
     assert "give DATA.csv, or --can-log" in cli_error(["identify", "--config", "example1"])
 
 
+@pytest.mark.parametrize("streamed", [True, False])
 def test_outputs_are_replaced_whole_and_an_interrupted_run_marks_the_folder(
-        files: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+        files: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, streamed: bool) -> None:
     """A second run into the same --out that fails while writing samples.csv leaves every file of the
-    first run whole, no temporary file, and the INCOMPLETE marker."""
-    from pyrhonn import datafile
+    first run whole, no temporary file, and the INCOMPLETE marker: a log streamed (samples.csv staged,
+    then copied into the folder) or read whole (--steps-ahead: written into the folder)."""
+    from pyrhonn import atomic
     from pyrhonn.atomic import MARKER
 
     out = tmp_path / "out"
     assert _identify(files, "blf", out) == 0
     first = {p.name: p.read_bytes() for p in out.iterdir()}
     assert MARKER not in first and {"samples.csv", "predictions.csv", "metrics.json"} <= set(first)
-    real_format = datafile.format_rows
+    real_replacing = atomic.replacing
 
-    def failing(*args, **kw) -> bytes:  # the disk fills while samples.csv is written into the folder
-        real_format(*args, **kw)
-        raise OSError(28, "No space left on device")
+    @contextlib.contextmanager
+    def failing(path: Path, *args: object, **kw: object) -> Iterator[IO[bytes]]:
+        with real_replacing(path, *args, **kw) as fh:  # type: ignore[arg-type]
+            yield fh
+            if Path(path).name == "samples.csv":  # the disk fills while samples.csv is written into the folder
+                raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(datafile, "format_rows", failing)
-    assert _identify(files, "asc", out, "--warmup", "6") == 2
+    monkeypatch.setattr(atomic, "replacing", failing)
+    assert _identify(files, "asc", out, "--warmup", "6", *([] if streamed else ["--steps-ahead", "1"])) == 2
     now = {p.name: p.read_bytes() for p in out.iterdir()}
     assert now.pop(MARKER, None) is not None  # the folder says it was not finished
     assert now == first  # each output is the first run's, whole; no temporary file left behind
-
 
 
 def test_hil_score_on_a_recording_without_a_sidecar_says_what_it_needs_and_offers_identify(

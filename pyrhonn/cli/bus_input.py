@@ -2,7 +2,8 @@
 
 The options of :func:`add_options` say where each state and input is on the
 bus (on top of the config's ``[bus]`` table, :mod:`pyrhonn.buslog`);
-:func:`read` decodes and aligns the log into the arrays a CSV file gives, so
+:func:`read` decodes and aligns the log into the arrays a CSV file gives, and
+:func:`stream` into chunks of them (:mod:`pyrhonn.buslogstream`), so
 ``identify`` runs and writes exactly as for a CSV, plus ``samples.csv``: the
 aligned samples in the CSV format (``pyrhonn identify``, ``tune --data`` and
 ``select`` read it; the ``line`` column of the predictions refers to it).
@@ -16,12 +17,13 @@ from typing import Any
 
 import numpy as np
 
-from ..buslog import LOG_SUFFIXES, Aligned, BusMap, SignalRef, read_bus_log
+from ..buslog import LOG_SUFFIXES, AlignedSummary, BusMap, SignalRef, read_bus_log
+from ..buslogstream import BusStream, Reread
 from ..configfile import ConfigFile
 from ..datafile import Data
 from .options import real_option
 
-__all__ = ["BusInput", "SAMPLES", "add_options", "read"]
+__all__ = ["BusInput", "SAMPLES", "add_options", "read", "stream"]
 
 #: the aligned samples, written beside the predictions
 SAMPLES = "samples.csv"
@@ -66,14 +68,23 @@ def add_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--stop", metavar="S", help="leave out the samples after S seconds after the first clock frame")
 
 
-@dataclass(frozen=True)
+@dataclass
 class BusInput:
-    """A bus log read for ``identify``: its ``data`` as a CSV would give it."""
+    """A bus log read for ``identify``: read whole, its ``data`` as a CSV would give it; or streamed, its
+    ``stream`` (:class:`pyrhonn.buslogstream.BusStream`), whose summary is known once it is read."""
 
     source: str
     dbc: str
-    data: Data
-    aligned: Aligned
+    data: Data | None
+    summary_whole: AlignedSummary | None = None
+    stream: BusStream | None = None
+
+    @property
+    def aligned(self) -> AlignedSummary:
+        """How the samples were made (of a streamed log: once its last chunk was read)."""
+        found = self.summary_whole if self.stream is None else self.stream.summary
+        assert found is not None, "the bus log's summary is known once it is read"
+        return found
 
     def report(self) -> dict[str, Any]:
         """The ``bus`` entry of metrics.json: how the samples were made."""
@@ -176,18 +187,36 @@ def check_options(args: argparse.Namespace) -> None:
                          f"expected {', '.join(LOG_SUFFIXES)}")
 
 
-def read(args: argparse.Namespace, cf: ConfigFile, config_source: str) -> BusInput:
-    """The log of ``--can-log``, decoded with ``--dbc`` and aligned (ValueError naming the option,
-    key, signal or frame on any defect)."""
-    bus, period_option, clock_option = _bus_map(args, cf, config_source)
+def _window(args: argparse.Namespace) -> tuple[float | None, float | None]:
     start = None if args.start is None else real_option("--start", args.start, nonnegative=True)
     stop = None if args.stop is None else real_option("--stop", args.stop, nonnegative=True)
     if start is not None and stop is not None and not stop > start:
         raise ValueError(f"--stop {args.stop}: must be after --start {args.start}")
+    return start, stop
+
+
+def read(args: argparse.Namespace, cf: ConfigFile, config_source: str) -> BusInput:
+    """The log of ``--can-log``, decoded with ``--dbc`` and aligned (ValueError naming the option,
+    key, signal or frame on any defect)."""
+    bus, period_option, clock_option = _bus_map(args, cf, config_source)
+    start, stop = _window(args)
     aligned = read_bus_log(args.can_log, args.dbc, bus, cf.state_names, cf.input_names, start=start, stop=stop,
                            partial=bool(args.partial_log), period_option=period_option, clock_option=clock_option)
     K = aligned.n_samples
     data = Data(X=aligned.X, U=aligned.U, valid=aligned.valid, t=aligned.t,
                 lines=np.arange(2, K + 2, dtype=np.int64), ignored=(),  # the lines of samples.csv
                 lost=aligned.lost if aligned.lost.any() else None)
-    return BusInput(source=str(args.can_log), dbc=str(args.dbc), data=data, aligned=aligned)
+    return BusInput(source=str(args.can_log), dbc=str(args.dbc), data=data, summary_whole=aligned)
+
+
+def stream(args: argparse.Namespace, cf: ConfigFile, config_source: str) -> BusInput:
+    """The log of ``--can-log`` to be read a chunk of frames at a time (:mod:`pyrhonn.buslogstream`), or read
+    whole (:func:`read`) where it cannot be streamed: the same samples either way, and the same refusals."""
+    bus, period_option, clock_option = _bus_map(args, cf, config_source)
+    start, stop = _window(args)
+    try:
+        s = BusStream(args.can_log, args.dbc, bus, cf.state_names, cf.input_names, start=start, stop=stop,
+                      partial=bool(args.partial_log), period_option=period_option, clock_option=clock_option)
+    except Reread:
+        return read(args, cf, config_source)
+    return BusInput(source=str(args.can_log), dbc=str(args.dbc), data=None, stream=s)

@@ -62,7 +62,9 @@ Long records
 ------------
 Without ``--free-run-from`` and ``--steps-ahead`` the record is streamed: a
 CSV file is read a block at a time (:class:`pyrhonn.datafile.DataReader`),
-the core runs chunk by chunk keeping its state (the predictions are the
+a bus log a chunk of frames at a time (:mod:`pyrhonn.buslogstream`; its
+samples.csv staged as it goes; a log it cannot stream, or that it refuses,
+is read whole, to the same result or message), the core runs chunk by chunk keeping its state (the predictions are the
 whole record's, bit for bit), gaps are found chunk by chunk
 (:class:`pyrhonn.gaps.SegmentTracker`), ``predictions.csv`` is written as
 the chunks come and the metrics are running sums
@@ -97,8 +99,9 @@ from .. import atomic
 from ..config import DTYPES, IdentifierConfig
 from ..configfile import ConfigFile, load_named
 from ..csvcodec import format_rows
+from ..buslogstream import Reread
 from ..datafile import (BLOCK_BYTES, ROWS_AT_ONCE, SEPARATORS, Data, DataReader, TIME_COLUMN, check_suffix,
-                        concatenate, header_line, write_data)
+                        concatenate, data_columns, data_rows, header_line, write_data)
 from ..envelope import Envelope
 from ..gaps import SegmentTracker, Segments, segments_of, simulate_segments
 from ..mdfsignals import METHOD, MdfSignals, read_signal_mdf
@@ -463,7 +466,7 @@ def _write_rest(out: Path, report: dict[str, Any], plots: list[Path], cf: Config
         stale.unlink(missing_ok=True)  # an earlier run's plot would pass for this run's
 
 
-#: rows of a record held in memory as one chunk when it is streamed (a bus log or MDF4 read whole is cut so)
+#: rows of a record held in memory as one chunk when it is streamed (a record read whole is cut so)
 CHUNK_ROWS = 1 << 16
 
 
@@ -493,11 +496,18 @@ class _Staged:
         self.fh = tempfile.TemporaryFile("w+b", dir=self.folder)
         return self
 
-    def commit(self) -> None:
+    def commit(self, header: bytes = b"", drop_last_column: bool = False) -> None:
+        """The file in place: ``header``, then the rows staged (each without its last column, ``,0``, if
+        ``drop_last_column``)."""
         self.fh.flush()
         self.fh.seek(0)
         with atomic.replacing(self.target, "wb") as out:
-            shutil.copyfileobj(self.fh, out, 1 << 22)
+            out.write(header)
+            if not drop_last_column:
+                shutil.copyfileobj(self.fh, out, 1 << 22)
+                return
+            for block in iter(lambda: self.fh.readlines(1 << 22), []):
+                out.write(b"".join(line[:line.rindex(b",")] + b"\n" for line in block))
 
     def __exit__(self, *exc: Any) -> None:
         if self.fh is not None:
@@ -591,52 +601,93 @@ def run(args: argparse.Namespace) -> int:
     cf = load_named(args.config)
     config_source = args.config
     bus_input.check_options(args)
-    bus = bus_input.read(args, cf, config_source) if args.can_log is not None else None
+    bus = None
+    if args.can_log is not None:  # one step ahead, learning online: the log streamed, else read whole
+        one_step = args.free_run_from is None and args.steps_ahead is None
+        bus = (bus_input.stream if one_step else bus_input.read)(args, cf, config_source)
+    try:
+        return _run(args, cf, config_source, bus)
+    except Reread:  # what the log read whole says (a refusal, in its own words), or its results
+        return _run(args, cf, config_source, bus_input.read(args, cf, config_source))
+
+
+def _drain(chunks: Iterable[Data]) -> None:
+    """The rest of a streamed bus log read (nothing kept): its own refusal, found at its end, comes before any
+    other error, as when the log is read whole before anything else is done."""
+    for _ in chunks:
+        pass
+
+
+def _samples_rows(chunks: Iterable[Data], fh: IO[bytes], cf: ConfigFile) -> Iterator[Data]:
+    """``chunks`` passed on, their rows written to ``fh`` as samples.csv's (with the ``lost`` column)."""
+    for c in chunks:
+        for text in data_rows(c, cf, lost_column=True):
+            fh.write(text)
+        yield c
+
+
+def _run(args: argparse.Namespace, cf: ConfigFile, config_source: str, bus: bus_input.BusInput | None) -> int:
     mdf = _signal_mdf(args, cf) if bus is None and Path(args.data).suffix.lower() == ".mf4" else None
+    streamed = bus.stream if bus is not None else None
     source = bus.source if bus else args.data
-    if bus and (args.csv_sep is not None or args.decimal is not None):
-        raise ValueError(f"{'--csv-sep' if args.csv_sep is not None else '--decimal'}: only for a CSV file, not with "
-                         "--can-log")
-    whole = bus.data if bus else mdf[0] if mdf else None
-    reader = None if whole is not None else DataReader(
-        source, cf, valid_suffix=args.valid_suffix, config_source=config_source, sep=args.csv_sep,
-        decimal=args.decimal, allow_lost=True, block_bytes=BLOCK_BYTES)
-    file_units = whole.units if whole is not None else reader.units if reader is not None else None
-    ignored = whole.ignored if whole is not None else reader.ignored if reader is not None else ()
-    units = {**{k: v for k, v in (file_units or {}).items() if k in cf.state_names or k == TIME_COLUMN},
-             **args.units}  # --units over the file's unit row
-    unknown = sorted(set(args.units) - set(cf.state_names) - {"t"})
-    if unknown:
-        raise ValueError(f"--units: {', '.join(unknown)}: not a state of the config (states: "
-                         f"{', '.join(cf.state_names)}; t for time)")
-    out = _output_dir(args.out, source)
-    plots = [] if args.no_plots else [out / f"{name}.png" for name in cf.state_names]
-    samples = [out / bus_input.SAMPLES] if bus or mdf else []  # the aligned or resampled samples
-    written = [out / "predictions.csv", out / "metrics.json"] + plots + samples
-    _refuse_overwriting_inputs([*written, out / atomic.MARKER],
-                               {"the data file": source, "the config file": config_source,
-                                **({"the DBC": bus.dbc} if bus else {})})
+    try:
+        if bus and (args.csv_sep is not None or args.decimal is not None):
+            raise ValueError(f"{'--csv-sep' if args.csv_sep is not None else '--decimal'}: only for a CSV file, not "
+                             "with --can-log")
+        whole = bus.data if bus else mdf[0] if mdf else None
+        reader = None if whole is not None or streamed is not None else DataReader(
+            source, cf, valid_suffix=args.valid_suffix, config_source=config_source, sep=args.csv_sep,
+            decimal=args.decimal, allow_lost=True, block_bytes=BLOCK_BYTES)
+        file_units = whole.units if whole is not None else reader.units if reader is not None else None
+        ignored = whole.ignored if whole is not None else reader.ignored if reader is not None else ()
+        units = {**{k: v for k, v in (file_units or {}).items() if k in cf.state_names or k == TIME_COLUMN},
+                 **args.units}  # --units over the file's unit row
+        unknown = sorted(set(args.units) - set(cf.state_names) - {"t"})
+        if unknown:
+            raise ValueError(f"--units: {', '.join(unknown)}: not a state of the config (states: "
+                             f"{', '.join(cf.state_names)}; t for time)")
+        out = _output_dir(args.out, source)
+        plots = [] if args.no_plots else [out / f"{name}.png" for name in cf.state_names]
+        samples = [out / bus_input.SAMPLES] if bus or mdf else []  # the aligned or resampled samples
+        written = [out / "predictions.csv", out / "metrics.json"] + plots + samples
+        _refuse_overwriting_inputs([*written, out / atomic.MARKER],
+                                   {"the data file": source, "the config file": config_source,
+                                    **({"the DBC": bus.dbc} if bus else {})})
+    except ValueError:
+        if streamed is not None:
+            _drain(streamed.chunks())
+        raise
     dtype = args.dtype or cf.config.dtype
     cfg = cf.config if dtype == cf.config.dtype else cf.config.replace(dtype=dtype)
     K = args.free_run_from
     settings = {"data": str(source), "config": config_source, "dtype": dtype}
-    extras = {**({"bus": bus.report()} if bus else {}), **({"mdf": mdf[1].report()} if mdf else {})}
     segs: SegmentTracker | Segments | None
     sections: dict[str, Any]
     if K is None and args.steps_ahead is None:  # one step ahead, learning online: streamed, a chunk at a time
-        chunks = _pieces(whole) if whole is not None else reader.chunks() if reader is not None else iter(())
-        with _Staged(out / "predictions.csv") as staged:
-            T, sections, next_prediction, segs, env, file_units = _stream(
-                args, cf, cfg, source, config_source, chunks, staged, plots=bool(plots))
-            gaps = segs.report() if segs.gaps else None
+        with _Staged(out / "predictions.csv") as staged, _Staged(out / bus_input.SAMPLES) as staged_samples:
+            chunks = (_samples_rows(streamed.chunks(), staged_samples.fh, cf) if streamed is not None else
+                      _pieces(whole) if whole is not None else reader.chunks() if reader is not None else iter(()))
+            try:
+                T, sections, next_prediction, segs, env, file_units = _stream(
+                    args, cf, cfg, source, config_source, chunks, staged, plots=bool(plots))
+            except ValueError:
+                if streamed is not None:
+                    _drain(chunks)
+                raise
+            extras = {**({"bus": bus.report()} if bus else {}), **({"mdf": mdf[1].report()} if mdf else {})}
+            gaps = segs.report() if segs.gap_count else None
             report = _report(args, settings, T, ignored, file_units, sections, next_prediction, cf, extras, gaps)
             with atomic.output_folder(out, "pyrhonn identify"):  # marked INCOMPLETE until every file is in place
                 if whole is not None:
                     write_data(out / bus_input.SAMPLES, whole, cf, valid_suffix=args.valid_suffix)
+                elif streamed is not None:  # the rows as written, without the lost column if nothing was lost
+                    staged_samples.commit(header_line(data_columns(True, cf, args.valid_suffix, segs.gap_count > 0)),
+                                          drop_last_column=not segs.gap_count)
                 staged.commit()
                 _write_rest(out, report, plots, cf, env, args.warmup, units)
         diverged_line = None
     else:
+        extras = {**({"bus": bus.report()} if bus else {}), **({"mdf": mdf[1].report()} if mdf else {})}
         data = whole if whole is not None else concatenate(list(reader.chunks())) if reader is not None else None
         assert data is not None
         T = data.n_samples
@@ -729,10 +780,10 @@ def run(args: argparse.Namespace) -> int:
         for name, ch in m.channels.items():
             if ch.get("not_valid"):
                 print(f"  {name} ({ch['channel']}): {ch['not_valid']} samples not valid (no new sample)")
-    if segs is not None and segs.gaps:
-        print(f"gaps: {segs.lost} lost samples in {_count(len(segs.gaps), 'gap')}; {len(segs.gaps)} not stepped after "
-              f"them, {_count(segs.restarts, 'restart')}; {_count(len(segs.bounds), 'segment')} "
-              f"({', '.join(str(b - a) for a, b in segs.bounds[:8])}{' ...' if len(segs.bounds) > 8 else ''} samples)")
+    if segs is not None and segs.gap_count:
+        print(f"gaps: {segs.lost} lost samples in {_count(segs.gap_count, 'gap')}; {segs.gap_count} not stepped after "
+              f"them, {_count(segs.restarts, 'restart')}; {_count(segs.segment_count, 'segment')} "
+              f"({', '.join(str(k) for k in segs.first_sizes(8))}{' ...' if segs.segment_count > 8 else ''} samples)")
     kinds = [("one_step", "one step")] + ([("free_run", "free run")] if K is not None else []) + \
         ([("steps_ahead", f"{args.steps_ahead} steps ahead")] if args.steps_ahead is not None else [])
     scope = f"samples >= {K}, weights frozen" if K is not None else "weights learning online"
