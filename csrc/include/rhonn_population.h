@@ -94,7 +94,8 @@ typedef struct {
     rhonn_real eta[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     rhonn_real inv_lambda[RHONN_MAX_STATES][RHONN_MAX_POPULATION];  /* 1 / forgetting; 1 when off */
     rhonn_real forget_ceiling[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* rhonn_t.forget_ceiling */
-    rhonn_real p_trace_max[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* 0 when off */
+    rhonn_real p_trace_max[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* in force (rhonn_t.trace_max); 0 when off */
+    rhonn_real gate[RHONN_MAX_STATES][RHONN_MAX_POPULATION];        /* in force (rhonn_t.gate); 0 when off */
     rhonn_real q[RHONN_MAX_STATES][RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
     rhonn_real q_min[RHONN_MAX_STATES][RHONN_MAX_POPULATION];  /* min_t q (rhonn_t.q_min) */
     /* full form: the committed P carries rhonn.c's proof of definiteness
@@ -119,11 +120,13 @@ typedef struct {
     rhonn_real val[RHONN_VALUES_LEN];                        /* one member's values (rhonn.h) */
     uint8_t rewritten[RHONN_VALUES_LEN];                     /* a hold's member values (rhonn_run_population) */
     uint8_t held_term[RHONN_MAX_STATES][RHONN_MAX_TERMS];    /* a hold's member terms */
-    /* per member and neuron: 1 = learning this step, updated, bounded, recovered */
+    /* per member and neuron: 1 = learning this step, updated, bounded,
+     * recovered, skipped by the innovation gate */
     uint8_t learn[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint8_t updated[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint8_t bounded[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint8_t recovered[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    uint8_t gated[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint8_t kstatus[RHONN_MAX_POPULATION];        /* the kernel's status per member */
     uint8_t k_moved, k_refused;                   /* some learning lane passed, was refused */
     uint8_t zb;                                   /* which z bank holds z(k-1) */
@@ -131,6 +134,7 @@ typedef struct {
     uint8_t pb[RHONN_MAX_STATES];                 /* which P bank of neuron i is committed */
     uint8_t ceiling[RHONN_MAX_STATES];            /* some lane of neuron i has the trace ceiling on */
     uint8_t forgets[RHONN_MAX_STATES];            /* some lane of neuron i forgets */
+    uint8_t gating[RHONN_MAX_STATES];             /* some lane of neuron i has an innovation gate on */
     /* The samples of the last steps in which every member read the same
      * one: a member other than the step's lead gets them into its history
      * ring only before the ring is read or the member handed back. */
@@ -152,6 +156,7 @@ typedef struct {
     uint32_t n_updates[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* health counters to add */
     uint32_t n_bounded[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint32_t n_resets[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    uint32_t n_gated[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     rhonn_real last_innov[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     rhonn_real last_nis[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     /* updates of neuron i that every member made alike, not yet counted
