@@ -33,9 +33,13 @@
  * missing states' values with its own prediction, and the terms that read
  * them. Otherwise each member forms its own, as rhonn_step does.
  *
- * INNOVATION GATES are not run in the lanes: when some member has a gate
- * on (rhonn_neuron_config.gate > 0) in some neuron, every member is run by
- * rhonn_run, one after the other (the same results, at rhonn_run's speed).
+ * INNOVATION GATES run in the lanes: each member's gate in force
+ * (rhonn_neuron_config.gate, or rhonn_set_gate's) is tested on its own
+ * e^2 / s, after the test of s and before anything of the update is
+ * kept, as rhonn_step tests it; a gated member keeps that neuron's weights
+ * and covariance for the step, its health counts the skip (gated,
+ * innovation, nis; fail_run unchanged), and members with and without
+ * gates run together. The trace ceilings are the members' in force too.
  * SKIP_REFUSED is: a member whose update of a neuron with skip_refused is
  * refused keeps that neuron's weights and covariance for the step and goes
  * on, as rhonn_step does (rhonn.h REFUSALS, NEURON BY NEURON).
@@ -198,8 +202,8 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
  * z(k-1), may hold other values), with neuron i's
  * learning state and EKF arithmetic in lane i of the workspace, every
  * neuron's update done at once. It does so when every neuron has the same
- * number of terms and the same covariance form, no neuron has an innovation
- * gate, at most RHONN_MAX_POPULATION neurons (and, for the U D U^T form, the
+ * number of terms and the same covariance form (innovation gates included),
+ * at most RHONN_MAX_POPULATION neurons (and, for the U D U^T form, the
  * vector build, RHONN_POP_VECTOR); for any other configuration it is
  * rhonn_run. For a
  * host with a vector unit (on a scalar FPU the lanes only add work), and
@@ -249,8 +253,8 @@ int rhonn_wide_pays(const rhonn_t *net);
  *
  * rhonn_wide_begin: RHONN_E_NULL for a NULL net or work; RHONN_E_NOT_INIT
  * for a net not set up or already lent; RHONN_E_CONFIG when the lanes cannot
- * hold net (its neurons differ in size or form, one has a gate, or they
- * are more than RHONN_MAX_POPULATION: rhonn_run_wide would run it as rhonn_run).
+ * hold net (its neurons differ in size or form, or they are more than
+ * RHONN_MAX_POPULATION: rhonn_run_wide would run it as rhonn_run).
  * rhonn_wide_step and rhonn_wide_end: RHONN_E_NULL for a NULL net or work
  * (or x, xhat_next, or u with inputs); RHONN_E_NOT_INIT for a net not lent;
  * RHONN_E_ARGUMENT when it is lent to another workspace. A refused call

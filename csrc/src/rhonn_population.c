@@ -2107,8 +2107,8 @@ static int wide_fits(const rhonn_t *net)
 #endif
     for (i = 0; i < cfg->n_states; ++i) {
         if (cfg->neurons[i].n_terms != cfg->neurons[0].n_terms ||
-            cfg->neurons[i].covariance != cfg->neurons[0].covariance || cfg->neurons[i].gate > R(0.0)) {
-            return 0; /* the innovation gate runs neuron by neuron (rhonn_step) */
+            cfg->neurons[i].covariance != cfg->neurons[0].covariance) {
+            return 0;
         }
     }
     return 1;
@@ -2219,9 +2219,10 @@ POP_CLONES static void wide_predict(rhonn_population_work *wk, size_t L, size_t 
 }
 
 /* Step 1 of rhonn.c's step_checked for every neuron at once: the learning
- * flags and innovations, the kernel, then the verdicts in neuron order (a
- * refusal counted; recovered with reset_after, else the step stops there
- * with its status). Returns RHONN_OK or the refused neuron's status. */
+ * flags and innovations, the kernel, then the verdicts in neuron order (the
+ * innovation gate after the test of s, as gate_lanes; a refusal counted;
+ * recovered with reset_after, else the step stops there with its status).
+ * Returns RHONN_OK or the refused neuron's status. */
 static rhonn_status wide_learn(rhonn_population_work *wk, rhonn_t *net, const rhonn_real *x, const uint8_t *v,
                                uint8_t *moved)
 {
@@ -2236,6 +2237,7 @@ static rhonn_status wide_learn(rhonn_population_work *wk, rhonn_t *net, const rh
         wk->updated[0][i] = 0;
         wk->bounded[0][i] = 0;
         wk->recovered[0][i] = 0;
+        wk->gated[0][i] = 0;
         /* a state not measured may be NaN: its lane's results are not used */
         wk->e[i] = i < n ? x[i] - wk->xhat[0][i] : R(0.0);
         any_learn |= learns;
@@ -2254,7 +2256,14 @@ static rhonn_status wide_learn(rhonn_population_work *wk, rhonn_t *net, const rh
     full_kernel(wk, 0u, L); /* wide_fits: not the U D U^T form in this build */
 #endif
     for (i = 0; i < n; ++i) {
+        const rhonn_real g = wk->gate[0][i];
         if (!wk->learn[0][i]) {
+            continue;
+        }
+        if (wk->kstatus[i] != (uint8_t)RHONN_E_INNOVATION && g > R(0.0) && wk->nis[0][i] > g) {
+            wk->gated[0][i] = 1; /* skipped by the gate: w and P kept (wide_step) */
+            wk->updated[0][i] = 0; /* the kernel's verdicts set it where the update passed */
+            wk->bounded[0][i] = 0;
             continue;
         }
         if (wk->kstatus[i] == (uint8_t)RHONN_OK) {
@@ -2340,10 +2349,18 @@ static rhonn_status wide_step(rhonn_population_work *wk, rhonn_t *net, const rho
             h->fail_run = 0;
             net->bank[i] = (uint8_t)(net->bank[i] ^ 1u);
             wk->cert[0][i] = (uint8_t)(ud ? 0u : wk->cert_new[0][i]); /* the U D U^T form has no proof */
-        } else if (moved) {
-            /* P(k+1) = P(k): into the bank that becomes committed */
-            for (t = 0; t < packed; ++t) {
-                wk->p[wk->pb[0] ^ 1u][0][t][i] = wk->p[wk->pb[0]][0][t][i];
+        } else {
+            if (wk->gated[0][i]) { /* skipped by the innovation gate: counted */
+                rhonn_health *h = &net->health[i];
+                h->innovation = wk->e[i];
+                h->nis = wk->nis[0][i];
+                h->gated += 1u;
+            }
+            if (moved) {
+                /* P(k+1) = P(k): into the bank that becomes committed */
+                for (t = 0; t < packed; ++t) {
+                    wk->p[wk->pb[0] ^ 1u][0][t][i] = wk->p[wk->pb[0]][0][t][i];
+                }
             }
         }
         net->xhat[i] = wk->xnew[0][i];

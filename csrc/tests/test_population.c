@@ -1062,14 +1062,18 @@ static void gated_members_in_the_lanes_equal_single_runs(void)
 }
 
 /* A member with an innovation gate runs in the lanes, bit for bit, and the
- * gate does skip the outlier; an identifier with a gate is not lent to the
- * lanes (rhonn_wide_begin: RHONN_E_CONFIG, not advised) and its wide run is
- * rhonn_run. */
+ * gate does skip the outlier. One identifier whose neurons have gates (one
+ * that trips at the outlier, one with forgetting that refuses updates,
+ * skipped and recovered, one too high to trip) runs in its lanes too, as
+ * rhonn_run_wide and stepping in the lanes, both forms, bit for bit with
+ * rhonn_run, and a gate does not change whether the lanes are advised. */
 static void gated_members_and_neurons_run_as_single_runs(void)
 {
     rhonn_config cfg[MAXN], one;
     rhonn_health h;
+    const size_t n8 = 8 <= RHONN_MAX_STATES ? 8u : 6u;
     size_t m, i, gated = 0;
+    int ud;
     add_outlier = 1;
     for (m = 0; m < 4; ++m) {
         cfg[m] = lim_config((unsigned)m, 1, 0);
@@ -1086,17 +1090,37 @@ static void gated_members_and_neurons_run_as_single_runs(void)
     CHECK(gated > 0u); /* the outlier was gated */
     CHECK(work.holder == NULL);
     /* one identifier */
-    one = uniform_config(0, 8 <= RHONN_MAX_STATES ? 8u : 6u, 0, 0);
-    CHECK_STATUS(rhonn_init(&members[0], &one, NULL), RHONN_OK);
-    CHECK(rhonn_wide_pays(&members[0]) == (one.n_states == 8u));
+    one = uniform_config(0, n8, 0, 0);
     one.neurons[3].gate = (rhonn_real)9.0;
     CHECK_STATUS(rhonn_init(&members[0], &one, NULL), RHONN_OK);
-    CHECK(rhonn_wide_pays(&members[0]) == 0);
-    CHECK_STATUS(rhonn_wide_begin(&members[0], &lend), RHONN_E_CONFIG);
-    memset(&work, 0, sizeof work);
-    CHECK_STATUS(wide_compare(&one, 0, 1), RHONN_OK);
-    CHECK(!ran_in_lanes(&one));
-    CHECK_STATUS(rhonn_get_health(&alone[0], 1, &h), RHONN_OK);
+    CHECK(rhonn_wide_pays(&members[0]) == (one.n_states == 8u));
+    CHECK_STATUS(rhonn_wide_begin(&members[0], &lend), RHONN_OK);
+    CHECK_STATUS(rhonn_wide_end(&members[0], &lend), RHONN_OK);
+    for (ud = 0; ud < 2; ++ud) {
+        uint32_t g[8] = {0, 0, 0, 0, 0, 0, 0, 0}, r[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+        one = uniform_config(0, 6, 1, ud);
+        one.neurons[1].gate = (rhonn_real)9.0;
+        one.neurons[2].gate = (rhonn_real)2.0;
+        one.neurons[2].forgetting = (rhonn_real)1e-3;
+        one.neurons[2].p_trace_max = (rhonn_real)(BIG / 8);
+        one.neurons[2].skip_refused = 1;
+        one.neurons[2].reset_after = 2;
+        one.neurons[5].gate = (rhonn_real)1e30;
+        memset(&work, 0, sizeof work);
+        CHECK_STATUS(wide_compare(&one, 0, 1), RHONN_OK);
+        CHECK(ran_in_lanes(&one) == (!ud || RHONN_WIDE_UD));
+        for (i = 0; i < 6; ++i) {
+            CHECK_STATUS(rhonn_get_health(&members[0], i, &h), RHONN_OK);
+            g[i] = h.gated;
+            r[i] = h.rejected;
+        }
+        /* the outlier gated in neuron 1; neuron 2, forgetting, is gated
+         * step after step in the U D U^T form, its updates refused (and
+         * skipped) in the full form, where P grows until nothing trips */
+        CHECK(g[1] > 0u && (ud ? g[2] > 0u : r[2] > 0u));
+        CHECK(g[0] == 0u && g[3] == 0u && g[4] == 0u && g[5] == 0u);
+        CHECK(r[0] == 0u && r[1] == 0u);
+    }
     add_outlier = 0;
 }
 
