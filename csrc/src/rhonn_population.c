@@ -13,11 +13,13 @@
  * the results are the same bits. Members that do not take part (not
  * learning this step, stopped, or beyond N) compute on their stale lanes
  * and their results are thrown away, which keeps the arithmetic free of
- * branches. The bookkeeping is rhonn.c's: a refusal and a recovery member
- * by member (off the hot path); the valid runs, health counters and bank
- * flips of each member held in its lane for the call, step by step for
- * every lane at once (an update every member made alike counted once, in
- * n_alike), and written into its rhonn_t when the member is handed back.
+ * branches. The innovation gate is tested on the kernel's e^2 / s, lane by
+ * lane, where rhonn.c tests it (gate_lanes). The bookkeeping is rhonn.c's:
+ * a refusal and a recovery member by member (off the hot path); the valid
+ * runs, health counters and bank flips of each member held in its lane for
+ * the call, step by step for every lane at once (an update every member
+ * made alike counted once, in n_alike), and written into its rhonn_t when
+ * the member is handed back.
  *
  * Build with -std=c99 -ffp-contract=off, as rhonn.c.
  */
