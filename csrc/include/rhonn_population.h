@@ -202,10 +202,11 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
  * z(k-1), may hold other values), with neuron i's
  * learning state and EKF arithmetic in lane i of the workspace, every
  * neuron's update done at once. It does so when every neuron has the same
- * number of terms and the same covariance form (innovation gates included),
- * at most RHONN_MAX_POPULATION neurons (and, for the U D U^T form, the
- * vector build, RHONN_POP_VECTOR); for any other configuration it is
- * rhonn_run. For a
+ * number of terms and the same covariance form, at most
+ * RHONN_MAX_POPULATION neurons (and, for the U D U^T form, the vector
+ * build, RHONN_POP_VECTOR), with or without innovation gates (tested in
+ * each neuron's lane where rhonn_step tests them); for any other
+ * configuration it is rhonn_run. For a
  * host with a vector unit (on a scalar FPU the lanes only add work), and
  * for identifiers with enough neurons to fill it: see rhonn_wide_pays.
  *
