@@ -12,8 +12,10 @@ order, so each member's predictions are bit for bit those of running its
 config alone; the full-form EKF arithmetic is laid out across members so the
 compiler can vectorise it, and the regressor is formed once when it is the
 same for every member (a neuron with ``skip_refused`` skips its refused
-update in the lanes too; when some member has an innovation gate on, the core
-runs the members one after the other instead, with the same results).
+update in the lanes too, and each member's innovation gate in force is tested
+in the lanes where ``rhonn_step`` tests it: members with and without gates
+run together, a gated member keeping that neuron's weights and covariance for
+the step).
 :func:`run_identifiers` does the same for existing
 identifiers, which continue from their current state.
 """

@@ -99,22 +99,37 @@ def test_identifiers_continue_from_their_state_and_end_in_the_single_runs_state(
 
 
 @pytest.mark.parametrize("dtype", DTYPES)
-def test_members_with_an_innovation_gate_equal_their_single_runs(dtype: str) -> None:
-    """A gate (not run in the lanes) makes the population N single runs: the
-    same predictions and states, bit for bit, the gates counted alike."""
+def test_members_with_and_without_innovation_gates_equal_their_single_runs(dtype: str) -> None:
+    """Gates run in the lanes, member by member: a population mixing members
+    without a gate, with one on every neuron, on the outlier's neuron only,
+    and one too high to trip, continuing from their own states, gives each
+    member its single run bit for bit (predictions, state, health with the
+    gated counts), and the outlier trips exactly the low enough gates."""
     base = load_shipped("firmware-lim").config.replace(dtype=dtype)
-    configs = variants(base, 4)
-    configs[1] = configs[1].replace(neurons=tuple(replace(nr, gate=4.0) for nr in configs[1].neurons))
+    configs = variants(base, 5)
+
+    def gated(cfg: IdentifierConfig, gate: float, only: int | None = None) -> IdentifierConfig:
+        return cfg.replace(neurons=tuple(replace(nr, gate=gate) if only in (None, i) else nr
+                                         for i, nr in enumerate(cfg.neurons)))
+
+    configs[1] = gated(configs[1], 4.0)
+    configs[2] = gated(configs[2], 9.0, only=1)
+    configs[3] = gated(configs[3], 1e30)
     X, U, valid = trajectory(base, T=400)
     X = X.copy()
-    X[200, 1] += np.asarray(50.0, dtype=dtype)  # an outlier
+    X[200, 1] += np.asarray(50.0, dtype=dtype)  # an outlier in state 1
     members, alone = [Identifier(c) for c in configs], [Identifier(c) for c in configs]
+    for k, (a, b) in enumerate(zip(members, alone)):  # each from a state of its own
+        a.run(X[:k + 1], U[:k + 1])
+        b.run(X[:k + 1], U[:k + 1])
     got = run_identifiers(members, X, U, valid)
     for k in range(len(configs)):
         assert same_bits(got[k], alone[k].run(X, U, valid)), f"member {k}: predictions differ"
         assert state(members[k]) == state(alone[k]), f"member {k}: final state differs"
-    assert sum(h.gated for h in members[1].healths) > 0
-    assert all(h.gated == 0 for k in (0, 2, 3) for h in members[k].healths)
+    gates = [[h.gated for h in m.healths] for m in members]
+    assert sum(gates[1]) > 0 and gates[2][1] > 0
+    assert sum(gates[2]) == gates[2][1]  # only its gated neuron
+    assert sum(gates[0]) == sum(gates[3]) == sum(gates[4]) == 0
 
 
 def test_one_config_runs_as_a_population_of_one() -> None:

@@ -7,7 +7,8 @@
  * any factors, delays included, each neuron's activation and covariance
  * form), 1..RHONN_MAX_POPULATION members of it, each tuned apart (R, eta,
  * Q, P(0), w(0), forgetting, the trace ceiling, reset_after, skip_refused,
- * x(0); the
+ * the innovation gate, x(0); now and then a gate set in force, or a
+ * configured trace ceiling lifted, after rhonn_init; the
  * slope beta apart or as member 0's, so that the regressor is shared or
  * not) and stepped a number of samples of its own first, then the
  * trajectory: per sample a dropout mask, the states and the inputs (reals
@@ -74,9 +75,9 @@ static void tune_member(reader *r, rhonn_config *c, const rhonn_config *first)
             nc->p0[k] = positive(r, -3, 9);
         }
         nc->p_trace_max = (rhonn_real)0;
-        /* now and then (member 0, all flags set) an innovation gate: the
-         * population then runs as rhonn_run calls (rhonn_population.h) */
-        nc->gate = (first == NULL && flags == 0xFFu) ? (rhonn_real)(1u + byte(r) % 30u) : (rhonn_real)0;
+        /* an innovation gate in any member (0.25..8: low enough to trip
+         * often), run in the lanes with the ungated members */
+        nc->gate = (flags & 0x01u) ? (rhonn_real)(1u + byte(r) % 32u) / (rhonn_real)4 : (rhonn_real)0;
         if (flags & 0x20u) {
             rhonn_real tr = 0;
             for (t = 0, k = 0; t < L; k += L - t, ++t) {
@@ -128,6 +129,17 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         }
         if (rhonn_init(&members[mb], &cfg, NULL) != RHONN_OK) {
             return 0;
+        }
+        {
+            /* calibration in force that the configuration does not hold */
+            const uint8_t cal = byte(&r);
+            const size_t i = (size_t)(cal >> 5) % n;
+            if (cal & 0x01u) {
+                (void)rhonn_set_gate(&members[mb], i, (rhonn_real)((cal >> 2) & 7u) / (rhonn_real)2);
+            }
+            if (cal & 0x02u) {
+                (void)rhonn_set_trace_ceiling(&members[mb], i, (rhonn_real)0);
+            }
         }
         for (k = 0; k < pre; ++k) { /* from a running state of its own, its outcome whatever it is */
             const size_t s = T - 1u - k % T;

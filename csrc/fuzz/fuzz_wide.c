@@ -6,7 +6,7 @@
  * Input: a configuration header whose neurons share their size and
  * covariance form (1..8 neurons of 1..8 terms, so that the lanes do run it;
  * every neuron tuned apart: R, eta, Q, P(0), w(0), forgetting, the trace
- * ceiling, reset_after, skip_refused), a number of samples stepped first with rhonn_step,
+ * ceiling, reset_after, skip_refused, the innovation gate), a number of samples stepped first with rhonn_step,
  * then the trajectory: per sample a dropout mask, the states and the inputs
  * (reals as fuzz_input.h reads them: hostile values included).
  *
@@ -63,6 +63,9 @@ static void make_uniform_config(reader *r, rhonn_config *c)
             nc->reset_after = (uint16_t)(1u + byte(r) % 4u);
         }
         nc->skip_refused = (uint8_t)((flags >> 6) & 1u); /* a refused update skips this neuron only */
+        if (flags & 0x02u) { /* an innovation gate (0.25..8: low enough to trip often) */
+            nc->gate = (rhonn_real)(1u + byte(r) % 32u) / (rhonn_real)4;
+        }
         for (t = 0, k = 0; t < L; k += L - t, ++t) {
             nc->q[t] = (flags & 0x10u) ? (rhonn_real)0 : positive(r, -14, 3);
             nc->w0[t] = real(r, -3, 1);

@@ -33,9 +33,13 @@
  * missing states' values with its own prediction, and the terms that read
  * them. Otherwise each member forms its own, as rhonn_step does.
  *
- * INNOVATION GATES are not run in the lanes: when some member has a gate
- * on (rhonn_neuron_config.gate > 0) in some neuron, every member is run by
- * rhonn_run, one after the other (the same results, at rhonn_run's speed).
+ * INNOVATION GATES run in the lanes: each member's gate in force
+ * (rhonn_neuron_config.gate, or rhonn_set_gate's) is tested on its own
+ * e^2 / s, after the test of s and before anything of the update is
+ * kept, as rhonn_step tests it; a gated member keeps that neuron's weights
+ * and covariance for the step, its health counts the skip (gated,
+ * innovation, nis; fail_run unchanged), and members with and without
+ * gates run together. The trace ceilings are the members' in force too.
  * SKIP_REFUSED is: a member whose update of a neuron with skip_refused is
  * refused keeps that neuron's weights and covariance for the step and goes
  * on, as rhonn_step does (rhonn.h REFUSALS, NEURON BY NEURON).
@@ -94,7 +98,8 @@ typedef struct {
     rhonn_real eta[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     rhonn_real inv_lambda[RHONN_MAX_STATES][RHONN_MAX_POPULATION];  /* 1 / forgetting; 1 when off */
     rhonn_real forget_ceiling[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* rhonn_t.forget_ceiling */
-    rhonn_real p_trace_max[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* 0 when off */
+    rhonn_real p_trace_max[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* in force (rhonn_t.trace_max); 0 when off */
+    rhonn_real gate[RHONN_MAX_STATES][RHONN_MAX_POPULATION];        /* in force (rhonn_t.gate); 0 when off */
     rhonn_real q[RHONN_MAX_STATES][RHONN_MAX_TERMS][RHONN_MAX_POPULATION];
     rhonn_real q_min[RHONN_MAX_STATES][RHONN_MAX_POPULATION];  /* min_t q (rhonn_t.q_min) */
     /* full form: the committed P carries rhonn.c's proof of definiteness
@@ -119,11 +124,13 @@ typedef struct {
     rhonn_real val[RHONN_VALUES_LEN];                        /* one member's values (rhonn.h) */
     uint8_t rewritten[RHONN_VALUES_LEN];                     /* a hold's member values (rhonn_run_population) */
     uint8_t held_term[RHONN_MAX_STATES][RHONN_MAX_TERMS];    /* a hold's member terms */
-    /* per member and neuron: 1 = learning this step, updated, bounded, recovered */
+    /* per member and neuron: 1 = learning this step, updated, bounded,
+     * recovered, skipped by the innovation gate */
     uint8_t learn[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint8_t updated[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint8_t bounded[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint8_t recovered[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    uint8_t gated[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint8_t kstatus[RHONN_MAX_POPULATION];        /* the kernel's status per member */
     uint8_t k_moved, k_refused;                   /* some learning lane passed, was refused */
     uint8_t zb;                                   /* which z bank holds z(k-1) */
@@ -131,6 +138,7 @@ typedef struct {
     uint8_t pb[RHONN_MAX_STATES];                 /* which P bank of neuron i is committed */
     uint8_t ceiling[RHONN_MAX_STATES];            /* some lane of neuron i has the trace ceiling on */
     uint8_t forgets[RHONN_MAX_STATES];            /* some lane of neuron i forgets */
+    uint8_t gating[RHONN_MAX_STATES];             /* some lane of neuron i has an innovation gate on */
     /* The samples of the last steps in which every member read the same
      * one: a member other than the step's lead gets them into its history
      * ring only before the ring is read or the member handed back. */
@@ -152,6 +160,7 @@ typedef struct {
     uint32_t n_updates[RHONN_MAX_STATES][RHONN_MAX_POPULATION]; /* health counters to add */
     uint32_t n_bounded[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     uint32_t n_resets[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
+    uint32_t n_gated[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     rhonn_real last_innov[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     rhonn_real last_nis[RHONN_MAX_STATES][RHONN_MAX_POPULATION];
     /* updates of neuron i that every member made alike, not yet counted
@@ -193,10 +202,11 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
  * z(k-1), may hold other values), with neuron i's
  * learning state and EKF arithmetic in lane i of the workspace, every
  * neuron's update done at once. It does so when every neuron has the same
- * number of terms and the same covariance form, no neuron has an innovation
- * gate, at most RHONN_MAX_POPULATION neurons (and, for the U D U^T form, the
- * vector build, RHONN_POP_VECTOR); for any other configuration it is
- * rhonn_run. For a
+ * number of terms and the same covariance form, at most
+ * RHONN_MAX_POPULATION neurons (and, for the U D U^T form, the vector
+ * build, RHONN_POP_VECTOR), with or without innovation gates (tested in
+ * each neuron's lane where rhonn_step tests them); for any other
+ * configuration it is rhonn_run. For a
  * host with a vector unit (on a scalar FPU the lanes only add work), and
  * for identifiers with enough neurons to fill it: see rhonn_wide_pays.
  *
@@ -244,8 +254,8 @@ int rhonn_wide_pays(const rhonn_t *net);
  *
  * rhonn_wide_begin: RHONN_E_NULL for a NULL net or work; RHONN_E_NOT_INIT
  * for a net not set up or already lent; RHONN_E_CONFIG when the lanes cannot
- * hold net (its neurons differ in size or form, one has a gate, or they
- * are more than RHONN_MAX_POPULATION: rhonn_run_wide would run it as rhonn_run).
+ * hold net (its neurons differ in size or form, or they are more than
+ * RHONN_MAX_POPULATION: rhonn_run_wide would run it as rhonn_run).
  * rhonn_wide_step and rhonn_wide_end: RHONN_E_NULL for a NULL net or work
  * (or x, xhat_next, or u with inputs); RHONN_E_NOT_INIT for a net not lent;
  * RHONN_E_ARGUMENT when it is lent to another workspace. A refused call

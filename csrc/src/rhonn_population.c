@@ -13,11 +13,13 @@
  * the results are the same bits. Members that do not take part (not
  * learning this step, stopped, or beyond N) compute on their stale lanes
  * and their results are thrown away, which keeps the arithmetic free of
- * branches. The bookkeeping is rhonn.c's: a refusal and a recovery member
- * by member (off the hot path); the valid runs, health counters and bank
- * flips of each member held in its lane for the call, step by step for
- * every lane at once (an update every member made alike counted once, in
- * n_alike), and written into its rhonn_t when the member is handed back.
+ * branches. The innovation gate is tested on the kernel's e^2 / s, lane by
+ * lane, where rhonn.c tests it (gate_lanes). The bookkeeping is rhonn.c's:
+ * a refusal and a recovery member by member (off the hot path); the valid
+ * runs, health counters and bank flips of each member held in its lane for
+ * the call, step by step for every lane at once (an update every member
+ * made alike counted once, in n_alike), and written into its rhonn_t when
+ * the member is handed back.
  *
  * Build with -std=c99 -ffp-contract=off, as rhonn.c.
  */
@@ -1283,19 +1285,22 @@ static int is_ud(const rhonn_t *net, size_t i)
 
 /* Member net's committed state and tuning into lane m. */
 /* Which neurons (of the first n) have the trace ceiling on in some lane,
- * and which forget in some lane, once the lanes are loaded: any_ceiling and
- * any_forgetting read them in every kernel call. */
+ * which forget in some lane and which have an innovation gate on in some
+ * lane, once the lanes are loaded: any_ceiling and any_forgetting read them
+ * in every kernel call, the step reads gating after it. */
 static void lane_flags(rhonn_population_work *wk, size_t n)
 {
     size_t i, m;
     for (i = 0; i < n; ++i) {
-        uint8_t ceiling = 0, forgets = 0;
+        uint8_t ceiling = 0, forgets = 0, gating = 0;
         for (m = 0; m < NPOP; ++m) {
             ceiling |= (uint8_t)(wk->p_trace_max[i][m] > R(0.0));
             forgets |= (uint8_t)(wk->inv_lambda[i][m] != R(1.0));
+            gating |= (uint8_t)(wk->gate[i][m] > R(0.0));
         }
         wk->ceiling[i] = ceiling;
         wk->forgets[i] = forgets;
+        wk->gating[i] = gating;
     }
 }
 
@@ -1323,7 +1328,10 @@ static void load_lane(rhonn_population_work *wk, const rhonn_t *net, size_t m)
         wk->inv_lambda[i][m] = (nc->forgetting > R(0.0) && nc->forgetting < R(1.0)) ? R(1.0) / nc->forgetting
                                                                                      : R(1.0);
         wk->forget_ceiling[i][m] = net->forget_ceiling[i];
-        wk->p_trace_max[i][m] = nc->p_trace_max;
+        /* the trace ceiling and the gate in force (rhonn_set_trace_ceiling,
+         * rhonn_set_gate; the configuration's until set) */
+        wk->p_trace_max[i][m] = net->trace_max[i];
+        wk->gate[i][m] = net->gate[i];
         wk->need[i][m] = net->own_need[i];
         wk->vrun[i][m] = net->valid_run[i];
         wk->first_run[i][m] = net->first_run[i];
@@ -1333,6 +1341,7 @@ static void load_lane(rhonn_population_work *wk, const rhonn_t *net, size_t m)
         wk->n_updates[i][m] = 0;
         wk->n_bounded[i][m] = 0;
         wk->n_resets[i][m] = 0;
+        wk->n_gated[i][m] = 0;
         wk->last_innov[i][m] = R(0.0);
         wk->last_nis[i][m] = R(0.0);
     }
@@ -1408,6 +1417,7 @@ static void store_lane(rhonn_population_work *wk, rhonn_t *net, size_t m, size_t
         h->updates += wk->n_updates[i][m];
         h->bounded += wk->n_bounded[i][m];
         h->resets += wk->n_resets[i][m];
+        h->gated += wk->n_gated[i][m];
         if (wk->has_last[i][m]) {
             h->innovation = wk->last_innov[i][m];
             h->nis = wk->last_nis[i][m];
@@ -1631,6 +1641,7 @@ POP_LANES void learn_lanes(rhonn_population_work *wk, size_t i, const uint8_t *r
         wk->updated[i][m] = 0; /* where no lane learns, the kernel does not run */
         wk->bounded[i][m] = 0;
         wk->recovered[i][m] = 0;
+        wk->gated[i][m] = 0;
     }
     for (m = 0; m < NPOP; ++m) {
         wk->innov[i][m] = xi - wk->xhat[i][m];
@@ -1677,47 +1688,36 @@ POP_LANES void commit_alike(rhonn_population_work *wk, size_t i, uint8_t measure
     }
 }
 
-/* Does some member have an innovation gate on in some neuron? The lanes
- * do not run it (rhonn_population.h). */
-static int any_by_neuron(rhonn_t *const *nets, size_t N)
+/* The innovation gate of neuron i (rhonn.c ekf_kernel, ekf_ud: after the
+ * test of s, before anything is written), lane by lane on the kernel's
+ * results: a learning lane whose s passed (its status is not
+ * RHONN_E_INNOVATION) and whose e^2 / s is above its gate in force (> 0)
+ * skips the update. Whatever the kernel found after that test (weights not
+ * finite, P not definite) is not looked at, as rhonn.c does not reach it:
+ * the lane neither updates nor is refused; it is marked gated and no
+ * longer learns this step (its candidates are thrown away: w(k) and P(k)
+ * kept). Sets the kernel's k_moved and k_refused anew; returns 1 when some
+ * lane was gated. */
+POP_LANES uint8_t gate_lanes(rhonn_population_work *wk, size_t i)
 {
-    size_t m, i;
-    for (m = 0; m < N; ++m) {
-        const rhonn_config *cfg = CFG(nets[m]);
-        for (i = 0; i < cfg->n_states; ++i) {
-            if (cfg->neurons[i].gate > R(0.0)) {
-                return 1;
-            }
-        }
-    }
-    return 0;
-}
-
-/* The population as N calls of rhonn_run (members with a gate): member m's
- * predictions at Xhat[m T n ...], its status and steps; returns the status
- * of the lowest-indexed member that stopped, else RHONN_OK. */
-static rhonn_status run_one_by_one(rhonn_t *const *nets, size_t N, rhonn_population_work *work, size_t T,
-                                   const rhonn_real *X, const rhonn_real *U, const uint8_t *valid, rhonn_real *Xhat,
-                                   rhonn_status *status, size_t *done)
-{
-    const size_t n = CFG(nets[0])->n_states;
-    rhonn_status ret = RHONN_OK;
+    uint8_t moved = 0, refused = 0, any = 0;
     size_t m;
-    work->holder = NULL; /* the workspace is scratch: a loan it held is forgotten */
-    for (m = 0; m < N; ++m) {
-        size_t ran = 0;
-        const rhonn_status st = rhonn_run(nets[m], T, X, U, valid, T > 0u ? Xhat + m * T * n : Xhat, &ran);
-        if (status != NULL) {
-            status[m] = st;
-        }
-        if (done != NULL) {
-            done[m] = ran;
-        }
-        if (st != RHONN_OK && ret == RHONN_OK) {
-            ret = st;
-        }
+    for (m = 0; m < NPOP; ++m) {
+        const rhonn_real g = wk->gate[i][m];
+        const uint8_t skip = (uint8_t)(wk->learn[i][m] & (uint8_t)(wk->kstatus[m] != (uint8_t)RHONN_E_INNOVATION) &
+                                       (uint8_t)(g > R(0.0)) & (uint8_t)(wk->nis[i][m] > g));
+        const uint8_t keep = (uint8_t)(skip ^ 1u);
+        wk->gated[i][m] = skip;
+        wk->learn[i][m] &= keep;
+        wk->updated[i][m] &= keep;
+        wk->bounded[i][m] &= keep;
+        moved |= wk->updated[i][m];
+        refused |= (uint8_t)(wk->learn[i][m] & (wk->updated[i][m] ^ 1u));
+        any |= skip;
     }
-    return ret;
+    wk->k_moved = moved;
+    wk->k_refused = refused;
+    return any;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -1773,10 +1773,6 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
     if (T > 0u && (X == NULL || Xhat == NULL || (U == NULL && mi > 0u))) {
         return RHONN_E_NULL;
     }
-    if (any_by_neuron(nets, N)) {
-        return run_one_by_one(nets, N, work, T, X, U, valid, Xhat, status, done);
-    }
-
     /* Each member's lane, and copies of member 0 in the unused ones (finite
      * numbers to compute on, thrown away). A loan the lanes held is
      * forgotten: its net stays refused rather than take these lanes. */
@@ -1854,7 +1850,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
         for (i = 0; i < n; ++i) {
             const int ud = is_ud(nets[0], i);
             const uint8_t measured = (uint8_t)(v == NULL || v[i] != 0u);
-            uint8_t any_learn = 0, all_learn = 1, refused = 0, moved_i = 0;
+            uint8_t any_learn = 0, all_learn = 1, refused = 0, moved_i = 0, gated_i = 0;
             L = CFG(nets[0])->neurons[i].n_terms;
             learn_lanes(wk, i, ready, alive, measured, x[i], &any_learn, &all_learn);
             /* Where no member learns this neuron (its measurement missing,
@@ -1867,6 +1863,10 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                     ud_update(wk, nets, N, i, L);
                 }
             }
+            if (any_learn && wk->gating[i]) { /* the innovation gate: a gated lane no longer learns */
+                gated_i = gate_lanes(wk, i);
+                all_learn = (uint8_t)(all_learn & (gated_i ^ 1u));
+            }
             if (any_learn) { /* the kernel's verdicts (see verdicts()) */
                 moved_i = wk->k_moved;
                 refused = wk->k_refused;
@@ -1878,7 +1878,7 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                     wn[m] = wk->learn[i][m] ? wn[m] : wo[m];
                 }
             }
-            alike[i] = (uint8_t)(!refused && (all_learn || !any_learn));
+            alike[i] = (uint8_t)(!refused && !gated_i && (all_learn || !any_learn));
             if (refused) {
                 count_alike(wk, i); /* the refusals below read the members' health */
             }
@@ -2011,6 +2011,8 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                 const uint8_t run = wk->vrun[i][m];
                 const uint8_t up = (uint8_t)(wk->updated[i][m] & keep[m]);
                 const uint8_t fresh = (uint8_t)(up & (wk->recovered[i][m] ^ 1u)); /* not a recovery */
+                const uint8_t gk = (uint8_t)(wk->gated[i][m] & keep[m]); /* skipped by the gate */
+                const uint8_t seen = (uint8_t)(fresh | gk);                /* health innovation, nis */
                 wk->vrun[i][m] = keep[m] ? rhonn_run_next(run, (uint8_t)(first[m] & wk->first_run[i][m]), measured)
                                          : run;
                 wk->flips[i][m] ^= up;
@@ -2018,9 +2020,10 @@ rhonn_status rhonn_run_population(rhonn_t *const *nets, size_t N, rhonn_populati
                 wk->n_resets[i][m] += (uint32_t)(up & wk->recovered[i][m]);
                 wk->n_updates[i][m] += fresh;
                 wk->n_bounded[i][m] += (uint32_t)(fresh & wk->bounded[i][m]);
-                wk->has_last[i][m] |= fresh;
-                wk->last_innov[i][m] = fresh ? wk->innov[i][m] : wk->last_innov[i][m];
-                wk->last_nis[i][m] = fresh ? wk->nis[i][m] : wk->last_nis[i][m];
+                wk->n_gated[i][m] += gk;
+                wk->has_last[i][m] |= seen;
+                wk->last_innov[i][m] = seen ? wk->innov[i][m] : wk->last_innov[i][m];
+                wk->last_nis[i][m] = seen ? wk->nis[i][m] : wk->last_nis[i][m];
                 wk->cert[i][m] = wk->updated[i][m] ? wk->cert_new[i][m] : wk->cert[i][m];
                 wk->xhat[i][m] = wk->xnew[i][m];
                 kept |= (uint8_t)(keep[m] & (wk->updated[i][m] ^ 1u));
@@ -2106,8 +2109,8 @@ static int wide_fits(const rhonn_t *net)
 #endif
     for (i = 0; i < cfg->n_states; ++i) {
         if (cfg->neurons[i].n_terms != cfg->neurons[0].n_terms ||
-            cfg->neurons[i].covariance != cfg->neurons[0].covariance || cfg->neurons[i].gate > R(0.0)) {
-            return 0; /* the innovation gate runs neuron by neuron (rhonn_step) */
+            cfg->neurons[i].covariance != cfg->neurons[0].covariance) {
+            return 0;
         }
     }
     return 1;
@@ -2185,7 +2188,8 @@ static void wide_load(rhonn_population_work *wk, const rhonn_t *net)
         wk->inv_lambda[0][m] = (nc->forgetting > R(0.0) && nc->forgetting < R(1.0)) ? R(1.0) / nc->forgetting
                                                                                      : R(1.0);
         wk->forget_ceiling[0][m] = net->forget_ceiling[i];
-        wk->p_trace_max[0][m] = nc->p_trace_max;
+        wk->p_trace_max[0][m] = net->trace_max[i]; /* in force, as load_lane */
+        wk->gate[0][m] = net->gate[i];
     }
     lane_flags(wk, 1);
 }
@@ -2217,9 +2221,10 @@ POP_CLONES static void wide_predict(rhonn_population_work *wk, size_t L, size_t 
 }
 
 /* Step 1 of rhonn.c's step_checked for every neuron at once: the learning
- * flags and innovations, the kernel, then the verdicts in neuron order (a
- * refusal counted; recovered with reset_after, else the step stops there
- * with its status). Returns RHONN_OK or the refused neuron's status. */
+ * flags and innovations, the kernel, then the verdicts in neuron order (the
+ * innovation gate after the test of s, as gate_lanes; a refusal counted;
+ * recovered with reset_after, else the step stops there with its status).
+ * Returns RHONN_OK or the refused neuron's status. */
 static rhonn_status wide_learn(rhonn_population_work *wk, rhonn_t *net, const rhonn_real *x, const uint8_t *v,
                                uint8_t *moved)
 {
@@ -2234,6 +2239,7 @@ static rhonn_status wide_learn(rhonn_population_work *wk, rhonn_t *net, const rh
         wk->updated[0][i] = 0;
         wk->bounded[0][i] = 0;
         wk->recovered[0][i] = 0;
+        wk->gated[0][i] = 0;
         /* a state not measured may be NaN: its lane's results are not used */
         wk->e[i] = i < n ? x[i] - wk->xhat[0][i] : R(0.0);
         any_learn |= learns;
@@ -2252,7 +2258,14 @@ static rhonn_status wide_learn(rhonn_population_work *wk, rhonn_t *net, const rh
     full_kernel(wk, 0u, L); /* wide_fits: not the U D U^T form in this build */
 #endif
     for (i = 0; i < n; ++i) {
+        const rhonn_real g = wk->gate[0][i];
         if (!wk->learn[0][i]) {
+            continue;
+        }
+        if (wk->kstatus[i] != (uint8_t)RHONN_E_INNOVATION && g > R(0.0) && wk->nis[0][i] > g) {
+            wk->gated[0][i] = 1; /* skipped by the gate: w and P kept (wide_step) */
+            wk->updated[0][i] = 0; /* the kernel's verdicts set it where the update passed */
+            wk->bounded[0][i] = 0;
             continue;
         }
         if (wk->kstatus[i] == (uint8_t)RHONN_OK) {
@@ -2338,10 +2351,18 @@ static rhonn_status wide_step(rhonn_population_work *wk, rhonn_t *net, const rho
             h->fail_run = 0;
             net->bank[i] = (uint8_t)(net->bank[i] ^ 1u);
             wk->cert[0][i] = (uint8_t)(ud ? 0u : wk->cert_new[0][i]); /* the U D U^T form has no proof */
-        } else if (moved) {
-            /* P(k+1) = P(k): into the bank that becomes committed */
-            for (t = 0; t < packed; ++t) {
-                wk->p[wk->pb[0] ^ 1u][0][t][i] = wk->p[wk->pb[0]][0][t][i];
+        } else {
+            if (wk->gated[0][i]) { /* skipped by the innovation gate: counted */
+                rhonn_health *h = &net->health[i];
+                h->innovation = wk->e[i];
+                h->nis = wk->nis[0][i];
+                h->gated += 1u;
+            }
+            if (moved) {
+                /* P(k+1) = P(k): into the bank that becomes committed */
+                for (t = 0; t < packed; ++t) {
+                    wk->p[wk->pb[0] ^ 1u][0][t][i] = wk->p[wk->pb[0]][0][t][i];
+                }
             }
         }
         net->xhat[i] = wk->xnew[0][i];

@@ -207,6 +207,9 @@ static int same_proofs(const rhonn_t *a, const rhonn_t *b)
 
 static rhonn_t alone[MAXN], members[MAXN];
 static rhonn_population_work work;
+/* When set, called on each member (index m) after its rhonn_init, before
+ * it is copied: calibration in force that its configuration does not hold. */
+static void (*after_init)(rhonn_t *net, size_t m) = NULL;
 static rhonn_real X[POP_T * 6], U[POP_T * 2], Xhat_alone[MAXN][POP_T * 6], Xhat_pop[MAXN * POP_T * 6];
 static uint8_t V[POP_T * 6];
 
@@ -224,6 +227,9 @@ static size_t compare(const rhonn_config *cfg, size_t N, const size_t *pre, int 
     memset(Xhat_alone, 0, sizeof Xhat_alone);
     for (m = 0; m < N; ++m) {
         CHECK_STATUS(rhonn_init(&alone[m], &cfg[m], NULL), RHONN_OK);
+        if (after_init != NULL) {
+            after_init(&alone[m], m);
+        }
         for (k = 0; pre != NULL && k < pre[m]; ++k) {
             CHECK_STATUS(rhonn_step(&alone[m], X + 6u * (POP_T - 1u - k), U + 2u * (POP_T - 1u - k), NULL, NULL),
                          RHONN_OK);
@@ -975,15 +981,99 @@ static void bounded_forgetting_at_its_ceiling_equals_single_runs(void)
     hold_quiet = 0;
 }
 
-/* A member with an innovation gate: the population runs as single runs
- * (rhonn_population.h), bit for bit, and the gate does skip the outlier;
- * an identifier with a gate is not lent to the lanes (rhonn_wide_begin:
- * RHONN_E_CONFIG, not advised) and its wide run is rhonn_run. */
+/* Gates set in force after rhonn_init (rhonn_set_gate,
+ * rhonn_set_trace_ceiling): member 3 gates neuron 1 and member 4 bounds
+ * every trace, though their configurations have neither. */
+static void calibrate_members(rhonn_t *net, size_t m)
+{
+    size_t i;
+    if (m == 3u) {
+        CHECK_STATUS(rhonn_set_gate(net, 1, (rhonn_real)4.0), RHONN_OK);
+    }
+    if (m == 4u) {
+        for (i = 0; i < 6; ++i) {
+            CHECK_STATUS(rhonn_set_trace_ceiling(net, i, (rhonn_real)(10.0 * (1.0 + 0.25 * 4.0) * 8.0)), RHONN_OK);
+        }
+    }
+}
+
+/* rhonn.h INNOVATION GATE in the lanes: a population mixing members without
+ * a gate, with one on every neuron, on one neuron, one too high to trip,
+ * one set in force by rhonn_set_gate, and gates with refusals skipped and
+ * recovered (forgetting that takes P out of definiteness), over dropouts
+ * and an outlier; members continuing from their own states. Each member
+ * is its own rhonn_run, bit for bit (health counters, refusals and resets
+ * included), in both covariance forms; the lanes ran them (loaded with
+ * every member's gate in force), and the outlier tripped the gates where
+ * they are low enough and nowhere else. */
+static void gated_members_in_the_lanes_equal_single_runs(void)
+{
+    rhonn_config cfg[MAXN];
+    rhonn_health h;
+    const size_t N = MAXN >= 7 ? 7u : MAXN;
+    size_t pre[MAXN];
+    size_t m, i;
+    uint32_t gated[MAXN], rejected[MAXN];
+    int ud;
+    add_outlier = 1;
+    after_init = calibrate_members;
+    for (ud = 0; ud < 2; ++ud) {
+        for (m = 0; m < N; ++m) {
+            cfg[m] = lim_config((unsigned)m, 1, ud);
+            pre[m] = 3u * m;
+            for (i = 0; i < 6; ++i) {
+                rhonn_neuron_config *nc = &cfg[m].neurons[i];
+                nc->gate = m == 1u ? (rhonn_real)9.0        /* every neuron */
+                           : m == 2u && i == 1u ? (rhonn_real)9.0 /* the outlier's neuron only */
+                           : m == 5u ? (rhonn_real)1e30     /* never trips */
+                           : m == 6u ? (rhonn_real)2.0      /* with refusals */
+                           : (rhonn_real)0.0;
+                if (m == 6u) {
+                    nc->forgetting = (rhonn_real)1e-3;
+                    nc->p_trace_max = (rhonn_real)(BIG / 8);
+                    nc->skip_refused = (uint8_t)(i != 0u);
+                    nc->reset_after = (uint16_t)(i % 2u ? 3u : 0u);
+                }
+            }
+        }
+        memset(&work, 0, sizeof work);
+        (void)compare(cfg, N, pre, 1);
+        for (m = 0; m < N; ++m) {
+            gated[m] = 0;
+            rejected[m] = 0;
+            /* the lanes were loaded, with each member's gate in force */
+            CHECK(memcmp(&work.r[1][m], &cfg[m].neurons[1].r, sizeof work.r[1][m]) == 0);
+            CHECK(work.gate[1][m] == (m == 3u ? (rhonn_real)4.0 : cfg[m].neurons[1].gate));
+            for (i = 0; i < 6; ++i) {
+                CHECK_STATUS(rhonn_get_health(&members[m], i, &h), RHONN_OK);
+                gated[m] += h.gated;
+                rejected[m] += h.rejected;
+                CHECK(h.gated == 0u || (m == 1u || m == 6u || i == 1u));
+            }
+        }
+        CHECK(gated[0] == 0u && gated[4] == 0u && gated[5] == 0u);
+        CHECK(gated[1] > 0u && gated[2] > 0u && gated[3] > 0u && (N < 7u || gated[6] > 0u));
+        /* gates and refusals in one member (in the U D U^T form its
+         * prediction overflows first, which no neuron can skip) */
+        CHECK(N < 7u || ud || rejected[6] > 0u);
+    }
+    after_init = NULL;
+    add_outlier = 0;
+}
+
+/* A member with an innovation gate runs in the lanes, bit for bit, and the
+ * gate does skip the outlier. One identifier whose neurons have gates (one
+ * that trips at the outlier, one with forgetting that refuses updates,
+ * skipped and recovered, one too high to trip) runs in its lanes too, as
+ * rhonn_run_wide and stepping in the lanes, both forms, bit for bit with
+ * rhonn_run, and a gate does not change whether the lanes are advised. */
 static void gated_members_and_neurons_run_as_single_runs(void)
 {
     rhonn_config cfg[MAXN], one;
     rhonn_health h;
+    const size_t n8 = 8 <= RHONN_MAX_STATES ? 8u : 6u;
     size_t m, i, gated = 0;
+    int ud;
     add_outlier = 1;
     for (m = 0; m < 4; ++m) {
         cfg[m] = lim_config((unsigned)m, 1, 0);
@@ -1000,17 +1090,37 @@ static void gated_members_and_neurons_run_as_single_runs(void)
     CHECK(gated > 0u); /* the outlier was gated */
     CHECK(work.holder == NULL);
     /* one identifier */
-    one = uniform_config(0, 8 <= RHONN_MAX_STATES ? 8u : 6u, 0, 0);
-    CHECK_STATUS(rhonn_init(&members[0], &one, NULL), RHONN_OK);
-    CHECK(rhonn_wide_pays(&members[0]) == (one.n_states == 8u));
+    one = uniform_config(0, n8, 0, 0);
     one.neurons[3].gate = (rhonn_real)9.0;
     CHECK_STATUS(rhonn_init(&members[0], &one, NULL), RHONN_OK);
-    CHECK(rhonn_wide_pays(&members[0]) == 0);
-    CHECK_STATUS(rhonn_wide_begin(&members[0], &lend), RHONN_E_CONFIG);
-    memset(&work, 0, sizeof work);
-    CHECK_STATUS(wide_compare(&one, 0, 1), RHONN_OK);
-    CHECK(!ran_in_lanes(&one));
-    CHECK_STATUS(rhonn_get_health(&alone[0], 1, &h), RHONN_OK);
+    CHECK(rhonn_wide_pays(&members[0]) == (one.n_states == 8u));
+    CHECK_STATUS(rhonn_wide_begin(&members[0], &lend), RHONN_OK);
+    CHECK_STATUS(rhonn_wide_end(&members[0], &lend), RHONN_OK);
+    for (ud = 0; ud < 2; ++ud) {
+        uint32_t g[8] = {0, 0, 0, 0, 0, 0, 0, 0}, r[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+        one = uniform_config(0, 6, 1, ud);
+        one.neurons[1].gate = (rhonn_real)9.0;
+        one.neurons[2].gate = (rhonn_real)2.0;
+        one.neurons[2].forgetting = (rhonn_real)1e-3;
+        one.neurons[2].p_trace_max = (rhonn_real)(BIG / 8);
+        one.neurons[2].skip_refused = 1;
+        one.neurons[2].reset_after = 2;
+        one.neurons[5].gate = (rhonn_real)1e30;
+        memset(&work, 0, sizeof work);
+        CHECK_STATUS(wide_compare(&one, 0, 1), RHONN_OK);
+        CHECK(ran_in_lanes(&one) == (!ud || RHONN_WIDE_UD));
+        for (i = 0; i < 6; ++i) {
+            CHECK_STATUS(rhonn_get_health(&members[0], i, &h), RHONN_OK);
+            g[i] = h.gated;
+            r[i] = h.rejected;
+        }
+        /* the outlier gated in neuron 1; neuron 2, forgetting, is gated
+         * step after step in the U D U^T form, its updates refused (and
+         * skipped) in the full form, where P grows until nothing trips */
+        CHECK(g[1] > 0u && (ud ? g[2] > 0u : r[2] > 0u));
+        CHECK(g[0] == 0u && g[3] == 0u && g[4] == 0u && g[5] == 0u);
+        CHECK(r[0] == 0u && r[1] == 0u);
+    }
     add_outlier = 0;
 }
 
@@ -1165,6 +1275,7 @@ int main(void)
     RUN(wide_steps_go_on_after_a_refusal_as_single_steps);
     RUN(bounded_forgetting_at_its_ceiling_equals_single_runs);
     RUN(gated_members_and_neurons_run_as_single_runs);
+    RUN(gated_members_in_the_lanes_equal_single_runs);
     RUN(skipped_refusals_in_the_lanes_equal_single_runs);
     RUN(skipped_refusals_in_a_wide_run_equal_a_single_run);
     if (b != NULL) {
