@@ -2292,7 +2292,8 @@ rhonn_status rhonn_internal_ekf_update(rhonn_t *net, size_t i, rhonn_real e, con
     for (t = 0; t < CFG(net)->neurons[i].n_terms; ++t) {
         zv[i][t] = z[t];
     }
-    st = update_neurons(net, learns, ev, zv, nv, bnd, gated, &from); /* no gate in the lanes' configs */
+    /* no gate here: a gated lane discards this update's result (gate_lanes, rhonn_population.c) */
+    st = update_neurons(net, learns, ev, zv, nv, bnd, gated, &from);
     *nis = nv[i];
     *bounded = bnd[i];
     return st;
