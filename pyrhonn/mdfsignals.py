@@ -21,6 +21,9 @@ log of CAN frames is read with ``--can-log`` instead, :mod:`pyrhonn.buslog`).
     therefore valid only at the grid points that follow its samples.
 - A file whose identification block says it was not finalised
   (``UnFinMF``) is refused unless ``partial``.
+- :func:`read_signal_mdf` reads every channel whole; :class:`SignalMdfStream`
+  gives the same values a chunk of the grid at a time, reading a block of
+  records of each channel at a time (memory bounded whatever the length).
 
 Every defect raises ``ValueError`` naming the file and channel.
 """

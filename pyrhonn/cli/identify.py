@@ -64,7 +64,8 @@ Without ``--free-run-from`` and ``--steps-ahead`` the record is streamed: a
 CSV file is read a block at a time (:class:`pyrhonn.datafile.DataReader`),
 a bus log a chunk of frames at a time (:mod:`pyrhonn.buslogstream`; its
 samples.csv staged as it goes; a log it cannot stream, or that it refuses,
-is read whole, to the same result or message), the core runs chunk by chunk keeping its state (the predictions are the
+is read whole, to the same result or message), a signal MDF4 a block of records of each channel at a time
+(:class:`pyrhonn.mdfsignals.SignalMdfStream`), the core runs chunk by chunk keeping its state (the predictions are the
 whole record's, bit for bit), gaps are found chunk by chunk
 (:class:`pyrhonn.gaps.SegmentTracker`), ``predictions.csv`` is written as
 the chunks come and the metrics are running sums
