@@ -165,3 +165,34 @@ def test_an_order_statistic_found_holding_few_intervals_is_the_sorted_ones(
     d = np.array(values)
     k = data.draw(st.integers(0, d.size - 1))
     assert mdfsignals._kth(lambda: iter(np.array_split(d, block)), k, hold) == np.sort(d)[k]
+
+
+def _peak_while_streamed(tmp_path: Path, samples: int) -> int:
+    """The most memory (bytes, Python's allocations) the stream holds opening and reading ``samples`` samples
+    (in data blocks of 16 KiB) a block of 1,024 records and a chunk of 1,024 grid points at a time, intervals held
+    at most 8,192."""
+    import tracemalloc
+
+    path = tmp_path / f"n{samples}.mf4"
+    t = 0.01 * np.arange(samples)
+    mdf = asammdf.MDF(version="4.10")
+    mdf.append([asammdf.Signal(np.sin(t * (j + 1)), t, name=name) for j, name in enumerate(STATES)], comment="x")
+    mdf.append([asammdf.Signal(np.cos(t), t, name="u")], comment="u")
+    mdf.configure(write_fragment_size=1 << 14)  # data blocks of 16 KiB, as a logger writes them: asammdf reads
+    mdf.save(str(path), overwrite=True)         # the blocks a range of records is in
+    mdf.close()
+    tracemalloc.start()
+    try:
+        stream = SignalMdfStream(path, STATES, INPUTS, block=1024, hold=8192)
+        rows = sum(c[0].shape[0] for c in stream.chunks(1024))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert rows == samples
+    return peak
+
+
+def test_the_memory_a_streamed_signal_mdf4_holds_does_not_grow_with_its_length(tmp_path: Path) -> None:
+    short, long = _peak_while_streamed(tmp_path, 4_000), _peak_while_streamed(tmp_path, 24_000)
+    # read whole, the grid's arrays alone (t, X, valid, U) take 52 bytes a sample, a channel's samples 16
+    assert long < short + 8 * 20_000, (short, long)
