@@ -330,8 +330,10 @@ def main() -> None:
                     help="with --results: keep the file's figures that this run does not make")
     args = ap.parse_args()
     figures: dict[str, object] = {}
+    earlier: dict[str, object] = {}
     if args.merge:
-        figures = json.loads((results_file.FOLDER / "recordings.json").read_text())["figures"]
+        earlier = json.loads((results_file.FOLDER / "recordings.json").read_text())
+        figures = dict(earlier["figures"])  # type: ignore[call-overload]
     with tempfile.TemporaryDirectory() as tmp:
         d = args.out or Path(tmp)
         d.mkdir(parents=True, exist_ok=True)
@@ -355,8 +357,9 @@ def main() -> None:
             print(f"2. {N:,} samples, {len(lost_big):,} lost; the C core alone (Identifier.run over the segments, "
                   f"float32): {core:.2f} s")
             long: dict[str, object] = {"samples": N, "lost": len(lost_big), "core_seconds": core, "plots": False}
-            if args.merge and isinstance(figures.get("long"), dict):
-                long = {**figures["long"], **({} if set(args.long_formats.split(",")) == {"signal-mf4"} else long)}
+            before = figures.get("long")
+            if args.merge and isinstance(before, dict):
+                long = {**before, **({} if set(args.long_formats.split(",")) == {"signal-mf4"} else long)}
             for suffix in args.long_formats.split(","):
                 if suffix == "signal-mf4":
                     path = d / "long-signal.mf4"
@@ -394,7 +397,23 @@ def main() -> None:
         if args.huge:
             figures["huge"] = _huge(args.huge, args.loss, args.huge_dir, d, args.seed)
     if args.results:
-        results_file.save("recordings", figures)
+        path = results_file.save("recordings", figures)
+        if args.merge:
+            _merged(path, earlier, [f.replace("-", "_") for f in args.long_formats.split(",")] if args.long else [])
+
+
+def _merged(path: Path, earlier: dict[str, object], formats: list[str]) -> None:
+    """The results file as it was (its run's date, command, machine and load) with this run's figures, each
+    long-recording format this run measured carrying this run's own date, command and load (``run``)."""
+    from pyrhonn import atomic
+
+    record = json.loads(path.read_text())
+    run = {key: record[key] for key in ("date", "command", "load")}
+    for fmt in formats:
+        if fmt in record["figures"].get("long", {}):
+            record["figures"]["long"][fmt]["run"] = run
+    merged = {**earlier, "figures": record["figures"]}
+    atomic.write_text(path, json.dumps(merged, indent=1, allow_nan=False, sort_keys=False) + "\n")
 
 
 if __name__ == "__main__":
