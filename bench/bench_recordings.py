@@ -11,7 +11,10 @@
    read a chunk of frames at a time (:mod:`pyrhonn.buslogstream`), so its peak memory does not grow
    with its length: ``--longer F`` (default 4) also identifies the candump log F times over (its copies
    one after the other in time, written a block of lines at a time) and reports its time, ratio and
-   peak beside the first.
+   peak beside the first. ``signal-mf4`` is the same samples as a signal MDF4 of named channels
+   (the states in one channel group, without the lost samples, the inputs in another), streamed a
+   block of records at a time (:class:`pyrhonn.mdfsignals.SignalMdfStream`), its ratio against the core's
+   time in the same run.
 3. With ``--huge N`` (12,000,000: an hour at 0.3 ms), a CSV of N samples (``--loss`` lost, written
    straight from the arrays, about 1.9 GB in ``--huge-dir``, deleted afterwards) through ``identify``
    (plots included), then the same samples without the lost ones through ``select --search fixed``
@@ -19,10 +22,12 @@
    is validated on every row): the time and peak memory of each.
 
     python bench/bench_recordings.py [--frames 10001] [--loss 0.005] [--long 1000000]
-        [--long-formats log,blf,asc,mf4,csv] [--longer 4]
-        [--huge 12000000 --huge-dir /tmp] [--results]
+        [--long-formats log,blf,asc,mf4,csv,signal-mf4] [--longer 4]
+        [--huge 12000000 --huge-dir /tmp] [--results [--merge]]
 
-``--results`` writes the figures to bench/results/recordings.json (bench/results_file.py).
+``--results`` writes the figures to bench/results/recordings.json (bench/results_file.py); with
+``--merge`` the figures this run does not make (``--frames 0`` skips part 1) are kept from the file,
+and the long recording's formats it runs replace theirs there.
 
 Needs python-can, cantools and asammdf (pyrhonn's dependencies).
 """
@@ -242,6 +247,25 @@ def _recorded(frames: list[can.Message], n: int, path: Path, d: Path) -> dict[st
                       "--no-plots"], d)
 
 
+def _signal_mdf(X: np.ndarray, U: np.ndarray, lost: np.ndarray, path: Path, d: Path) -> dict[str, float]:
+    """The samples as a signal MDF4 (float32 values, as the frames carry them): the states' channels in one
+    group without the lost samples, the inputs' in another with every sample; then identified into
+    ``out-<stem>`` (the default period: the median interval of the first state's channel)."""
+    import asammdf
+
+    t = PERIOD * np.arange(X.shape[0])
+    kept = ~lost
+    mdf = asammdf.MDF(version="4.10")
+    mdf.append([asammdf.Signal(X[kept, j].astype(np.float32), t[kept], name=name) for j, name in enumerate(STATES)],
+               comment="states")
+    mdf.append([asammdf.Signal(U[:, j].astype(np.float32), t, name=name) for j, name in enumerate(("u_a", "u_b"))],
+               comment="inputs")
+    mdf.save(str(path), overwrite=True)
+    mdf.close()
+    return _identify(["identify", str(path), "--config", str(d / "lim.toml"), "--out", str(d / f"out-{path.stem}"),
+                      "--no-plots"], d)
+
+
 def _predictions(out: Path) -> list[dict[str, str]]:
     with (out / "predictions.csv").open(newline="") as fh:
         return [{k: v for k, v in row.items() if k.endswith(("_hat", "_err"))} for row in csv.DictReader(fh)]
@@ -265,13 +289,35 @@ def _core_seconds(X: np.ndarray, U: np.ndarray, lost: np.ndarray) -> float:
     return best
 
 
+def _lossy(n: int, lost: set[int], loss: float, d: Path) -> dict[str, object]:
+    """Part 1: the lossy frames in every format, identified; their predictions the same."""
+    X, U = _samples(n, synthetic=False)
+    frames = _frames(X, U, lost)
+    print(f"1. {n:,} Measurement frames, {len(lost)} lost at random ({loss:.1%})")
+    runs: dict[str, dict[str, float]] = {}
+    for suffix in ("log", "blf", "asc", "mf4", "csv"):
+        path = d / f"lossy-{suffix}.{suffix}"
+        runs[suffix] = _recorded(frames, n, path, d)
+        gaps = json.loads((d / f"out-{path.stem}" / "metrics.json").read_text())["gaps"]
+        assert gaps["lost_samples"] == len(lost), (suffix, gaps["lost_samples"])
+        print(f"   {suffix:4s} {path.stat().st_size / 2**20:7.2f} MiB: {runs[suffix]['seconds']:6.2f} s, peak "
+              f"{runs[suffix]['peak_mib']:6.0f} MiB; {gaps['lost_samples']} lost in {gaps['gaps']} gaps, "
+              f"{gaps['restarts']} restarts")
+    want = _predictions(d / "out-lossy-csv")
+    same = all(_predictions(d / f"out-lossy-{s}") == want for s in ("log", "blf", "asc", "mf4"))
+    print(f"   predictions equal across candump, BLF, ASC, MDF4 and CSV: {same}")
+    if not same:
+        raise SystemExit(1)
+    return {"frames": n, "lost": len(lost), "loss": loss, "same_predictions": same, "formats": runs}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--frames", type=int, default=10_001)
     ap.add_argument("--loss", type=float, default=0.005)
     ap.add_argument("--long", type=int, default=1_000_000)
-    ap.add_argument("--long-formats", default="log,blf,asc,mf4,csv",
-                    help="formats of the long recording (log, blf, asc, mf4, csv)")
+    ap.add_argument("--long-formats", default="log,blf,asc,mf4,csv,signal-mf4",
+                    help="formats of the long recording (log, blf, asc, mf4 bus log, csv, signal-mf4)")
     ap.add_argument("--longer", type=int, default=4,
                     help="also the long candump log this many times over (0: not), for the peak memory's growth")
     ap.add_argument("--seed", type=int, default=5)
@@ -280,8 +326,14 @@ def main() -> None:
     ap.add_argument("--huge-dir", type=Path, default=Path(tempfile.gettempdir()),
                     help="where the --huge CSV is written (and deleted afterwards)")
     ap.add_argument("--results", action="store_true", help="write bench/results/recordings.json")
+    ap.add_argument("--merge", action="store_true",
+                    help="with --results: keep the file's figures that this run does not make")
     args = ap.parse_args()
     figures: dict[str, object] = {}
+    earlier: dict[str, object] = {}
+    if args.merge:
+        earlier = json.loads((results_file.FOLDER / "recordings.json").read_text())
+        figures = dict(earlier["figures"])  # type: ignore[call-overload]
     with tempfile.TemporaryDirectory() as tmp:
         d = args.out or Path(tmp)
         d.mkdir(parents=True, exist_ok=True)
@@ -290,25 +342,9 @@ def main() -> None:
         rng = np.random.default_rng(args.seed)
         n = args.frames
         lost = {int(k) for k in np.flatnonzero(rng.random(n) < args.loss) if 0 < k < n - 1}
-        X, U = _samples(n, synthetic=False)
-        frames = _frames(X, U, lost)
-        print(f"1. {n:,} Measurement frames, {len(lost)} lost at random ({args.loss:.1%})")
-        runs: dict[str, dict[str, float]] = {}
-        for suffix in ("log", "blf", "asc", "mf4", "csv"):
-            path = d / f"lossy-{suffix}.{suffix}"
-            runs[suffix] = _recorded(frames, n, path, d)
-            gaps = json.loads((d / f"out-{path.stem}" / "metrics.json").read_text())["gaps"]
-            assert gaps["lost_samples"] == len(lost), (suffix, gaps["lost_samples"])
-            print(f"   {suffix:4s} {path.stat().st_size / 2**20:7.2f} MiB: {runs[suffix]['seconds']:6.2f} s, peak "
-                  f"{runs[suffix]['peak_mib']:6.0f} MiB; {gaps['lost_samples']} lost in {gaps['gaps']} gaps, "
-                  f"{gaps['restarts']} restarts")
-        want = _predictions(d / "out-lossy-csv")
-        same = all(_predictions(d / f"out-lossy-{s}") == want for s in ("log", "blf", "asc", "mf4"))
-        print(f"   predictions equal across candump, BLF, ASC, MDF4 and CSV: {same}")
-        if not same:
-            raise SystemExit(1)
-        figures["lossy"] = {"frames": n, "lost": len(lost), "loss": args.loss, "same_predictions": same,
-                            "formats": runs}
+        if n:
+            figures["lossy"] = _lossy(n, lost, args.loss, d)
+
 
         N = args.long
         if N:
@@ -321,7 +357,21 @@ def main() -> None:
             print(f"2. {N:,} samples, {len(lost_big):,} lost; the C core alone (Identifier.run over the segments, "
                   f"float32): {core:.2f} s")
             long: dict[str, object] = {"samples": N, "lost": len(lost_big), "core_seconds": core, "plots": False}
+            before = figures.get("long")
+            if args.merge and isinstance(before, dict):
+                long = {**before, **({} if set(args.long_formats.split(",")) == {"signal-mf4"} else long)}
             for suffix in args.long_formats.split(","):
+                if suffix == "signal-mf4":
+                    path = d / "long-signal.mf4"
+                    r = _signal_mdf(Xb, Ub, lost_mask, path, d)
+                    print(f"   signal MDF4 {path.stat().st_size / 2**20:7.1f} MiB: identify {r['seconds']:6.1f} s "
+                          f"({r['seconds'] / core:5.1f} x the core), peak {r['peak_mib']:6.0f} MiB")
+                    long["signal_mf4"] = {"file_mib": path.stat().st_size / 2**20, "seconds": r["seconds"],
+                                          "peak_mib": r["peak_mib"], "core_seconds": core, "ratio": r["seconds"] / core}
+                    path.unlink()
+                    for name in ("predictions.csv", "samples.csv"):
+                        (d / f"out-{path.stem}" / name).unlink(missing_ok=True)
+                    continue
                 path = d / f"long-{suffix}.{suffix}"
                 r = _recorded(big, N, path, d)
                 print(f"   {suffix:4s} {path.stat().st_size / 2**20:7.1f} MiB: identify {r['seconds']:6.1f} s "
@@ -347,7 +397,23 @@ def main() -> None:
         if args.huge:
             figures["huge"] = _huge(args.huge, args.loss, args.huge_dir, d, args.seed)
     if args.results:
-        results_file.save("recordings", figures)
+        path = results_file.save("recordings", figures)
+        if args.merge:
+            _merged(path, earlier, [f.replace("-", "_") for f in args.long_formats.split(",")] if args.long else [])
+
+
+def _merged(path: Path, earlier: dict[str, object], formats: list[str]) -> None:
+    """The results file as it was (its run's date, command, machine and load) with this run's figures, each
+    long-recording format this run measured carrying this run's own date, command and load (``run``)."""
+    from pyrhonn import atomic
+
+    record = json.loads(path.read_text())
+    run = {key: record[key] for key in ("date", "command", "load")}
+    for fmt in formats:
+        if fmt in record["figures"].get("long", {}):
+            record["figures"]["long"][fmt]["run"] = run
+    merged = {**earlier, "figures": record["figures"]}
+    atomic.write_text(path, json.dumps(merged, indent=1, allow_nan=False, sort_keys=False) + "\n")
 
 
 if __name__ == "__main__":

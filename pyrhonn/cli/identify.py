@@ -64,7 +64,8 @@ Without ``--free-run-from`` and ``--steps-ahead`` the record is streamed: a
 CSV file is read a block at a time (:class:`pyrhonn.datafile.DataReader`),
 a bus log a chunk of frames at a time (:mod:`pyrhonn.buslogstream`; its
 samples.csv staged as it goes; a log it cannot stream, or that it refuses,
-is read whole, to the same result or message), the core runs chunk by chunk keeping its state (the predictions are the
+is read whole, to the same result or message), a signal MDF4 a block of records of each channel at a time
+(:class:`pyrhonn.mdfsignals.SignalMdfStream`), the core runs chunk by chunk keeping its state (the predictions are the
 whole record's, bit for bit), gaps are found chunk by chunk
 (:class:`pyrhonn.gaps.SegmentTracker`), ``predictions.csv`` is written as
 the chunks come and the metrics are running sums
@@ -104,7 +105,7 @@ from ..datafile import (BLOCK_BYTES, ROWS_AT_ONCE, SEPARATORS, Data, DataReader,
                         concatenate, data_columns, data_rows, header_line, write_data)
 from ..envelope import Envelope
 from ..gaps import SegmentTracker, Segments, segments_of, simulate_segments
-from ..mdfsignals import METHOD, MdfSignals, read_signal_mdf
+from ..mdfsignals import METHOD, MdfSignals, SignalMdfStream, read_signal_mdf
 from ..identifier import Identifier, IdentifierError
 from ..metrics import absolute_deviation, json_value
 from ..residuals import departure, divergence_range
@@ -190,8 +191,10 @@ def _separator(text: str) -> str:
 # -- running ----------------------------------------------------------------------------------------
 
 
-def _signal_mdf(args: argparse.Namespace, cf: ConfigFile) -> tuple[Data, MdfSignals]:
-    """A signal MDF4 DATA.mf4 on the identifier's grid, as the arrays a CSV gives (lines: samples.csv's)."""
+def _signal_mdf(args: argparse.Namespace, cf: ConfigFile, streamed: bool
+                ) -> tuple[Data | None, MdfSignals | SignalMdfStream]:
+    """A signal MDF4 DATA.mf4 on the identifier's grid: read whole, as the arrays a CSV gives (lines:
+    samples.csv's), or (``streamed``) opened to be read a block of records at a time (no data yet)."""
     if args.csv_sep is not None or args.decimal is not None:
         raise ValueError(f"{'--csv-sep' if args.csv_sep is not None else '--decimal'}: only for a CSV file")
     names = (*cf.state_names, *cf.input_names)
@@ -206,6 +209,9 @@ def _signal_mdf(args: argparse.Namespace, cf: ConfigFile) -> tuple[Data, MdfSign
         channels[name.strip()] = channel.strip()
     period = None if args.sample_period is None else real_option("--sample-period", args.sample_period,
                                                                    positive=True)
+    if streamed:
+        return None, SignalMdfStream(args.data, cf.state_names, cf.input_names, period=period, channels=channels,
+                                     partial=bool(args.partial_log))
     m = read_signal_mdf(args.data, cf.state_names, cf.input_names, period=period, channels=channels,
                         partial=bool(args.partial_log))
     K = m.t.shape[0]
@@ -618,16 +624,28 @@ def _drain(chunks: Iterable[Data]) -> None:
         pass
 
 
-def _samples_rows(chunks: Iterable[Data], fh: IO[bytes], cf: ConfigFile) -> Iterator[Data]:
-    """``chunks`` passed on, their rows written to ``fh`` as samples.csv's (with the ``lost`` column)."""
+def _samples_rows(chunks: Iterable[Data], fh: IO[bytes], cf: ConfigFile, lost_column: bool = True) -> Iterator[Data]:
+    """``chunks`` passed on, their rows written to ``fh`` as samples.csv's (with the ``lost`` column or not)."""
     for c in chunks:
-        for text in data_rows(c, cf, lost_column=True):
+        for text in data_rows(c, cf, lost_column=lost_column):
             fh.write(text)
         yield c
 
 
+def _mdf_chunks(m: SignalMdfStream) -> Iterator[Data]:
+    """A streamed signal MDF4's grid as data chunks (lines: samples.csv's)."""
+    k0 = 0
+    for t, X, valid, U in m.chunks(CHUNK_ROWS):
+        L = t.shape[0]
+        yield Data(X=X, U=U, valid=valid, t=t, lines=np.arange(k0 + 2, k0 + L + 2, dtype=np.int64), ignored=(),
+                   units=m.units)
+        k0 += L
+
+
 def _run(args: argparse.Namespace, cf: ConfigFile, config_source: str, bus: bus_input.BusInput | None) -> int:
-    mdf = _signal_mdf(args, cf) if bus is None and Path(args.data).suffix.lower() == ".mf4" else None
+    one_step = args.free_run_from is None and args.steps_ahead is None  # streamed; else the record held whole
+    mdf = _signal_mdf(args, cf, one_step) if bus is None and Path(args.data).suffix.lower() == ".mf4" else None
+    mdf_stream = mdf[1] if mdf is not None and not isinstance(mdf[1], MdfSignals) else None
     streamed = bus.stream if bus is not None else None
     source = bus.source if bus else args.data
     try:
@@ -635,10 +653,11 @@ def _run(args: argparse.Namespace, cf: ConfigFile, config_source: str, bus: bus_
             raise ValueError(f"{'--csv-sep' if args.csv_sep is not None else '--decimal'}: only for a CSV file, not "
                              "with --can-log")
         whole = bus.data if bus else mdf[0] if mdf else None
-        reader = None if whole is not None or streamed is not None else DataReader(
+        reader = None if whole is not None or streamed is not None or mdf_stream is not None else DataReader(
             source, cf, valid_suffix=args.valid_suffix, config_source=config_source, sep=args.csv_sep,
             decimal=args.decimal, allow_lost=True, block_bytes=BLOCK_BYTES)
-        file_units = whole.units if whole is not None else reader.units if reader is not None else None
+        file_units = (whole.units if whole is not None else reader.units if reader is not None else
+                      mdf_stream.units if mdf_stream is not None else None)
         ignored = whole.ignored if whole is not None else reader.ignored if reader is not None else ()
         units = {**{k: v for k, v in (file_units or {}).items() if k in cf.state_names or k == TIME_COLUMN},
                  **args.units}  # --units over the file's unit row
@@ -663,9 +682,11 @@ def _run(args: argparse.Namespace, cf: ConfigFile, config_source: str, bus: bus_
     settings = {"data": str(source), "config": config_source, "dtype": dtype}
     segs: SegmentTracker | Segments | None
     sections: dict[str, Any]
-    if K is None and args.steps_ahead is None:  # one step ahead, learning online: streamed, a chunk at a time
+    if one_step:  # one step ahead, learning online: streamed, a chunk at a time
         with _Staged(out / "predictions.csv") as staged, _Staged(out / bus_input.SAMPLES) as staged_samples:
             chunks = (_samples_rows(streamed.chunks(), staged_samples.fh, cf) if streamed is not None else
+                      _samples_rows(_mdf_chunks(mdf_stream), staged_samples.fh, cf, lost_column=False)
+                      if mdf_stream is not None else
                       _pieces(whole) if whole is not None else reader.chunks() if reader is not None else iter(()))
             try:
                 T, sections, next_prediction, segs, env, file_units = _stream(
@@ -683,6 +704,8 @@ def _run(args: argparse.Namespace, cf: ConfigFile, config_source: str, bus: bus_
                 elif streamed is not None:  # the rows as written, without the lost column if nothing was lost
                     staged_samples.commit(header_line(data_columns(True, cf, args.valid_suffix, segs.gap_count > 0)),
                                           drop_last_column=not segs.gap_count)
+                elif mdf_stream is not None:
+                    staged_samples.commit(header_line(data_columns(True, cf, args.valid_suffix, False)))
                 staged.commit()
                 _write_rest(out, report, plots, cf, env, args.warmup, units)
         diverged_line = None
