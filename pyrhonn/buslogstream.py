@@ -26,6 +26,7 @@ raises :class:`Reread`, and the caller reads the log whole to say what is wrong 
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Generator, Iterator, Sequence
 
@@ -40,6 +41,31 @@ __all__ = ["CHUNK_FRAMES", "BusStream", "Reread"]
 
 #: frames read before they are sorted and aligned
 CHUNK_FRAMES = 1 << 15
+
+
+def _median_inside(counts: list[int], extremes: list[float], N: int, T: float) -> bool:
+    """Is the median of N clock intervals within the period's tolerance, as the whole read's check
+    (:func:`pyrhonn.buslog._period`) finds it? ``counts``: how many intervals lie below, inside and above
+    the tolerance band; ``extremes``: the largest below, the smallest and the largest inside, the
+    smallest above. The median is the middle interval (N odd) or the mean of the middle pair: a pair
+    inside the band has its mean inside, a pair on one side of it its mean on that side, and a pair
+    across two groups is the last of one and the first of the next, extremes both, averaged as
+    numpy's median averages them."""
+    below, inside, _ = counts
+
+    def value(j: int) -> tuple[int, float | None]:  # (group, the interval where it is an extreme)
+        if j < below:
+            return 0, extremes[0] if j == below - 1 else None
+        if j < below + inside:
+            return 1, extremes[1] if j == below else extremes[2] if j == below + inside - 1 else None
+        return 2, extremes[3] if j == below + inside else None
+
+    (g1, v1), (g2, v2) = value((N - 1) // 2), value(N // 2)
+    if g1 == g2:
+        return g1 == 1
+    assert v1 is not None and v2 is not None  # adjacent across groups: both are extremes
+    med = float(np.median(np.array([v1, v2])))
+    return not abs(med - T) > PERIOD_TOLERANCE * T
 
 
 class Reread(Exception):
@@ -179,6 +205,9 @@ class BusStream:
         tau0: float | None = None
         prev_tc: float | None = None
         intervals = np.zeros(3, dtype=np.int64)  # clock intervals below, inside, above the period's tolerance
+        # and the extremes of those groups (the largest below, the smallest and largest inside, the smallest
+        # above): the only intervals a median whose middle pair straddles two groups can be made of
+        extremes = [-math.inf, math.inf, -math.inf, math.inf]
         clock_frames = 0
         inserted = 0
         pend_clock_sample = np.zeros(0, dtype=np.int64)
@@ -198,6 +227,11 @@ class BusStream:
                 prev_tc = float(tc[-1])
                 dev = np.abs(steps - T) > PERIOD_TOLERANCE * T
                 intervals += [int((dev & (steps < T)).sum()), int((~dev).sum()), int((dev & (steps > T)).sum())]
+                for group, pick, at in ((dev & (steps < T), np.max, 0), (~dev, np.min, 1), (~dev, np.max, 2),
+                                        (dev & (steps > T), np.min, 3)):
+                    if group.any():
+                        value = float(pick(steps[group]))
+                        extremes[at] = max(extremes[at], value) if pick is np.max else min(extremes[at], value)
                 if self.counter is None:
                     if tau0 is None:
                         tau0 = last_tau = float(tc[0])
@@ -243,11 +277,8 @@ class BusStream:
             self.peak_frames = max(self.peak_frames, len(pend) + len(pend_clock))
         if tau0 is None or not all(seen[plan.resolved[name][0].name] for name in plan.names):
             raise Reread  # no frame of a message (or none of the clock): the whole read names which
-        if clock_frames > 1:
-            below, inside, _ = intervals.tolist()
-            N = clock_frames - 1
-            if not (below <= (N - 1) // 2 and below + inside > N // 2):  # the median's middle pair inside
-                raise Reread
+        if clock_frames > 1 and not _median_inside(intervals.tolist(), extremes, clock_frames - 1, T):
+            raise Reread
         starts = tau + aT
         end = float(starts[-1] + T)
         s_done, tau, pend, pend_clock, pend_clock_sample = yield from run.close(
