@@ -41,6 +41,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -207,15 +208,15 @@ def _huge(n: int, loss: float, folder: Path, d: Path, seed: int) -> dict[str, fl
         r = _identify(["identify", str(path), "--config", str(d / "lim.toml"), "--out", str(d / "out-huge")], d)
         metrics = json.loads((d / "out-huge" / "metrics.json").read_text())
         (d / "out-huge" / "predictions.csv").unlink()
-        found = {"samples": n, "file_mib": size / 2**20, "seconds": r["seconds"], "peak_mib": r["peak_mib"],
+        found: dict[str, Any] = {"samples": n, "file_mib": size / 2**20, "seconds": r["seconds"], "peak_mib": r["peak_mib"],
                  "lost": metrics["gaps"]["lost_samples"] if "gaps" in metrics else 0}
         print(f"3. {n:,} samples ({found['lost']:,} lost) as a {found['file_mib']:,.0f} MiB CSV: identify "
               f"{r['seconds']:.0f} s, peak {r['peak_mib']:.0f} MiB (plots included)")
         # select has no lost samples to read: the same signals without the lost column
         clean = folder / f"pyrhonn-bench-huge-{n}-select.csv"
         with path.open() as src, clean.open("w") as out:
-            for block in iter(lambda: src.readlines(1 << 22), []):
-                out.writelines(line.rsplit(",", 1)[0] + "\n" for line in block if not line.endswith(",1\n"))
+            for read in iter(lambda: src.readlines(1 << 22), []):
+                out.writelines(line.rsplit(",", 1)[0] + "\n" for line in read if not line.endswith(",1\n"))
         path.unlink()
         # select's own budget (100,000 rows) on an hour's record; a quarter of a short one, so that a small run
         # goes through the same windows
