@@ -41,7 +41,7 @@ from pyrhonn import Identifier
 from pyrhonn import reproduce as rp
 from pyrhonn.configfile import loads, shipped_text
 from pyrhonn.metrics import absolute_deviation, rmse
-from pyrhonn.plants import Corruption, lim
+from pyrhonn.plants import Corruption, lim, oscillator
 from pyrhonn.reproduce import AD_TARGET, RMSE_TARGET
 
 FIGURES = ("rmse", "paper_rmse", "rmse_ratio", "ad", "paper_ad", "ad_ratio", "rmse_over_std", "rmse_after_warmup")
@@ -226,6 +226,45 @@ def encoder(figures: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def switch_on(result: rp.ScenarioResult) -> dict[str, Any]:
+    """Example 3's current i_a around the input's switch-on (``LimInput.start``): the
+    identifier's absolute error at the first two targets after it, and the largest error elsewhere."""
+    est = result.estimator("identifier")
+    j = result.state_names.index("i_a")
+    err = np.abs(est.estimate[:, j] - result.truth[:, j])
+    after = np.flatnonzero(result.trajectory.t[1:] > lim.LimInput().start + 1e-9)[:2]
+    rest = np.ones(err.size, dtype=bool)
+    rest[after] = False
+    return {"first": float(err[after[0]]), "second": float(err[after[1]]), "elsewhere_max": float(err[rest].max())}
+
+
+def position_drift(result: rp.ScenarioResult) -> float:
+    """Example 3's largest position error of the identifier (m): the drift its free-running position
+    neuron accumulates through the hold."""
+    est = result.estimator("identifier")
+    j = result.state_names.index("q_m")
+    return float(np.abs(est.estimate[:, j] - result.truth[:, j]).max())
+
+
+#: the trajectory the tuned Example 1 config was tuned on (not the paper's): x(0), input frequency (rad/s)
+TRAINING = (np.array([0.5, -0.5, 0.8, 0.2]), 0.25)
+
+
+def tuned_on_training(figures: dict[str, Any], horizon: float = 100.0) -> dict[str, Any]:
+    """The shipped ``example1-tuned`` config at T = 0.2 s on the trajectory it was tuned on (:data:`TRAINING`)
+    over ``horizon``: per state its RMSE over Table 1's, beside the same ratio on the paper's trajectory."""
+    x0, frequency = TRAINING
+    traj = oscillator.simulate(oscillator.OscillatorParams(x0=x0, input_frequency=frequency), dt=0.2, horizon=horizon)
+    spec = next(s for s in rp.shipped_identifiers("example1") if s.key == "identifier-tuned")
+    rows = Identifier(spec.config).run(np.ascontiguousarray(traj.X_meas), np.ascontiguousarray(traj.U), traj.valid)
+    r = rmse(traj.X[1:], rows[:-1])
+    paper = figures["example1-dt0_2"]["identifier-tuned"]
+    out: dict[str, Any] = {}
+    for j, name in enumerate(traj.state_names):
+        out[name] = {"training": float(r[j]) / paper[name]["paper_rmse"], "paper": paper[name]["rmse_ratio"]}
+    return out
+
+
 def _variant(name: str, raw: str, replacement: str) -> rp.IdentifierSpec:
     """The shipped config ``name`` with its one line ``raw`` replaced, as the identifier to run."""
     shipped = shipped_text(name)
@@ -281,6 +320,10 @@ def variants(figures: dict[str, Any]) -> dict[str, Any]:
         f"h{h:g}".replace(".", "_"): _states(rp.run_scenario("example1-dt0.2", horizon=h, horizons=()), "identifier")
         for h in AFTER_SPIKE}
     out["example1_x4_spikes"] = x4_spikes(rp.run_scenario("example1-dt0.2", horizons=()))
+    example3 = rp.run_scenario("example3", horizons=())
+    out["example3_switch_on"] = switch_on(example3)
+    out["example1_tuned_on_training"] = tuned_on_training(figures)
+    out["example3_q_m_error_max"] = position_drift(example3)
     out["example1_x4_plant"] = x4_plant(figures["example1-dt0_2"]["identifier"]["x4"]["paper_rmse"])
     float32: dict[str, Any] = {}
     same_verdicts = True
@@ -293,6 +336,8 @@ def variants(figures: dict[str, Any]) -> dict[str, Any]:
             refused.append(f"{key}: {exc}")
             continue
         scenario: dict[str, Any] = {}
+        if key == "example3":
+            scenario["q_m_error_max"] = position_drift(result)
         for est in _identifiers(figures[key.replace(".", "_")]):
             scenario[est] = states = _states(result, est)
             if key.startswith("example3"):

@@ -353,11 +353,6 @@ SPECIFIED = {
        for f in ("5 s", "0.01 s", "15 s", "10 s", "150 s", "20 s", "50 s", "0-50 s", "50-100 s", "100-150 s",
                  "3 s", "100-200 s", "0.1 s", "1 s", "2.1-3.1 s", "2 s", "2s", "10.4 s", "11 s")},
     ("docs/reproduction.md", "2x"): "the target for Examples 2-3",
-    # one-off studies the reproduction page reports (searches of thousands of trials, oracle fits,
-    # encoder quantisation, other term sets); no benchmark reruns them, so they stay as written
-    **{("docs/reproduction.md", f): "a figure of a one-off study the page describes, not rerun by a benchmark"
-       for f in ("2.2x", "1.10x", "2.3-2.5x", "1.2x",
-                 "1.0-3.8x")},
 }
 
 
