@@ -128,10 +128,10 @@ def _sysidentpy() -> Any:
     Imported when the baseline runs, not with this module: importing SysIdentPy sets matplotlib's global
     rcParams (its plotting module), which would change every plot drawn later in the same process."""
     try:
-        import sysidentpy
-        import sysidentpy.basis_function
-        import sysidentpy.model_structure_selection
-        import sysidentpy.parameter_estimation
+        import sysidentpy  # type: ignore[import-untyped]
+        import sysidentpy.basis_function  # type: ignore[import-untyped]
+        import sysidentpy.model_structure_selection  # type: ignore[import-untyped]
+        import sysidentpy.parameter_estimation  # type: ignore[import-untyped]
     except ImportError:
         return None
     return sysidentpy
@@ -333,12 +333,13 @@ def write_record(path: Path, rec: Record, ts: float) -> None:
     atomic.write_text(path, "\n".join(lines) + "\n")
 
 
-def run_pyrhonn(ds: Dataset, folder: Path, extra: tuple[str, ...] = ()) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+def run_pyrhonn(ds: Dataset, folder: Path, extra: tuple[str, ...] = (), *, online: bool = True
+                ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """``pyrhonn select`` on the estimation record, then its config over the validation record:
     (figures, predictions of y aligned with the validation record). The predictions: ``one_step`` and
     ``free_run`` with the weights frozen; ``online`` one step ahead learning on (as ``pyrhonn identify``
     runs the config), and ``online_padded`` the same with ``wait_for_history`` off (learning from the
-    second sample, the history before the first padded); none when select failed."""
+    second sample, the history before the first padded), only with ``online``; none when select failed."""
     folder.mkdir(parents=True, exist_ok=True)
     write_record(folder / "estimation.csv", ds.est, ds.sampling_period)
     out: dict[str, Any] = {"command": ["pyrhonn", *SELECT_ARGS, *extra], "estimation_file": "estimation.csv",
@@ -371,10 +372,12 @@ def run_pyrhonn(ds: Dataset, folder: Path, extra: tuple[str, ...] = ()) -> tuple
     out["free_run_from"] = K
     out["free_run_diverged_at"] = sim.free_run_diverged
     predictions = {"one_step": sim.one_step[:, j], "free_run": sim.free_run[:, j]}
-    padded = replace(cfg, neurons=tuple(replace(nr, wait_for_history=False) for nr in cfg.neurons))
     out["wait_for_history"] = [nr.wait_for_history for nr in cfg.neurons]
-    for key, online in (("online", cfg), ("online_padded", padded)):
-        predictions[key] = simulate(Identifier(online), X, U if cfg.n_inputs else None, data.valid).one_step[:, j]
+    if online:
+        padded = replace(cfg, neurons=tuple(replace(nr, wait_for_history=False) for nr in cfg.neurons))
+        for key, learning in (("online", cfg), ("online_padded", padded)):
+            predictions[key] = simulate(Identifier(learning), X, U if cfg.n_inputs else None,
+                                        data.valid).one_step[:, j]
     return out, {key: v.astype(np.float64) for key, v in predictions.items()}
 
 
@@ -419,10 +422,10 @@ def run_dataset(ds: Dataset, folder: Path, lags: tuple[int, ...]) -> dict[str, A
         if tie == TIE:
             run = {key: py.get(key) for key in ("one_step", "free_run", "n_terms")}
         else:
-            other, yhat = run_pyrhonn(ds, folder / f"tie{tie:g}", ("--tie", f"{tie:g}"))
+            other, tied = run_pyrhonn(ds, folder / f"tie{tie:g}", ("--tie", f"{tie:g}"), online=False)
             first = max(start, other.get("free_run_from", 0))  # its own deepest tap may be deeper
             run = {"n_terms": other.get("n_terms"), "error": other.get("error"), "scored_from": first,
-                   **{key: score(y, yhat[key], first) for key in ("one_step", "free_run") if key in yhat}}
+                   **{key: score(y, tied[key], first) for key in ("one_step", "free_run") if key in tied}}
         sweep[f"t{round(tie * 100):02d}"] = {"tie": tie, **run}
     py["tie_sweep"] = sweep
     rows = []
