@@ -38,7 +38,7 @@ def test_the_docs_quote_benchmark_figures_through_references(hooks: ModuleType) 
     names = {name for _, name, _, _, _ in _references(hooks)}
     assert {"cortex_m4", "core_vs_dense", "real_data", "identifier", "xcp", "structure", "population", "writes",
             "wide", "linux_runner", "soak", "hil_udp", "recordings",
-            "tune_validation", "reproduce"} <= names
+            "tune_validation", "reproduce", "tune_search"} <= names
 
 
 def test_every_figure_reference_in_the_docs_resolves_against_bench_results(hooks: ModuleType) -> None:
