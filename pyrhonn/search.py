@@ -491,7 +491,7 @@ def tied(scores: np.ndarray, best: int, fraction: float = TIE) -> np.ndarray:
     return out
 
 
-def _finalists(scored: list[SpaceScore], ranked: list[int], count: int, tie: float = TIE) -> list[int]:
+def _finalists(scored: list[SpaceScore], ranked: list[int], count: int, tie: float) -> list[int]:
     """The spaces fitted on all the estimation data: the ``count`` best by the free-run score, then the
     ``count`` best by the one-step and free-run errors together (:func:`_blend`) among the spaces tied
     with the best by the free run (:func:`tied`, within ``tie``); fewer where they coincide."""

@@ -127,10 +127,10 @@ def test_a_space_tied_by_the_free_run_but_better_one_step_ahead_is_a_finalist() 
               _scored(0.50 * (1 + TIE) - 1e-9, 0.1, 4),  # tied with the best free run, far better one step ahead
               _scored(0.50 * (1 + TIE) + 0.05, 0.01, 4)]  # better still one step ahead, but not tied
     ranked = sorted(range(len(scored)), key=lambda s: scored[s].score)
-    finalists = _finalists(scored, ranked, REFINED)
+    finalists = _finalists(scored, ranked, REFINED, TIE)
     assert finalists[:REFINED] == ranked[:REFINED]
     assert 3 in finalists and 4 not in finalists
-    assert _finalists(scored, ranked, 1) == [0]  # without refinement only the best by the free run
+    assert _finalists(scored, ranked, 1, TIE) == [0]  # without refinement only the best by the free run
 
 
 def test_search_finds_a_model_that_simulates_on_unseen_data() -> None:
