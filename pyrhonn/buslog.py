@@ -92,13 +92,14 @@ import difflib
 import math
 import re
 import struct
+import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
-from .mdfsignals import mdf_damage, require_asammdf
+from .mdfsignals import cut_read, is_mdf, require_asammdf
 from .validation import near_names
 
 __all__ = ["Aligned", "AlignedSummary", "BusMap", "LOG_SUFFIXES", "SignalRef", "SignalStats", "align", "load_dbc", "read_bus_log",
@@ -452,12 +453,13 @@ class _Log:
             if ident[:8] == b"UnFinMF ":
                 self.incomplete = ("its identification block says 'UnFinMF' (not finalised: the logger did not "
                                    "finish the file)")
-            elif ident[:8] != b"MDF     ":
+            elif not is_mdf(ident[:8]):
                 raise ValueError(f"{option} {path}: not an MDF file (it does not start with 'MDF')")
-            damage = mdf_damage(p)
-            if damage:
-                raise ValueError(f"{option} {path}: truncated or damaged MDF4: {damage}; an MDF4 is read whole or not "
-                                 "at all (--partial-log reads the complete part of a BLF, ASC or candump log)")
+            cut = cut_read(p, f"{option} {path}", partial)
+            if cut is not None:  # cut short, read ``partial``: from a repaired copy, removed with this log
+                self.source = str(cut[0])
+                weakref.finalize(self, cut[0].unlink, missing_ok=True)
+                self.incomplete = f"{self.incomplete}; {cut[1]}" if self.incomplete else cut[1]
         elif suffix != ".blf":
             with open(p, "rb") as fh:
                 head = fh.read(4096)

@@ -20,7 +20,11 @@ log of CAN frames is read with ``--can-log`` instead, :mod:`pyrhonn.buslog`).
     it), never an old value held as if new. A channel slower than T is
     therefore valid only at the grid points that follow its samples.
 - A file whose identification block says it was not finalised
-  (``UnFinMF``) is refused unless ``partial``.
+  (``UnFinMF``) is refused unless ``partial``. So is a file cut short (its
+  blocks reach past its end): with ``partial`` it is read up to the last
+  complete record of each channel group whose channel blocks are before the
+  cut (:mod:`pyrhonn.mdfrepair`), ``incomplete`` saying what is missing; a
+  cut that leaves no channel group is refused saying so.
 - :func:`read_signal_mdf` reads every channel whole; :class:`SignalMdfStream`
   gives the same values a chunk of the grid at a time, reading a block of
   records of each channel at a time (memory bounded whatever the length).
@@ -38,13 +42,14 @@ from typing import Any, Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 
+from .mdfrepair import MAX_BLOCKS, plan_cut, repaired_copy
 from .validation import near_names
 
 __all__ = ["MdfSignals", "SignalMdfStream", "mdf_damage", "read_signal_mdf", "require_asammdf"]
 
 _BLOCK = struct.Struct("<4s4xQQ")  # id ("##HD"), reserved, block length, number of links
 #: the most blocks followed in one file (a long bus log has one data block per few MiB)
-MAX_MDF_BLOCKS = 1 << 20
+MAX_MDF_BLOCKS = MAX_BLOCKS
 
 
 def require_asammdf(where: str) -> None:
@@ -138,25 +143,76 @@ def _open(path: str | Path, partial: bool) -> tuple[Any, str | None]:
         incomplete = "its identification block says 'UnFinMF': not finalised (the writer did not finish the file)"
         if not partial:
             raise ValueError(f"{source}: truncated: {incomplete}; read what is there with --partial-log")
-    elif ident != b"MDF     ":
+    elif not is_mdf(ident):
         raise ValueError(f"{source}: not an MDF file (it does not start with 'MDF')")
-    damage = mdf_damage(p)
-    if damage:
-        raise ValueError(f"{source}: truncated or damaged MDF4: {damage}; an MDF4 is read whole or not at all")
+    read = p
+    cut = cut_read(p, source, partial)
+    if cut is not None:
+        read, missing = cut
+        incomplete = f"{incomplete}; {missing}" if incomplete else missing
     try:
-        return MDF(str(p)), incomplete
+        mdf = MDF(str(read))
     except Exception as exc:  # asammdf raises MdfException, struct.error, ... on a damaged file
+        if read != p:
+            read.unlink(missing_ok=True)
         text = " ".join(str(exc).split()) or type(exc).__name__
         raise ValueError(f"{source}: cannot read it as MDF ({type(exc).__name__}: {text[:200]})") from None
+    return (mdf if read == p else _Repaired(mdf, read)), incomplete
 
 
-def _check_channel(mdf: Any, source: str, name: str, channel: str) -> None:
+def is_mdf(ident: bytes) -> bool:
+    """Whether a file's first 8 bytes (fewer: it is cut there) are an MDF identification's."""
+    return ident == b"MDF     " or (len(ident) < 8 and b"MDF     ".startswith(ident))
+
+
+def cut_read(p: Path, source: str, partial: bool) -> tuple[Path, str] | None:
+    """None for an MDF4 whose blocks all end inside it; for one cut short (``partial``), a repaired copy to
+    read (a temporary file, the caller removes it) and what it misses; else a ValueError naming
+    ``source``, what is missing, and whether ``--partial-log`` reads part of it."""
+    size = p.stat().st_size
+    if size < 64 + _BLOCK.size:
+        raise ValueError(f"{source}: truncated: {size:,} bytes, shorter than an MDF4 identification and header block; "
+                         "nothing in it can be read, not even with --partial-log")
+    damage = mdf_damage(p)
+    if damage is None:
+        return None
+    if not damage.startswith("cut short"):
+        raise ValueError(f"{source}: damaged MDF4: {damage}; not read")
+    try:
+        cut = plan_cut(p)
+    except ValueError as exc:
+        raise ValueError(f"{source}: truncated: {damage}; nothing in it can be read, not even with --partial-log: "
+                         f"{exc}") from None
+    if not partial:
+        raise ValueError(f"{source}: truncated: {damage}; read what is there with --partial-log (it would "
+                         f"{cut.read()})")
+    return repaired_copy(p, cut), f"{damage}; {cut.read()}"
+
+
+class _Repaired:
+    """asammdf's MDF of a repaired copy of a cut file: as the MDF, the copy removed when it is closed."""
+
+    def __init__(self, mdf: Any, copy: Path) -> None:
+        self._mdf, self._copy = mdf, copy
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._mdf, name)
+
+    def close(self) -> None:
+        try:
+            self._mdf.close()
+        finally:
+            self._copy.unlink(missing_ok=True)
+
+
+def _check_channel(mdf: Any, source: str, name: str, channel: str, incomplete: str | None) -> None:
     if channel not in mdf.channels_db:
         known = [c for c in mdf.channels_db if c not in ("time", "t")]
         close = difflib.get_close_matches(channel, known, n=1)
         hint = f"; did you mean {close[0]!r}?" if close else ""
         raise ValueError(f"{source}: no channel {channel!r} for {name!r}{hint} (it has: "
-                         f"{', '.join(known[:20])}{' ...' if len(known) > 20 else ''})")
+                         f"{', '.join(known[:20])}{' ...' if len(known) > 20 else ''})"
+                         + (f"; truncated: {incomplete}" if incomplete else ""))
 
 
 def _get(mdf: Any, source: str, channel: str, **records: int) -> tuple[np.ndarray, np.ndarray, str]:
@@ -220,7 +276,7 @@ def read_signal_mdf(path: str | Path, state_names: Sequence[str], input_names: S
         got: dict[str, tuple[np.ndarray, np.ndarray, str]] = {}
         for name in names:
             channel = channels.get(name, name)
-            _check_channel(mdf, source, name, channel)
+            _check_channel(mdf, source, name, channel, incomplete)
             ts, values, unit = _get(mdf, source, channel)
             if ts.size < 2 or not np.all(np.isfinite(ts)) or np.any(np.diff(ts) <= 0):
                 raise _bad_times(source, channel)
@@ -323,7 +379,7 @@ class SignalMdfStream:
         try:
             for name in self.names:
                 channel = self.channel_of[name]
-                _check_channel(mdf, self.source, name, channel)
+                _check_channel(mdf, self.source, name, channel, self.incomplete)
                 count, first, last, held, unit = 0, np.nan, np.nan, [], ""
                 for ts, _, block_unit in self._blocks(mdf, channel):
                     unit = block_unit

@@ -163,11 +163,18 @@ def test_a_blf_container_declaring_a_huge_size_is_refused_before_decompressing(f
 def test_an_mdf4_bus_log_cut_short_is_refused_naming_how_much_is_missing(files: dict[str, Path], tmp_path: Path,
                                                                         cli_error) -> None:
     assert read_frames(files["mf4"]).t.size == 2 * K
-    cut = _cut(files["mf4"], tmp_path / "cut.mf4", 0.6)
+    cut = _cut(files["mf4"], tmp_path / "cut.mf4", 0.6)  # among the channel blocks, after the data frames' group
+    err = cli_error(_identify(files, cut, tmp_path / "o"))
+    assert f"--can-log {cut}: truncated: cut short: its blocks reach byte" in err
+    assert "bytes missing); read what is there with --partial-log (it would read " in err
+    assert "channel group 3 lost (its channel blocks are past the cut)" in err
+    assert "Traceback" not in err and "Exception ignored" not in err
+    assert read_frames(cut, partial=True).t.size == 2 * K
+    early = _cut(files["mf4"], tmp_path / "early.mf4", 0.1)  # in the data, before every channel block
     for extra in ([], ["--partial-log"]):
-        err = cli_error(_identify(files, cut, tmp_path / "o", *extra))
-        assert f"--can-log {cut}: truncated or damaged MDF4: cut short: its blocks reach byte" in err
-        assert "bytes missing)" in err and "Traceback" not in err and "Exception ignored" not in err
+        err = cli_error(_identify(files, early, tmp_path / "o", *extra))
+        assert "nothing in it can be read, not even with --partial-log: no channel group" in err
+        assert "Traceback" not in err and "Exception ignored" not in err
 
 
 def test_a_binary_log_named_as_text_and_a_missing_log_are_named(files: dict[str, Path], tmp_path: Path) -> None:
