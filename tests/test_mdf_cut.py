@@ -274,3 +274,25 @@ def test_identify_partial_log_reads_a_cut_signal_mdf4_and_a_cut_mdf4_bus_log(
     report = json.loads((tmp_path / "bus" / "metrics.json").read_text())
     assert "records of channel group 1 (CAN_DataFrame" in json.dumps(report)
     _no_copies_left(temp)
+
+
+def test_the_recordings_pages_cut_mdf4_command_prints_the_warning_the_page_shows(files: dict[str, Path],
+                                                                                   tmp_path: Path) -> None:
+    """docs/recordings.md's command on a recording cut in its data blocks: it runs, and prints the page's
+    warning (its figures aside, which depend on asammdf's block sizes)."""
+    import re
+
+    from docs_blocks import ROOT, blocks_by, code_blocks, commands, run
+
+    src = files["signal2"]
+    (tmp_path / "run.mf4").write_bytes(src.read_bytes()[:src.stat().st_size // 2])
+    label = "test_mdf_cut.py::test_the_recordings_pages_cut_mdf4_command_prints_the_warning_the_page_shows"
+    printed = "".join(run(["bash", "-ec", line], tmp_path, f"docs/recordings.md: `{line}`")
+                      for body in blocks_by("docs/recordings.md", label) for line in commands(body))
+    page = (ROOT / "docs" / "recordings.md").read_text(encoding="utf-8")
+    shown = [body.strip() for lang, body, _, _ in code_blocks(page) if lang == "text" and "run.mf4 is incomplete" in body]
+    assert len(shown) == 1, "docs/recordings.md shows no (or more than one) warning of a cut MDF4"
+    warning = next(line for line in printed.splitlines() if line.startswith("warning: run.mf4 is incomplete"))
+    figures = r"[\d,]+"
+    pattern = "".join(figures if part[:1].isdigit() else re.escape(part) for part in re.split(r"([\d,]*\d)", shown[0]))
+    assert re.fullmatch(pattern, warning), (shown[0], warning)
