@@ -455,7 +455,7 @@ class _Log:
                                    "finish the file)")
             elif not is_mdf(ident[:8]):
                 raise ValueError(f"{option} {path}: not an MDF file (it does not start with 'MDF')")
-            cut = cut_read(p, f"{option} {path}", partial)
+            cut = cut_read(p, f"{option} {path}", partial, self.incomplete)
             if cut is not None:  # cut short, read ``partial``: from a repaired copy, removed with this log
                 self.source = str(cut[0])
                 weakref.finalize(self, cut[0].unlink, missing_ok=True)

@@ -72,15 +72,13 @@ class MdfCut:
     patches: tuple[tuple[int, bytes], ...]
     groups: tuple[Group, ...]
 
-    @property
-    def records(self) -> int:
-        return sum(g.kept for g in self.groups if g.lost is None)
-
     def read(self) -> str:
         """What is read and what is lost, in words (after the cut's own description)."""
         parts = []
         for g in self.groups:
-            names = ", ".join(g.names) + (" ..." if len(g.names) >= NAMES_QUOTED else "")
+            if g.lost is None and g.kept == g.declared == 0:
+                continue  # an empty channel group (a bus log's error frames, say): nothing to read, nothing lost
+            names = ", ".join(g.names[:NAMES_QUOTED]) + (" ..." if len(g.names) > NAMES_QUOTED else "")
             label = f"channel group {g.number}" + (f" ({names})" if names else "")
             if g.lost is not None:
                 parts.append(f"{label} lost ({g.lost})")
@@ -89,8 +87,8 @@ class MdfCut:
             elif g.kept < g.declared:
                 parts.append(f"the first {g.kept:,} of its {g.declared:,} records of {label}")
             else:
-                parts.append(f"{g.kept:,} records of {label}" + ("" if g.declared else
-                                                                  " (its channel group declares none)"))
+                parts.append(f"{g.kept:,} records of {label}" + ("" if g.declared == g.kept else
+                                                                  f" (its channel group declares {g.declared:,})"))
         return "read " + "; ".join(parts)
 
 
@@ -100,8 +98,8 @@ class _File:
 
     def head(self, at: int) -> tuple[bytes, int, tuple[int, ...]] | None:
         """A block's type, length and links; None when its header or links reach past the end."""
-        self.visited += 1
-        if self.visited > MAX_BLOCKS:
+        self.visited += 1  # a block's header is read at most a few times over
+        if self.visited > 4 * MAX_BLOCKS:
             raise _Damaged(f"more than {MAX_BLOCKS:,} linked blocks")
         if at < 64:
             raise _Damaged(f"a link to byte {at:,}, inside the identification block")
@@ -194,8 +192,12 @@ def _leaves(f: _File, link: int, parent: int) -> tuple[list[tuple[int, int | Non
 
 
 def _rewrite_dl(f: _File, dl: int, keep: int) -> bytes:
-    """The data list at ``dl`` with only its first ``keep`` blocks and no next list (not longer than it was)."""
-    kind, length, links = f.head(dl) or (b"", 0, ())
+    """The data list at ``dl`` (whole in the file) with only its first ``keep`` blocks and no next list (not
+    longer than it was)."""
+    got = f.head(dl)
+    if got is None:
+        raise _Damaged(f"no data list at byte {dl:,}")
+    kind, length, links = got
     n = len(links) - 1
     flags, _ = _DL.unpack(f.body(dl, length, len(links), _DL.size))
     rest = f.body(dl, length, len(links), length)[_DL.size:]
@@ -266,7 +268,7 @@ def _group_data(f: _File, dg: int, dg_links: tuple[int, ...], record: int
 def _names(f: _File, cn: int) -> tuple[str, ...]:
     names: list[str] = []
     seen: set[int] = set()
-    while cn and cn not in seen and len(names) < NAMES_QUOTED:
+    while cn and cn not in seen and len(names) <= NAMES_QUOTED:  # one more: are there more than quoted?
         seen.add(cn)
         got = f.head(cn)
         if got is None or got[0] != b"CN" or len(got[2]) < 3:

@@ -146,7 +146,7 @@ def _open(path: str | Path, partial: bool) -> tuple[Any, str | None]:
     elif not is_mdf(ident):
         raise ValueError(f"{source}: not an MDF file (it does not start with 'MDF')")
     read = p
-    cut = cut_read(p, source, partial)
+    cut = cut_read(p, source, partial, incomplete)
     if cut is not None:
         read, missing = cut
         incomplete = f"{incomplete}; {missing}" if incomplete else missing
@@ -165,10 +165,12 @@ def is_mdf(ident: bytes) -> bool:
     return ident == b"MDF     " or (len(ident) < 8 and b"MDF     ".startswith(ident))
 
 
-def cut_read(p: Path, source: str, partial: bool) -> tuple[Path, str] | None:
+def cut_read(p: Path, source: str, partial: bool, unfinished: str | None = None) -> tuple[Path, str] | None:
     """None for an MDF4 whose blocks all end inside it; for one cut short (``partial``), a repaired copy to
     read (a temporary file, the caller removes it) and what it misses; else a ValueError naming
-    ``source``, what is missing, and whether ``--partial-log`` reads part of it."""
+    ``source``, what is missing (after ``unfinished``: what its identification block says), and whether
+    ``--partial-log`` reads part of it."""
+    said = f"{unfinished}; " if unfinished else ""
     size = p.stat().st_size
     if size < 64 + _BLOCK.size:
         raise ValueError(f"{source}: truncated: {size:,} bytes, shorter than an MDF4 identification and header block; "
@@ -181,10 +183,10 @@ def cut_read(p: Path, source: str, partial: bool) -> tuple[Path, str] | None:
     try:
         cut = plan_cut(p)
     except ValueError as exc:
-        raise ValueError(f"{source}: truncated: {damage}; nothing in it can be read, not even with --partial-log: "
+        raise ValueError(f"{source}: truncated: {said}{damage}; nothing in it can be read, not even with --partial-log: "
                          f"{exc}") from None
     if not partial:
-        raise ValueError(f"{source}: truncated: {damage}; read what is there with --partial-log (it would "
+        raise ValueError(f"{source}: truncated: {said}{damage}; read what is there with --partial-log (it would "
                          f"{cut.read()})")
     return repaired_copy(p, cut), f"{damage}; {cut.read()}"
 

@@ -296,3 +296,27 @@ def test_the_recordings_pages_cut_mdf4_command_prints_the_warning_the_page_shows
     figures = r"[\d,]+"
     pattern = "".join(figures if part[:1].isdigit() else re.escape(part) for part in re.split(r"([\d,]*\d)", shown[0]))
     assert re.fullmatch(pattern, warning), (shown[0], warning)
+
+
+def test_an_unfinalised_recording_cut_short_names_both_and_reads_its_first_frames_and_samples(
+        files: dict[str, Path], tmp_path: Path, temp: Path) -> None:
+    """A streaming recorder's file says 'UnFinMF' until it stops: cut short, both are named."""
+    for kind in ("bus2", "signal0"):
+        raw = bytearray(files[kind].read_bytes()[:files[kind].stat().st_size * 4 // 5])
+        raw[:8] = b"UnFinMF "
+        cut = tmp_path / f"open-{kind}.mf4"
+        cut.write_bytes(bytes(raw))
+        if kind.startswith("bus"):
+            whole, part = read_frames(files[kind]), read_frames(cut, partial=True)
+            n = part.t.size
+            assert 0 < n < whole.t.size and part.data == whole.data[:n]
+            with pytest.raises(ValueError, match="truncated: its identification block says 'UnFinMF'"):
+                read_frames(cut)
+        else:
+            signals = read_signal_mdf(cut, STATES, INPUTS, channels=CHANNELS, period=0.01, partial=True)
+            full = read_signal_mdf(files[kind], STATES, INPUTS, channels=CHANNELS, period=0.01)
+            np.testing.assert_array_equal(signals.X, full.X[:signals.t.size])
+            part = signals
+        assert part.incomplete is not None and part.incomplete.startswith("its identification block says 'UnFinMF'")
+        assert "; cut short: its blocks reach byte " in part.incomplete and "; read the first " in part.incomplete
+    _no_copies_left(temp)
