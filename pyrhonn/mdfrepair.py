@@ -43,6 +43,8 @@ _CG = struct.Struct("<QQHH4xII")  # record id, cycle count, flags, path separato
 _DATA = {b"DT", b"DZ", b"DL", b"HL", b"SD", b"RD", b"DV", b"DI", b"RV", b"RI", b"LD"}
 #: the most blocks followed in one file (a long bus log has one data block per few MiB)
 MAX_BLOCKS = 1 << 20
+#: the most bytes deflate gives per compressed byte (a block declaring more is damaged)
+MAX_INFLATE = 1032
 #: channel names quoted per group in what a cut file misses
 NAMES_QUOTED = 3
 
@@ -240,9 +242,14 @@ def _group_data(f: _File, dg: int, dg_links: tuple[int, ...], record: int
             clipped = (leaf, len(links), total, avail)
             break
         if kind == b"DZ" and f.whole(leaf, length):
-            orig, _, _, orig_len, _ = _DZ.unpack(f.body(leaf, length, len(links), _DZ.size).ljust(_DZ.size, b"\0"))
-            if orig != b"DT":
-                return f"a compressed block of '{orig.decode('latin-1')}' data at byte {leaf:,}"
+            orig, zip_type, _, orig_len, zipped = _DZ.unpack(f.body(leaf, length, len(links), _DZ.size)
+                                                             .ljust(_DZ.size, b"\0"))
+            if orig != b"DT" or zip_type not in (0, 1):
+                return (f"a compressed block of '{orig.decode('latin-1')}' data (zip type {zip_type}) at byte "
+                        f"{leaf:,}, not read in part")
+            if zipped > length or orig_len > MAX_INFLATE * zipped + 64:  # deflate gives at most 1,032 bytes a byte
+                raise _Damaged(f"the compressed block at byte {leaf:,} declares {orig_len:,} bytes from {zipped:,} "
+                               "compressed, more than deflate gives (a damaged block)")
             total, kept = total + orig_len, kept + 1
             continue
         if kind == b"DZ":

@@ -320,3 +320,16 @@ def test_an_unfinalised_recording_cut_short_names_both_and_reads_its_first_frame
         assert part.incomplete is not None and part.incomplete.startswith("its identification block says 'UnFinMF'")
         assert "; cut short: its blocks reach byte " in part.incomplete and "; read the first " in part.incomplete
     _no_copies_left(temp)
+
+
+def test_a_compressed_block_declaring_more_than_deflate_gives_is_refused_before_anything_is_read(
+        files: dict[str, Path], tmp_path: Path, temp: Path) -> None:
+    raw = bytearray(files["signal2"].read_bytes())
+    first = min(at for at, (kind, _, _) in _blocks(bytes(raw)).items() if kind == b"DZ")
+    struct.pack_into("<Q", raw, first + _HEAD.size + 8, 1 << 50)  # its original (uncompressed) length
+    cut = tmp_path / "huge.mf4"
+    cut.write_bytes(bytes(raw[:len(raw) * 4 // 5]))
+    with pytest.raises(ValueError, match=rf"huge.mf4: truncated: cut short: .*{NOTHING}: the compressed block at "
+                                         rf"byte {first:,} declares 1,125,899,906,842,624 bytes from "):
+        read_signal_mdf(cut, STATES, INPUTS, channels=CHANNELS, partial=True)
+    _no_copies_left(temp)
