@@ -160,6 +160,13 @@ class _File:
         return raw.split(b"\0", 1)[0].decode("utf-8", errors="replace")
 
 
+def _exactly(raw: bytes, size: int, at: int) -> bytes:
+    """``raw``, the first ``size`` bytes of the data section of the block at ``at``; a damaged block if shorter."""
+    if len(raw) < size:
+        raise _Damaged(f"the block at byte {at:,} is shorter than its kind is (a damaged block)")
+    return raw
+
+
 def _link_at(at: int, index: int) -> int:
     """The byte offset of link ``index`` of the block at ``at``."""
     return at + _HEAD.size + 8 * index
@@ -201,7 +208,7 @@ def _rewrite_dl(f: _File, dl: int, keep: int) -> bytes:
         raise _Damaged(f"no data list at byte {dl:,}")
     kind, length, links = got
     n = len(links) - 1
-    flags, _ = _DL.unpack(f.body(dl, length, len(links), _DL.size))
+    flags, _ = _DL.unpack(_exactly(f.body(dl, length, len(links), _DL.size), _DL.size, dl))
     rest = f.body(dl, length, len(links), length)[_DL.size:]
     arrays = []  # the equal length (one value) or the offsets (one per block), then per flag bit 1-3 N values
     pos = 0
@@ -242,8 +249,8 @@ def _group_data(f: _File, dg: int, dg_links: tuple[int, ...], record: int
             clipped = (leaf, len(links), total, avail)
             break
         if kind == b"DZ" and f.whole(leaf, length):
-            orig, zip_type, _, orig_len, zipped = _DZ.unpack(f.body(leaf, length, len(links), _DZ.size)
-                                                             .ljust(_DZ.size, b"\0"))
+            orig, zip_type, _, orig_len, zipped = _DZ.unpack(
+                _exactly(f.body(leaf, length, len(links), _DZ.size), _DZ.size, leaf))
             if orig != b"DT" or zip_type not in (0, 1):
                 return (f"a compressed block of '{orig.decode('latin-1')}' data (zip type {zip_type}) at byte "
                         f"{leaf:,}, not read in part")
@@ -325,23 +332,26 @@ def _plan(f: _File) -> MdfCut:
         if lost is None:
             cg = links[1]
             cg_head = f.head(cg)
-            assert cg_head is not None  # its tree is whole
+            if cg_head is None or cg_head[0] != b"CG" or len(cg_head[2]) < 2:
+                raise _Damaged(f"no channel group block at byte {cg:,} (a damaged link or block header)")
             names = _names(f, cg_head[2][1])
-            _, declared, _, _, data_bytes, inval_bytes = _CG.unpack(f.body(cg, cg_head[1], len(cg_head[2]), _CG.size))
+            _, declared, _, _, data_bytes, inval_bytes = _CG.unpack(
+                _exactly(f.body(cg, cg_head[1], len(cg_head[2]), _CG.size), _CG.size, cg))
             rec_id = f.body(dg, length, len(links), 1)
             record = (rec_id[0] if rec_id else 0) + data_bytes + inval_bytes
-            if not links[2] or f.tree_whole(links[2], follow_data=True):
+            if cg_head[2][0]:  # several channel groups' records interleave (unsorted): whole or lost
+                if links[2] and not f.tree_whole(links[2], follow_data=True):
+                    lost = "its records of several channel groups interleave (unsorted) and its data is cut"
                 kept = declared
-            elif cg_head[2][0]:
-                lost = "its records of several channel groups interleave (unsorted) and its data is cut"
-            else:
+            else:  # the records counted from the data kept (an unfinalised file may not have counted them)
                 got_data = _group_data(f, dg, links, record)
                 if isinstance(got_data, str):
                     lost = got_data
                 else:
                     kept, more = got_data
                     patches += more
-                    patches.append((cg + _HEAD.size + 8 * len(cg_head[2]) + 8, _u64(kept)))
+                    if kept != declared:
+                        patches.append((cg + _HEAD.size + 8 * len(cg_head[2]) + 8, _u64(kept)))
         if lost is not None:
             patches.append((prev, _u64(links[0])))  # unlinked: the previous link skips it
         else:
