@@ -176,16 +176,20 @@ def _u64(value: int) -> bytes:
     return struct.pack("<Q", value)
 
 
-def _leaves(f: _File, link: int, parent: int) -> tuple[list[tuple[int, int | None, int]], list[tuple[int, bytes]]]:
+def _leaves(f: _File, link: int, parent: int, listed: bool = False
+            ) -> tuple[list[tuple[int, int | None, int]], list[tuple[int, bytes]]]:
     """The data blocks of a data group in order, as (block, its data list or None, index in that list),
     up to the first one past the cut; with the patches that unlink what follows a data list that is
-    itself past the cut (``parent``: the byte offset of the data group's data link)."""
+    itself past the cut (``parent``: the byte offset of the data group's data link; ``listed``: linked from
+    a header list, which links data lists only)."""
     got = f.head(link)
     if got is None or (got[0] in (b"DL", b"HL") and not f.whole(link, got[1])):
         return [], [(parent, _u64(0))]
     kind, _, links = got
+    if listed and kind != b"DL":
+        raise _Damaged(f"a header list links a '{kind.decode('latin-1')}' block at byte {link:,}, not a data list")
     if kind == b"HL":
-        return _leaves(f, links[0], _link_at(link, 0)) if links and links[0] else ([], [])
+        return _leaves(f, links[0], _link_at(link, 0), listed=True) if links and links[0] else ([], [])
     if kind != b"DL":
         return [(link, None, 0)], []
     leaves: list[tuple[int, int | None, int]] = []

@@ -338,3 +338,14 @@ def test_a_compressed_block_declaring_more_than_deflate_gives_is_refused_before_
                                          rf"byte {first:,} declares 1,125,899,906,842,624 bytes from "):
         read_signal_mdf(cut, STATES, INPUTS, channels=CHANNELS, partial=True)
     _no_copies_left(temp)
+
+
+def test_a_header_list_linking_itself_is_refused_as_damaged(files: dict[str, Path], tmp_path: Path) -> None:
+    raw = bytearray(files["signal2"].read_bytes())
+    hl = min(at for at, (kind, _, _) in _blocks(bytes(raw)).items() if kind == b"HL")
+    struct.pack_into("<Q", raw, hl + _HEAD.size, hl)  # its first data list link: itself
+    last = max(at for at, (kind, _, _) in _blocks(bytes(raw)).items() if kind == b"DZ")  # the last one still linked
+    cut = tmp_path / "loop.mf4"
+    cut.write_bytes(bytes(raw[:last + 30]))  # inside it: the file is cut short
+    with pytest.raises(ValueError, match=rf"{NOTHING}: a header list links a 'HL' block at byte {hl:,}, not a data list"):
+        read_signal_mdf(cut, STATES, INPUTS, channels=CHANNELS, partial=True)
