@@ -129,7 +129,7 @@ def across_cuts(test: Callable[..., None]) -> Callable[..., None]:
     hypothesis picks), of plain and of compressed data blocks (``compression`` 0 and 2)."""
     for cut in (0.9, 0.37, 0.1):
         test = example(fraction=cut).via(f"a cut at {cut:.0%}")(test)
-    test = settings(max_examples=25, deadline=None)(given(fraction=st.floats(0.0, 1.0))(test))
+    test = settings(max_examples=60, deadline=None)(given(fraction=st.floats(0.0, 1.0))(test))
     return pytest.mark.parametrize("compression", [0, 2])(test)
 
 
