@@ -43,16 +43,35 @@ def _blocks(raw: bytes) -> dict[int, tuple[bytes, int, tuple[int, ...]]]:
     return found
 
 
-def streamed_layout(raw: bytes) -> bytes:
-    """The same MDF4 laid out as a streaming recorder writes it: the header, channel metadata and data lists
-    first, then the data blocks of the channel groups interleaved as they would arrive."""
-    blocks = _blocks(raw)
-    queues = [[link for link in links if link and blocks[link][0] in _LEAF]
-              for _, (kind, _, links) in sorted(blocks.items()) if kind not in _LEAF]
+def _group_leaves(blocks: dict[int, tuple[bytes, int, tuple[int, ...]]], link: int) -> list[int]:
+    """The data blocks of a data group's data link, in order (through its header list and data lists)."""
+    kind, _, links = blocks[link]
+    if kind == b"HL":
+        return _group_leaves(blocks, links[0])
+    if kind != b"DL":
+        return [link]
     leaves: list[int] = []
+    while link:
+        leaves += [leaf for leaf in blocks[link][2][1:] if leaf]
+        link = blocks[link][2][0]
+    return leaves
+
+
+def streamed_layout(raw: bytes, lists_after: bool = False) -> bytes:
+    """The same MDF4 laid out as a streaming recorder writes it: the header and channel metadata first, then
+    the data blocks of the channel groups interleaved as they would arrive; the data lists with the
+    metadata (written ahead), or each right after its last block (``lists_after``: written once full)."""
+    blocks = _blocks(raw)
+    queues = [_group_leaves(blocks, links[2]) for _, (kind, _, links) in sorted(blocks.items())
+              if kind == b"DG" and links[2]]
+    last_of = {links[-1]: at for at, (kind, _, links) in blocks.items() if kind == b"DL" and lists_after}
+    order = [at for at in sorted(blocks) if blocks[at][0] not in _LEAF and at not in last_of.values()]
     while any(queues):
-        leaves += [q.pop(0) for q in queues if q]
-    order = [at for at in sorted(blocks) if blocks[at][0] not in _LEAF] + leaves
+        for queue in queues:
+            if queue:
+                order.append(queue.pop(0))
+                order += [last_of[order[-1]]] if order[-1] in last_of else []
+    order += [at for at in sorted(blocks) if at not in set(order)]  # any other data (signal data blocks)
     moved, pos = {}, 64
     for at in order:
         moved[at], pos = pos, pos + (blocks[at][1] + 7) // 8 * 8
@@ -62,6 +81,33 @@ def streamed_layout(raw: bytes) -> bytes:
         block = bytearray(raw[at:at + length])
         struct.pack_into(f"<{len(links)}Q", block, _HEAD.size, *[moved[link] if link else 0 for link in links])
         out[moved[at]:moved[at] + length] = block
+    return bytes(out)
+
+
+def chained_lists(raw: bytes, per: int = 3) -> bytes:
+    """The same MDF4 with each data list cut into a chain of data lists of ``per`` blocks (appended to it; what
+    linked the list links the first of the chain)."""
+    blocks = _blocks(raw)
+    out = bytearray(raw)
+    for at, (kind, _, links) in sorted(blocks.items()):
+        if kind != b"DL" or links[0]:
+            continue
+        leaves = [leaf for leaf in links[1:] if leaf]
+        sizes = [struct.unpack_from("<Q", raw, leaf + _HEAD.size + 8)[0] if blocks[leaf][0] == b"DZ"
+                 else blocks[leaf][1] - _HEAD.size for leaf in leaves]
+        offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(int).tolist()
+        following = 0
+        for start in reversed(range(0, len(leaves), per)):
+            chunk = leaves[start:start + per]
+            body = (struct.pack(f"<{len(chunk) + 1}Q", following, *chunk) + struct.pack("<B3xI", 0, len(chunk))
+                    + struct.pack(f"<{len(chunk)}Q", *offsets[start:start + len(chunk)]))
+            out += bytes(-len(out) % 8)
+            following = len(out)
+            out += _HEAD.pack(b"##DL", _HEAD.size + len(body), len(chunk) + 1) + body
+        for holder, (_, _, holder_links) in blocks.items():
+            for i, link in enumerate(holder_links):
+                if link == at:
+                    struct.pack_into("<Q", out, holder + _HEAD.size + 8 * i, following)
     return bytes(out)
 
 
@@ -89,6 +135,9 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         out[f"saved{compression}"] = saved
         out[f"signal{compression}"] = d / f"signal{compression}.mf4"
         out[f"signal{compression}"].write_bytes(streamed_layout(saved.read_bytes()))
+        out[f"signal{compression}-chained"] = d / f"signal{compression}-chained.mf4"
+        out[f"signal{compression}-chained"].write_bytes(streamed_layout(chained_lists(saved.read_bytes()),
+                                                                        lists_after=True))
         with can.io.MF4Writer(str(d / f"logged{compression}.mf4"), compression_level=compression) as writer:
             for m in _recording().frames:
                 writer.on_message_received(m)
@@ -99,6 +148,9 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
             mdf.save(str(d / f"blocks{compression}.mf4"), overwrite=True, compression=compression)
         out[f"bus{compression}"] = d / f"bus{compression}.mf4"
         out[f"bus{compression}"].write_bytes(streamed_layout((d / f"blocks{compression}.mf4").read_bytes()))
+        out[f"bus{compression}-chained"] = d / f"bus{compression}-chained.mf4"
+        out[f"bus{compression}-chained"].write_bytes(streamed_layout(chained_lists(
+            (d / f"blocks{compression}.mf4").read_bytes()), lists_after=True))
     (d / "plant.dbc").write_text(DBC)
     (d / "cfg.toml").write_text(shipped_text("example1") + BUS)
     out["dbc"], out["config"] = d / "plant.dbc", d / "cfg.toml"
@@ -126,17 +178,19 @@ def temp(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 
 def across_cuts(test: Callable[..., None]) -> Callable[..., None]:
     """``test`` at cuts across the file (a ``fraction`` of its length: 10 %, 37 %, 90 % and as many more as
-    hypothesis picks), of plain and of compressed data blocks (``compression`` 0 and 2)."""
+    hypothesis picks), of plain and of compressed data blocks (``compression`` 0 and 2), their data lists
+    written ahead or each after its blocks, in a chain (``layout`` "" and "-chained")."""
     for cut in (0.9, 0.37, 0.1):
         test = example(fraction=cut).via(f"a cut at {cut:.0%}")(test)
-    test = settings(max_examples=60, deadline=None)(given(fraction=st.floats(0.0, 1.0))(test))
-    return pytest.mark.parametrize("compression", [0, 2])(test)
+    test = settings(max_examples=40, deadline=None)(given(fraction=st.floats(0.0, 1.0))(test))
+    return pytest.mark.parametrize("layout", ["", "-chained"])(pytest.mark.parametrize("compression", [0, 2])(test))
 
 
 @across_cuts
 def test_a_cut_signal_mdf4_reads_the_whole_files_first_samples_or_says_why_not(
-        files: dict[str, Path], tmp_path_factory: pytest.TempPathFactory, compression: int, fraction: float) -> None:
-    src = files[f"signal{compression}"]
+        files: dict[str, Path], tmp_path_factory: pytest.TempPathFactory, compression: int, layout: str,
+        fraction: float) -> None:
+    src = files[f"signal{compression}{layout}"]
     size = src.stat().st_size
     cut = _cut(src, int(fraction * (size - 1)), tmp_path_factory.mktemp("c"))
     whole = read_signal_mdf(src, STATES, INPUTS, channels=CHANNELS, period=0.01)
@@ -164,8 +218,9 @@ def test_a_cut_signal_mdf4_reads_the_whole_files_first_samples_or_says_why_not(
 
 @across_cuts
 def test_a_cut_mdf4_bus_log_reads_the_whole_logs_first_frames_or_says_why_not(
-        files: dict[str, Path], tmp_path_factory: pytest.TempPathFactory, compression: int, fraction: float) -> None:
-    src = files[f"bus{compression}"]
+        files: dict[str, Path], tmp_path_factory: pytest.TempPathFactory, compression: int, layout: str,
+        fraction: float) -> None:
+    src = files[f"bus{compression}{layout}"]
     cut = _cut(src, int(fraction * (src.stat().st_size - 1)), tmp_path_factory.mktemp("c"))
     whole = read_frames(src)
     try:
