@@ -404,3 +404,25 @@ def test_a_header_list_linking_itself_is_refused_as_damaged(files: dict[str, Pat
     cut.write_bytes(bytes(raw[:last + 30]))  # inside it: the file is cut short
     with pytest.raises(ValueError, match=rf"{NOTHING}: a header list links a 'HL' block at byte {hl:,}, not a data list"):
         read_signal_mdf(cut, STATES, INPUTS, channels=CHANNELS, partial=True)
+
+
+def test_an_unsorted_data_group_cut_short_is_named_lost_and_the_other_groups_read(files: dict[str, Path],
+                                                                                 tmp_path: Path, temp: Path) -> None:
+    """A data group whose records of several channel groups interleave cannot be cut at a record: it is lost
+    (here the first group made to link a second channel group), the other group is read."""
+    src = files["signal0"]
+    raw = bytearray(src.read_bytes())
+    blocks = _blocks(bytes(raw))
+    first, second = (at for at, (kind, _, _) in sorted(blocks.items()) if kind == b"DG")
+    struct.pack_into("<Q", raw, blocks[first][2][1] + _HEAD.size, blocks[second][2][1])  # its channel group's next
+    cut = tmp_path / "unsorted.mf4"
+    cut.write_bytes(bytes(raw[:len(raw) // 2]))
+    lost = "channel group 1 (x1, x3, x4 ...) lost (its records of several channel groups interleave (unsorted)"
+    with pytest.raises(ValueError, match=r"no channel 'x1' for 'x1'.*; truncated: cut short: ") as exc:
+        read_signal_mdf(cut, STATES, INPUTS, channels=CHANNELS, partial=True)
+    assert lost in str(exc.value)
+    part = read_signal_mdf(cut, ["x2"], [], channels=CHANNELS, period=0.02, partial=True)
+    whole = read_signal_mdf(src, ["x2"], [], channels=CHANNELS, period=0.02)
+    assert part.incomplete is not None and lost in part.incomplete and 2 <= part.t.size <= whole.t.size
+    np.testing.assert_array_equal(part.X, whole.X[:part.t.size])
+    _no_copies_left(temp)
