@@ -75,23 +75,23 @@ class MdfCut:
     groups: tuple[Group, ...]
 
     def read(self) -> str:
-        """What is read and what is lost, in words (after the cut's own description)."""
-        parts = []
+        """What is read, then what is lost, in words (after the cut's own description)."""
+        read, lost = [], []
         for g in self.groups:
             if g.lost is None and g.kept == g.declared == 0:
                 continue  # an empty channel group (a bus log's error frames, say): nothing to read, nothing lost
             names = ", ".join(g.names[:NAMES_QUOTED]) + (" ..." if len(g.names) > NAMES_QUOTED else "")
             label = f"channel group {g.number}" + (f" ({names})" if names else "")
             if g.lost is not None:
-                parts.append(f"{label} lost ({g.lost})")
+                lost.append(f"{label} lost ({g.lost})")
             elif g.kept == 0:
-                parts.append(f"no complete record of {label}")
+                lost.append(f"{label}: no complete record before the cut")
             elif g.kept < g.declared:
-                parts.append(f"the first {g.kept:,} of its {g.declared:,} records of {label}")
+                read.append(f"the first {g.kept:,} of its {g.declared:,} records of {label}")
             else:
-                parts.append(f"{g.kept:,} records of {label}" + ("" if g.declared == g.kept else
-                                                                  f" (its channel group declares {g.declared:,})"))
-        return "read " + "; ".join(parts)
+                read.append(f"{g.kept:,} records of {label}" + ("" if g.declared == g.kept else
+                                                                f" (its channel group declares {g.declared:,})"))
+        return "read " + "; ".join(read + lost)
 
 
 class _File:
