@@ -62,8 +62,9 @@ def add_options(p: argparse.ArgumentParser) -> None:
                         "bus.counter, else none: lost clock frames are found from the gaps in time)")
     g.add_argument("--partial-log", action="store_true",
                    help="read a recording that was cut short (no ASC 'End TriggerBlock', a BLF shorter than its "
-                        "header says or cut inside an object, a cut last line): its complete frames are used and the "
-                        "report says what is missing; without it such a log is refused")
+                        "header says or cut inside an object, a cut last line, an MDF4 cut short or not finalised): its "
+                        "complete frames or records are used and the report says what is missing; without it such a "
+                        "file is refused")
     g.add_argument("--start", metavar="S", help="leave out the samples before S seconds after the first clock frame")
     g.add_argument("--stop", metavar="S", help="leave out the samples after S seconds after the first clock frame")
 
