@@ -261,3 +261,27 @@ def test_a_bus_log_streams_a_free_run_and_k_step_predictions_to_the_whole_logs_o
                 m.setattr(buslogstream, "CHUNK_FRAMES", chunk)
             got = _identify(monkeypatch, args, tmp_path / f"s{chunk}", piece=3)
         _same(got, whole)
+
+
+def test_a_signal_mdf4_streams_a_free_run_and_k_step_predictions_to_the_whole_files_outputs(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    asammdf = pytest.importorskip("asammdf")
+    import functools
+
+    from pyrhonn.mdfsignals import SignalMdfStream
+
+    path = tmp_path / "run.mf4"
+    mdf = asammdf.MDF(version="4.10")
+    t = 0.01 * np.arange(150)
+    slow = t[::2]  # x2 every other grid sample: valid at every other one
+    for name, times in (("x1", t), ("x2", slow), ("x3", t), ("x4", t), ("u", t)):
+        mdf.append([asammdf.Signal(np.sin((2 + len(name)) * times + len(name)), times, name=name)], comment=name)
+    mdf.save(str(path), overwrite=True)
+    mdf.close()
+    args = [str(path), "--config", "example1", "--free-run-from", "30", "--steps-ahead", "4", "--warmup", "3"]
+    whole = _identify(monkeypatch, args, tmp_path / "whole", whole=True)
+    for block, rows in ((1, 1), (7, 5), (64, 29)):
+        with monkeypatch.context() as m:
+            m.setattr(identify_cli, "SignalMdfStream", functools.partial(SignalMdfStream, block=block, hold=5))
+            m.setattr(identify_cli, "CHUNK_ROWS", rows)
+            _same(_identify(monkeypatch, args, tmp_path / f"s{block}"), whole)

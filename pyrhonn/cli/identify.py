@@ -69,8 +69,17 @@ is read whole, to the same result or message), a signal MDF4 a block of records 
 whole record's, bit for bit), gaps are found chunk by chunk
 (:class:`pyrhonn.gaps.SegmentTracker`), ``predictions.csv`` is written as
 the chunks come and the metrics are running sums
-(:mod:`pyrhonn.streamscores`): memory does not grow with the record. With a
-free run or k-step predictions the record is held whole.
+(:mod:`pyrhonn.streamscores`): memory does not grow with the record. Every mode
+streams: with ``--free-run-from`` and ``--steps-ahead`` the network stepped on the
+measurements and the free run are both carried from chunk to chunk, and the last
+H samples of a chunk wait for the next one's inputs before their H-step branches
+are run (:mod:`pyrhonn.simulationstream`). Where the free run leaves the data's
+range (the whole file's) is found without a second pass: only the free-run
+samples outside the range of the measurements read so far are kept, in a
+scratch file, and tested against the final range at the end. Settings that need
+the record's length are checked at its end, with the same messages, before
+anything is written. The results are those of the record held whole, byte for
+byte.
 
 Each file is written to a temporary file and renamed into place, and the
 folder holds a file ``INCOMPLETE`` from before the first output until after
@@ -146,7 +155,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "identify", help="identify a plant from a CSV file of states and inputs (or a CAN log)",
         description="Run the RHONN identifier (C core) on a CSV file whose columns are named by the config; "
-                    "write one-step-ahead predictions, metrics (RMSE, absolute deviation) and plots.")
+                    "write one-step-ahead predictions, metrics (RMSE, absolute deviation) and plots. The record is "
+                    "streamed a chunk at a time in every mode (memory does not grow with its length).")
     p.add_argument("data", metavar="DATA.csv", nargs="?",
                    help="the measurements: a CSV file (header row, then one line per sample), a signal MDF4 "
                         "file of named channels (.mf4), or none with --can-log")
