@@ -234,6 +234,27 @@ def test_settings_known_only_at_the_end_keep_their_message_and_write_nothing(
     assert files == {}
 
 
+@pytest.mark.parametrize("args, message", [
+    (["--free-run-from", "300"], "--free-run-from 300: beyond the data (200 rows, samples 0..199)"),
+    (["--steps-ahead", "3"], "line 7, column 'y': 1e+39 overflows float32 (--dtype float32)"),
+])
+def test_a_defect_found_while_streaming_is_said_after_the_settings_as_when_held_whole(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], args: list[str],
+        message: str) -> None:
+    """A value that overflows float32 in the record's first chunk: a --free-run-from beyond the record is
+    named first, as the record held whole names it; alone, the value is named by its line."""
+    u = np.sin(np.arange(200) * 0.1)
+    y = 0.5 * u
+    y[5] = 1e39
+    data = _plant_csv(tmp_path / "run.csv", y, u)
+    full = [str(data), "--config", str(_unstable(tmp_path / "c.toml", 0.5)), "--dtype", "float32", *args]
+    for whole, piece in ((True, None), (False, 7), (False, None)):
+        code, files, _ = _identify(monkeypatch, full, tmp_path / f"out{piece}", whole=whole, piece=piece)
+        err = capsys.readouterr().err
+        assert code == 2 and message in err and "Traceback" not in err, (whole, err)
+        assert files == {}
+
+
 def test_a_bus_log_streams_a_free_run_and_k_step_predictions_to_the_whole_logs_outputs(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     pytest.importorskip("cantools")

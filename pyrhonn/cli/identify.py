@@ -102,7 +102,7 @@ import shutil
 import tempfile
 from pathlib import Path
 from dataclasses import dataclass
-from typing import IO, Any, Callable, Iterable, Iterator, Sequence
+from typing import IO, Any, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -724,12 +724,20 @@ def _stream(args: argparse.Namespace, cf: ConfigFile, cfg: IdentifierConfig, sou
         if plots:
             _feed(env, c, rows.one_step, k0, rows.free_run, rows.ahead)
 
-    def stepped(step: Callable[..., Rows | None], *arrays: np.ndarray) -> None:
+    def stepped(c: Data | None, step_rows: np.ndarray | None = None, starts: np.ndarray | None = None) -> None:
+        """Chunk ``c`` into the identification (None: the end of the record); a defect it finds (a value that
+        overflows the dtype, the identifier's failure) ends the stepping, said after the record's length."""
         nonlocal stopped
         if stopped is not None:
             return
         try:
-            finished(step(*arrays))
+            if c is None:
+                finished(engine.finish())
+                return
+            assert step_rows is not None and starts is not None
+            X, U = c.in_dtype(cfg.dtype, cf.state_names, cf.input_names, source)
+            held.append(c)
+            finished(engine.feed(X, U, c.valid, step_rows, starts))
         except IdentifierError as exc:
             found = re.search(r"at sample (\d+)", str(exc))
             where = ""
@@ -739,6 +747,9 @@ def _stream(args: argparse.Namespace, cf: ConfigFile, cfg: IdentifierConfig, sou
                 base = read - lines.size
                 where = f"line {int(lines[at - base])}: " if 0 <= at - base < lines.size else ""
             stopped = ValueError(f"{source}: {where}the identifier stopped: {exc}")
+            held.clear()
+        except ValueError as exc:
+            stopped = exc
             held.clear()
 
     try:
@@ -751,13 +762,9 @@ def _stream(args: argparse.Namespace, cf: ConfigFile, cfg: IdentifierConfig, sou
             lost = c.lost if c.lost is not None else np.zeros(L, dtype=bool)
             step_rows, starts = tracker.feed(lost, c.valid, c.lines, c.t)
             read += L
-            if stopped is not None:
-                continue
-            X, U = c.in_dtype(cfg.dtype, cf.state_names, cf.input_names, source)
-            held.append(c)
-            stepped(engine.feed, X, U, c.valid, step_rows, starts)
+            stepped(c, step_rows, starts)
         tracker.finish()
-        stepped(engine.finish)
+        stepped(None)
         T = read
         _check_length(args, T, source, first_line)
         _check_settings(args, T)
