@@ -100,8 +100,8 @@ import os
 import re
 import shutil
 import tempfile
+from dataclasses import dataclass, replace
 from pathlib import Path
-from dataclasses import dataclass
 from typing import IO, Any, Iterable, Iterator, Sequence
 
 import numpy as np
@@ -288,6 +288,8 @@ class _Scoring:
             feed("steps_ahead", ahead, ahead_rows & (k >= max(self.split, self.H)))
 
     def section(self, kind: str, names: Sequence[str], definition: str) -> dict[str, Any]:
+        """One section of metrics.json: per state the RMSE, RRSE and count scored (the one-step ones also the
+        absolute deviation and the samples not valid)."""
         running = self.running[kind]
         sc = running.scores()
         deviation = running.absolute_deviation() if kind.startswith("one_step") else None
@@ -688,7 +690,7 @@ def _stream(args: argparse.Namespace, cf: ConfigFile, cfg: IdentifierConfig, sou
         env.mark(k)
     first = args.warmup + 1  # row 0 holds x0, not a prediction; --warmup drops that many pairs more
     split = max(first, K) if K is not None else first
-    kinds = ([("free_run")] if K is not None else []) + ([f"ahead{H}"] if H is not None else [])
+    kinds = (["free_run"] if K is not None else []) + ([f"ahead{H}"] if H is not None else [])
     read = 0  # rows read
     first_line = 0
     units: dict[str, str] | None = None
@@ -736,7 +738,7 @@ def _stream(args: argparse.Namespace, cf: ConfigFile, cfg: IdentifierConfig, sou
                 return
             assert step_rows is not None and starts is not None
             X, U = c.in_dtype(cfg.dtype, cf.state_names, cf.input_names, source)
-            held.append(c)
+            held.append(replace(c, lost=None))  # the gaps are the tracker's (a chunk may have no lost flags)
             finished(engine.feed(X, U, c.valid, step_rows, starts))
         except IdentifierError as exc:
             found = re.search(r"at sample (\d+)", str(exc))
