@@ -35,7 +35,7 @@ __all__ = ["SimulationStream", "Rows"]
 @dataclass(frozen=True)
 class Rows:
     """Rows ``k0``.. of the record, finished: every (L, n) array aligned with the data (row k estimates x(k),
-    NaN where there is none); ``stepped`` and ``starts`` (L,) as fed; ``free_rows`` (L,) the rows of the free
+    NaN where there is none); ``stepped`` (L,) as fed, ``starts`` (L,) the first sample of each segment; ``free_rows`` (L,) the rows of the free
     run's segment from its first sample on (None without a free run); ``ahead_rows`` (L,) the rows at least H
     samples into their segment (None without ``steps``)."""
 
@@ -78,6 +78,7 @@ class SimulationStream:
         self._V = np.zeros((0, n), dtype=bool)
         self._stepped = np.zeros(0, dtype=bool)
         self._starts = np.zeros(0, dtype=bool)
+        self._last_stepped = False  # the last sample fed was stepped
         self._ahead = np.full((0, n), np.nan, dtype=dtype)  # branch results made for the rows held
         self._S = 0  # the record's index of the first row held
         self._segments = 0
@@ -89,28 +90,37 @@ class SimulationStream:
         self._in_free = False  # in the free run's segment, from its start
         self.free_start: int | None = None
         self.free_run_diverged: int | None = None
+        self.failed: IdentifierError | None = None  # the one-step pass's failure: the stream stopped there
 
-    def feed(self, X: np.ndarray, U: np.ndarray, valid: np.ndarray, stepped: np.ndarray,
-             starts: np.ndarray) -> Rows | None:
+    def feed(self, X: np.ndarray, U: np.ndarray, valid: np.ndarray, stepped: np.ndarray) -> Rows | None:
         """The next chunk: ``X`` (L, n), ``U`` (L, m) of the identifier's dtype, ``valid`` (L, n) bool,
-        ``stepped`` and ``starts`` (L,) bool (:meth:`pyrhonn.gaps.SegmentTracker.feed`)."""
-        L = X.shape[0]
+        ``stepped`` (L,) bool, the samples the identifier steps on (:meth:`pyrhonn.gaps.SegmentTracker.feed`;
+        a run of them is a segment). ValueError naming the argument, nothing taken, on a bad chunk; after a
+        failure of the identifier the stream takes nothing more."""
+        if self.failed is not None:
+            raise ValueError(f"the stream stopped: {self.failed}")
+        L = X.shape[0] if isinstance(X, np.ndarray) and X.ndim == 2 else -1
         for name, a, shape, kind in (("X", X, (L, self._n), self._dtype), ("U", U, (L, self._U.shape[1]), self._dtype),
                                      ("valid", valid, (L, self._n), np.dtype(bool)),
-                                     ("stepped", stepped, (L,), np.dtype(bool)), ("starts", starts, (L,), np.dtype(bool))):
+                                     ("stepped", stepped, (L,), np.dtype(bool))):
             if not isinstance(a, np.ndarray) or a.shape != shape or a.dtype != kind:
-                raise ValueError(f"{name}: expected a {kind} array of shape {shape}")
+                raise ValueError(f"{name}: expected a {kind} array of shape {shape if L >= 0 else '(L, ...)'}")
         self._id._finite_trajectory(X[stepped], U[stepped], valid[stepped])  # a lost sample has no inputs
         self._X = np.concatenate([self._X, X])
         self._U = np.concatenate([self._U, U])
         self._V = np.concatenate([self._V, valid])
         self._stepped = np.concatenate([self._stepped, stepped])
-        self._starts = np.concatenate([self._starts, starts])
+        if L:
+            starts = stepped & ~np.r_[self._last_stepped, stepped[:-1]]
+            self._last_stepped = bool(stepped[-1])
+            self._starts = np.concatenate([self._starts, starts])
         self._ahead = np.concatenate([self._ahead, np.full((L, self._n), np.nan, dtype=self._dtype)])
         return self._advance(final=False)
 
     def finish(self) -> Rows | None:
         """After the last chunk: the rows still held."""
+        if self.failed is not None:
+            raise ValueError(f"the stream stopped: {self.failed}")
         return self._advance(final=True)
 
     def _advance(self, final: bool) -> Rows | None:
@@ -189,7 +199,8 @@ class SimulationStream:
         except IdentifierError as exc:
             S = self._S
             text = re.sub(r"at sample (\d+)", lambda m: f"at sample {int(m.group(1)) + S}", str(exc))
-            raise IdentifierError(exc.status, text, None if exc.sample is None else exc.sample + S) from None
+            self.failed = IdentifierError(exc.status, text, None if exc.sample is None else exc.sample + S)
+            raise self.failed from None
 
     def _free_run(self, X: np.ndarray, U: np.ndarray, p: int, q: int, free: np.ndarray) -> None:
         """Rows p..q-1 of the free run (every state the network's own, weights frozen): row p's value is the

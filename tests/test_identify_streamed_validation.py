@@ -19,6 +19,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pyrhonn import Identifier
+from pyrhonn.identifier import IdentifierError
+from pyrhonn.simulation import simulate
 from pyrhonn.cli import identify as identify_cli
 from pyrhonn.cli import main
 from pyrhonn.config import Factor, IdentifierConfig, NeuronConfig
@@ -49,15 +51,18 @@ def _streamed(cfg: IdentifierConfig, X: np.ndarray, U: np.ndarray, valid: np.nda
               K: int | None, H: int | None) -> tuple[SimulationStream, dict[str, np.ndarray], int]:
     engine = SimulationStream(Identifier(cfg), free_run_from=K, steps=H)
     tracker = SegmentTracker(tuple(LIM.state_names))
-    got: dict[str, list[np.ndarray]] = {"one": [], "free": [], "ahead": [], "free_rows": [], "ahead_rows": []}
+    got: dict[str, list[np.ndarray]] = {"one": [], "free": [], "ahead": [], "free_rows": [], "ahead_rows": [],
+                                        "starts": [], "tracker_starts": []}
     most = 0
     bounds = [0, *sorted(set(c for c in cuts if 0 < c < T)), T]
     for a, b in zip(bounds[:-1], bounds[1:]):
         stepped, starts = tracker.feed(LOST[a:b], valid[a:b], np.arange(a, b), None)
-        rows = engine.feed(X[a:b], U[a:b], valid[a:b], stepped, starts)
+        got["tracker_starts"].append(starts)
+        rows = engine.feed(X[a:b], U[a:b], valid[a:b], stepped)
         most = max(most, engine._X.shape[0] - (b - a))  # rows held from before this chunk
         for r in [rows] if rows is not None else []:
             got["one"].append(r.one_step)
+            got["starts"].append(r.starts)
             for key, v in (("free", r.free_run), ("ahead", r.ahead), ("free_rows", r.free_rows),
                            ("ahead_rows", r.ahead_rows)):
                 if v is not None:
@@ -66,6 +71,7 @@ def _streamed(cfg: IdentifierConfig, X: np.ndarray, U: np.ndarray, valid: np.nda
     last = engine.finish()
     if last is not None:
         got["one"].append(last.one_step)
+        got["starts"].append(last.starts)
         for key, v in (("free", last.free_run), ("ahead", last.ahead), ("free_rows", last.free_rows),
                        ("ahead_rows", last.ahead_rows)):
             if v is not None:
@@ -86,6 +92,7 @@ def test_the_streamed_simulation_is_the_whole_records_bit_for_bit_wherever_the_c
     engine, got, most = _streamed(cfg, X, U, valid, cuts, K, H)
     assert most <= (H or 0)  # what waits for the next chunk: the rows whose branch needs its inputs
     np.testing.assert_array_equal(got["one"], ref.one_step)
+    np.testing.assert_array_equal(got["starts"], got["tracker_starts"])  # the segments' first samples
     np.testing.assert_array_equal(engine.next_prediction, ref.next_prediction)
     if K is not None:
         assert ref.free_run is not None
@@ -115,10 +122,28 @@ def test_the_stream_refuses_bad_settings_and_chunks_naming_them() -> None:
     X, U, valid = _trajectory(LIM.config.dtype)
     ok = np.ones(4, dtype=bool)
     with pytest.raises(ValueError, match=rf"^U: expected a {LIM.config.dtype} array of shape \(4, 2\)"):
-        engine.feed(X[:4], U[:4, :1], valid[:4], ok, ok)
+        engine.feed(X[:4], U[:4, :1], valid[:4], ok)
     with pytest.raises(ValueError, match=r"^U\[0, 0\]: not finite"):
-        engine.feed(X[20:24], U[20:24], valid[20:24], ok, ok)
+        engine.feed(X[20:24], U[20:24], valid[20:24], ok)
     assert engine._X.shape[0] == 0 and engine.finish() is None  # nothing taken
+
+
+def test_a_failure_of_the_identifier_names_the_sample_in_the_record_and_stops_the_stream() -> None:
+    cfg = IdentifierConfig(n_states=1, n_inputs=1, neurons=(NeuronConfig(
+        terms=((Factor.x(0),), (Factor.u(0),)), w0=np.array([2.0, 0.5])),))
+    X = np.full((60, 1), 0.1)
+    X[37] = 1e308  # its prediction 2e308 is not finite
+    U, V = np.ones((60, 1)), np.ones((60, 1), dtype=bool)
+    with pytest.raises(IdentifierError) as whole:
+        simulate(Identifier(cfg), X, U, V, steps=3)
+    engine = SimulationStream(Identifier(cfg), steps=3)
+    with pytest.raises(IdentifierError) as streamed:
+        for a in range(0, 60, 10):
+            engine.feed(X[a:a + 10], U[a:a + 10], V[a:a + 10], np.ones(10, dtype=bool))
+    assert str(streamed.value) == str(whole.value) and "at sample 37" in str(whole.value)
+    assert streamed.value.sample == 37
+    with pytest.raises(ValueError, match="^the stream stopped: .*at sample 37"):
+        engine.finish()
 
 
 # -- through pyrhonn identify ------------------------------------------------------------------------
@@ -249,6 +274,25 @@ def test_a_defect_found_while_streaming_is_said_after_the_settings_as_when_held_
     data = _plant_csv(tmp_path / "run.csv", y, u)
     full = [str(data), "--config", str(_unstable(tmp_path / "c.toml", 0.5)), "--dtype", "float32", *args]
     for whole, piece in ((True, None), (False, 7), (False, None)):
+        code, files, _ = _identify(monkeypatch, full, tmp_path / f"out{piece}", whole=whole, piece=piece)
+        err = capsys.readouterr().err
+        assert code == 2 and message in err and "Traceback" not in err, (whole, err)
+        assert files == {}
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--steps-ahead", "3"], "run.csv: line 39: the identifier stopped: neurons[0]: weights or prediction would "
+                             "not be finite at sample 37"),
+    (["--steps-ahead", "80"], "--steps-ahead 80: needs more than 80 data rows, the file has 60"),
+])
+def test_a_failure_of_the_identifier_while_streaming_says_what_the_record_held_whole_says(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], args: list[str],
+        message: str) -> None:
+    y = np.full(60, 0.1)
+    y[37] = 1e308  # its prediction 2e308 is not finite
+    data = _plant_csv(tmp_path / "run.csv", y, np.ones(60))
+    full = [str(data), "--config", str(_unstable(tmp_path / "c.toml", 2.0)), *args]
+    for whole, piece in ((True, None), (False, 10), (False, 1)):
         code, files, _ = _identify(monkeypatch, full, tmp_path / f"out{piece}", whole=whole, piece=piece)
         err = capsys.readouterr().err
         assert code == 2 and message in err and "Traceback" not in err, (whole, err)

@@ -726,7 +726,7 @@ def _stream(args: argparse.Namespace, cf: ConfigFile, cfg: IdentifierConfig, sou
         if plots:
             _feed(env, c, rows.one_step, k0, rows.free_run, rows.ahead)
 
-    def stepped(c: Data | None, step_rows: np.ndarray | None = None, starts: np.ndarray | None = None) -> None:
+    def stepped(c: Data | None, step_rows: np.ndarray | None = None) -> None:
         """Chunk ``c`` into the identification (None: the end of the record); a defect it finds (a value that
         overflows the dtype, the identifier's failure) ends the stepping, said after the record's length."""
         nonlocal stopped
@@ -736,10 +736,10 @@ def _stream(args: argparse.Namespace, cf: ConfigFile, cfg: IdentifierConfig, sou
             if c is None:
                 finished(engine.finish())
                 return
-            assert step_rows is not None and starts is not None
+            assert step_rows is not None
             X, U = c.in_dtype(cfg.dtype, cf.state_names, cf.input_names, source)
             held.append(replace(c, lost=None))  # the gaps are the tracker's (a chunk may have no lost flags)
-            finished(engine.feed(X, U, c.valid, step_rows, starts))
+            finished(engine.feed(X, U, c.valid, step_rows))
         except IdentifierError as exc:
             found = re.search(r"at sample (\d+)", str(exc))
             where = ""
@@ -762,9 +762,9 @@ def _stream(args: argparse.Namespace, cf: ConfigFile, cfg: IdentifierConfig, sou
                 env.has_t = c.t is not None
                 staged.fh.write(header_line(_prediction_header(c.t is not None, cf, kinds)))
             lost = c.lost if c.lost is not None else np.zeros(L, dtype=bool)
-            step_rows, starts = tracker.feed(lost, c.valid, c.lines, c.t)
+            step_rows, _ = tracker.feed(lost, c.valid, c.lines, c.t)
             read += L
-            stepped(c, step_rows, starts)
+            stepped(c, step_rows)
         tracker.finish()
         stepped(None)
         T = read
