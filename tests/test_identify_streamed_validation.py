@@ -26,6 +26,7 @@ from pyrhonn.cli import main
 from pyrhonn.config import Factor, IdentifierConfig, NeuronConfig
 from pyrhonn.configfile import ConfigFile, dumps, load_shipped, shipped_text
 from pyrhonn.gaps import SegmentTracker, segments_of, simulate_segments
+from pyrhonn.residuals import departure, divergence_range
 from pyrhonn.simulationstream import SimulationStream
 
 from test_long_recordings import record  # noqa: F401 (the fixture: a LIM record with gaps and dropouts)
@@ -144,6 +145,36 @@ def test_a_failure_of_the_identifier_names_the_sample_in_the_record_and_stops_th
     assert streamed.value.sample == 37
     with pytest.raises(ValueError, match="^the stream stopped: .*at sample 37"):
         engine.finish()
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), cuts=st.lists(st.integers(1, 59), max_size=6),
+       drift=st.floats(0.0, 0.2), constant=st.booleans())
+def test_where_a_free_run_leaves_the_range_found_chunk_by_chunk_is_the_whole_records(
+        seed: int, cuts: list[int], drift: float, constant: bool) -> None:
+    """Measurements whose range widens as they come (a state constant for a while, one never valid), a free
+    run that drifts off and may stop being finite: the first line outside the whole record's range."""
+    rng = np.random.default_rng(seed)
+    T, n = 60, 3
+    X = np.cumsum(rng.standard_normal((T, n)), axis=0)
+    if constant:  # not moving for 40 samples, then barely: its range is widened by nothing until it moves
+        X[:, 0] = 2.0 + np.r_[np.zeros(40), 0.01 * rng.standard_normal(T - 40)]
+    valid = rng.random((T, n)) > 0.2
+    valid[:, 2] = False  # never measured: the whole real line
+    free = X + drift * np.arange(T)[:, None] ** 1.5 * rng.standard_normal(n)
+    if constant:  # near the constant, outside the whole record's narrow range from the start
+        free[:, 0] = X[:, 0] + rng.uniform(0.1, 0.5, T)
+    free[rng.random((T, n)) < 0.02] = np.nan
+    rows = rng.random(T) > 0.1
+    lines = np.arange(2, T + 2)
+    low, high = divergence_range(X, valid)
+    gone = [int(k) for k in departure(free, rows, low, high) if k >= 0]
+    watch = identify_cli._RangeWatch(n)
+    bounds = [0, *sorted(set(cuts)), T]
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        watch.add(X[a:b], valid[a:b], free[a:b], rows[a:b], lines[a:b])
+    assert watch.left_line() == (int(lines[min(gone)]) if gone else None)
+    watch.close()
 
 
 # -- through pyrhonn identify ------------------------------------------------------------------------
