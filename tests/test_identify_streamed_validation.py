@@ -340,6 +340,7 @@ def test_a_bus_log_streams_a_free_run_and_k_step_predictions_to_the_whole_logs_o
     from pyrhonn import buslogstream
     from pyrhonn.cli import bus_input
 
+    bus_input_read = bus_input.read
     (tmp_path / "plant.dbc").write_text(DBC)
     (tmp_path / "cfg.toml").write_text(shipped_text("example1") + BUS)
     assert can is not None
@@ -357,6 +358,19 @@ def test_a_bus_log_streams_a_free_run_and_k_step_predictions_to_the_whole_logs_o
                 m.setattr(buslogstream, "CHUNK_FRAMES", chunk)
             got = _identify(monkeypatch, args, tmp_path / f"s{chunk}", piece=3)
         _same(got, whole)
+    # a frame logged too late to stream: the log is read whole (BusStream's Reread), to the same result
+    frames = _frames()
+    frames.insert(240, frames.pop(40))
+    late = _write(frames, tmp_path / "late.log")
+    late_args = [str(late) if a == str(log) else a for a in args]
+    reference = _identify(monkeypatch, late_args, tmp_path / "late-whole", whole=True)
+    reads: list[object] = []
+    with monkeypatch.context() as m:
+        m.setattr(buslogstream, "CHUNK_FRAMES", 8)
+        m.setattr(bus_input, "read", lambda *a: reads.append(a) or bus_input_read(*a))
+        reread = _identify(monkeypatch, late_args, tmp_path / "late-s", piece=5)
+    assert len(reads) == 1  # streamed until the late frame, then read whole
+    _same(reread, reference)
 
 
 def test_a_signal_mdf4_streams_a_free_run_and_k_step_predictions_to_the_whole_files_outputs(
