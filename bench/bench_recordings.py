@@ -14,7 +14,10 @@
    peak beside the first. ``signal-mf4`` is the same samples as a signal MDF4 of named channels
    (the states in one channel group, without the lost samples, the inputs in another), streamed a
    block of records at a time (:class:`pyrhonn.mdfsignals.SignalMdfStream`), its ratio against the core's
-   time in the same run.
+   time in the same run. ``csv-ahead`` identifies the CSV with a free run from its middle and
+   ``--steps-ahead`` (``--ahead``, default 5) predictions, streamed as every mode is, and once more
+   with the record held whole (the reference: its predictions.csv must be the same bytes): the time,
+   ratio to the core and peak memory of each.
 3. With ``--huge N`` (12,000,000: an hour at 0.3 ms), a CSV of N samples (``--loss`` lost, written
    straight from the arrays, about 1.9 GB in ``--huge-dir``, deleted afterwards) through ``identify``
    (plots included), then the same samples without the lost ones through ``select --search fixed``
@@ -22,7 +25,7 @@
    is validated on every row): the time and peak memory of each.
 
     python bench/bench_recordings.py [--frames 10001] [--loss 0.005] [--long 1000000]
-        [--long-formats log,blf,asc,mf4,csv,signal-mf4] [--longer 4]
+        [--long-formats log,blf,asc,mf4,csv,signal-mf4,csv-ahead] [--ahead 5] [--longer 4]
         [--huge 12000000 --huge-dir /tmp] [--results [--merge]]
 
 ``--results`` writes the figures to bench/results/recordings.json (bench/results_file.py); with
@@ -128,10 +131,15 @@ def _csv(frames: list[can.Message], n: int, path: Path) -> None:
             w.writerow([repr(float(d[s])) for s in firmware.STATE_SIGNALS + firmware.INPUT_SIGNALS] + ["0"])
 
 
-def _identify(argv: list[str], cwd: Path) -> dict[str, float]:
+#: the record held whole instead of streamed (identify's reference path)
+WHOLE = "import pyrhonn.cli.identify as identify\nidentify._WHOLE_RECORD = True\n"
+
+
+def _identify(argv: list[str], cwd: Path, whole: bool = False) -> dict[str, float]:
     """``pyrhonn identify`` in its own process (run in ``cwd``, away from a source tree without the built
-    core): its exit code, wall time and peak memory."""
-    done = subprocess.run([sys.executable, "-c", RUN, *argv], capture_output=True, text=True, cwd=cwd)
+    core): its exit code, wall time and peak memory; ``whole``: with the record held whole."""
+    done = subprocess.run([sys.executable, "-c", (WHOLE if whole else "") + RUN, *argv], capture_output=True,
+                          text=True, cwd=cwd)
     if done.returncode != 0:
         raise SystemExit(f"identify crashed: {' '.join(argv)}\n{done.stderr}")
     result = json.loads(done.stdout.strip().splitlines()[-1])
@@ -267,6 +275,34 @@ def _signal_mdf(X: np.ndarray, U: np.ndarray, lost: np.ndarray, path: Path, d: P
                       "--no-plots"], d)
 
 
+def _ahead(frames: list[can.Message], n: int, steps: int, core: float, d: Path) -> dict[str, object]:
+    """The long CSV identified with ``--free-run-from n/2 --steps-ahead steps``, streamed and held whole (the
+    same predictions.csv): the seconds, ratio to the core's time and peak memory of each."""
+    path = d / "long-ahead.csv"
+    _csv(frames, n, path)
+    K = n // 2
+    runs: dict[str, dict[str, float]] = {}
+    for how in ("streamed", "whole"):
+        out = d / f"out-ahead-{how}"
+        r = _identify(["identify", str(path), "--config", str(d / "lim.toml"), "--out", str(out), "--no-plots",
+                       "--free-run-from", str(K), "--steps-ahead", str(steps)], d, whole=how == "whole")
+        runs[how] = {"seconds": r["seconds"], "peak_mib": r["peak_mib"], "ratio": r["seconds"] / core}
+        print(f"   csv, free run from {K:,} and {steps} steps ahead, {how}: identify {r['seconds']:6.1f} s "
+              f"({r['seconds'] / core:5.1f} x the core), peak {r['peak_mib']:6.0f} MiB")
+    same = (d / "out-ahead-streamed" / "predictions.csv").read_bytes() == \
+        (d / "out-ahead-whole" / "predictions.csv").read_bytes()
+    print(f"   predictions.csv the same streamed and held whole: {same}")
+    if not same:
+        raise SystemExit(1)
+    size = path.stat().st_size / 2**20
+    path.unlink()
+    for how in runs:
+        (d / f"out-ahead-{how}" / "predictions.csv").unlink()
+    return {"file_mib": size, "free_run_from": K, "steps": steps, "core_seconds": core, "same_predictions": same,
+            **runs["streamed"], "whole": runs["whole"],
+            "peak_vs_whole": runs["streamed"]["peak_mib"] / runs["whole"]["peak_mib"]}
+
+
 def _predictions(out: Path) -> list[dict[str, str]]:
     with (out / "predictions.csv").open(newline="") as fh:
         return [{k: v for k, v in row.items() if k.endswith(("_hat", "_err"))} for row in csv.DictReader(fh)]
@@ -317,8 +353,10 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=10_001)
     ap.add_argument("--loss", type=float, default=0.005)
     ap.add_argument("--long", type=int, default=1_000_000)
-    ap.add_argument("--long-formats", default="log,blf,asc,mf4,csv,signal-mf4",
-                    help="formats of the long recording (log, blf, asc, mf4 bus log, csv, signal-mf4)")
+    ap.add_argument("--long-formats", default="log,blf,asc,mf4,csv,signal-mf4,csv-ahead",
+                    help="formats of the long recording (log, blf, asc, mf4 bus log, csv, signal-mf4; csv-ahead: "
+                         "the CSV with a free run and --ahead steps ahead)")
+    ap.add_argument("--ahead", type=int, default=5, help="csv-ahead's --steps-ahead (default 5)")
     ap.add_argument("--longer", type=int, default=4,
                     help="also the long candump log this many times over (0: not), for the peak memory's growth")
     ap.add_argument("--seed", type=int, default=5)
@@ -360,8 +398,12 @@ def main() -> None:
             long: dict[str, object] = {"samples": N, "lost": len(lost_big), "core_seconds": core, "plots": False}
             before = figures.get("long")
             if args.merge and isinstance(before, dict):
-                long = {**before, **({} if set(args.long_formats.split(",")) == {"signal-mf4"} else long)}
+                alone = set(args.long_formats.split(",")) <= {"signal-mf4", "csv-ahead"}
+                long = {**before, **({} if alone else long)}
             for suffix in args.long_formats.split(","):
+                if suffix == "csv-ahead":
+                    long["csv_ahead"] = _ahead(big, N, args.ahead, core, d)
+                    continue
                 if suffix == "signal-mf4":
                     path = d / "long-signal.mf4"
                     r = _signal_mdf(Xb, Ub, lost_mask, path, d)

@@ -15,7 +15,7 @@ pytest.importorskip("asammdf")
 ROOT = Path(__file__).resolve().parents[1]
 #: appended to each of the page's commands: argparse keeps an option's last value (the long recording in three
 #: formats: the first part reads every bus-log format already)
-SMALL = ["--frames", "300", "--long", "2000", "--long-formats", "log,csv,signal-mf4", "--huge-dir"]
+SMALL = ["--frames", "300", "--long", "2000", "--long-formats", "log,csv,signal-mf4,csv-ahead", "--huge-dir"]
 
 
 def test_the_recordings_benchmark_runs_as_the_page_shows_on_small_sizes(tmp_path: Path) -> None:
@@ -34,4 +34,5 @@ def test_the_recordings_benchmark_runs_as_the_page_shows_on_small_sizes(tmp_path
             assert "2,000" in out or "2000" in out, out[-2000:]
             assert "log x4: 8,000 samples" in out, out[-2000:]  # the longer log, its peak beside the first's
             assert "signal MDF4" in out and "x the core" in out, out[-2000:]
+            assert "predictions.csv the same streamed and held whole: True" in out, out[-2000:]
     assert not any(tmp_path.glob("*.csv")), "the huge recording was not deleted"

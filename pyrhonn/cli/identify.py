@@ -69,8 +69,17 @@ is read whole, to the same result or message), a signal MDF4 a block of records 
 whole record's, bit for bit), gaps are found chunk by chunk
 (:class:`pyrhonn.gaps.SegmentTracker`), ``predictions.csv`` is written as
 the chunks come and the metrics are running sums
-(:mod:`pyrhonn.streamscores`): memory does not grow with the record. With a
-free run or k-step predictions the record is held whole.
+(:mod:`pyrhonn.streamscores`): memory does not grow with the record. Every mode
+streams: with ``--free-run-from`` and ``--steps-ahead`` the network stepped on the
+measurements and the free run are both carried from chunk to chunk, and the last
+H samples of a chunk wait for the next one's inputs before their H-step branches
+are run (:mod:`pyrhonn.simulationstream`). Where the free run leaves the data's
+range (the whole file's) is found without a second pass: only the free-run
+samples outside the range of the measurements read so far are kept, in a
+scratch file, and tested against the final range at the end. Settings that need
+the record's length are checked at its end, with the same messages, before
+anything is written. The results are those of the record held whole, byte for
+byte.
 
 Each file is written to a temporary file and renamed into place, and the
 folder holds a file ``INCOMPLETE`` from before the first output until after
@@ -91,6 +100,7 @@ import os
 import re
 import shutil
 import tempfile
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import IO, Any, Iterable, Iterator, Sequence
 
@@ -107,9 +117,10 @@ from ..envelope import Envelope
 from ..gaps import SegmentTracker, Segments, segments_of, simulate_segments
 from ..mdfsignals import METHOD, MdfSignals, SignalMdfStream, read_signal_mdf
 from ..identifier import Identifier, IdentifierError
-from ..metrics import absolute_deviation, json_value
+from ..metrics import json_value
 from ..residuals import departure, divergence_range
-from ..simulation import Simulation, scores, simulate
+from ..simulation import Simulation, simulate
+from ..simulationstream import Rows, SimulationStream
 from ..streamscores import RunningScores
 from . import bus_input
 from .options import real_option, units_option
@@ -144,7 +155,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "identify", help="identify a plant from a CSV file of states and inputs (or a CAN log)",
         description="Run the RHONN identifier (C core) on a CSV file whose columns are named by the config; "
-                    "write one-step-ahead predictions, metrics (RMSE, absolute deviation) and plots.")
+                    "write one-step-ahead predictions, metrics (RMSE, absolute deviation) and plots. The record is "
+                    "streamed a chunk at a time in every mode (memory does not grow with its length).")
     p.add_argument("data", metavar="DATA.csv", nargs="?",
                    help="the measurements: a CSV file (header row, then one line per sample), a signal MDF4 "
                         "file of named channels (.mf4), or none with --can-log")
@@ -240,34 +252,151 @@ def _run_identifier(cfg: IdentifierConfig, data: Data, cf: ConfigFile, source: s
         raise ValueError(f"{source}: {where}the identifier stopped: {exc}") from None
 
 
-def _scored(data: Data, first: int, stop: int | None = None, rows: np.ndarray | None = None) -> np.ndarray:
-    """Bool (T, n): the valid targets among data rows first..stop-1 (and ``rows``, (T,) bool, if given)."""
-    mask = data.valid.copy()
-    mask[:first] = False
-    if stop is not None:
-        mask[stop:] = False
-    if rows is not None:
-        mask &= rows[:, None]
-    return mask
+class _Scoring:
+    """The metrics' sections as running figures (:mod:`pyrhonn.streamscores`), fed a chunk at a time or the whole
+    record at once, to the same figures: one step (over samples >= ``split``, and with a free run over the learnt
+    samples ``first``..K-1), the free run and the H-step predictions; each over the valid targets of its rows."""
+
+    def __init__(self, n: int, first: int, split: int, K: int | None, H: int | None) -> None:
+        self.first, self.split, self.K, self.H = first, split, K, H
+        self.invalid = np.zeros(n, dtype=np.int64)
+        self.running: dict[str, RunningScores] = {"one_step": RunningScores(n, deviation=True)}
+        if K is not None:
+            self.running["one_step_learning"] = RunningScores(n, deviation=True)
+            self.running["free_run"] = RunningScores(n)
+        if H is not None:
+            self.running["steps_ahead"] = RunningScores(n)
+
+    def add(self, k0: int, X: np.ndarray, valid: np.ndarray, one_step: np.ndarray, one_rows: np.ndarray,
+            free: np.ndarray | None = None, free_rows: np.ndarray | None = None, ahead: np.ndarray | None = None,
+            ahead_rows: np.ndarray | None = None) -> None:
+        """Rows k0.. of the record: measurements ``X`` (L, n) float64 and ``valid``, the estimates (L, n) and
+        the rows (L,) bool each may be scored on."""
+        k = np.arange(k0, k0 + X.shape[0])
+        self.invalid += (~valid).sum(axis=0)
+
+        def feed(kind: str, estimate: np.ndarray, rows: np.ndarray) -> None:
+            self.running[kind].add(X, estimate.astype(np.float64), valid & rows[:, None])
+
+        feed("one_step", one_step, one_rows & (k >= self.split))
+        if self.K is not None:
+            assert free is not None and free_rows is not None
+            feed("one_step_learning", one_step, one_rows & (k >= self.first) & (k < self.K))
+            feed("free_run", free, free_rows & (k >= self.split))
+        if self.H is not None:
+            assert ahead is not None and ahead_rows is not None
+            feed("steps_ahead", ahead, ahead_rows & (k >= max(self.split, self.H)))
+
+    def section(self, kind: str, names: Sequence[str], definition: str) -> dict[str, Any]:
+        """One section of metrics.json: per state the RMSE, RRSE and count scored (the one-step ones also the
+        absolute deviation and the samples not valid)."""
+        running = self.running[kind]
+        sc = running.scores()
+        deviation = running.absolute_deviation() if kind.startswith("one_step") else None
+        states: dict[str, Any] = {}
+        for j, name in enumerate(names):
+            entry: dict[str, Any] = {"rmse": json_value(sc.rmse[j]), "rrse": json_value(sc.rrse[j]),
+                                     "scored": int(sc.scored[j])}
+            if sc.missing[j]:
+                entry["missing"] = int(sc.missing[j])
+            if deviation is not None:
+                dev = deviation[j]
+                entry["absolute_deviation"] = None if dev is None else json_value(dev)
+                entry["invalid_samples"] = int(self.invalid[j])
+            states[name] = entry
+        return {"definition": definition, "states": states}
+
+    def sections(self, names: Sequence[str], weights: str) -> dict[str, Any]:
+        """metrics.json's sections (the free run's without its where-it-went entries)."""
+        first, split, K, H = self.first, self.split, self.K, self.H
+        out = {"one_step": self.section(
+            "one_step", names, f"one step ahead: x̂(k) made at sample k-1 from measured values, against the "
+                               f"measurement of sample k, valid targets k >= {split}; weights {weights}")}
+        if K is not None:
+            out["one_step_learning"] = self.section(
+                "one_step_learning", names,
+                f"one step ahead over the learnt samples {first}..{K - 1}, weights learning online")
+            out["free_run"] = self.section(
+                "free_run", names,
+                f"free run (parallel model): weights frozen from sample {K}, the network fed its own predictions "
+                f"and the measured inputs, against the measurements of samples k >= {split}")
+        if H is not None:
+            out["steps_ahead"] = self.section(
+                "steps_ahead", names,
+                f"{H} steps ahead: x̂(k | k-{H}), the network as after learning sample k-{H} fed its own "
+                f"predictions for {H - 1} steps, against the measurements of samples k >= {max(split, H)}; "
+                f"weights {weights}")
+            out["steps_ahead"]["steps"] = H
+        return out
+
+    def close(self) -> None:
+        for r in self.running.values():
+            r.close()
 
 
-def _section(data: Data, cf: ConfigFile, estimate: np.ndarray, mask: np.ndarray, definition: str,
-             with_deviation: bool = False) -> dict[str, Any]:
-    sc = scores(data.X, estimate.astype(np.float64), mask)
-    states: dict[str, Any] = {}
-    for j, name in enumerate(cf.state_names):
-        entry: dict[str, Any] = {"rmse": json_value(sc.rmse[j]), "rrse": json_value(sc.rrse[j]),
-                                 "scored": int(sc.scored[j])}
-        if sc.missing[j]:
-            entry["missing"] = int(sc.missing[j])
-        if with_deviation:
-            rows = mask[:, j]
-            entry["absolute_deviation"] = (json_value(absolute_deviation(
-                data.X[rows, j][:, None], estimate[rows, j][:, None].astype(np.float64))[0])
-                if rows.any() and not sc.missing[j] else None)
-            entry["invalid_samples"] = int((~data.valid[:, j]).sum())
-        states[name] = entry
-    return {"definition": definition, "states": states}
+#: what metrics.json says of where a free run leaves the data's range
+RANGE_RULE = ("a free run leaves the data's range at the first sample outside [min - span, max + span] of a "
+              "state's valid measurements in the file")
+
+
+def _free_run_entries(section: dict[str, Any], K: int, from_line: int, diverged_line: int | None,
+                      left_line: int | None) -> None:
+    section["from_sample"] = K
+    section["from_line"] = from_line
+    section["diverged_at_line"] = diverged_line
+    section["left_range_at_line"] = left_line
+    section["range"] = RANGE_RULE
+
+
+class _RangeWatch:
+    """Where a free run first leaves the data's range (:func:`pyrhonn.residuals.divergence_range` of the whole
+    record's measurements, :func:`pyrhonn.residuals.departure`), found a chunk at a time without holding the
+    record: the range of the measurements read so far, widened by its span, lies inside the whole record's
+    (the extremes only grow, and so does the span; a state that has not moved yet is widened by nothing), so
+    a free-run value inside it is inside the final range. Only the other rows (their line and values) are
+    kept, in a temporary file, and tested against the final range after the last chunk."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.lo = np.full(n, np.inf)
+        self.hi = np.full(n, -np.inf)
+        self._kind = np.dtype([("line", "<i8"), ("x", "<f8", (n,))])
+        self._spill: IO[bytes] = tempfile.TemporaryFile()  # noqa: SIM115
+
+    def add(self, X: np.ndarray, valid: np.ndarray, free: np.ndarray, rows: np.ndarray, lines: np.ndarray) -> None:
+        """A chunk: measurements ``X`` (L, n) float64 and ``valid``, the free run (L, n), the ``rows`` (L,) bool
+        it is watched on, their ``lines``."""
+        self.lo = np.minimum(self.lo, np.where(valid, X, np.inf).min(axis=0, initial=np.inf))
+        self.hi = np.maximum(self.hi, np.where(valid, X, -np.inf).max(axis=0, initial=-np.inf))
+        x = free.astype(np.float64)
+        with np.errstate(invalid="ignore", over="ignore"):
+            span = self.hi - self.lo  # -inf where nothing was measured yet: every value is kept
+            outside = ~np.isfinite(x) | (x < self.lo - span) | (x > self.hi + span)
+        keep = rows & outside.any(axis=1)
+        if keep.any():
+            block = np.empty(int(keep.sum()), dtype=self._kind)
+            block["line"] = lines[keep]
+            block["x"] = x[keep]
+            self._spill.write(block.tobytes())
+
+    def left_line(self) -> int | None:
+        """The line of the first row kept outside the whole record's range (None if none)."""
+        seen = self.lo <= self.hi
+        low, high = divergence_range(np.vstack([np.where(seen, self.lo, 0.0), np.where(seen, self.hi, 0.0)]),
+                                     np.vstack([seen, seen]))
+        self._spill.seek(0)
+        while True:
+            raw = self._spill.read(self._kind.itemsize * (1 << 16))
+            if not raw:
+                return None
+            block = np.frombuffer(raw, dtype=self._kind)
+            gone = [int(k) for k in departure(np.ascontiguousarray(block["x"]), np.ones(block.size, dtype=bool),
+                                              low, high) if k >= 0]
+            if gone:
+                return int(block["line"][min(gone)])
+
+    def close(self) -> None:
+        self._spill.close()
 
 
 def _shown(v: float | str | None, spec: str = ".6g") -> str:
@@ -278,20 +407,21 @@ def _count(k: int, noun: str) -> str:
     return f"{k} {noun}{'' if k == 1 else 's'}"
 
 
-def _prediction_header(data: Data, cf: ConfigFile, sim: Simulation | None) -> list[str]:
-    extra = [] if sim is None else _extra(sim)
-    header = ["line"] + ([TIME_COLUMN] if data.t is not None else [])
+def _prediction_header(has_t: bool, cf: ConfigFile, kinds: Sequence[str]) -> list[str]:
+    """predictions.csv's columns; ``kinds`` the extra columns per state (``free_run``, ``ahead<H>``)."""
+    header = ["line"] + ([TIME_COLUMN] if has_t else [])
     for name in cf.state_names:
-        header += [f"{name}_hat", f"{name}_err"] + [f"{name}_{kind}" for kind, _ in extra]
+        header += [f"{name}_hat", f"{name}_err"] + [f"{name}_{kind}" for kind in kinds]
     return header
 
 
-def _extra(sim: Simulation) -> list[tuple[str, np.ndarray]]:
+def _extra(free: np.ndarray | None, ahead: np.ndarray | None, steps: int | None) -> list[tuple[str, np.ndarray]]:
+    """The extra columns of predictions.csv: the free run, the H-step predictions (those given)."""
     extra: list[tuple[str, np.ndarray]] = []
-    if sim.free_run is not None:
-        extra.append(("free_run", sim.free_run.astype(np.float64)))
-    if sim.ahead is not None:
-        extra.append((f"ahead{sim.steps}", sim.ahead.astype(np.float64)))
+    if free is not None:
+        extra.append(("free_run", free.astype(np.float64)))
+    if ahead is not None:
+        extra.append((f"ahead{steps}", ahead.astype(np.float64)))
     return extra
 
 
@@ -328,8 +458,9 @@ def _prediction_rows(fh: IO[bytes], data: Data, cf: ConfigFile, one_step: np.nda
 def _write_predictions(path: Path, data: Data, cf: ConfigFile, sim: Simulation, errors: np.ndarray) -> None:
     """predictions.csv of the whole record (see :func:`_prediction_rows`)."""
     with atomic.replacing(path, "wb") as fh:
-        fh.write(header_line(_prediction_header(data, cf, sim)))
-        _prediction_rows(fh, data, cf, sim.one_step, _extra(sim), errors)
+        extra = _extra(sim.free_run, sim.ahead, sim.steps)
+        fh.write(header_line(_prediction_header(data.t is not None, cf, [kind for kind, _ in extra])))
+        _prediction_rows(fh, data, cf, sim.one_step, extra, errors)
 
 
 NOT_VALID_LABEL = "not valid (not learnt; predicted from its own outputs)"  #: legend entry of the shaded samples
@@ -472,6 +603,11 @@ def _write_rest(out: Path, report: dict[str, Any], plots: list[Path], cf: Config
         stale.unlink(missing_ok=True)  # an earlier run's plot would pass for this run's
 
 
+#: run on the record held whole (simulate over all of it; the reference a streamed run equals, for tests)
+_WHOLE_RECORD = False
+#: cut every chunk read into pieces of at most this many rows (None: as read; for tests of where chunks fall)
+_PIECE_ROWS: int | None = None
+
 #: rows of a record held in memory as one chunk when it is streamed (a record read whole is cut so)
 CHUNK_ROWS = 1 << 16
 
@@ -479,10 +615,7 @@ CHUNK_ROWS = 1 << 16
 def _pieces(data: Data, rows: int = CHUNK_ROWS) -> Iterator[Data]:
     """``data`` as chunks of ``rows`` rows (views)."""
     for a in range(0, data.n_samples, rows):
-        b = min(a + rows, data.n_samples)
-        yield Data(X=data.X[a:b], U=data.U[a:b], valid=data.valid[a:b], t=None if data.t is None else data.t[a:b],
-                   lines=data.lines[a:b], ignored=data.ignored, lost=None if data.lost is None else data.lost[a:b],
-                   units=data.units)
+        yield _slice(data, a, min(a + rows, data.n_samples))
 
 
 class _Staged:
@@ -520,87 +653,165 @@ class _Staged:
             self.fh.close()
 
 
+@dataclass
+class _Streamed:
+    """What :func:`_stream` found: the samples, metrics' sections, x̂(T), the gaps, the plots' envelope, the file's
+    units, the line where the free run diverged."""
+
+    T: int
+    sections: dict[str, Any]
+    next_prediction: np.ndarray
+    segments: SegmentTracker
+    env: Envelope
+    units: dict[str, str] | None
+    diverged_line: int | None
+
+
 def _stream(args: argparse.Namespace, cf: ConfigFile, cfg: IdentifierConfig, source: str, config_source: str,
-            chunks: Iterable[Data], staged: _Staged, plots: bool
-            ) -> tuple[int, dict[str, Any], np.ndarray, SegmentTracker, Envelope, dict[str, str] | None]:
-    """The one-step identification of a record a chunk at a time (the Identifier keeps its state across
-    calls, so the result is the whole record's): predictions.csv written to ``staged`` as it goes, the
-    metrics as running sums (:mod:`pyrhonn.streamscores`), the gaps found chunk by chunk
-    (:class:`pyrhonn.gaps.SegmentTracker`) and the plots' envelope (:mod:`pyrhonn.envelope`). Returns the
-    samples, the metrics' sections, x̂(T), the gaps, the envelope and the file's units."""
+            chunks: Iterable[Data], staged: _Staged, plots: bool) -> _Streamed:
+    """The identification of a record a chunk at a time (:class:`pyrhonn.simulationstream.SimulationStream`: the
+    one-step pass, the free run and the H-step branches carried across chunks, so the result is the whole
+    record's): predictions.csv written to ``staged`` as the rows are finished, the metrics as running sums
+    (:class:`_Scoring`), the gaps found chunk by chunk (:class:`pyrhonn.gaps.SegmentTracker`), where the free
+    run leaves the data's range (:class:`_RangeWatch`) and the plots' envelope (:mod:`pyrhonn.envelope`).
+    The settings that need the record's length are checked at its end, with the messages of the record held
+    whole; so is a failure of the identifier, which ends the stepping but not the reading."""
     try:
         ident = Identifier(cfg)
     except ValueError as exc:
         raise ValueError(f"{config_source}: {exc}") from None
     n = cfg.n_states
     names = tuple(cf.state_names)
+    K, H = args.free_run_from, args.steps_ahead
+    engine = SimulationStream(ident, free_run_from=K, steps=H)
     tracker = SegmentTracker(names)
     env = _envelope(n)
-    env.mark(0)
-    env.mark(args.warmup)
-    split = args.warmup + 1  # row 0 holds x0, not a prediction; --warmup drops that many pairs more
-    k0 = 0
+    for k in (0, args.warmup, *([K] if K is not None else [])):
+        env.mark(k)
+    first = args.warmup + 1  # row 0 holds x0, not a prediction; --warmup drops that many pairs more
+    split = max(first, K) if K is not None else first
+    kinds = (["free_run"] if K is not None else []) + ([f"ahead{H}"] if H is not None else [])
+    read = 0  # rows read
     first_line = 0
     units: dict[str, str] | None = None
-    invalid = np.zeros(n, dtype=np.int64)
-    next_prediction = ident.prediction
-    segment = 0  # segments started
-    with RunningScores(n, deviation=True) as running:
+    held: list[Data] = []  # rows read, not yet finished
+    marks: dict[str, int | None] = {"from_line": None, "diverged_line": None}
+    stopped: ValueError | None = None  # the identifier's failure, said after the record's length is known
+    scoring = _Scoring(n, first, split, K, H)
+    watch = _RangeWatch(n) if K is not None else None
+
+    def finished(rows: Rows | None) -> None:
+        nonlocal held
+        if rows is None:
+            return
+        L = rows.n_rows
+        joined = held[0] if len(held) == 1 else concatenate(held)
+        c, rest = _slice(joined, 0, L), _slice(joined, L, joined.n_samples)
+        held = [rest] if rest.n_samples else []
+        k0 = rows.k0
+        k = np.arange(k0, k0 + L)
+        one_rows = rows.stepped & ~rows.starts  # not the first of a segment: its x̂ was made before the gap
+        free_rows = None
+        if K is not None:
+            assert rows.free_rows is not None and rows.free_run is not None and watch is not None
+            free_rows = rows.free_rows & (one_rows | (k == K))
+            if k0 <= K < k0 + L:
+                marks["from_line"] = int(c.lines[K - k0])
+            watch.add(c.X, c.valid, rows.free_run, free_rows & (k >= K), c.lines)
+        d = engine.free_run_diverged
+        if d is not None and k0 <= d < k0 + L:
+            marks["diverged_line"] = int(c.lines[d - k0])
+        _prediction_rows(staged.fh, c, cf, rows.one_step, _extra(rows.free_run, rows.ahead, H), one_rows)
+        scoring.add(k0, c.X, c.valid, rows.one_step, one_rows, rows.free_run, free_rows, rows.ahead, rows.ahead_rows)
+        if plots:
+            _feed(env, c, rows.one_step, k0, rows.free_run, rows.ahead)
+
+    def stepped(c: Data | None, step_rows: np.ndarray | None = None) -> None:
+        """Chunk ``c`` into the identification (None: the end of the record); a defect it finds (a value that
+        overflows the dtype, the identifier's failure) ends the stepping, said after the record's length."""
+        nonlocal stopped
+        if stopped is not None:
+            return
+        try:
+            if c is None:
+                finished(engine.finish())
+                return
+            assert step_rows is not None
+            X, U = c.in_dtype(cfg.dtype, cf.state_names, cf.input_names, source)
+            held.append(replace(c, lost=None))  # the gaps are the tracker's (a chunk may have no lost flags)
+            finished(engine.feed(X, U, c.valid, step_rows))
+        except IdentifierError as exc:
+            found = re.search(r"at sample (\d+)", str(exc))
+            where = ""
+            if found:
+                at = int(found.group(1))
+                lines = np.concatenate([h.lines for h in held]) if held else np.zeros(0, dtype=np.int64)
+                base = read - lines.size
+                where = f"line {int(lines[at - base])}: " if 0 <= at - base < lines.size else ""
+            stopped = ValueError(f"{source}: {where}the identifier stopped: {exc}")
+            held.clear()
+        except ValueError as exc:
+            stopped = exc
+            held.clear()
+
+    try:
         for c in chunks:
             L = c.n_samples
-            if k0 == 0:
+            if read == 0:
                 first_line, units = int(c.lines[0]), c.units
                 env.has_t = c.t is not None
-                staged.fh.write(header_line(_prediction_header(c, cf, None)))
-            X, U = c.in_dtype(cfg.dtype, cf.state_names, cf.input_names, source)
+                staged.fh.write(header_line(_prediction_header(c.t is not None, cf, kinds)))
             lost = c.lost if c.lost is not None else np.zeros(L, dtype=bool)
-            stepped, starts = tracker.feed(lost, c.valid, c.lines, c.t)
-            one = np.full((L, n), np.nan, dtype=X.dtype)
-            runs = np.flatnonzero(np.diff(np.r_[0, stepped.astype(np.int8), 0]))
-            for a, b in zip(runs[::2], runs[1::2]):
-                if starts[a]:
-                    if segment:
-                        ident.restart()
-                    segment += 1
-                try:
-                    sim = simulate(ident, X[a:b], U[a:b], c.valid[a:b])
-                except IdentifierError as exc:
-                    found = re.search(r"at sample (\d+)", str(exc))
-                    where = f"line {int(c.lines[a + int(found.group(1))])}: " if found else ""
-                    text = re.sub(r"at sample (\d+)", lambda m: f"at sample {int(m.group(1)) + k0 + int(a)}", str(exc))
-                    raise ValueError(f"{source}: {where}the identifier stopped: {text}") from None
-                one[a:b] = sim.one_step
-                next_prediction = sim.next_prediction
-            errors = stepped & ~starts
-            _prediction_rows(staged.fh, c, cf, one, [], errors)
-            scored = c.valid & errors[:, None]
-            if k0 < split:
-                scored[:max(0, split - k0)] = False
-            running.add(c.X, one.astype(np.float64), scored)
-            invalid += (~c.valid).sum(axis=0)
-            if plots:
-                _feed(env, c, one, k0)
-            k0 += L
+            step_rows, _ = tracker.feed(lost, c.valid, c.lines, c.t)
+            read += L
+            stepped(c, step_rows)
         tracker.finish()
-        T = k0
+        stepped(None)
+        T = read
         _check_length(args, T, source, first_line)
-        sc = running.scores()
-        deviation = running.absolute_deviation()
-    states: dict[str, Any] = {}
-    for j, name in enumerate(names):
-        entry: dict[str, Any] = {"rmse": json_value(sc.rmse[j]), "rrse": json_value(sc.rrse[j]),
-                                 "scored": int(sc.scored[j])}
-        if sc.missing[j]:
-            entry["missing"] = int(sc.missing[j])
-        dev = deviation[j]
-        entry["absolute_deviation"] = None if dev is None else json_value(dev)
-        entry["invalid_samples"] = int(invalid[j])
-        states[name] = entry
-    sections = {"one_step": {
-        "definition": f"one step ahead: x̂(k) made at sample k-1 from measured values, against the measurement "
-                      f"of sample k, valid targets k >= {split}; weights online",
-        "states": states}}
-    return T, sections, next_prediction, tracker, env, units
+        _check_settings(args, T)
+        if stopped is not None:
+            raise stopped
+        weights = "online" if K is None else f"frozen from sample {K}"
+        sections = scoring.sections(names, weights)
+        if K is not None:
+            assert watch is not None and marks["from_line"] is not None
+            _free_run_entries(sections["free_run"], K, marks["from_line"], marks["diverged_line"], watch.left_line())
+    finally:
+        scoring.close()
+        if watch is not None:
+            watch.close()
+    return _Streamed(T=T, sections=sections, next_prediction=engine.next_prediction, segments=tracker, env=env,
+                     units=units, diverged_line=marks["diverged_line"])
+
+
+def _slice(data: Data, a: int, b: int) -> Data:
+    """Rows a..b-1 of ``data`` (views)."""
+    return Data(X=data.X[a:b], U=data.U[a:b], valid=data.valid[a:b], t=None if data.t is None else data.t[a:b],
+                lines=data.lines[a:b], ignored=data.ignored, lost=None if data.lost is None else data.lost[a:b],
+                units=data.units)
+
+
+def _check_settings(args: argparse.Namespace, T: int) -> None:
+    """The settings that need the record's length (``T`` rows)."""
+    K = args.free_run_from
+    if K is not None and K >= T:
+        raise ValueError(f"--free-run-from {K}: beyond the data ({T} rows, samples 0..{T - 1})")
+    if K is not None and args.warmup + 1 >= T:
+        raise ValueError(f"--warmup {args.warmup}: leaves nothing to score")
+    if args.steps_ahead is not None and args.steps_ahead >= T:
+        raise ValueError(f"--steps-ahead {args.steps_ahead}: needs more than {args.steps_ahead} data rows, "
+                         f"the file has {T}")
+
+
+def _cut(chunks: Iterable[Data], rows: int | None) -> Iterator[Data]:
+    """``chunks`` cut into pieces of at most ``rows`` rows (None: as they come)."""
+    for c in chunks:
+        if rows is None:
+            yield c
+            continue
+        for a in range(0, c.n_samples, rows):
+            yield _slice(c, a, min(a + rows, c.n_samples))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -608,9 +819,8 @@ def run(args: argparse.Namespace) -> int:
     config_source = args.config
     bus_input.check_options(args)
     bus = None
-    if args.can_log is not None:  # one step ahead, learning online: the log streamed, else read whole
-        one_step = args.free_run_from is None and args.steps_ahead is None
-        bus = (bus_input.stream if one_step else bus_input.read)(args, cf, config_source)
+    if args.can_log is not None:  # the log streamed (or read whole where it cannot be)
+        bus = (bus_input.read if _WHOLE_RECORD else bus_input.stream)(args, cf, config_source)
     try:
         return _run(args, cf, config_source, bus)
     except Reread:  # what the log read whole says (a refusal, in its own words), or its results
@@ -643,8 +853,8 @@ def _mdf_chunks(m: SignalMdfStream) -> Iterator[Data]:
 
 
 def _run(args: argparse.Namespace, cf: ConfigFile, config_source: str, bus: bus_input.BusInput | None) -> int:
-    one_step = args.free_run_from is None and args.steps_ahead is None  # streamed; else the record held whole
-    mdf = _signal_mdf(args, cf, one_step) if bus is None and Path(args.data).suffix.lower() == ".mf4" else None
+    streaming = not _WHOLE_RECORD
+    mdf = _signal_mdf(args, cf, streaming) if bus is None and Path(args.data).suffix.lower() == ".mf4" else None
     mdf_stream = mdf[1] if mdf is not None and not isinstance(mdf[1], MdfSignals) else None
     streamed = bus.stream if bus is not None else None
     source = bus.source if bus else args.data
@@ -682,22 +892,23 @@ def _run(args: argparse.Namespace, cf: ConfigFile, config_source: str, bus: bus_
     settings = {"data": str(source), "config": config_source, "dtype": dtype}
     segs: SegmentTracker | Segments | None
     sections: dict[str, Any]
-    if one_step:  # one step ahead, learning online: streamed, a chunk at a time
+    if streaming:  # a chunk at a time
         with _Staged(out / "predictions.csv") as staged, _Staged(out / bus_input.SAMPLES) as staged_samples:
             chunks = (_samples_rows(streamed.chunks(), staged_samples.fh, cf) if streamed is not None else
                       _samples_rows(_mdf_chunks(mdf_stream), staged_samples.fh, cf, lost_column=False)
                       if mdf_stream is not None else
                       _pieces(whole) if whole is not None else reader.chunks() if reader is not None else iter(()))
             try:
-                T, sections, next_prediction, segs, env, file_units = _stream(
-                    args, cf, cfg, source, config_source, chunks, staged, plots=bool(plots))
+                got = _stream(args, cf, cfg, source, config_source, _cut(chunks, _PIECE_ROWS), staged,
+                              plots=bool(plots))
             except ValueError:
                 if streamed is not None:
                     _drain(chunks)
                 raise
+            T, sections, segs, env = got.T, got.sections, got.segments, got.env
             extras = {**({"bus": bus.report()} if bus else {}), **({"mdf": mdf[1].report()} if mdf else {})}
             gaps = segs.report() if segs.gap_count else None
-            report = _report(args, settings, T, ignored, file_units, sections, next_prediction, cf, extras, gaps)
+            report = _report(args, settings, T, ignored, got.units, sections, got.next_prediction, cf, extras, gaps)
             with atomic.output_folder(out, "pyrhonn identify"):  # marked INCOMPLETE until every file is in place
                 if whole is not None:
                     write_data(out / bus_input.SAMPLES, whole, cf, valid_suffix=args.valid_suffix)
@@ -707,49 +918,36 @@ def _run(args: argparse.Namespace, cf: ConfigFile, config_source: str, bus: bus_
                 elif mdf_stream is not None:
                     staged_samples.commit(header_line(data_columns(True, cf, args.valid_suffix, False)))
                 staged.commit()
-                _write_rest(out, report, plots, cf, env, args.warmup, units)
-        diverged_line = None
-    else:
+                _write_rest(out, report, plots, cf, env, args.warmup, units, free_run_from=K, steps=args.steps_ahead)
+        diverged_line = got.diverged_line
+    else:  # the record held whole: the reference the streamed run equals
         extras = {**({"bus": bus.report()} if bus else {}), **({"mdf": mdf[1].report()} if mdf else {})}
         data = whole if whole is not None else concatenate(list(reader.chunks())) if reader is not None else None
         assert data is not None
         T = data.n_samples
         _check_length(args, T, source, int(data.lines[0]))
-        if K is not None and K >= T:
-            raise ValueError(f"--free-run-from {K}: beyond the data ({T} rows, samples 0..{T - 1})")
-        if K is not None and args.warmup + 1 >= T:
-            raise ValueError(f"--warmup {args.warmup}: leaves nothing to score")
-        if args.steps_ahead is not None and args.steps_ahead >= T:
-            raise ValueError(f"--steps-ahead {args.steps_ahead}: needs more than {args.steps_ahead} data rows, "
-                             f"the file has {T}")
+        _check_settings(args, T)
         wsegs = segments_of(data.lost) if data.lost is not None and data.lost.any() else None
         sim, free_rows, ahead_rows = _run_identifier(cfg, data, cf, source, config_source, K, args.steps_ahead, wsegs)
         # one-step rows: stepped, and not the first of a segment (its x̂ was made for a sample before the gap)
-        one_rows = None if wsegs is None else wsegs.stepped & ~wsegs.starts()
-        if wsegs is not None and free_rows is not None and one_rows is not None:
+        one_rows = np.arange(T) > 0 if wsegs is None else wsegs.stepped & ~wsegs.starts()
+        if wsegs is not None and free_rows is not None:
             free_rows &= one_rows | (np.arange(T) == K)
         first = args.warmup + 1  # row 0 holds x0, not a prediction; --warmup drops that many pairs more
         split = max(first, K) if K is not None else first
-        weights = "online" if K is None else f"frozen from sample {K}"
-        sections = {
-            "one_step": _section(data, cf, sim.one_step, _scored(data, split, rows=one_rows),
-                                 f"one step ahead: x̂(k) made at sample k-1 from measured values, against the "
-                                 f"measurement of sample k, valid targets k >= {split}; weights {weights}",
-                                 with_deviation=True)}
+        every = np.ones(T, dtype=bool)
+        scoring = _Scoring(cf.config.n_states, first, split, K, args.steps_ahead)
+        try:
+            scoring.add(0, data.X, data.valid, sim.one_step, one_rows, sim.free_run,
+                        None if K is None else every if free_rows is None else free_rows, sim.ahead,
+                        None if args.steps_ahead is None else every if ahead_rows is None else ahead_rows)
+            sections = scoring.sections(cf.state_names, "online" if K is None else f"frozen from sample {K}")
+        finally:
+            scoring.close()
+        diverged_line = (None if sim.free_run_diverged is None or sim.free_run_diverged >= T
+                         else int(data.lines[sim.free_run_diverged]))
         if K is not None:
-            sections["one_step_learning"] = _section(
-                data, cf, sim.one_step, _scored(data, first, K, rows=one_rows),
-                f"one step ahead over the learnt samples {first}..{K - 1}, weights learning online",
-                with_deviation=True)
             assert sim.free_run is not None
-            sections["free_run"] = _section(
-                data, cf, sim.free_run, _scored(data, split, rows=free_rows),
-                f"free run (parallel model): weights frozen from sample {K}, the network fed its own predictions "
-                f"and the measured inputs, against the measurements of samples k >= {split}")
-            sections["free_run"]["from_sample"] = K
-            sections["free_run"]["from_line"] = int(data.lines[K])
-            sections["free_run"]["diverged_at_line"] = (None if sim.free_run_diverged is None
-                                                        else int(data.lines[sim.free_run_diverged]))
             low, high = divergence_range(data.X, data.valid)
             rows = np.zeros(T, dtype=bool)
             rows[K:] = True
@@ -757,25 +955,13 @@ def _run(args: argparse.Namespace, cf: ConfigFile, config_source: str, bus: bus_
                 rows &= free_rows
             left = departure(sim.free_run.astype(np.float64), rows, low, high)
             gone = [int(k) for k in left if k >= 0]
-            left_range = min(gone) if gone else None
-            sections["free_run"]["left_range_at_line"] = None if left_range is None else int(data.lines[left_range])
-            sections["free_run"]["range"] = ("a free run leaves the data's range at the first sample outside "
-                                             "[min - span, max + span] of a state's valid measurements in the file")
-        if args.steps_ahead is not None:
-            assert sim.ahead is not None
-            H = args.steps_ahead
-            sections["steps_ahead"] = _section(
-                data, cf, sim.ahead, _scored(data, max(split, H), rows=ahead_rows),
-                f"{H} steps ahead: x̂(k | k-{H}), the network as after learning sample k-{H} fed its own "
-                f"predictions for {H - 1} steps, against the measurements of samples k >= {max(split, H)}; "
-                f"weights {weights}")
-            sections["steps_ahead"]["steps"] = H
+            _free_run_entries(sections["free_run"], K, int(data.lines[K]), diverged_line,
+                              None if not gone else int(data.lines[min(gone)]))
 
         gaps_report = wsegs.report(data.t, data.lines, data.valid, tuple(cf.state_names)) if wsegs else None
         report = _report(args, settings, T, ignored, data.units, sections, sim.next_prediction, cf, extras,
                          gaps_report)
         segs = wsegs
-        diverged_line = None if sim.free_run_diverged is None else int(data.lines[sim.free_run_diverged])
         env = _envelope(cf.config.n_states)
         env.has_t = data.t is not None
         for k in (0, args.warmup, *([K] if K is not None else [])):
@@ -785,8 +971,7 @@ def _run(args: argparse.Namespace, cf: ConfigFile, config_source: str, bus: bus_
         with atomic.output_folder(out, "pyrhonn identify"):  # marked INCOMPLETE until every file is in place
             if bus or mdf:
                 write_data(out / bus_input.SAMPLES, data, cf, valid_suffix=args.valid_suffix)
-            errors = np.arange(T) > 0 if one_rows is None else one_rows
-            _write_predictions(out / "predictions.csv", data, cf, sim, errors)
+            _write_predictions(out / "predictions.csv", data, cf, sim, one_rows)
             _write_rest(out, report, plots, cf, env, args.warmup, units, free_run_from=K, steps=args.steps_ahead)
 
     print(f"identified {source}: {T} samples, {_count(cfg.n_states, 'state')}, {_count(cfg.n_inputs, 'input')}, "
