@@ -105,7 +105,12 @@ class SimulationStream:
                                      ("stepped", stepped, (L,), np.dtype(bool))):
             if not isinstance(a, np.ndarray) or a.shape != shape or a.dtype != kind:
                 raise ValueError(f"{name}: expected a {kind} array of shape {shape if L >= 0 else '(L, ...)'}")
-        self._id._finite_trajectory(X[stepped], U[stepped], valid[stepped])  # a lost sample has no inputs
+        try:
+            self._id._finite_trajectory(X[stepped], U[stepped], valid[stepped])  # a lost sample has no inputs
+        except ValueError as exc:  # named by the record's sample, not the chunk's stepped rows
+            rows, first = np.flatnonzero(stepped), self._S + self._X.shape[0]
+            raise ValueError(re.sub(r"^([XU])\[(\d+), ", lambda m: f"{m.group(1)}[{first + int(rows[int(m.group(2))])}, ",
+                                    str(exc))) from None
         self._X = np.concatenate([self._X, X])
         self._U = np.concatenate([self._U, U])
         self._V = np.concatenate([self._V, valid])

@@ -129,6 +129,19 @@ def test_the_stream_refuses_bad_settings_and_chunks_naming_them() -> None:
     assert engine._X.shape[0] == 0 and engine.finish() is None  # nothing taken
 
 
+def test_a_non_finite_value_is_named_by_its_sample_in_the_record() -> None:
+    engine = SimulationStream(Identifier(LIM.config), steps=2)
+    X, U, valid = _trajectory(LIM.config.dtype)
+    ok = np.ones(8, dtype=bool)
+    assert engine.feed(X[:8], U[:8], valid[:8], ok) is not None
+    stepped = ok.copy()
+    stepped[:2] = False  # two samples of the next chunk lost: the bad input is its third stepped row
+    U_bad = U[8:16].copy()
+    U_bad[4, 1] = np.inf
+    with pytest.raises(ValueError, match=r"^U\[12, 1\]: not finite"):
+        engine.feed(X[8:16], U_bad, valid[8:16], stepped)
+
+
 def test_a_failure_of_the_identifier_names_the_sample_in_the_record_and_stops_the_stream() -> None:
     cfg = IdentifierConfig(n_states=1, n_inputs=1, neurons=(NeuronConfig(
         terms=((Factor.x(0),), (Factor.u(0),)), w0=np.array([2.0, 0.5])),))
