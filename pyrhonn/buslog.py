@@ -89,15 +89,19 @@ candump log).
 from __future__ import annotations
 
 import difflib
+import io
 import math
 import re
 import struct
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
+from .candump import parse_block
+from .framedecode import Payloads, decode_frames, unsigned_raw
 from .mdfsignals import mdf_damage, require_asammdf
 from .validation import near_names
 
@@ -297,13 +301,13 @@ def _mux_values(msg: Any, sig: Any) -> frozenset[int] | None:
 class Frames:
     """The data frames of a log in time order: ``t`` (N,) log timestamps in
     s, ``ids`` (N,) arbitration ids, ``extended`` (N,) bool, ``data`` the
-    payloads; ``skipped`` error and remote frames; ``incomplete`` what a
+    payloads (:class:`pyrhonn.framedecode.Payloads`); ``skipped`` error and remote frames; ``incomplete`` what a
     log read with ``partial`` misses (None: the log is complete)."""
 
     t: np.ndarray
     ids: np.ndarray
     extended: np.ndarray
-    data: tuple[bytes, ...]
+    data: Payloads
     skipped: int
     incomplete: str | None = None
 
@@ -388,6 +392,25 @@ class _WholeLines:
                 return
             yield raw.decode("utf-8", errors="replace")
 
+    def blocks(self, size: int = 1 << 20) -> Iterator[bytes]:
+        """The lines as blocks of about ``size`` bytes, each of whole lines (not decoded); then the file closed."""
+        try:
+            pos, carry = 0, b""
+            while pos < self._end:
+                raw = self._fh.read(min(size, self._end - pos))
+                if not raw:
+                    break
+                pos += len(raw)
+                text = carry + raw
+                cut = text.rfind(b"\n") + 1
+                if cut:
+                    yield text[:cut]
+                carry = text[cut:]
+            if carry:
+                yield carry
+        finally:
+            self._fh.close()
+
     def close(self) -> None:
         self._fh.close()
 
@@ -417,6 +440,61 @@ def _text_completeness(p: Path, suffix: str) -> tuple[str | None, int]:
             missing.append("it does not end with 'End TriggerBlock' (written when the logger stops): the rest "
                            "of the recording is missing")
     return ("; ".join(missing) or None), end
+
+
+#: records a python-can reader gives before they are stacked into a block
+_PART = 1 << 12
+
+
+@dataclass(frozen=True)
+class FrameBlock:
+    """Data frames in file order: ``t`` (s), ``ids`` arbitration ids, ``extended``, ``data`` their payloads."""
+
+    t: np.ndarray
+    ids: np.ndarray
+    extended: np.ndarray
+    data: Payloads
+
+    @classmethod
+    def of(cls, rows: Sequence[tuple[float, int, bool, bytes]]) -> FrameBlock:
+        """The block of records (timestamp, arbitration id, extended, payload)."""
+        return cls(np.fromiter((r[0] for r in rows), dtype=np.float64, count=len(rows)),
+                   np.fromiter((r[1] for r in rows), dtype=np.int64, count=len(rows)),
+                   np.fromiter((r[2] for r in rows), dtype=bool, count=len(rows)),
+                   Payloads.of([r[3] for r in rows]))
+
+    @classmethod
+    def join(cls, blocks: Sequence[FrameBlock]) -> FrameBlock:
+        if len(blocks) == 1:
+            return blocks[0]
+        return cls(np.concatenate([b.t for b in blocks]), np.concatenate([b.ids for b in blocks]),
+                   np.concatenate([b.extended for b in blocks]), Payloads.join([b.data for b in blocks]))
+
+    def take(self, rows: np.ndarray) -> FrameBlock:
+        return FrameBlock(self.t[rows], self.ids[rows], self.extended[rows], self.data.take(rows))
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+
+def latest(t: np.ndarray) -> float:
+    """The latest of timestamps ``t`` (not empty) as Python's ``max`` finds it in file order (a NaN first
+    stays, one later never wins)."""
+    return float(t.max()) if not np.isnan(t).any() else float(max(t.tolist()))
+
+
+class _Lines:
+    """Lines of a text log (bytes, whole lines) as a python-can reader reads them, decoded."""
+
+    def __init__(self, block: bytes) -> None:
+        self._block = block
+
+    def __iter__(self) -> Iterator[str]:
+        for raw in io.BytesIO(self._block):  # split at newlines only, as a file is
+            yield raw.decode("utf-8", errors="replace")
+
+    def close(self) -> None:
+        pass
 
 
 class _Log:
@@ -471,23 +549,34 @@ class _Log:
         """Every data frame in file order as (timestamp, arbitration id, extended, payload); a reader's failure
         raises the ValueError naming the frame (or candump line), unless the log is known incomplete and read
         ``partial``: then the frames before it are all."""
+        with self._failures():
+            yield from self._read(self.source)
+
+    def _read(self, source: Any) -> Iterator[tuple[float, int, bool, bytes]]:
+        """The data frames python-can's reader gives from ``source`` (counted in :attr:`count`)."""
         import can
 
+        readers = {".blf": can.BLFReader, ".asc": can.ASCReader, ".log": can.CanutilsLogReader,
+                   ".mf4": can.MF4Reader}
+        with readers[self.suffix](source) as reader:
+            if self.suffix == ".blf":
+                self.incomplete = _blf_completeness(self.p, int(getattr(reader, "file_size", 0) or 0),
+                                                    int(getattr(reader, "object_count", 0) or 0),
+                                                    f"{self.option} {self.path}")
+            for msg in reader:
+                self.count += 1
+                if msg.is_error_frame or msg.is_remote_frame:
+                    self.skipped += 1
+                    continue
+                yield float(msg.timestamp), int(msg.arbitration_id), bool(msg.is_extended_id), bytes(msg.data)
+
+    @contextmanager
+    def _failures(self) -> Iterator[None]:
+        """A reader's failure as the ValueError naming the frame (or candump line), or (a log known incomplete,
+        read ``partial``) the end of its frames."""
         p, option, path = self.p, self.option, self.path
         try:
-            readers = {".blf": can.BLFReader, ".asc": can.ASCReader, ".log": can.CanutilsLogReader,
-                       ".mf4": can.MF4Reader}
-            with readers[self.suffix](self.source) as reader:
-                if self.suffix == ".blf":
-                    self.incomplete = _blf_completeness(p, int(getattr(reader, "file_size", 0) or 0),
-                                                        int(getattr(reader, "object_count", 0) or 0),
-                                                        f"{option} {path}")
-                for msg in reader:
-                    self.count += 1
-                    if msg.is_error_frame or msg.is_remote_frame:
-                        self.skipped += 1
-                        continue
-                    yield float(msg.timestamp), int(msg.arbitration_id), bool(msg.is_extended_id), bytes(msg.data)
+            yield
         except Exception as exc:  # python-can's readers raise struct.error, ValueError, BLFParseError, zlib.error ...
             if isinstance(exc, ValueError) and str(exc).startswith(f"{option} {path}: "):
                 raise  # a size this module refused, already named
@@ -497,6 +586,50 @@ class _Log:
                 why = f" ({self.incomplete})" if self.incomplete else ""
                 raise ValueError(f"{option} {path}: {where}: cannot read it as {self.kind} log ({type(exc).__name__}: "
                                  f"{text[:200]}){why}") from None
+
+    def _parts(self) -> Iterator[FrameBlock]:
+        """The data frames in file order, in blocks of any size."""
+        if self.suffix == ".log":
+            yield from self._candump_parts()
+            return
+        rows: list[tuple[float, int, bool, bytes]] = []
+        for record in self.records():
+            rows.append(record)
+            if len(rows) == _PART:
+                yield FrameBlock.of(rows)
+                rows = []
+        yield FrameBlock.of(rows)
+
+    def _candump_parts(self) -> Iterator[FrameBlock]:
+        """A candump log a block of lines at a time (:func:`pyrhonn.candump.parse_block`); a block it does not
+        parse is read by python-can's reader, as every line was before."""
+        assert isinstance(self.source, _WholeLines)
+        with self._failures():
+            for lines in self.source.blocks():
+                block = parse_block(lines)
+                if block is None:
+                    rows = list(self._read(_Lines(lines)))
+                    yield FrameBlock.of(rows)
+                    continue
+                self.count += block.records
+                self.skipped += block.errors
+                yield FrameBlock(block.t, block.ids, block.extended, block.data)
+
+    def blocks(self, size: int) -> Iterator[FrameBlock]:
+        """The data frames in file order, ``size`` at a time (the last block fewer; none for a log without
+        frames), with :meth:`records`' refusals."""
+        held: list[FrameBlock] = []
+        count = 0
+        for part in self._parts():
+            held.append(part)
+            count += len(part)
+            while count >= size:
+                joined = FrameBlock.join(held)
+                yield joined.take(np.arange(size))
+                rest = joined.take(np.arange(size, count))
+                held, count = [rest], len(rest)
+        if count:
+            yield FrameBlock.join(held)
 
     def check_read(self, frames: int, latest: float) -> None:
         """After every record was read (``frames`` data frames, the latest at log time ``latest``): a truncated
@@ -526,23 +659,15 @@ def read_frames(path: str | Path, option: str = "--can-log", partial: bool = Fal
     what is missing, unless ``partial``: then its complete frames are read and
     ``Frames.incomplete`` says what is missing."""
     log = _Log(path, option, partial)
-    t: list[float] = []
-    ids: list[int] = []
-    ext: list[bool] = []
-    data: list[bytes] = []
-    for ti, ident, extended, payload in log.records():
-        t.append(ti)
-        ids.append(ident)
-        ext.append(extended)
-        data.append(payload)
-    log.check_read(len(t), max(t) if t else 0.0)
-    ts = np.asarray(t, dtype=np.float64)
+    parts = list(log.blocks(_PART))
+    block = FrameBlock.join(parts) if parts else FrameBlock.of([])
+    ts = block.t
+    log.check_read(ts.size, latest(ts) if ts.size else 0.0)
     if not np.isfinite(ts).all():
         k = int(np.argwhere(~np.isfinite(ts))[0, 0])
         raise ValueError(f"{option} {path}: frame {k + 1}: timestamp {ts[k]!r} is not finite")
     order = np.argsort(ts, kind="stable")  # logs of several channels may interleave slightly out of order
-    return Frames(t=ts[order], ids=np.asarray(ids, dtype=np.int64)[order],
-                  extended=np.asarray(ext, dtype=bool)[order], data=tuple(data[i] for i in order),
+    return Frames(t=ts[order], ids=block.ids[order], extended=block.extended[order], data=block.data.take(order),
                   skipped=log.skipped, incomplete=log.missing(float(ts.max())))
 
 
@@ -704,16 +829,16 @@ def _counter_signal(db: Any, ref: SignalRef, clock_msg: Any, dbc: str) -> tuple[
     return msg, sig
 
 
-def _counter_values(ref: SignalRef, msg: Any, sig: Any, t: np.ndarray, data: Sequence[bytes],
+def _counter_values(ref: SignalRef, msg: Any, sig: Any, t: np.ndarray, data: Payloads,
                     source: str) -> np.ndarray:
     """The counter of each clock frame (times ``t``, payloads ``data``); ValueError at one that does not decode."""
-    counts = np.empty(len(data), dtype=np.int64)
-    for n, payload in enumerate(data):
-        try:
-            counts[n] = int(msg.decode(payload, decode_choices=False, scaling=False)[sig.name])
-        except Exception:  # noqa: BLE001 - any frame that does not decode
-            raise ValueError(f"{ref.origin}: {source}: the clock frame at log time {t[n]:.6f} does not decode, "
-                             "so its counter is unknown") from None
+    ok, raw = unsigned_raw(msg, data, sig.name)
+    ok &= raw < np.uint64(1 << 63)  # a counter beyond int64 cannot be counted
+    counts = raw.astype(np.int64)
+    if not ok.all():
+        n = int(np.argmin(ok))
+        raise ValueError(f"{ref.origin}: {source}: the clock frame at log time {t[n]:.6f} does not decode, "
+                         "so its counter is unknown")
     return counts
 
 
@@ -721,7 +846,7 @@ def _counter_samples(db: Any, ref: SignalRef, clock_msg: Any, frames: Frames, id
                      source: str) -> tuple[np.ndarray, np.ndarray, int]:
     """:func:`_counted` on the clock frames' counter signal ``ref``."""
     msg, sig = _counter_signal(db, ref, clock_msg, dbc)
-    counts = _counter_values(ref, msg, sig, frames.t[idx], [frames.data[i] for i in idx], source)
+    counts = _counter_values(ref, msg, sig, frames.t[idx], frames.data.take(idx), source)
     return _counted(frames.t[idx], counts, 1 << int(sig.length))
 
 
@@ -803,22 +928,16 @@ def _plan(db: Any, bus: BusMap, state_names: Sequence[str], input_names: Sequenc
                  used_msgs=used_msgs, used_sigs=used_sigs)
 
 
-def _decode(msg: Any, payloads: Sequence[bytes], signals: Sequence[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+def _decode(msg: Any, payloads: Payloads, signals: Sequence[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Frames of ``msg`` decoded into arrays of ``signals`` (NaN where a frame does not carry one, inf for a
-    decoded NaN) and whether each decoded."""
-    ok = np.ones(len(payloads), dtype=bool)
-    arrays = {name: np.full(len(payloads), np.nan) for name in dict.fromkeys(signals)}
-    for r, payload in enumerate(payloads):
-        try:
-            v = msg.decode(payload, decode_choices=False, scaling=True)
-        except Exception:  # cantools: DecodeError, a wrong length, an unknown multiplexer value, ...
-            ok[r] = False
-            continue
-        for sig_name, values in arrays.items():
-            if sig_name in v:  # a multiplexed signal is in the frames its multiplexer value selects
-                got_value = float(v[sig_name])
-                values[r] = got_value if not math.isnan(got_value) else np.inf  # NaN: "not in this frame"
-    return ok, arrays
+    decoded NaN) and whether each decoded (:func:`pyrhonn.framedecode.decode_frames`: cantools' values)."""
+    decoded = decode_frames(msg, payloads, signals)
+    arrays = {}
+    for name, values in decoded.values.items():
+        carried = decoded.carried[name]
+        # NaN: "not in this frame"; a NaN decoded is kept apart as inf (non-finite, counted)
+        arrays[name] = np.where(carried, np.where(np.isnan(values), np.inf, values), np.nan)
+    return decoded.ok, arrays
 
 
 #: per sample and signal, what :func:`_gather` counts
@@ -939,7 +1058,7 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
             inside = (frames.t[idx] >= starts[0]) & (frames.t[idx] < end)
             idx = idx[inside]
             window = np.searchsorted(starts, frames.t[idx], side="right") - 1
-        ok, arrays = _decode(m, [frames.data[i] for i in idx.tolist()], plan.used_sigs[m.name])
+        ok, arrays = _decode(m, frames.data.take(idx), plan.used_sigs[m.name])
         decoded[m.name] = (window, ok, arrays)
     n = plan.n
     value, got, counts = _gather(plan, decoded, K)
