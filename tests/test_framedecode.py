@@ -120,7 +120,7 @@ def test_a_counters_raw_value_is_cantools_unscaled_integer(length: int, start: i
     for i, p in enumerate(payloads):
         assert ok[i] == (len(p) >= 8)
         if ok[i]:
-            assert int(raw[i]) == msg.decode(p, decode_choices=False, scaling=False)["c"]
+            assert int(raw[i]) == dict(msg.decode(p, decode_choices=False, scaling=False))["c"]
 
 
 def test_a_bad_payload_stack_or_signal_is_refused_naming_the_field() -> None:
