@@ -100,8 +100,10 @@ from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
+from .blf import blf_records
 from .candump import parse_block
 from .framedecode import Payloads, decode_frames, unsigned_raw
+from .mdfbus import mdf_records
 from .mdfsignals import mdf_damage, require_asammdf
 from .validation import near_names
 
@@ -113,6 +115,8 @@ LOG_SUFFIXES = (".blf", ".asc", ".log", ".mf4")
 _REF = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)\.([A-Za-z_][A-Za-z0-9_]*)\Z")
 _KEYS = ("sample_period", "clock", "counter", "window_start", "signals", "valid")
 _WINDOW_RANGE = (-1.0, 0.0)
+#: clock frames whose samples are computed at once (up to a repeated one)
+_TICK_STRETCH = 1 << 14
 #: the clock frames' median interval may differ from the sample period by this fraction
 PERIOD_TOLERANCE = 0.25
 
@@ -560,9 +564,7 @@ class _Log:
                    ".mf4": can.MF4Reader}
         with readers[self.suffix](source) as reader:
             if self.suffix == ".blf":
-                self.incomplete = _blf_completeness(self.p, int(getattr(reader, "file_size", 0) or 0),
-                                                    int(getattr(reader, "object_count", 0) or 0),
-                                                    f"{self.option} {self.path}")
+                self._blf_checked(reader)
             for msg in reader:
                 self.count += 1
                 if msg.is_error_frame or msg.is_remote_frame:
@@ -592,6 +594,18 @@ class _Log:
         if self.suffix == ".log":
             yield from self._candump_parts()
             return
+        if self.suffix == ".blf":
+            yield from self._blf_parts()
+            return
+        if self.suffix == ".mf4":
+            found = None
+            with self._failures():
+                found = mdf_records(self.p)
+                for records in found or ():
+                    self.count += records.records
+                    yield FrameBlock(records.t, records.ids, records.extended, records.data)
+            if found is not None:
+                return
         rows: list[tuple[float, int, bool, bytes]] = []
         for record in self.records():
             rows.append(record)
@@ -614,6 +628,24 @@ class _Log:
                 self.count += block.records
                 self.skipped += block.errors
                 yield FrameBlock(block.t, block.ids, block.extended, block.data)
+
+    def _blf_parts(self) -> Iterator[FrameBlock]:
+        """A BLF log a container at a time (:func:`pyrhonn.blf.blf_records`)."""
+        import can
+
+        with self._failures():
+            with can.BLFReader(self.source) as reader:
+                self._blf_checked(reader)
+                for records in blf_records(reader):
+                    self.count += records.records
+                    self.skipped += records.errors
+                    yield FrameBlock(records.t, records.ids, records.extended, records.data)
+
+    def _blf_checked(self, reader: Any) -> None:
+        """What a BLF log misses, from its header (read by ``reader``) and its objects' sizes."""
+        self.incomplete = _blf_completeness(self.p, int(getattr(reader, "file_size", 0) or 0),
+                                            int(getattr(reader, "object_count", 0) or 0),
+                                            f"{self.option} {self.path}")
 
     def blocks(self, size: int) -> Iterator[FrameBlock]:
         """The data frames in file order, ``size`` at a time (the last block fewer; none for a log without
@@ -743,21 +775,38 @@ class Aligned(AlignedSummary):
 def _tick_on(tc: np.ndarray, T: float, last: float) -> tuple[list[float], np.ndarray, int]:
     """Samples from clock frames at times ``tc`` after a sample at ``last``: (the new samples' instants, the
     sample of each frame counted from ``last``'s, samples inserted). A frame round(D / T) = n > 1 periods
-    after the latest sample means n - 1 lost frames, evenly spaced; n = 0 is a repeat of the same sample."""
-    tau: list[float] = []
+    after the latest sample means n - 1 lost frames, evenly spaced; n = 0 is a repeat of the same sample.
+    Computed a stretch of frames at a time up to the next repeat (the latest sample is then not the frame
+    before), with the arithmetic of ``base + j * gap / n`` per inserted instant."""
+    parts: list[np.ndarray] = []
     sample = np.zeros(tc.size, dtype=np.int64)
     inserted = 0
+    count = 0  # samples so far
     base = last
-    for i, c in enumerate(tc.tolist()):
-        gap = c - base
-        n = int(round(gap / T))
-        if n > 0:  # n == 0: a repeat within T/2, the same sample
-            tau.extend(base + j * gap / n for j in range(1, n))
-            inserted += n - 1
-            tau.append(c)
-            base = c
-        sample[i] = len(tau)
-    return tau, sample, inserted
+    i = 0
+    while i < tc.size:
+        seg = tc[i:i + _TICK_STRETCH]
+        gap = seg - np.r_[base, seg[:-1]]  # from the frame before: the latest sample while none repeats
+        n = np.rint(gap / T)
+        repeat = np.flatnonzero(n <= 0)
+        stop = int(repeat[0]) if repeat.size else seg.size
+        if stop:
+            steps = n[:stop].astype(np.int64)
+            ends = np.cumsum(steps)
+            owner = np.repeat(np.arange(stop), steps)
+            j = np.arange(int(ends[-1])) - np.repeat(ends - steps, steps) + 1  # 1..n within each frame's
+            g, k = gap[:stop][owner], steps[owner]
+            starts = np.r_[base, seg[:stop - 1]][owner]
+            parts.append(np.where(j == k, seg[:stop][owner], starts + j * g / k))
+            sample[i:i + stop] = count + ends
+            count += int(ends[-1])
+            inserted += int(ends[-1]) - stop
+            base = float(seg[stop - 1])
+        if stop < seg.size:  # a repeat of the latest sample
+            sample[i + stop] = count
+            stop += 1
+        i += stop
+    return (np.concatenate(parts).tolist() if parts else []), sample, inserted
 
 
 def _ticks(tc: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, int]:

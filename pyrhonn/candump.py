@@ -11,13 +11,11 @@ python-can's reader, its frames and its refusals.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
-
 import numpy as np
 
-from .framedecode import Payloads
+from .framedecode import Payloads, Records
 
-__all__ = ["Block", "parse_block"]
+__all__ = ["parse_block"]
 
 _RECORD = re.compile(rb"^\(([0-9]+\.[0-9]+)\) [!-~]+ ([0-9A-Fa-f]{3}|[0-9A-Fa-f]{8})#(?:#[0-9])?((?:[0-9A-Fa-f]{2})*)"
                      rb"(?: [RrTt])?\r?$", re.M)
@@ -32,26 +30,13 @@ for _i, _c in enumerate(b"ABCDEF"):
     _HEX[_c] = 10 + _i
 
 
-@dataclass(frozen=True)
-class Block:
-    """The records of a block of lines: ``records`` in all, ``errors`` of them error frames (left out);
-    the data frames' ``t`` (s), ``ids`` (arbitration ids), ``extended``, ``data``."""
-
-    records: int
-    errors: int
-    t: np.ndarray
-    ids: np.ndarray
-    extended: np.ndarray
-    data: Payloads
-
-
 def _hex_digits(texts: list[bytes], width: int) -> np.ndarray:
     """(len(texts), width) the hex digits of each text, left-aligned, 0 after its end."""
     chars = np.array(texts, dtype=f"S{max(width, 1)}").view(np.uint8).reshape(len(texts), max(width, 1))
     return _HEX[chars[:, :width]]
 
 
-def parse_block(block: bytes) -> Block | None:
+def parse_block(block: bytes) -> Records | None:
     """The frames of ``block`` (whole lines, each ending in a newline), or None if a line that is not blank is
     not a plain frame record (see the module docs)."""
     found = _RECORD.findall(block)
@@ -73,6 +58,6 @@ def parse_block(block: bytes) -> Block | None:
     payload = (digits[:, 0::2] << 4) | digits[:, 1::2]
     error = ((raw_id & np.uint64(_CAN_ERR_FLAG)) != 0) & ((raw_id & np.uint64(_CAN_ERR_BUSERROR)) != 0)
     keep = ~error
-    return Block(records=n, errors=int(error.sum()), t=t[keep],
+    return Records(records=n, errors=int(error.sum()), t=t[keep],
                  ids=(raw_id[keep] & np.uint64(0x1FFFFFFF)).astype(np.int64), extended=(id_len[keep] > 3),
                  data=Payloads(np.ascontiguousarray(payload[keep]), size[keep]))

@@ -24,7 +24,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["Decoded", "Payloads", "decode_each", "decode_frames", "unsigned_raw", "vectorised"]
+__all__ = ["Decoded", "Payloads", "Records", "decode_each", "decode_frames", "unsigned_raw", "vectorised"]
 
 #: integers below this in magnitude are exact as float64
 _EXACT = float(1 << 53)
@@ -83,6 +83,20 @@ class Payloads:
     def row(self, i: int) -> bytes:
         """Frame ``i``'s payload."""
         return self.data[i, :int(self.length[i])].tobytes()
+
+
+@dataclass(frozen=True)
+class Records:
+    """A stretch of a log's records as a fast reader gives them: ``records`` in all, ``errors`` of them error
+    or remote frames (left out); the data frames' ``t`` (s), ``ids`` (arbitration ids), ``extended``,
+    ``data``."""
+
+    records: int
+    errors: int
+    t: np.ndarray
+    ids: np.ndarray
+    extended: np.ndarray
+    data: Payloads
 
 
 def _bits(sig: Any) -> tuple[int, int]:
