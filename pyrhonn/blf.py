@@ -159,6 +159,8 @@ class _Objects:
                 return here
             if signature != b"LOBJ":
                 raise _parse_error()
+            if size < _BASE.size:  # python-can's reader would read this object again and again
+                raise _parse_error(f"Object of {size} bytes, shorter than its header")
             next_pos = pos + size
             if next_pos > max_pos:
                 return here  # this object continues in the next container
