@@ -993,6 +993,14 @@ def _decode(msg: Any, payloads: Payloads, signals: Sequence[str]) -> tuple[np.nd
 _COUNTS = ("frames", "undecodable", "flagged", "nonfinite")
 
 
+def _count_into(counts: np.ndarray, at: np.ndarray) -> None:
+    """``counts[i] += 1`` for each ``i`` in ``at`` (repeats counted), as ``np.add.at`` does, by a bincount."""
+    if at.size and 0 <= int(at.min()) and int(at.max()) < counts.size:
+        counts += np.bincount(at, minlength=counts.size).astype(counts.dtype)
+    else:
+        np.add.at(counts, at, 1)
+
+
 def _gather(plan: _Plan, decoded: Mapping[str, tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]], K: int
             ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
     """Samples 0..K-1 from each message's decoded frames ``decoded[name] = (window, ok, arrays)`` (the
@@ -1005,10 +1013,10 @@ def _gather(plan: _Plan, decoded: Mapping[str, tuple[np.ndarray, np.ndarray, dic
     for col, name in enumerate(plan.names):
         msg, sig = plan.resolved[name]
         window, ok, arrays = decoded[msg.name]
-        np.add.at(counts["undecodable"][:, col], window[~ok], 1)
+        _count_into(counts["undecodable"][:, col], window[~ok])
         carries = np.flatnonzero(ok & ~np.isnan(arrays[sig.name]))
         w = window[carries]
-        np.add.at(counts["frames"][:, col], w, 1)
+        _count_into(counts["frames"][:, col], w)
         # frames are in time order: the latest of each window wins
         windows, from_end = np.unique(w[::-1], return_index=True)
         latest = carries[w.size - 1 - from_end]
