@@ -76,7 +76,10 @@ value (same message, and not under another multiplexer value).
 
 Supported logs: ``.blf`` and ``.asc`` (Vector; python-can's ``can.Logger``
 writes both), ``.log`` (candump ``-l``), ``.mf4`` (an ASAM MDF4 bus log of
-CAN frames, read with asammdf through python-can's ``MF4Reader``). A log cut short (an ASC without its
+CAN frames, read with asammdf). Candump, BLF and MDF4 logs are read a block of frames at a time
+into arrays (:mod:`pyrhonn.candump`, :mod:`pyrhonn.blf`, :mod:`pyrhonn.mdfbus`), ASC logs and what
+those do not read by python-can's readers, with the same frames; each message's frames are decoded
+at once (:mod:`pyrhonn.framedecode`, cantools' values). A log cut short (an ASC without its
 ``End TriggerBlock``, a BLF shorter than its header records, cut inside an
 object or whose header was never completed, a text log whose last line is
 cut) is refused naming what is missing, or with ``partial``
