@@ -76,7 +76,10 @@ value (same message, and not under another multiplexer value).
 
 Supported logs: ``.blf`` and ``.asc`` (Vector; python-can's ``can.Logger``
 writes both), ``.log`` (candump ``-l``), ``.mf4`` (an ASAM MDF4 bus log of
-CAN frames, read with asammdf through python-can's ``MF4Reader``). A log cut short (an ASC without its
+CAN frames, read with asammdf). Candump, BLF and MDF4 logs are read a block of frames at a time
+into arrays (:mod:`pyrhonn.candump`, :mod:`pyrhonn.blf`, :mod:`pyrhonn.mdfbus`), ASC logs and what
+those do not read by python-can's readers, with the same frames; each message's frames are decoded
+at once (:mod:`pyrhonn.framedecode`, cantools' values). A log cut short (an ASC without its
 ``End TriggerBlock``, a BLF shorter than its header records, cut inside an
 object or whose header was never completed, a text log whose last line is
 cut) is refused naming what is missing, or with ``partial``
@@ -89,16 +92,22 @@ candump log).
 from __future__ import annotations
 
 import difflib
+import io
 import math
 import re
 import struct
 import weakref
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
+from .blf import blf_records
+from .candump import parse_block
+from .framedecode import Payloads, decode_frames, unsigned_raw
+from .mdfbus import mdf_records
 from .mdfsignals import cut_read, is_mdf, require_asammdf
 from .validation import near_names
 
@@ -110,6 +119,8 @@ LOG_SUFFIXES = (".blf", ".asc", ".log", ".mf4")
 _REF = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)\.([A-Za-z_][A-Za-z0-9_]*)\Z")
 _KEYS = ("sample_period", "clock", "counter", "window_start", "signals", "valid")
 _WINDOW_RANGE = (-1.0, 0.0)
+#: clock frames whose samples are computed at once (up to a repeated one)
+_TICK_STRETCH = 1 << 14
 #: the clock frames' median interval may differ from the sample period by this fraction
 PERIOD_TOLERANCE = 0.25
 
@@ -298,13 +309,13 @@ def _mux_values(msg: Any, sig: Any) -> frozenset[int] | None:
 class Frames:
     """The data frames of a log in time order: ``t`` (N,) log timestamps in
     s, ``ids`` (N,) arbitration ids, ``extended`` (N,) bool, ``data`` the
-    payloads; ``skipped`` error and remote frames; ``incomplete`` what a
+    payloads (:class:`pyrhonn.framedecode.Payloads`); ``skipped`` error and remote frames; ``incomplete`` what a
     log read with ``partial`` misses (None: the log is complete)."""
 
     t: np.ndarray
     ids: np.ndarray
     extended: np.ndarray
-    data: tuple[bytes, ...]
+    data: Payloads
     skipped: int
     incomplete: str | None = None
 
@@ -389,6 +400,25 @@ class _WholeLines:
                 return
             yield raw.decode("utf-8", errors="replace")
 
+    def blocks(self, size: int = 1 << 20) -> Iterator[bytes]:
+        """The lines as blocks of about ``size`` bytes, each of whole lines (not decoded); then the file closed."""
+        try:
+            pos, carry = 0, b""
+            while pos < self._end:
+                raw = self._fh.read(min(size, self._end - pos))
+                if not raw:
+                    break
+                pos += len(raw)
+                text = carry + raw
+                cut = text.rfind(b"\n") + 1
+                if cut:
+                    yield text[:cut]
+                carry = text[cut:]
+            if carry:
+                yield carry
+        finally:
+            self._fh.close()
+
     def close(self) -> None:
         self._fh.close()
 
@@ -418,6 +448,61 @@ def _text_completeness(p: Path, suffix: str) -> tuple[str | None, int]:
             missing.append("it does not end with 'End TriggerBlock' (written when the logger stops): the rest "
                            "of the recording is missing")
     return ("; ".join(missing) or None), end
+
+
+#: records a python-can reader gives before they are stacked into a block
+_PART = 1 << 12
+
+
+@dataclass(frozen=True)
+class FrameBlock:
+    """Data frames in file order: ``t`` (s), ``ids`` arbitration ids, ``extended``, ``data`` their payloads."""
+
+    t: np.ndarray
+    ids: np.ndarray
+    extended: np.ndarray
+    data: Payloads
+
+    @classmethod
+    def of(cls, rows: Sequence[tuple[float, int, bool, bytes]]) -> FrameBlock:
+        """The block of records (timestamp, arbitration id, extended, payload)."""
+        return cls(np.fromiter((r[0] for r in rows), dtype=np.float64, count=len(rows)),
+                   np.fromiter((r[1] for r in rows), dtype=np.int64, count=len(rows)),
+                   np.fromiter((r[2] for r in rows), dtype=bool, count=len(rows)),
+                   Payloads.of([r[3] for r in rows]))
+
+    @classmethod
+    def join(cls, blocks: Sequence[FrameBlock]) -> FrameBlock:
+        if len(blocks) == 1:
+            return blocks[0]
+        return cls(np.concatenate([b.t for b in blocks]), np.concatenate([b.ids for b in blocks]),
+                   np.concatenate([b.extended for b in blocks]), Payloads.join([b.data for b in blocks]))
+
+    def take(self, rows: np.ndarray) -> FrameBlock:
+        return FrameBlock(self.t[rows], self.ids[rows], self.extended[rows], self.data.take(rows))
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+
+def latest(t: np.ndarray) -> float:
+    """The latest of timestamps ``t`` (not empty) as Python's ``max`` finds it in file order (a NaN first
+    stays, one later never wins)."""
+    return float(t.max()) if not np.isnan(t).any() else float(max(t.tolist()))
+
+
+class _Lines:
+    """Lines of a text log (bytes, whole lines) as a python-can reader reads them, decoded."""
+
+    def __init__(self, block: bytes) -> None:
+        self._block = block
+
+    def __iter__(self) -> Iterator[str]:
+        for raw in io.BytesIO(self._block):  # split at newlines only, as a file is
+            yield raw.decode("utf-8", errors="replace")
+
+    def close(self) -> None:
+        pass
 
 
 class _Log:
@@ -473,23 +558,32 @@ class _Log:
         """Every data frame in file order as (timestamp, arbitration id, extended, payload); a reader's failure
         raises the ValueError naming the frame (or candump line), unless the log is known incomplete and read
         ``partial``: then the frames before it are all."""
+        with self._failures():
+            yield from self._read(self.source)
+
+    def _read(self, source: Any) -> Iterator[tuple[float, int, bool, bytes]]:
+        """The data frames python-can's reader gives from ``source`` (counted in :attr:`count`)."""
         import can
 
+        readers = {".blf": can.BLFReader, ".asc": can.ASCReader, ".log": can.CanutilsLogReader,
+                   ".mf4": can.MF4Reader}
+        with readers[self.suffix](source) as reader:
+            if self.suffix == ".blf":
+                self._blf_checked(reader)
+            for msg in reader:
+                self.count += 1
+                if msg.is_error_frame or msg.is_remote_frame:
+                    self.skipped += 1
+                    continue
+                yield float(msg.timestamp), int(msg.arbitration_id), bool(msg.is_extended_id), bytes(msg.data)
+
+    @contextmanager
+    def _failures(self) -> Iterator[None]:
+        """A reader's failure as the ValueError naming the frame (or candump line), or (a log known incomplete,
+        read ``partial``) the end of its frames."""
         p, option, path = self.p, self.option, self.path
         try:
-            readers = {".blf": can.BLFReader, ".asc": can.ASCReader, ".log": can.CanutilsLogReader,
-                       ".mf4": can.MF4Reader}
-            with readers[self.suffix](self.source) as reader:
-                if self.suffix == ".blf":
-                    self.incomplete = _blf_completeness(p, int(getattr(reader, "file_size", 0) or 0),
-                                                        int(getattr(reader, "object_count", 0) or 0),
-                                                        f"{option} {path}")
-                for msg in reader:
-                    self.count += 1
-                    if msg.is_error_frame or msg.is_remote_frame:
-                        self.skipped += 1
-                        continue
-                    yield float(msg.timestamp), int(msg.arbitration_id), bool(msg.is_extended_id), bytes(msg.data)
+            yield
         except Exception as exc:  # python-can's readers raise struct.error, ValueError, BLFParseError, zlib.error ...
             if isinstance(exc, ValueError) and str(exc).startswith(f"{option} {path}: "):
                 raise  # a size this module refused, already named
@@ -499,6 +593,80 @@ class _Log:
                 why = f" ({self.incomplete})" if self.incomplete else ""
                 raise ValueError(f"{option} {path}: {where}: cannot read it as {self.kind} log ({type(exc).__name__}: "
                                  f"{text[:200]}){why}") from None
+
+    def _parts(self) -> Iterator[FrameBlock]:
+        """The data frames in file order, in blocks of any size."""
+        if self.suffix == ".log":
+            yield from self._candump_parts()
+            return
+        if self.suffix == ".blf":
+            yield from self._blf_parts()
+            return
+        if self.suffix == ".mf4":
+            found = None
+            with self._failures():
+                found = mdf_records(Path(self.source))  # a cut log: its repaired copy
+                for records in found or ():
+                    self.count += records.records
+                    yield FrameBlock(records.t, records.ids, records.extended, records.data)
+            if found is not None:
+                return
+        rows: list[tuple[float, int, bool, bytes]] = []
+        for record in self.records():
+            rows.append(record)
+            if len(rows) == _PART:
+                yield FrameBlock.of(rows)
+                rows = []
+        yield FrameBlock.of(rows)
+
+    def _candump_parts(self) -> Iterator[FrameBlock]:
+        """A candump log a block of lines at a time (:func:`pyrhonn.candump.parse_block`); a block it does not
+        parse is read by python-can's reader, as every line was before."""
+        assert isinstance(self.source, _WholeLines)
+        with self._failures():
+            for lines in self.source.blocks():
+                block = parse_block(lines)
+                if block is None:
+                    rows = list(self._read(_Lines(lines)))
+                    yield FrameBlock.of(rows)
+                    continue
+                self.count += block.records
+                self.skipped += block.errors
+                yield FrameBlock(block.t, block.ids, block.extended, block.data)
+
+    def _blf_parts(self) -> Iterator[FrameBlock]:
+        """A BLF log a container at a time (:func:`pyrhonn.blf.blf_records`)."""
+        import can
+
+        with self._failures():
+            with can.BLFReader(self.source) as reader:
+                self._blf_checked(reader)
+                for records in blf_records(reader):
+                    self.count += records.records
+                    self.skipped += records.errors
+                    yield FrameBlock(records.t, records.ids, records.extended, records.data)
+
+    def _blf_checked(self, reader: Any) -> None:
+        """What a BLF log misses, from its header (read by ``reader``) and its objects' sizes."""
+        self.incomplete = _blf_completeness(self.p, int(getattr(reader, "file_size", 0) or 0),
+                                            int(getattr(reader, "object_count", 0) or 0),
+                                            f"{self.option} {self.path}")
+
+    def blocks(self, size: int) -> Iterator[FrameBlock]:
+        """The data frames in file order, ``size`` at a time (the last block fewer; none for a log without
+        frames), with :meth:`records`' refusals."""
+        held: list[FrameBlock] = []
+        count = 0
+        for part in self._parts():
+            held.append(part)
+            count += len(part)
+            while count >= size:
+                joined = FrameBlock.join(held)
+                yield joined.take(np.arange(size))
+                rest = joined.take(np.arange(size, count))
+                held, count = [rest], len(rest)
+        if count:
+            yield FrameBlock.join(held)
 
     def check_read(self, frames: int, latest: float) -> None:
         """After every record was read (``frames`` data frames, the latest at log time ``latest``): a truncated
@@ -528,23 +696,15 @@ def read_frames(path: str | Path, option: str = "--can-log", partial: bool = Fal
     what is missing, unless ``partial``: then its complete frames are read and
     ``Frames.incomplete`` says what is missing."""
     log = _Log(path, option, partial)
-    t: list[float] = []
-    ids: list[int] = []
-    ext: list[bool] = []
-    data: list[bytes] = []
-    for ti, ident, extended, payload in log.records():
-        t.append(ti)
-        ids.append(ident)
-        ext.append(extended)
-        data.append(payload)
-    log.check_read(len(t), max(t) if t else 0.0)
-    ts = np.asarray(t, dtype=np.float64)
+    parts = list(log.blocks(_PART))
+    block = FrameBlock.join(parts) if parts else FrameBlock.of([])
+    ts = block.t
+    log.check_read(ts.size, latest(ts) if ts.size else 0.0)
     if not np.isfinite(ts).all():
         k = int(np.argwhere(~np.isfinite(ts))[0, 0])
         raise ValueError(f"{option} {path}: frame {k + 1}: timestamp {ts[k]!r} is not finite")
     order = np.argsort(ts, kind="stable")  # logs of several channels may interleave slightly out of order
-    return Frames(t=ts[order], ids=np.asarray(ids, dtype=np.int64)[order],
-                  extended=np.asarray(ext, dtype=bool)[order], data=tuple(data[i] for i in order),
+    return Frames(t=ts[order], ids=block.ids[order], extended=block.extended[order], data=block.data.take(order),
                   skipped=log.skipped, incomplete=log.missing(float(ts.max())))
 
 
@@ -620,21 +780,38 @@ class Aligned(AlignedSummary):
 def _tick_on(tc: np.ndarray, T: float, last: float) -> tuple[list[float], np.ndarray, int]:
     """Samples from clock frames at times ``tc`` after a sample at ``last``: (the new samples' instants, the
     sample of each frame counted from ``last``'s, samples inserted). A frame round(D / T) = n > 1 periods
-    after the latest sample means n - 1 lost frames, evenly spaced; n = 0 is a repeat of the same sample."""
-    tau: list[float] = []
+    after the latest sample means n - 1 lost frames, evenly spaced; n = 0 is a repeat of the same sample.
+    Computed a stretch of frames at a time up to the next repeat (the latest sample is then not the frame
+    before), with the arithmetic of ``base + j * gap / n`` per inserted instant."""
+    parts: list[np.ndarray] = []
     sample = np.zeros(tc.size, dtype=np.int64)
     inserted = 0
+    count = 0  # samples so far
     base = last
-    for i, c in enumerate(tc.tolist()):
-        gap = c - base
-        n = int(round(gap / T))
-        if n > 0:  # n == 0: a repeat within T/2, the same sample
-            tau.extend(base + j * gap / n for j in range(1, n))
-            inserted += n - 1
-            tau.append(c)
-            base = c
-        sample[i] = len(tau)
-    return tau, sample, inserted
+    i = 0
+    while i < tc.size:
+        seg = tc[i:i + _TICK_STRETCH]
+        gap = seg - np.r_[base, seg[:-1]]  # from the frame before: the latest sample while none repeats
+        n = np.rint(gap / T)
+        repeat = np.flatnonzero(n <= 0)
+        stop = int(repeat[0]) if repeat.size else seg.size
+        if stop:
+            steps = n[:stop].astype(np.int64)
+            ends = np.cumsum(steps)
+            owner = np.repeat(np.arange(stop), steps)
+            j = np.arange(int(ends[-1])) - np.repeat(ends - steps, steps) + 1  # 1..n within each frame's
+            g, k = gap[:stop][owner], steps[owner]
+            starts = np.r_[base, seg[:stop - 1]][owner]
+            parts.append(np.where(j == k, seg[:stop][owner], starts + j * g / k))
+            sample[i:i + stop] = count + ends
+            count += int(ends[-1])
+            inserted += int(ends[-1]) - stop
+            base = float(seg[stop - 1])
+        if stop < seg.size:  # a repeat of the latest sample
+            sample[i + stop] = count
+            stop += 1
+        i += stop
+    return (np.concatenate(parts).tolist() if parts else []), sample, inserted
 
 
 def _ticks(tc: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, int]:
@@ -706,16 +883,16 @@ def _counter_signal(db: Any, ref: SignalRef, clock_msg: Any, dbc: str) -> tuple[
     return msg, sig
 
 
-def _counter_values(ref: SignalRef, msg: Any, sig: Any, t: np.ndarray, data: Sequence[bytes],
+def _counter_values(ref: SignalRef, msg: Any, sig: Any, t: np.ndarray, data: Payloads,
                     source: str) -> np.ndarray:
     """The counter of each clock frame (times ``t``, payloads ``data``); ValueError at one that does not decode."""
-    counts = np.empty(len(data), dtype=np.int64)
-    for n, payload in enumerate(data):
-        try:
-            counts[n] = int(msg.decode(payload, decode_choices=False, scaling=False)[sig.name])
-        except Exception:  # noqa: BLE001 - any frame that does not decode
-            raise ValueError(f"{ref.origin}: {source}: the clock frame at log time {t[n]:.6f} does not decode, "
-                             "so its counter is unknown") from None
+    ok, raw = unsigned_raw(msg, data, sig.name)
+    ok &= raw < np.uint64(1 << 63)  # a counter beyond int64 cannot be counted
+    counts = raw.astype(np.int64)
+    if not ok.all():
+        n = int(np.argmin(ok))
+        raise ValueError(f"{ref.origin}: {source}: the clock frame at log time {t[n]:.6f} does not decode, "
+                         "so its counter is unknown")
     return counts
 
 
@@ -723,7 +900,7 @@ def _counter_samples(db: Any, ref: SignalRef, clock_msg: Any, frames: Frames, id
                      source: str) -> tuple[np.ndarray, np.ndarray, int]:
     """:func:`_counted` on the clock frames' counter signal ``ref``."""
     msg, sig = _counter_signal(db, ref, clock_msg, dbc)
-    counts = _counter_values(ref, msg, sig, frames.t[idx], [frames.data[i] for i in idx], source)
+    counts = _counter_values(ref, msg, sig, frames.t[idx], frames.data.take(idx), source)
     return _counted(frames.t[idx], counts, 1 << int(sig.length))
 
 
@@ -805,26 +982,28 @@ def _plan(db: Any, bus: BusMap, state_names: Sequence[str], input_names: Sequenc
                  used_msgs=used_msgs, used_sigs=used_sigs)
 
 
-def _decode(msg: Any, payloads: Sequence[bytes], signals: Sequence[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+def _decode(msg: Any, payloads: Payloads, signals: Sequence[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Frames of ``msg`` decoded into arrays of ``signals`` (NaN where a frame does not carry one, inf for a
-    decoded NaN) and whether each decoded."""
-    ok = np.ones(len(payloads), dtype=bool)
-    arrays = {name: np.full(len(payloads), np.nan) for name in dict.fromkeys(signals)}
-    for r, payload in enumerate(payloads):
-        try:
-            v = msg.decode(payload, decode_choices=False, scaling=True)
-        except Exception:  # cantools: DecodeError, a wrong length, an unknown multiplexer value, ...
-            ok[r] = False
-            continue
-        for sig_name, values in arrays.items():
-            if sig_name in v:  # a multiplexed signal is in the frames its multiplexer value selects
-                got_value = float(v[sig_name])
-                values[r] = got_value if not math.isnan(got_value) else np.inf  # NaN: "not in this frame"
-    return ok, arrays
+    decoded NaN) and whether each decoded (:func:`pyrhonn.framedecode.decode_frames`: cantools' values)."""
+    decoded = decode_frames(msg, payloads, signals)
+    arrays = {}
+    for name, values in decoded.values.items():
+        carried = decoded.carried[name]
+        # NaN: "not in this frame"; a NaN decoded is kept apart as inf (non-finite, counted)
+        arrays[name] = np.where(carried, np.where(np.isnan(values), np.inf, values), np.nan)
+    return decoded.ok, arrays
 
 
 #: per sample and signal, what :func:`_gather` counts
 _COUNTS = ("frames", "undecodable", "flagged", "nonfinite")
+
+
+def _count_into(counts: np.ndarray, at: np.ndarray) -> None:
+    """``counts[i] += 1`` for each ``i`` in ``at`` (repeats counted), as ``np.add.at`` does, by a bincount."""
+    if at.size and 0 <= int(at.min()) and int(at.max()) < counts.size:
+        counts += np.bincount(at, minlength=counts.size).astype(counts.dtype)
+    else:
+        np.add.at(counts, at, 1)
 
 
 def _gather(plan: _Plan, decoded: Mapping[str, tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]], K: int
@@ -839,10 +1018,10 @@ def _gather(plan: _Plan, decoded: Mapping[str, tuple[np.ndarray, np.ndarray, dic
     for col, name in enumerate(plan.names):
         msg, sig = plan.resolved[name]
         window, ok, arrays = decoded[msg.name]
-        np.add.at(counts["undecodable"][:, col], window[~ok], 1)
+        _count_into(counts["undecodable"][:, col], window[~ok])
         carries = np.flatnonzero(ok & ~np.isnan(arrays[sig.name]))
         w = window[carries]
-        np.add.at(counts["frames"][:, col], w, 1)
+        _count_into(counts["frames"][:, col], w)
         # frames are in time order: the latest of each window wins
         windows, from_end = np.unique(w[::-1], return_index=True)
         latest = carries[w.size - 1 - from_end]
@@ -941,7 +1120,7 @@ def align(frames: Frames, db: Any, bus: BusMap, state_names: Sequence[str], inpu
             inside = (frames.t[idx] >= starts[0]) & (frames.t[idx] < end)
             idx = idx[inside]
             window = np.searchsorted(starts, frames.t[idx], side="right") - 1
-        ok, arrays = _decode(m, [frames.data[i] for i in idx.tolist()], plan.used_sigs[m.name])
+        ok, arrays = _decode(m, frames.data.take(idx), plan.used_sigs[m.name])
         decoded[m.name] = (window, ok, arrays)
     n = plan.n
     value, got, counts = _gather(plan, decoded, K)

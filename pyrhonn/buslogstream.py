@@ -35,7 +35,9 @@ import numpy as np
 from .buslog import (PERIOD_TOLERANCE, AlignedSummary, BusMap, _COUNTS, _count_on, _counter_signal, _counter_values,
                      _decode, _gather, _given_period, _kept, _Log, _plan, _stat_sums, _stats, _tick_on, frame_keys,
                      load_dbc)
+from .buslog import latest as buslog_latest
 from .datafile import Data
+from .framedecode import Payloads
 
 __all__ = ["CHUNK_FRAMES", "BusStream", "Reread"]
 
@@ -76,19 +78,19 @@ class Reread(Exception):
 class _Frames:
     """Frames in time order: ``t``, message ``key`` (:func:`pyrhonn.buslog.frame_keys`), ``data``."""
 
-    def __init__(self, t: np.ndarray, key: np.ndarray, data: list[bytes]) -> None:
+    def __init__(self, t: np.ndarray, key: np.ndarray, data: Payloads) -> None:
         self.t, self.key, self.data = t, key, data
 
     @classmethod
     def empty(cls) -> _Frames:
-        return cls(np.zeros(0), np.zeros(0, dtype=np.int64), [])
+        return cls(np.zeros(0), np.zeros(0, dtype=np.int64), Payloads(np.zeros((0, 0), dtype=np.uint8),
+                                                                      np.zeros(0, dtype=np.int64)))
 
     def take(self, rows: np.ndarray) -> _Frames:
-        return _Frames(self.t[rows], self.key[rows], [self.data[i] for i in np.flatnonzero(rows)]
-                       if rows.dtype == np.bool_ else [self.data[i] for i in rows])
+        return _Frames(self.t[rows], self.key[rows], self.data.take(rows))
 
     def __add__(self, other: _Frames) -> _Frames:
-        return _Frames(np.r_[self.t, other.t], np.r_[self.key, other.key], self.data + other.data)
+        return _Frames(np.r_[self.t, other.t], np.r_[self.key, other.key], Payloads.join([self.data, other.data]))
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -136,42 +138,32 @@ class BusStream:
         held = _Frames.empty()
         emitted = -np.inf  # the latest frame aligned
         hold = max(self.chunk // 4, 1)
-        t: list[float] = []
-        ids: list[int] = []
-        ext: list[bool] = []
-        data: list[bytes] = []
         frames = 0
         latest = -np.inf
-        records = self.log.records()
+        blocks = self.log.blocks(self.chunk)
         done = False
         while not done:
-            done = True
-            for ti, ident, extended, payload in records:
-                frames += 1
-                latest = ti if frames == 1 else max(latest, ti)
+            block = next(blocks, None)
+            done = block is None or len(block) < self.chunk
+            if block is not None and len(block):
+                top = buslog_latest(block.t)
+                latest = top if frames == 0 else buslog_latest(np.array([latest, top]))
+                frames += len(block)
                 if self.log.incomplete and not self.log.partial:
-                    continue  # refused at the end, as the whole read refuses it: nothing kept
-                t.append(ti)
-                ids.append(ident)
-                ext.append(extended)
-                data.append(payload)
-                if len(t) >= self.chunk:
-                    done = False
-                    break
+                    block = None  # refused at the end, as the whole read refuses it: nothing kept
             fresh = _Frames.empty()
             watermark = np.inf if done else -np.inf
-            if t:
-                ts = np.asarray(t, dtype=np.float64)
+            if block is not None and len(block):
+                ts = block.t
                 if not np.isfinite(ts).all():
                     raise Reread  # a timestamp the whole read names
-                key = frame_keys(np.asarray(ids, dtype=np.int64), np.asarray(ext, dtype=bool))
+                key = frame_keys(block.ids, block.extended)
                 used = np.isin(key, keys)
-                fresh = _Frames(ts[used], key[used], [d for d, u in zip(data, used.tolist()) if u])
+                fresh = _Frames(ts[used], key[used], block.data.take(used))
                 if fresh.t.size and fresh.t.min() < emitted:
                     raise Reread  # a frame earlier than one aligned: further out of order than is held back
                 if not done:
                     watermark = float(ts[-hold:].min())
-                t, ids, ext, data = [], [], [], []
             both = held + fresh
             self.peak_frames = max(self.peak_frames, len(both))
             both = both.take(np.argsort(both.t, kind="stable"))
