@@ -5,10 +5,11 @@ python-can's reader does (``date``, ``base hex|dec [timestamps absolute|relative
 and including the first other line, which the reader drops) and carries its number base to the
 blocks after it. A block of the body is parsed with numpy when every line in it is a classic data
 frame written with hex digits (``0.001000 1  123x  Rx   d 8 01 02 ...``, bytes separated by single
-spaces, anything after the bytes ignored), an error frame (``0.002 1 ErrorFrame``), a remote frame
+spaces, anything after the bytes ignored), a CAN FD frame as python-can writes it (``0.001000 CANFD   1 Rx
+100  1 0 b 20 00 01 ...`` and its trailing fields; no symbolic name), an error frame (``0.002 1 ErrorFrame``), a remote frame
 (``... Rx r``) or a line python-can skips (blank lines, comments, ``Begin/End TriggerBlock``,
 ``Start of measurement``, events and statistics): the same timestamps, ids, payloads and record counts
-as python-can's reader. A block holding anything else (a CAN FD frame, a decimal log, an odd layout, a
+as python-can's reader. A block holding anything else (a CAN FD frame with a symbolic name, a decimal log, an odd layout, a
 line python-can refuses ...) gives None: the caller reads that block with python-can's reader, started
 after the header with the same base (:meth:`AscBlocks.fallback_text`), for its frames and refusals.
 """
@@ -23,12 +24,16 @@ from .framedecode import Payloads, Records
 
 __all__ = ["AscBlocks"]
 
-#: a body line: a classic data frame (timestamp, error frame, id, extended mark, dlc, bytes, remote
-#: mark) or any other line (the last group)
+#: a body line: a classic frame (timestamp, error frame, id, extended mark, DLC, bytes, remote mark), a CAN FD
+#: frame (timestamp, error frame, id, extended mark, data length, bytes) or any other line (the last group)
 _LINE = re.compile(
     rb"^(?:[ \t]*([0-9]+\.[0-9]+)[ \t]+[0-9]+[ \t]+"
     rb"(?:(ErrorFrame)|([0-9A-Fa-f]{1,8})([xX]?)[ \t]+[RT]x[ \t]+(?:d[ \t]+([0-9A-Fa-f])((?: [0-9A-Fa-f]{2})*)|(r)))"
-    rb"(?:[ \t][^\r\n]*)?\r?|([^\n]*))$", re.M)
+    rb"(?:[ \t][^\r\n]*)?\r?"
+    rb"|[ \t]*([0-9]+\.[0-9]+)[ \t]+CANFD[ \t]+[0-9]+[ \t]+[RT]x[ \t]+"
+    rb"(?:(ErrorFrame)(?:[ \t][^\r\n]*)?|([0-9A-Fa-f]{1,8})([xX]?)[ \t]+[01][ \t]+[01][ \t]+[0-9A-Fa-f][ \t]+([0-9]{1,2})"
+    rb"((?: [0-9A-Fa-f]{2})*)[ \t]+[^ \t\r\n][^\r\n]*)\r?"
+    rb"|([^\n]*))$", re.M)
 #: python-can's header lines (what its reader matches at the start of a log)
 _DATE = re.compile(r"date\s+\w+\s+(?P<datetime_string>.+)", re.IGNORECASE)
 _BASE = re.compile(r"base\s+(?P<base>hex|dec)(?:\s+timestamps\s+(?P<timestamp_format>absolute|relative))?",
@@ -104,32 +109,40 @@ def _body(block: bytes) -> Records | None:
         found.pop()  # the empty "line" after the last newline
     if not found:
         return _empty()
-    stamps, error, ids, ext, dlc, data, remote, other = (np.array(c) for c in zip(*found))
+    (stamps, error, ids, ext, dlc, data, remote, fd_stamps, fd_error, fd_ids, fd_ext, fd_length, fd_data,
+     other) = (np.array(c) for c in zip(*found))
+    fd = fd_stamps != b""
+    classic = stamps != b""
     pattern = None
-    for i in np.flatnonzero(stamps == b"").tolist():
+    for i in np.flatnonzero(~(classic | fd)).tolist():
         pattern = pattern or _message_pattern()
         if pattern.match(bytes(other[i]).decode("ascii").strip()):
             return None  # a frame python-can reads and this module does not
-    is_record = stamps != b""
-    frame = is_record & (error == b"") & (remote == b"")
+    is_record = classic | fd
+    length = np.zeros(fd.size, dtype=np.int64)
+    fd_data_frame = fd & (fd_error == b"")
+    length[fd_data_frame] = np.fromiter(map(int, fd_length[fd_data_frame].tolist()), dtype=np.int64,
+                                        count=int(fd_data_frame.sum()))
+    # error frames; remote frames (a CAN FD frame of data length 0 is one)
+    frame = (classic & (error == b"") & (remote == b"")) | (fd_data_frame & (length > 0))
+    stamps, ids, ext, data = (np.where(fd, y, x)[frame] for x, y in ((stamps, fd_stamps), (ids, fd_ids), (ext, fd_ext),
+                                                                     (data, fd_data)))
     n = int(frame.sum())
-    t = np.fromiter(map(float, stamps[frame].tolist()), dtype=np.float64, count=n)
-    id_text = ids[frame]
-    id_len = np.char.str_len(id_text) if n else np.zeros(0, dtype=np.int64)
-    id_digits = _hex_digits(id_text.tolist(), 8).astype(np.uint64)
+    t = np.fromiter(map(float, stamps.tolist()), dtype=np.float64, count=n)
+    id_len = np.char.str_len(ids) if n else np.zeros(0, dtype=np.int64)
+    id_digits = _hex_digits(ids.tolist(), 8).astype(np.uint64)
     raw_id = np.zeros(n, dtype=np.uint64)
     for j in range(8):
         raw_id = np.where(j < id_len, (raw_id << np.uint64(4)) | id_digits[:, j], raw_id)
-    dlc_value = _HEX[np.frombuffer(b"".join(dlc[frame].tolist()) or b"", dtype=np.uint8)].astype(np.int64)
-    size = np.minimum(dlc_value, 8)  # python-can takes at most 8 bytes of a classic frame (DLC 9-15 included)
-    data_text = data[frame]
-    tokens = (np.char.str_len(data_text) // 3) if n else np.zeros(0, dtype=np.int64)
-    if (tokens < size).any():
-        return None  # fewer bytes written than the DLC, or bytes laid out otherwise
-    chars = _hex_digits(data_text.tolist(), 24)
-    payload = ((chars[:, 1::3] << 4) | chars[:, 2::3]).astype(np.uint8)
-    payload = np.where(np.arange(8) < size[:, None], payload, 0).astype(np.uint8)
+    dlc_value = _HEX[np.array(dlc[frame], dtype="S1").view(np.uint8)].astype(np.int64)
+    # python-can takes at most 8 bytes of a classic frame (DLC 9-15 included), data length bytes of a CAN FD one
+    size = np.where(fd[frame], length[frame], np.minimum(dlc_value, 8))
+    tokens = (np.char.str_len(data) // 3) if n else np.zeros(0, dtype=np.int64)
+    if (tokens < size).any() or (size > 64).any():
+        return None  # fewer bytes written than the frame has, or bytes laid out otherwise
     width = int(size.max()) if n else 0
+    chars = _hex_digits(data.tolist(), 3 * width)
+    payload = ((chars[:, 1::3] << 4) | chars[:, 2::3]).astype(np.uint8)
+    payload = np.where(np.arange(width) < size[:, None], payload, 0).astype(np.uint8)
     return Records(records=int(is_record.sum()), errors=int(is_record.sum()) - n, t=t,
-                   ids=raw_id.astype(np.int64), extended=ext[frame] != b"",
-                   data=Payloads(np.ascontiguousarray(payload[:, :width]), size))
+                   ids=raw_id.astype(np.int64), extended=ext != b"", data=Payloads(np.ascontiguousarray(payload), size))

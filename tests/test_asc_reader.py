@@ -20,7 +20,7 @@ _HEADER = "date Sat Nov 28 04:30:00.000 am 2026\nbase hex  timestamps absolute\n
 
 
 def _classic(n: int, seed: int) -> list[Any]:
-    """Classic frames: standard and extended ids, 0..8 bytes, remote and error frames."""
+    """Frames: standard and extended ids, 0..8 bytes, CAN FD frames of 0..64 bytes, remote and error frames."""
     rng = random.Random(seed)
     t, out = 0.0, []
     for _ in range(n):
@@ -31,6 +31,10 @@ def _classic(n: int, seed: int) -> list[Any]:
         elif kind < 0.1:
             out.append(can.Message(timestamp=t, arbitration_id=rng.randrange(0x800), is_remote_frame=True,
                                    dlc=rng.randrange(9)))
+        elif kind < 0.3:
+            out.append(can.Message(timestamp=t, arbitration_id=rng.randrange(1 << 29), is_extended_id=True,
+                                   is_fd=True, bitrate_switch=rng.random() < 0.5,
+                                   data=rng.randbytes(rng.choice([0, 1, 8, 12, 20, 64]))))
         else:
             ext = rng.random() < 0.3
             out.append(can.Message(timestamp=t, arbitration_id=rng.randrange(1 << 29 if ext else 0x800),
@@ -91,12 +95,28 @@ def _frame_line(draw: st.DrawFn) -> str:
            f"{data}{tail}"
 
 
+@st.composite
+def _fd_line(draw: st.DrawFn) -> str:
+    t = f"{draw(st.integers(0, 10**7))}.{draw(st.integers(0, 999999)):06d}"
+    ident = f"{draw(st.integers(0, (1 << 29) - 1)):X}" + draw(st.sampled_from(["", "x"]))
+    length = draw(st.sampled_from([0, 1, 8, 12, 64]))
+    n = draw(st.sampled_from([length, length, length + 1, max(length - 1, 0)]))
+    data = " ".join(draw(st.lists(_HEXB, min_size=n, max_size=n)))
+    tail = draw(st.sampled_from(["", "        0    0     3000        0", " 0"]))
+    return f" {t} CANFD   1 {draw(st.sampled_from(['Rx', 'Tx']))}  {ident:>8}  {' ' * 32} {draw(st.integers(0, 1))} " \
+           f"{draw(st.integers(0, 1))} {draw(st.integers(0, 15)):x} {length:>2} {data}{tail}"
+
+
 _OTHER = st.sampled_from([
     "", "// a comment", "Begin TriggerBlock Sat Nov 28 04:30:00.000 am 2026", "End TriggerBlock",
     "   0.000000 Start of measurement", "   0.100000 1  123  Rx   r", "   0.100000 1  1234x  Tx   r 8",
     "   0.200000 1  ErrorFrame", "   0.200000 1  Statistic: D 0 R 0 XD 0 XR 0 E 0 O 0 B 0.00%",
     "   0.300000 CANFD   1 Rx      1ab                                   1 0 8  8 01 02 03 04 05 06 07 08"
     "        0        0   1000        0        0        0        0        0",
+    "   0.300000 CANFD   1 Rx      1ab  Engine  1 0 8  8 01 02 03 04 05 06 07 08        0        0   1000",
+    "   0.300000 CANFD   1 Tx      1abx   0 1 2  2 01 02", "   0.300000 CANFD   1 Tx      1abx   0 1 2  0",
+    "   0.300000 CANFD   1 Tx      1abx   0 1 2  0        0        0   1000",
+    "   0.300000 CANFD   1 Rx      ErrorFrame", "   0.300000 CANFD   x Rx      1ab   0 1 2  2 01 02  0",
     "   0.400000 1  12G  Rx   d 2 01 02", "   0.400000 1  123  Rx   d 2 01 1FF", "   0.5 1 7ff Rx d 8 01 02",
     "base dec", "\x0c   0.600000 1  123  Rx   d 1 05", "   0.700000 2  123  Rx   d 1 0x5",
 ])
@@ -106,7 +126,7 @@ _OTHER = st.sampled_from([
 @given(header=st.lists(st.sampled_from(["date Sat Nov 28 04:30:00 2026", "base hex  timestamps absolute",
                                         "base dec", "base HEX", "// note", "no internal events logged",
                                         "   1.000000 1  123  Rx   d 1 07"]), max_size=4),
-       body=st.lists(st.one_of(_frame_line(), _OTHER), max_size=40), small=st.booleans())
+       body=st.lists(st.one_of(_frame_line(), _fd_line(), _OTHER), max_size=40), small=st.booleans())
 def test_random_asc_logs_give_python_cans_frames_counts_and_refusals(
         tmp_path_factory: pytest.TempPathFactory, header: list[str], body: list[str], small: bool) -> None:
     path = tmp_path_factory.mktemp("asc") / "r.asc"
