@@ -24,15 +24,15 @@ from .framedecode import Payloads, Records
 
 __all__ = ["AscBlocks"]
 
-#: a body line: a classic frame (timestamp, error frame, id, extended mark, DLC, bytes, remote mark), a CAN FD
-#: frame (timestamp, error frame, id, extended mark, data length, bytes) or any other line (the last group)
+#: a body line: its timestamp, then a classic frame's (error frame, id, extended mark, DLC, bytes, remote mark)
+#: or a CAN FD frame's fields (its mark, error frame, id, extended mark, data length, bytes), or any other line
 _LINE = re.compile(
-    rb"^(?:[ \t]*([0-9]+\.[0-9]+)[ \t]+[0-9]+[ \t]+"
+    rb"^(?:[ \t]*([0-9]+\.[0-9]+)[ \t]+(?:[0-9]+[ \t]+"
     rb"(?:(ErrorFrame)|([0-9A-Fa-f]{1,8})([xX]?)[ \t]+[RT]x[ \t]+(?:d[ \t]+([0-9A-Fa-f])((?: [0-9A-Fa-f]{2})*)|(r)))"
-    rb"(?:[ \t][^\r\n]*)?\r?"
-    rb"|[ \t]*([0-9]+\.[0-9]+)[ \t]+CANFD[ \t]+[0-9]+[ \t]+[RT]x[ \t]+"
+    rb"(?:[ \t][^\r\n]*)?"
+    rb"|(C)ANFD[ \t]+[0-9]+[ \t]+[RT]x[ \t]+"
     rb"(?:(ErrorFrame)(?:[ \t][^\r\n]*)?|([0-9A-Fa-f]{1,8})([xX]?)[ \t]+[01][ \t]+[01][ \t]+[0-9A-Fa-f][ \t]+([0-9]{1,2})"
-    rb"((?: [0-9A-Fa-f]{2})*)[ \t]+[^ \t\r\n][^\r\n]*)\r?"
+    rb"((?: [0-9A-Fa-f]{2})*)[ \t]+[^ \t\r\n][^\r\n]*))\r?"
     rb"|([^\n]*))$", re.M)
 #: python-can's header lines (what its reader matches at the start of a log)
 _DATE = re.compile(r"date\s+\w+\s+(?P<datetime_string>.+)", re.IGNORECASE)
@@ -109,10 +109,10 @@ def _body(block: bytes) -> Records | None:
         found.pop()  # the empty "line" after the last newline
     if not found:
         return _empty()
-    (stamps, error, ids, ext, dlc, data, remote, fd_stamps, fd_error, fd_ids, fd_ext, fd_length, fd_data,
+    (stamps, error, ids, ext, dlc, data, remote, fd_mark, fd_error, fd_ids, fd_ext, fd_length, fd_data,
      other) = (np.array(c) for c in zip(*found))
-    fd = fd_stamps != b""
-    classic = stamps != b""
+    fd = fd_mark != b""
+    classic = (stamps != b"") & ~fd
     pattern = None
     for i in np.flatnonzero(~(classic | fd)).tolist():
         pattern = pattern or _message_pattern()
@@ -125,8 +125,8 @@ def _body(block: bytes) -> Records | None:
                                         count=int(fd_data_frame.sum()))
     # error frames; remote frames (a CAN FD frame of data length 0 is one)
     frame = (classic & (error == b"") & (remote == b"")) | (fd_data_frame & (length > 0))
-    stamps, ids, ext, data = (np.where(fd, y, x)[frame] for x, y in ((stamps, fd_stamps), (ids, fd_ids), (ext, fd_ext),
-                                                                     (data, fd_data)))
+    stamps = stamps[frame]
+    ids, ext, data = (np.where(fd, y, x)[frame] for x, y in ((ids, fd_ids), (ext, fd_ext), (data, fd_data)))
     n = int(frame.sum())
     t = np.fromiter(map(float, stamps.tolist()), dtype=np.float64, count=n)
     id_len = np.char.str_len(ids) if n else np.zeros(0, dtype=np.int64)
