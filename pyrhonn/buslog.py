@@ -104,6 +104,7 @@ from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
+from .asc import AscBlocks
 from .blf import blf_records
 from .candump import parse_block
 from .framedecode import Payloads, decode_frames, unsigned_raw
@@ -391,12 +392,12 @@ class _WholeLines:
     def __init__(self, path: Path, end: int) -> None:
         self._fh = open(path, "rb")
         self._end = end
+        self._pos = 0  # bytes read (a reader may iterate the lines twice: its header, then its frames)
 
     def __iter__(self) -> Iterator[str]:
-        pos = 0
         for raw in self._fh:
-            pos += len(raw)
-            if pos > self._end:
+            self._pos += len(raw)
+            if self._pos > self._end:
                 return
             yield raw.decode("utf-8", errors="replace")
 
@@ -561,13 +562,14 @@ class _Log:
         with self._failures():
             yield from self._read(self.source)
 
-    def _read(self, source: Any) -> Iterator[tuple[float, int, bool, bytes]]:
-        """The data frames python-can's reader gives from ``source`` (counted in :attr:`count`)."""
+    def _read(self, source: Any, **options: str) -> Iterator[tuple[float, int, bool, bytes]]:
+        """The data frames python-can's reader (given ``options``) gives from ``source`` (counted in
+        :attr:`count`)."""
         import can
 
         readers = {".blf": can.BLFReader, ".asc": can.ASCReader, ".log": can.CanutilsLogReader,
                    ".mf4": can.MF4Reader}
-        with readers[self.suffix](source) as reader:
+        with readers[self.suffix](source, **options) as reader:
             if self.suffix == ".blf":
                 self._blf_checked(reader)
             for msg in reader:
@@ -602,6 +604,9 @@ class _Log:
         if self.suffix == ".blf":
             yield from self._blf_parts()
             return
+        if self.suffix == ".asc":
+            yield from self._asc_parts()
+            return
         if self.suffix == ".mf4":
             found = None
             with self._failures():
@@ -629,6 +634,21 @@ class _Log:
                 if block is None:
                     rows = list(self._read(_Lines(lines)))
                     yield FrameBlock.of(rows)
+                    continue
+                self.count += block.records
+                self.skipped += block.errors
+                yield FrameBlock(block.t, block.ids, block.extended, block.data)
+
+    def _asc_parts(self) -> Iterator[FrameBlock]:
+        """An ASC log a block of lines at a time (:class:`pyrhonn.asc.AscBlocks`); a block it does not parse is
+        read by python-can's reader (with the header's base), as every line was before."""
+        assert isinstance(self.source, _WholeLines)
+        blocks = AscBlocks()
+        with self._failures():
+            for lines in self.source.blocks():
+                body, block = blocks.parse(lines)
+                if block is None:
+                    yield FrameBlock.of(list(self._read(_Lines(blocks.fallback_text(body)), base=blocks.base)))
                     continue
                 self.count += block.records
                 self.skipped += block.errors
