@@ -19,7 +19,7 @@ import re
 
 import numpy as np
 
-from .candump import _HEX, _hex_digits
+from .candump import HEX_VALUE, hex_digits
 from .framedecode import Payloads, Records
 
 __all__ = ["AscBlocks"]
@@ -130,18 +130,18 @@ def _body(block: bytes) -> Records | None:
     n = int(frame.sum())
     t = np.fromiter(map(float, stamps.tolist()), dtype=np.float64, count=n)
     id_len = np.char.str_len(ids) if n else np.zeros(0, dtype=np.int64)
-    id_digits = _hex_digits(ids.tolist(), 8).astype(np.uint64)
+    id_digits = hex_digits(ids.tolist(), 8).astype(np.uint64)
     raw_id = np.zeros(n, dtype=np.uint64)
     for j in range(8):
         raw_id = np.where(j < id_len, (raw_id << np.uint64(4)) | id_digits[:, j], raw_id)
-    dlc_value = _HEX[np.array(dlc[frame], dtype="S1").view(np.uint8)].astype(np.int64)
+    dlc_value = HEX_VALUE[np.array(dlc[frame], dtype="S1").view(np.uint8)].astype(np.int64)
     # python-can takes at most 8 bytes of a classic frame (DLC 9-15 included), data length bytes of a CAN FD one
     size = np.where(fd[frame], length[frame], np.minimum(dlc_value, 8))
     tokens = (np.char.str_len(data) // 3) if n else np.zeros(0, dtype=np.int64)
     if (tokens < size).any() or (size > 64).any():
         return None  # fewer bytes written than the frame has, or bytes laid out otherwise
     width = int(size.max()) if n else 0
-    chars = _hex_digits(data.tolist(), 3 * width)
+    chars = hex_digits(data.tolist(), 3 * width)
     payload = ((chars[:, 1::3] << 4) | chars[:, 2::3]).astype(np.uint8)
     payload = np.where(np.arange(width) < size[:, None], payload, 0).astype(np.uint8)
     return Records(records=int(is_record.sum()), errors=int(is_record.sum()) - n, t=t,

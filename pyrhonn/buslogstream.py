@@ -83,8 +83,7 @@ class _Frames:
 
     @classmethod
     def empty(cls) -> _Frames:
-        return cls(np.zeros(0), np.zeros(0, dtype=np.int64), Payloads(np.zeros((0, 0), dtype=np.uint8),
-                                                                      np.zeros(0, dtype=np.int64)))
+        return cls(np.zeros(0), np.zeros(0, dtype=np.int64), Payloads.of([]))
 
     def take(self, rows: np.ndarray) -> _Frames:
         return _Frames(self.t[rows], self.key[rows], self.data.take(rows))

@@ -15,7 +15,7 @@ import numpy as np
 
 from .framedecode import Payloads, Records
 
-__all__ = ["parse_block"]
+__all__ = ["HEX_VALUE", "hex_digits", "parse_block"]
 
 _RECORD = re.compile(rb"^\(([0-9]+\.[0-9]+)\) [!-~]+ ([0-9A-Fa-f]{3}|[0-9A-Fa-f]{8})#(?:#[0-9])?((?:[0-9A-Fa-f]{2})*)"
                      rb"(?: [RrTt])?\r?$", re.M)
@@ -23,17 +23,17 @@ _BLANK = re.compile(rb"^[ \t\r\f\v]*$", re.M)
 _CAN_ERR_FLAG = 0x20000000
 _CAN_ERR_BUSERROR = 0x80
 #: each ASCII byte's value as a hex digit (0 for the others, which the pattern never lets through)
-_HEX = np.zeros(256, dtype=np.uint8)
+HEX_VALUE = np.zeros(256, dtype=np.uint8)
 for _i, _c in enumerate(b"0123456789abcdef"):
-    _HEX[_c] = _i
+    HEX_VALUE[_c] = _i
 for _i, _c in enumerate(b"ABCDEF"):
-    _HEX[_c] = 10 + _i
+    HEX_VALUE[_c] = 10 + _i
 
 
-def _hex_digits(texts: list[bytes], width: int) -> np.ndarray:
+def hex_digits(texts: list[bytes], width: int) -> np.ndarray:
     """(len(texts), width) the hex digits of each text, left-aligned, 0 after its end."""
     chars = np.array(texts, dtype=f"S{max(width, 1)}").view(np.uint8).reshape(len(texts), max(width, 1))
-    return _HEX[chars[:, :width]]
+    return HEX_VALUE[chars[:, :width]]
 
 
 _DIGIT = np.zeros(256, dtype=bool)
@@ -97,14 +97,14 @@ def _columns(block: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
         t[at] = stamps
         value = np.zeros(at.size, dtype=np.uint64)
         for j in range(c, d):
-            value = (value << np.uint64(4)) | _HEX[rows[:, j]].astype(np.uint64)
+            value = (value << np.uint64(4)) | HEX_VALUE[rows[:, j]].astype(np.uint64)
         raw_id[at] = value
         id_len[at] = d - c
         size[at] = (f - e) // 2
         groups.append((at, rows[:, e:f]))
     payload = np.zeros((lines, int(size.max())), dtype=np.uint8)
     for at, hexes in groups:
-        nibbles = _HEX[hexes]
+        nibbles = HEX_VALUE[hexes]
         payload[at, :nibbles.shape[1] // 2] = (nibbles[:, 0::2] << 4) | nibbles[:, 1::2]
     return t, raw_id, id_len, size, payload
 
@@ -123,14 +123,14 @@ def parse_block(block: bytes) -> Records | None:
     n = len(found)
     stamps, ids, data = zip(*found) if n else ((), (), ())
     t = np.fromiter(map(float, stamps), dtype=np.float64, count=n)
-    id_digits = _hex_digits(list(ids), 8).astype(np.uint64)
+    id_digits = hex_digits(list(ids), 8).astype(np.uint64)
     id_len = np.fromiter(map(len, ids), dtype=np.int64, count=n)
     raw_id = np.zeros(n, dtype=np.uint64)
     for j in range(8):
         raw_id = np.where(j < id_len, (raw_id << np.uint64(4)) | id_digits[:, j], raw_id)
     size = np.fromiter(map(len, data), dtype=np.int64, count=n) // 2
     width = int(size.max()) if n else 0
-    digits = _hex_digits(list(data), 2 * width)
+    digits = hex_digits(list(data), 2 * width)
     return _records(t, raw_id, id_len, size, (digits[:, 0::2] << 4) | digits[:, 1::2])
 
 
